@@ -20,6 +20,7 @@ from estimators.base import (
     register,
 )
 from estimators.allan import AllanResult, RecursiveAllan, StreamingAllan, allan_variance
+from estimators.crlb import crlb
 
 __all__ = [
     "AllanResult",
@@ -30,6 +31,7 @@ __all__ = [
     "RecursiveAllan",
     "StreamingAllan",
     "allan_variance",
+    "crlb",
     "estimator_class",
     "get",
     "names",
