@@ -1,0 +1,698 @@
+"""Noise terms of a synthetic gyro: each simulates itself and knows its exact discrete-time AV.
+
+Every term is sampled at interval ``dt`` (seconds) and produces rate samples in rad/s. Each term
+answers the same small questions:
+
+``coefficients()``
+    the IEEE coefficient(s) it stands for, in SI (e.g. ``{"N": 1e-4}``);
+``avar(m, dt)``
+    the exact Allan variance (rad^2/s^2) of the *discrete* generator at cluster sizes ``m``
+    (tau = m dt), for the non-overlapping and the overlapping estimator alike (both have that
+    expectation);
+``psd(f, dt)``
+    the one-sided power spectral density (rad^2/s^2/Hz) of the discrete sequence at frequencies
+    0 < f <= 1/(2 dt) (the pseudo-spectrum for the random walk; zero for the deterministic ramp);
+``stream(dt, rng)``
+    a :class:`TermStream` whose ``next(n)`` returns the next ``n`` samples. The samples do not depend
+    on how a record is cut into requests: ``next(a)`` then ``next(b)`` equals ``next(a + b)`` bit for
+    bit. Each term of a gyro draws from its own child generator, so terms do not interfere.
+
+The formulas (SPEC, "Discrete generators and their exact Allan variance"):
+
+=====================  ==========================================  =======================================
+term                   generator                                   exact AV at tau = m dt
+=====================  ==========================================  =======================================
+Quantization(Q)        theta_k ~ N(0, Q^2), w_k = (theta_k -        3 Q^2 / tau^2
+                       theta_{k-1}) / dt
+AngleRandomWalk(N)     w_k = (N / sqrt(dt)) n_k                     N^2 / tau
+RateRandomWalk(K)      w_k = w_{k-1} + K sqrt(dt) n_k               K^2 tau / 3 + K^2 dt^2 / (6 tau)
+RateRamp(R)            w_k = R k dt                                 R^2 tau^2 / 2
+GaussMarkov(sigma,tc)  x_k = phi x_{k-1} + sigma sqrt(1-phi^2) n_k   closed form below
+BiasInstability(B)     Kasdin & Walter (1992) 1/f FIR, Q_d = B^2    from the exact autocovariance
+SecondOrderGaussMarkov exact discretisation of Miao et al. 2015,    from the exact autocovariance
+                       eq. 8
+=====================  ==========================================  =======================================
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+from scipy.linalg import expm, solve_continuous_lyapunov
+from scipy.signal import lfilter
+
+from noise_models.exact_avar import avar_from_autocovariance, check_m
+from noise_models.units import as_si
+
+__all__ = [
+    "NoiseTerm",
+    "TermStream",
+    "Quantization",
+    "AngleRandomWalk",
+    "RateRandomWalk",
+    "RateRamp",
+    "GaussMarkov",
+    "BiasInstability",
+    "SecondOrderGaussMarkov",
+    "GM_PEAK_TAU_OVER_TC",
+    "GM_PEAK_ADEV_OVER_SIGMA",
+    "B_EQUIV_OVER_SIGMA",
+]
+
+PLATEAU = 2.0 * math.log(2.0) / math.pi
+#: continuous first-order GM: the AV peaks at tau = 1.8926 Tc ...
+GM_PEAK_TAU_OVER_TC = 1.8926
+#: ... with Allan deviation 0.6174 sigma
+GM_PEAK_ADEV_OVER_SIGMA = 0.6174
+#: SPEC's convention: the bias instability a GM term stands for, B_equiv = 0.6174 sigma / 0.6643
+B_EQUIV_OVER_SIGMA = GM_PEAK_ADEV_OVER_SIGMA / math.sqrt(PLATEAU)
+
+
+def _check_dt(dt) -> float:
+    try:
+        dt = float(dt)
+    except (TypeError, ValueError):
+        raise ValueError(f"dt: expected a positive number of seconds, got {dt!r}") from None
+    if not math.isfinite(dt) or dt <= 0:
+        raise ValueError(f"dt: expected a positive, finite sample interval in seconds, got {dt!r}")
+    return dt
+
+
+def _positive(name: str, value, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a number, got {value!r}") from None
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        kind = "non-negative" if allow_zero else "positive"
+        raise ValueError(f"{name}: expected a finite, {kind} value, got {value!r}")
+    return v
+
+
+def _check_n(n) -> int:
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+        raise ValueError(f"n: expected a non-negative integer number of samples, got {n!r}")
+    return int(n)
+
+
+class TermStream:
+    """Chunk-invariant sample source of one term (see the module docstring)."""
+
+    def __init__(self, dt: float, rng: np.random.Generator):
+        self.dt = dt
+        self.rng = rng
+
+    def next(self, n: int) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+class NoiseTerm:
+    """Base class of the noise terms."""
+
+    #: the IEEE coefficient the term reports (None if it reports none)
+    coefficient: ClassVar[str | None] = None
+
+    def coefficients(self) -> dict[str, float]:
+        raise NotImplementedError
+
+    def avar(self, m, dt) -> np.ndarray:
+        raise NotImplementedError
+
+    def psd(self, f, dt) -> np.ndarray:
+        raise NotImplementedError
+
+    def stream(self, dt, rng: np.random.Generator) -> TermStream:
+        raise NotImplementedError
+
+    def simulate(self, n: int, dt, rng: np.random.Generator) -> np.ndarray:
+        """``n`` samples (rad/s) of this term alone."""
+        return self.stream(_check_dt(dt), rng).next(_check_n(n))
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self._params().items())
+        return f"{type(self).__name__}({args})"
+
+    def _params(self) -> dict:
+        return {}
+
+    def __eq__(self, other) -> bool:
+        return type(self) is type(other) and self._params() == other._params()
+
+    def __hash__(self):
+        return hash((type(self).__name__, tuple(self._params().items())))
+
+
+def _omega_dt(f, dt):
+    f = np.asarray(f, dtype=float)
+    if np.any(f <= 0) or np.any(f > 0.5 / dt * (1 + 1e-12)):
+        raise ValueError(f"f: expected frequencies in (0, 1/(2 dt)] = (0, {0.5 / dt}] Hz")
+    return f, 2 * np.pi * f * dt
+
+
+# --- white-noise-driven terms ---------------------------------------------------------------
+
+
+class _WhiteStream(TermStream):
+    def __init__(self, dt, rng, scale):
+        super().__init__(dt, rng)
+        self.scale = scale
+
+    def next(self, n):
+        return self.rng.standard_normal(n) * self.scale
+
+
+class AngleRandomWalk(NoiseTerm):
+    """White rate noise: w_k = (N / sqrt(dt)) n_k; AV = N^2 / tau exactly.
+
+    Parameters
+    ----------
+    N : float or (value, unit)
+        Angle random walk coefficient; SI rad/sqrt(s), or e.g. ``(2.24, "deg/sqrt(h)")``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = AngleRandomWalk(N=1e-3)
+    >>> float(t.avar([1, 10], dt=0.1)[1])  # N^2 / tau at tau = 1 s
+    1e-06
+    """
+
+    coefficient = "N"
+
+    def __init__(self, N):
+        self.N = as_si("N", N)
+
+    def _params(self):
+        return {"N": self.N}
+
+    def coefficients(self):
+        return {"N": self.N}
+
+    def avar(self, m, dt):
+        return self.N**2 / (check_m(m) * _check_dt(dt))
+
+    def psd(self, f, dt):
+        f, _ = _omega_dt(f, dt)
+        return np.full_like(f, 2 * self.N**2)
+
+    def stream(self, dt, rng):
+        return _WhiteStream(_check_dt(dt), rng, self.N / math.sqrt(dt))
+
+
+class _QuantStream(TermStream):
+    def __init__(self, dt, rng, Q):
+        super().__init__(dt, rng)
+        self.Q = Q
+        self.prev = rng.standard_normal() * Q  # theta_{-1}: the record starts stationary
+
+    def next(self, n):
+        theta = self.rng.standard_normal(n) * self.Q
+        out = np.empty(n)
+        if n:
+            out[0] = theta[0] - self.prev
+            np.subtract(theta[1:], theta[:-1], out=out[1:])
+            self.prev = theta[-1]
+        return out / self.dt
+
+
+class Quantization(NoiseTerm):
+    """Quantization noise: white angle noise of std Q, differenced to rate; AV = 3 Q^2 / tau^2.
+
+    The angle noise is Gaussian (SPEC allows Gaussian or uniform with step sqrt(12) Q; the AV is the
+    same). The cluster mean of the rate telescopes to (theta_end - theta_start)/tau, so the AV is
+    3 Q^2 / tau^2 exactly for every m >= 1.
+
+    Parameters
+    ----------
+    Q : float or (value, unit)
+        Quantization coefficient; SI rad, or e.g. ``(6.87e-3, "urad")``.
+    """
+
+    coefficient = "Q"
+
+    def __init__(self, Q):
+        self.Q = as_si("Q", Q)
+
+    def _params(self):
+        return {"Q": self.Q}
+
+    def coefficients(self):
+        return {"Q": self.Q}
+
+    def avar(self, m, dt):
+        tau = check_m(m) * _check_dt(dt)
+        return 3 * self.Q**2 / tau**2
+
+    def psd(self, f, dt):
+        f, w = _omega_dt(f, dt)
+        return 2 * self.Q**2 * 4 * np.sin(w / 2) ** 2 / dt
+
+    def stream(self, dt, rng):
+        return _QuantStream(_check_dt(dt), rng, self.Q)
+
+
+class _RRWStream(TermStream):
+    def __init__(self, dt, rng, K):
+        super().__init__(dt, rng)
+        self.step = K * math.sqrt(dt)
+        self.last = np.zeros(1)
+
+    def next(self, n):
+        incr = self.rng.standard_normal(n) * self.step
+        # the carry goes first, so the running sum is the same sequential sum as in one shot
+        out = np.cumsum(np.concatenate((self.last, incr)))[1:]
+        if n:
+            self.last = out[-1:].copy()
+        return out
+
+
+class RateRandomWalk(NoiseTerm):
+    """Rate random walk: w_k = w_{k-1} + K sqrt(dt) n_k, w_{-1} = 0.
+
+    Exact AV of the sampled walk: (2m^2 + 1) K^2 dt / (6m) = K^2 tau / 3 + K^2 dt^2 / (6 tau);
+    the second term is the point-sampling correction (Zhang 2008, Metrologia).
+
+    Parameters
+    ----------
+    K : float or (value, unit)
+        Rate random walk coefficient; SI rad/s^1.5, or e.g. ``(55.44, "deg/h^1.5")``.
+    """
+
+    coefficient = "K"
+
+    def __init__(self, K):
+        self.K = as_si("K", K)
+
+    def _params(self):
+        return {"K": self.K}
+
+    def coefficients(self):
+        return {"K": self.K}
+
+    def avar(self, m, dt):
+        m = check_m(m)
+        dt = _check_dt(dt)
+        return (2.0 * m * m + 1.0) * self.K**2 * dt / (6.0 * m)
+
+    def psd(self, f, dt):
+        f, w = _omega_dt(f, dt)
+        return 2 * self.K**2 * dt**2 / (4 * np.sin(w / 2) ** 2)
+
+    def stream(self, dt, rng):
+        return _RRWStream(_check_dt(dt), rng, self.K)
+
+
+class _RampStream(TermStream):
+    def __init__(self, dt, rng, R):
+        super().__init__(dt, rng)
+        self.R = R
+        self.k = 0
+
+    def next(self, n):
+        out = self.R * self.dt * np.arange(self.k, self.k + n, dtype=float)
+        self.k += n
+        return out
+
+
+class RateRamp(NoiseTerm):
+    """Deterministic rate ramp w_k = R k dt; AV = R^2 tau^2 / 2 exactly.
+
+    Parameters
+    ----------
+    R : float or (value, unit)
+        Rate ramp coefficient; SI rad/s^2, or e.g. ``(0.35, "deg/h^2")``.
+    """
+
+    coefficient = "R"
+
+    def __init__(self, R):
+        self.R = as_si("R", R)
+
+    def _params(self):
+        return {"R": self.R}
+
+    def coefficients(self):
+        return {"R": self.R}
+
+    def avar(self, m, dt):
+        tau = check_m(m) * _check_dt(dt)
+        return self.R**2 * tau**2 / 2
+
+    def psd(self, f, dt):
+        f, _ = _omega_dt(f, dt)
+        return np.zeros_like(f)
+
+    def stream(self, dt, rng):
+        return _RampStream(_check_dt(dt), rng, self.R)
+
+
+# --- first-order Gauss-Markov ----------------------------------------------------------------
+
+
+class _AR1Stream(TermStream):
+    def __init__(self, dt, rng, sigma, phi):
+        super().__init__(dt, rng)
+        self.phi = phi
+        self.scale = sigma * math.sqrt(1.0 - phi * phi)
+        # stationary start: x_{-1} ~ N(0, sigma^2)
+        self.zi = np.array([phi * rng.standard_normal() * sigma])
+
+    def next(self, n):
+        e = self.rng.standard_normal(n) * self.scale
+        out, self.zi = lfilter([1.0], [1.0, -self.phi], e, zi=self.zi)
+        return out
+
+
+def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:
+    """f(m) / (1 - phi)^2 with phi = exp(-a), f = m(1-phi^2) - 3phi + 4phi^(m+1) - phi^(2m+1).
+
+    Evaluated without catastrophic cancellation: a Taylor series in a (whose first three
+    coefficients vanish identically) where (2m+1) a < 1, the expm1 form elsewhere.
+    """
+    m = m.astype(float)
+    c = -math.expm1(-a)
+    out = np.empty_like(m)
+    x = (2 * m + 1) * a
+    small = x < 1.0
+    if np.any(small):
+        ms = m[small]
+        total = np.zeros_like(ms)
+        term_a = a**3 / 6.0  # a^k / k!, starting at k = 3
+        for k in range(3, 60):
+            ck = -ms * 2.0**k - 3.0 + 4.0 * (ms + 1.0) ** k - (2.0 * ms + 1.0) ** k
+            total += (-1) ** k * term_a * ck
+            term_a *= a / (k + 1)
+            if term_a * (2 * ms.max() + 1) ** (k + 1) < 1e-18 * np.abs(total).min():
+                break
+        out[small] = total / c**2
+    big = ~small
+    if np.any(big):
+        mb = m[big]
+        f = mb * (-math.expm1(-2 * a)) - math.exp(-a) * (
+            -4 * np.expm1(-mb * a) + np.expm1(-2 * mb * a)
+        )
+        out[big] = f / c**2
+    return out
+
+
+class GaussMarkov(NoiseTerm):
+    """First-order Gauss-Markov rate noise (Miao et al. 2015, eq. 6), stationary std sigma.
+
+    .. math:: x_k = \\phi x_{k-1} + \\sigma\\sqrt{1-\\phi^2}\\,n_k,\\qquad \\phi = e^{-dt/T_c}
+
+    Exact discrete AV (SPEC): sigma^2 [m(1-phi^2) - 3phi + 4phi^(m+1) - phi^(2m+1)] / [m^2 (1-phi)^2],
+    evaluated without cancellation. It reports the bias instability it stands for as SPEC's
+    ``B_equiv = 0.6174 sigma / 0.6643 = 0.9294 sigma`` (AV peak matched to the flicker plateau).
+
+    Parameters
+    ----------
+    sigma : float or (value, unit)
+        Stationary standard deviation of the rate (rad/s, or e.g. ``(20, "deg/h")``).
+    tc : float
+        Correlation time Tc in seconds.
+    """
+
+    coefficient = "B"
+
+    def __init__(self, sigma, tc):
+        self.sigma = as_si("B", sigma)
+        if self.sigma == 0:
+            raise ValueError("sigma: expected a positive standard deviation, got 0")
+        self.tc = _positive("tc", tc)
+
+    @classmethod
+    def from_bias_instability(cls, B, tau_peak) -> "GaussMarkov":
+        """The GM whose AV peak equals the plateau (2 ln2/pi) B^2 at ``tau_peak`` seconds."""
+        return cls(sigma=as_si("B", B) / B_EQUIV_OVER_SIGMA, tc=_positive("tau_peak", tau_peak) / GM_PEAK_TAU_OVER_TC)
+
+    def _params(self):
+        return {"sigma": self.sigma, "tc": self.tc}
+
+    def coefficients(self):
+        return {"B": B_EQUIV_OVER_SIGMA * self.sigma}
+
+    def phi(self, dt) -> float:
+        return math.exp(-_check_dt(dt) / self.tc)
+
+    def avar(self, m, dt):
+        m = check_m(m)
+        a = _check_dt(dt) / self.tc
+        return self.sigma**2 * _gm_f_over_c2(m, a) / m.astype(float) ** 2
+
+    def autocovariance(self, lags, dt) -> np.ndarray:
+        return self.sigma**2 * self.phi(dt) ** np.asarray(lags, dtype=float)
+
+    def psd(self, f, dt):
+        f, w = _omega_dt(f, dt)
+        phi = self.phi(dt)
+        return 2 * dt * self.sigma**2 * (1 - phi**2) / (1 - 2 * phi * np.cos(w) + phi**2)
+
+    def stream(self, dt, rng):
+        return _AR1Stream(_check_dt(dt), rng, self.sigma, self.phi(dt))
+
+
+# --- flicker bias instability ----------------------------------------------------------------
+
+
+def _kasdin_walter_h(n_taps: int, alpha: float = 1.0) -> np.ndarray:
+    """Impulse response of the fractional-difference filter (1 - z^-1)^(-alpha/2)."""
+    k = np.arange(1, n_taps, dtype=float)
+    return np.concatenate(([1.0], np.cumprod((alpha / 2 + k - 1) / k)))
+
+
+class _FIRStream(TermStream):
+    """Overlap-save FIR filtering of white noise in fixed segments (chunk-invariant)."""
+
+    def __init__(self, dt, rng, h, scale, segment):
+        super().__init__(dt, rng)
+        self.h = h
+        self.scale = scale
+        self.L = len(h)
+        self.seg = segment
+        nfft = 1 << int(math.ceil(math.log2(self.seg + self.L - 1)))
+        self.nfft = nfft
+        self.H = np.fft.rfft(h, nfft)
+        # burn-in: L-1 past noise samples, so the first output is already stationary
+        self.hist = rng.standard_normal(self.L - 1) * scale
+        self.buf = np.empty(0)
+
+    def _segment(self):
+        w = self.rng.standard_normal(self.seg) * self.scale
+        x = np.concatenate((self.hist, w))
+        y = np.fft.irfft(np.fft.rfft(x, self.nfft) * self.H, self.nfft)[self.L - 1 : self.L - 1 + self.seg]
+        self.hist = x[len(x) - (self.L - 1) :] if self.L > 1 else np.empty(0)
+        return y
+
+    def next(self, n):
+        parts = [self.buf]
+        have = len(self.buf)
+        while have < n:
+            y = self._segment()
+            parts.append(y)
+            have += len(y)
+        allv = np.concatenate(parts) if len(parts) > 1 else self.buf
+        out, self.buf = allv[:n], allv[n:]
+        return out
+
+
+class BiasInstability(NoiseTerm):
+    """Flicker (1/f) bias instability, Kasdin & Walter (1992) with alpha = 1.
+
+    White noise w ~ N(0, B^2) is filtered by h_0 = 1, h_k = h_{k-1}(alpha/2 + k - 1)/k, truncated to
+    ``n_taps = ceil(tau_max / dt)`` taps. With Q_d = B^2 the one-sided PSD is
+    2 B^2 dt / |2 sin(pi f dt)| above f ~ 1/tau_max, and the AV has the plateau (2 ln2/pi) B^2 over
+    the band dt << tau << tau_max. The discrete AV approaches the plateau from above (AV(1) = 2B^2/pi
+    exactly) and, beyond ~tau_max/10, falls off as the truncated filter makes the process white at
+    the lowest frequencies: :meth:`avar` gives this exact discrete curve (from the exact
+    autocovariance of the truncated filter), which is the truth estimators are scored against.
+
+    Burn-in: the generator starts with n_taps - 1 past noise samples, so every record is an exactly
+    stationary moving average (no start-up transient).
+
+    Parameters
+    ----------
+    B : float or (value, unit)
+        Bias instability coefficient; SI rad/s, or e.g. ``(20.8, "deg/h")``.
+    tau_max : float
+        Length in seconds of the filter memory, the upper edge of the 1/f band (default 1 h). Use at
+        least the record length to keep the plateau flat over every usable tau.
+    """
+
+    coefficient = "B"
+
+    def __init__(self, B, tau_max: float = 3600.0):
+        self.B = as_si("B", B)
+        self.tau_max = _positive("tau_max", tau_max)
+
+    def _params(self):
+        return {"B": self.B, "tau_max": self.tau_max}
+
+    def coefficients(self):
+        return {"B": self.B}
+
+    def n_taps(self, dt) -> int:
+        return max(2, int(math.ceil(self.tau_max / _check_dt(dt) - 1e-9)))
+
+    def impulse_response(self, dt) -> np.ndarray:
+        return _kasdin_walter_h(self.n_taps(dt))
+
+    def autocovariance(self, max_lag: int, dt) -> np.ndarray:
+        """r(0..max_lag) of the truncated-filter process (exact, by FFT)."""
+        h = self.impulse_response(dt)
+        L = len(h)
+        nfft = 1 << int(math.ceil(math.log2(2 * L)))
+        Hf = np.fft.rfft(h, nfft)
+        r = np.fft.irfft(Hf * np.conj(Hf), nfft)[: min(L, max_lag + 1)]
+        out = np.zeros(max_lag + 1)
+        out[: len(r)] = r
+        return self.B**2 * out
+
+    def avar(self, m, dt):
+        m = check_m(m)
+        return avar_from_autocovariance(self.autocovariance(int(2 * m.max()), dt), m)
+
+    def psd(self, f, dt):
+        """One-sided PSD of the ideal (untruncated) filter, 2 B^2 dt / |2 sin(pi f dt)|.
+
+        Exact for the truncated generator only well above f = 1/tau_max.
+        """
+        f, w = _omega_dt(f, dt)
+        return 2 * self.B**2 * dt / np.abs(2 * np.sin(w / 2))
+
+    def stream(self, dt, rng):
+        dt = _check_dt(dt)
+        h = self.impulse_response(dt)
+        segment = max(1 << 16, 1 << int(math.ceil(math.log2(len(h)))))
+        return _FIRStream(dt, rng, h, self.B, segment)
+
+
+# --- second-order Gauss-Markov ---------------------------------------------------------------
+
+
+class _SOGMStream(TermStream):
+    def __init__(self, dt, rng, A, chol, P):
+        super().__init__(dt, rng)
+        self.A = A
+        self.chol = chol
+        self.x = np.linalg.cholesky(P) @ rng.standard_normal(2)  # stationary start
+
+    def next(self, n):
+        e = self.rng.standard_normal((n, 2))
+        out = np.empty(n)
+        if n:
+            _sogm_kernel(self.A, self.chol, e, self.x, out)
+        return out
+
+
+def _sogm_kernel_py(A, C, e, x, out):
+    """x_k = A x_{k-1} + C e_k (C lower-triangular), out_k = first state; x updated in place."""
+    a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    c00, c10, c11 = C[0, 0], C[1, 0], C[1, 1]
+    x0, x1 = x[0], x[1]
+    for k in range(e.shape[0]):
+        w0 = c00 * e[k, 0]
+        w1 = c10 * e[k, 0] + c11 * e[k, 1]
+        x0, x1 = a00 * x0 + a01 * x1 + w0, a10 * x0 + a11 * x1 + w1
+        out[k] = x0
+    x[0], x[1] = x0, x1
+
+
+try:  # compiled when numba is available (it is a dependency); same arithmetic either way
+    from numba import njit
+
+    _sogm_kernel = njit(cache=True)(_sogm_kernel_py)
+except ImportError:  # pragma: no cover
+    _sogm_kernel = _sogm_kernel_py
+
+
+class SecondOrderGaussMarkov(NoiseTerm):
+    """Second-order Gauss-Markov process, the rate-ramp stand-in of Miao et al. 2015 (eq. 8).
+
+    .. math:: y = \\frac{q\\,v(t)}{D^2 + \\sqrt2\\,w_0 D + w_0^2}
+
+    discretised exactly (matrix exponential and Van Loan process-noise covariance), started from its
+    stationary state. The paper writes the numerator as ``R v``; read literally, that R is not the
+    ramp coefficient (the AV for tau << 1/w0 would be R^2 tau^2 / (4 sqrt2 w0)). Here ``R`` is the
+    rate-ramp coefficient the process imitates: the driving intensity is chosen so that the
+    stationary variance of dy/dt is R^2, which makes AV ~ R^2 tau^2 / 2 for dt << tau << 1/w0.
+    Beyond tau ~ 1/w0 the AV peaks and then falls like white noise, N_equiv^2 / tau with
+    N_equiv = q / w0^2. :meth:`avar` is exact for the discrete sequence (from its autocovariance).
+
+    Parameters
+    ----------
+    R : float or (value, unit)
+        Ramp coefficient imitated (rad/s^2, or e.g. ``(0.35, "deg/h^2")``).
+    w0 : float
+        Natural angular frequency (rad/s); the ramp-like band is tau << 1/w0.
+    """
+
+    coefficient = "R"
+
+    def __init__(self, R, w0):
+        self.R = as_si("R", R)
+        if self.R == 0:
+            raise ValueError("R: expected a positive ramp coefficient, got 0")
+        self.w0 = _positive("w0", w0)
+
+    def _params(self):
+        return {"R": self.R, "w0": self.w0}
+
+    def coefficients(self):
+        return {"R": self.R}
+
+    @property
+    def q(self) -> float:
+        """Driving intensity q of eq. 8: Var(dy/dt) = q^2 / (2 sqrt2 w0) = R^2."""
+        return self.R * math.sqrt(2 * math.sqrt(2) * self.w0)
+
+    def _continuous(self):
+        w0 = self.w0
+        F = np.array([[0.0, 1.0], [-(w0**2), -math.sqrt(2) * w0]])
+        G = np.array([[0.0], [self.q]])
+        return F, G
+
+    def discretise(self, dt):
+        """(A, Qd, P): transition, process-noise covariance, stationary covariance."""
+        dt = _check_dt(dt)
+        F, G = self._continuous()
+        n = 2
+        M = np.zeros((2 * n, 2 * n))
+        M[:n, :n] = -F
+        M[:n, n:] = G @ G.T
+        M[n:, n:] = F.T
+        E = expm(M * dt)
+        A = E[n:, n:].T
+        Qd = A @ E[:n, n:]
+        Qd = (Qd + Qd.T) / 2
+        P = solve_continuous_lyapunov(F, -G @ G.T)
+        return A, Qd, (P + P.T) / 2
+
+    def autocovariance(self, max_lag: int, dt) -> np.ndarray:
+        A, _, P = self.discretise(dt)
+        mu, V = np.linalg.eig(A)
+        left = V[0, :]  # e1^T V
+        right = np.linalg.solve(V, P[:, 0])  # V^-1 P e1
+        k = np.arange(max_lag + 1)
+        r = np.real((left * right)[None, :] * mu[None, :] ** k[:, None]).sum(axis=1)
+        return r
+
+    def avar(self, m, dt):
+        m = check_m(m)
+        return avar_from_autocovariance(self.autocovariance(int(2 * m.max()), dt), m)
+
+    def psd(self, f, dt):
+        f, w = _omega_dt(f, dt)
+        A, _, P = self.discretise(dt)
+        mu, V = np.linalg.eig(A)
+        a = V[0, :] * np.linalg.solve(V, P[:, 0])
+        z = np.exp(-1j * w)[:, None] * mu[None, :]
+        s = np.real(a[None, :] * z / (1 - z)).sum(axis=1)
+        return 2 * dt * (P[0, 0] + 2 * s)
+
+    def stream(self, dt, rng):
+        dt = _check_dt(dt)
+        A, Qd, P = self.discretise(dt)
+        chol = np.linalg.cholesky(Qd + 1e-300 * np.eye(2))
+        return _SOGMStream(dt, rng, np.ascontiguousarray(A), chol, P)
