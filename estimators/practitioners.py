@@ -1,0 +1,236 @@
+"""Practitioners' baselines: how Allan-variance coefficients are read off in everyday use.
+
+* ``slope_lines`` -- the graphical method of IEEE Std 952-1997 (Annex C), as automated in
+  MathWorks' example "Inertial Sensor Noise Analysis Using Allan Variance": on the log-log Allan
+  deviation, find the point whose local slope is closest to the slope of a term, draw the line of
+  that slope through it, and read the coefficient where the line crosses a fixed tau.
+* ``log_fit`` -- unweighted least squares of log10 of the model AV against log10 of the empirical AV
+  over every tau of the grid (what the widely used ``imu_utils`` ROS package does); nonlinear in the
+  coefficients.
+* ``nnls_rel`` -- non-negative least squares (Lawson & Hanson 1974; ``scipy.optimize.nnls``) of the
+  linear AV model with each row scaled by 1/AV, i.e. relative residuals.
+
+All three use the five-term model of :mod:`estimators.av_model` (Lv et al. 2015, eqs 3-6) and the
+fully overlapping AV of :func:`estimators.allan.allan_variance` on the octave grid by default.
+As Guerrier, Molinari & Stebler (IEEE SPL 2016) show, slope reading is inconsistent for composite
+models; these are baselines, not recommendations.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import least_squares, nnls
+
+from estimators.allan import allan_variance
+from estimators.av_model import (
+    PLATEAU,
+    TAU_POWER,
+    check_terms,
+    coefficients_from_beta,
+    design_matrix,
+)
+from estimators.base import Estimator, register
+
+__all__ = ["SlopeLines", "LogFit", "NNLSRel", "slope_line_coefficients", "READ_TAU"]
+
+#: The tau (s) at which each slope line is read (IEEE Std 952 Annex C; MathWorks example):
+#: slope -1 at sqrt(3) (sigma = Q), -1/2 at 1 (sigma = N), 0 anywhere (sigma = 0.6643 B),
+#: +1/2 at 3 (sigma = K), +1 at sqrt(2) (sigma = R).
+READ_TAU = {"Q": math.sqrt(3.0), "N": 1.0, "B": 1.0, "K": 3.0, "R": math.sqrt(2.0)}
+_SLOPE = {c: TAU_POWER[c] / 2.0 for c in TAU_POWER}  # log-log slope of the ADEV
+
+
+def _av(rate, dt, taus, overlapping):
+    res = allan_variance(rate, dt, taus=taus, overlapping=overlapping)
+    ok = np.isfinite(res.avar) & (res.avar > 0)
+    if ok.sum() < 2:
+        raise ValueError("rate: fewer than two positive Allan-variance values; the record is too short")
+    return np.asarray(res.tau)[ok], np.asarray(res.avar)[ok]
+
+
+def slope_line_coefficients(tau, adev, terms="NBK") -> tuple[dict, dict]:
+    """Read coefficients off an ADEV curve with slope lines (IEEE Std 952 Annex C).
+
+    For each term with ADEV slope :math:`s` (Q: -1, N: -1/2, B: 0, K: +1/2, R: +1), take the
+    point :math:`i` whose forward log-log slope
+    :math:`(\\log\\sigma_{i+1}-\\log\\sigma_i)/(\\log\\tau_{i+1}-\\log\\tau_i)` is closest to
+    :math:`s`, intercept :math:`b = \\log\\sigma_i - s\\log\\tau_i`, and read
+
+    .. math::
+
+        \\log_{10} C = s\\log_{10}\\tau_C + b - \\log_{10} a_C
+
+    with :math:`\\tau_C` from :data:`READ_TAU` and :math:`a_C = 1` except
+    :math:`a_B = \\sqrt{2\\ln 2/\\pi} = 0.6643`. This is the MathWorks example's procedure for N
+    (tau = 1 s), K (tau = 3 s) and B, extended to Q and R with IEEE Std 952's read-off points.
+
+    Returns ``(coefficients, info)`` where ``info[c]`` is the index of the point used.
+
+    Examples
+    --------
+    >>> tau = np.logspace(-1, 3, 13)
+    >>> c, _ = slope_line_coefficients(tau, np.sqrt(4e-6 / tau), "N")
+    >>> round(c["N"], 9)
+    0.002
+    """
+    terms = check_terms(terms)
+    tau = np.asarray(tau, dtype=float)
+    adev = np.asarray(adev, dtype=float)
+    lt, la = np.log10(tau), np.log10(adev)
+    slopes = np.diff(la) / np.diff(lt)
+    coefs, used = {}, {}
+    for c in terms:
+        s = _SLOPE[c]
+        i = int(np.argmin(np.abs(slopes - s)))
+        b = la[i] - s * lt[i]
+        scale = math.sqrt(PLATEAU) if c == "B" else 1.0
+        coefs[c] = 10.0 ** (s * math.log10(READ_TAU[c]) + b) / scale
+        used[c] = i
+    return coefs, used
+
+
+class _AVBaseline(Estimator):
+    """Shared settings and AV computation of the three baselines."""
+
+    def _prepare(self, rate, dt):
+        terms = check_terms(self.terms)
+        if not isinstance(self.overlapping, bool):
+            raise ValueError(f"overlapping: expected True or False, got {self.overlapping!r}")
+        tau, avar = _av(rate, dt, self.taus, self.overlapping)
+        return terms, tau, avar
+
+
+@register("slope_lines")
+class SlopeLines(_AVBaseline):
+    """IEEE Std 952 slope-line reading, automated as in the MathWorks example.
+
+    See :func:`slope_line_coefficients`. Only the coefficients in ``terms`` are read (default N, B, K,
+    as in the MathWorks example); each is read independently of the others, so the reading is biased
+    wherever terms overlap on the curve (e.g. N read where white noise and bias instability mix).
+
+    Parameters
+    ----------
+    terms : str
+        Subset of "QNBKR" to read (default "NBK").
+    taus : str or array
+        tau grid for :func:`estimators.allan.allan_variance` (default "octave", as MathWorks'
+        ``allanvar`` default).
+    overlapping : bool
+        Fully overlapping AV (default True).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from noise_models import Gyro, AngleRandomWalk
+    >>> x = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3)]).simulate(100_000, np.random.default_rng(1))
+    >>> est = SlopeLines(terms="N").fit(x, 0.01)
+    >>> bool(abs(est.coefficients_["N"] / 1e-3 - 1) < 0.05)
+    True
+    """
+
+    def __init__(self, *, terms="NBK", taus="octave", overlapping=True):
+        self.terms = terms
+        self.taus = taus
+        self.overlapping = overlapping
+
+    def _fit(self, rate, dt):
+        terms, tau, avar = self._prepare(rate, dt)
+        coefs, used = slope_line_coefficients(tau, np.sqrt(avar), terms)
+        diag = {"tau": tau, "avar": avar, "tau_used": {c: float(tau[i]) for c, i in used.items()}}
+        return coefs, {}, diag
+
+
+@register("log_fit")
+class LogFit(_AVBaseline):
+    """Unweighted least squares in log10 of the AV (as the ``imu_utils`` ROS package fits).
+
+    .. math::
+
+        \\min_{\\beta > 0} \\sum_j \\left[\\log_{10}\\big(X(\\tau_j)\\beta\\big)
+        - \\log_{10}\\hat\\sigma^2(\\tau_j)\\right]^2
+
+    with :math:`X, \\beta` of Lv et al. (2015, eqs 3-6), solved in :math:`u = \\log\\beta` by
+    ``scipy.optimize.least_squares`` (trust-region reflective) from the ``nnls_rel`` solution.
+    Elements of beta are bounded below by ``1e-12`` times their largest possible contribution
+    (``max_j avar_j / tau_j^p``): a term the data do not need ends at that floor and is reported as
+    0 (its contribution is then below 1e-12 of the AV everywhere on the grid).
+
+    Parameters
+    ----------
+    terms : str
+        Modelled coefficients (default "QNBKR").
+    taus, overlapping
+        As :class:`SlopeLines`.
+    """
+
+    def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True):
+        self.terms = terms
+        self.taus = taus
+        self.overlapping = overlapping
+
+    def _fit(self, rate, dt):
+        terms, tau, avar = self._prepare(rate, dt)
+        X = design_matrix(tau, terms)
+        y = np.log10(avar)
+        ceiling = np.max(avar[:, None] / X, axis=0)
+        floor = 1e-12 * ceiling
+        beta0 = _nnls_rel_beta(X, avar)
+        u0 = np.log(np.clip(beta0, floor * 10, ceiling))
+
+        def resid(u):
+            return np.log10(X @ np.exp(u)) - y
+
+        sol = least_squares(resid, u0, bounds=(np.log(floor), np.log(ceiling)), method="trf",
+                            x_scale=1.0, xtol=1e-12, ftol=1e-12)
+        beta = np.exp(sol.x)
+        at_floor = sol.x <= np.log(floor) + 1e-6
+        beta[at_floor] = 0.0
+        coefs, nonphys = coefficients_from_beta(beta, terms)
+        diag = {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": X @ beta,
+                "cost": float(sol.cost), "success": bool(sol.success)}
+        if not sol.success:
+            diag["failure"] = f"least_squares: {sol.message}"
+        return coefs, nonphys, diag
+
+
+def _nnls_rel_beta(X, avar):
+    A = X / avar[:, None]
+    # column scaling keeps nnls well conditioned when the columns span many decades
+    s = np.linalg.norm(A, axis=0)
+    beta, _ = nnls(A / s, np.ones(len(avar)))
+    return beta / s
+
+
+@register("nnls_rel")
+class NNLSRel(_AVBaseline):
+    """Non-negative least squares with relative residuals.
+
+    .. math::
+
+        \\min_{\\beta \\ge 0} \\sum_j \\left(\\frac{X(\\tau_j)\\beta}{\\hat\\sigma^2(\\tau_j)} - 1\\right)^2
+
+    (Lawson & Hanson 1974 active-set NNLS, ``scipy.optimize.nnls``; model of Lv et al. 2015,
+    eqs 3-6). A zero element of beta is a coefficient the fit set to 0 (a physical value: the term
+    is not needed), unlike OLS's negative elements.
+
+    Parameters
+    ----------
+    terms : str
+        Modelled coefficients (default "QNBKR").
+    taus, overlapping
+        As :class:`SlopeLines`.
+    """
+
+    def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True):
+        self.terms = terms
+        self.taus = taus
+        self.overlapping = overlapping
+
+    def _fit(self, rate, dt):
+        terms, tau, avar = self._prepare(rate, dt)
+        X = design_matrix(tau, terms)
+        beta = _nnls_rel_beta(X, avar)
+        coefs, nonphys = coefficients_from_beta(beta, terms)
+        return coefs, nonphys, {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": X @ beta}
