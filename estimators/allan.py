@@ -56,7 +56,8 @@ class AllanResult:
     edf : ndarray
         Equivalent degrees of freedom of the AV value (Var(avar) ~ 2 avar^2 / edf).
     ci_low, ci_high : ndarray
-        chi^2 interval of the AV with probability ``confidence`` (default 0.683, "1 sigma").
+        chi^2 interval of the AV with probability ``confidence`` (default 0.683, "1 sigma");
+        computed on first access.
     overlapping : bool
     n_samples : int
     dt : float
@@ -68,8 +69,6 @@ class AllanResult:
     J: np.ndarray
     rel_error: np.ndarray
     edf: np.ndarray
-    ci_low: np.ndarray
-    ci_high: np.ndarray
     overlapping: bool
     n_samples: int
     dt: float
@@ -78,6 +77,14 @@ class AllanResult:
     @property
     def adev(self) -> np.ndarray:
         return np.sqrt(self.avar)
+
+    @property
+    def ci_low(self) -> np.ndarray:
+        return _interval(self.avar, self.edf, self.confidence)[0]
+
+    @property
+    def ci_high(self) -> np.ndarray:
+        return _interval(self.avar, self.edf, self.confidence)[1]
 
     @property
     def variance(self) -> np.ndarray:
@@ -191,8 +198,7 @@ def _result(m, avar, n, dt, overlapping, noise, confidence) -> AllanResult:
         edf = edf_overlapping(m, n, kinds)
     else:
         edf = np.maximum(J - 1, 1).astype(float)
-    lo, hi = _interval(avar, edf, confidence)
-    return AllanResult(tau, m, avar, J, rel, edf, lo, hi, overlapping, n, dt, confidence)
+    return AllanResult(tau, m, avar, J, rel, edf, overlapping, n, dt, confidence)
 
 
 def allan_variance(

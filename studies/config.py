@@ -1,0 +1,354 @@
+"""Study configuration: a small TOML file, validated completely before any work starts.
+
+Schema (every key optional unless marked required)::
+
+    [study]
+    name = "lv2015"             # required: names the output folder results/<name>
+    description = "..."
+    seed = 2015                 # required: master seed
+    replicates = 30             # required
+    duration_s = 14400          # or n_samples = ...; default: each preset's paper record length
+    block_size = 5              # replicates per task and per saved shard
+    backend = "loky"            # "loky" (local processes) or "dask"
+    scheduler = "tcp://..."     # dask scheduler address (backend = "dask"; none: local cluster)
+    paper_table = "../../shared/paper_tables/lv2015_tables_2_4_6.csv"  # relative to this file
+    figure_gyros = ["SRS2000"]  # gyros that get figures (default: all)
+
+    [[gyros]]                   # at least one
+    preset = "SRS2000"          # a preset name, or an explicit gyro:
+    # name = "mygyro"; dt = 0.01; terms = [{type = "AngleRandomWalk", N = [2.24, "deg/sqrt(h)"]}]
+    # label = "..."; paper_gyro = "X" (the gyro's name in paper_table)
+
+    [[estimators]]              # at least one
+    name = "wls"                # required: a registry name
+    label = "WLS"               # unique display label (default: name)
+    settings = { terms = "QNB" }
+    gyro_settings = { SRS2000 = { terms = "QN" } }   # per-gyro overrides
+    x0_truth_scale = 0.5        # set settings["x0"] = truth x 0.5 for the modelled coefficients
+    paper_method = "wls"        # the method's name in paper_table
+
+Errors name the file, the key and what was expected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import estimators
+from noise_models import TERM_TYPES, Gyro, presets
+
+__all__ = ["ConfigError", "StudyConfig", "GyroSpec", "EstimatorSpec", "load_config", "parse_config"]
+
+
+class ConfigError(ValueError):
+    """A study configuration is invalid; the message names the file, key and expectation."""
+
+
+@dataclass(frozen=True)
+class GyroSpec:
+    label: str
+    gyro: Gyro
+    n_samples: int
+    source: dict  # the config entry as given (for hashing and reporting)
+    paper_gyro: str | None = None
+
+
+@dataclass(frozen=True)
+class EstimatorSpec:
+    label: str
+    name: str
+    settings: dict
+    gyro_settings: dict
+    x0_truth_scale: float | None = None
+    paper_method: str | None = None
+
+    def settings_for(self, gyro: GyroSpec) -> dict:
+        s = dict(self.settings)
+        s.update(self.gyro_settings.get(gyro.label, {}))
+        if self.x0_truth_scale is not None:
+            truth = gyro.gyro.coefficients
+            terms = s.get("terms", "".join(c for c in truth.index if np.isfinite(truth[c])))
+            s["x0"] = {c: float(truth[c]) * self.x0_truth_scale for c in terms if np.isfinite(truth[c])}
+        return s
+
+    def make(self, gyro: GyroSpec) -> "estimators.Estimator":
+        return estimators.get(self.name, **self.settings_for(gyro))
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    name: str
+    seed: int
+    replicates: int
+    gyros: tuple[GyroSpec, ...]
+    estimators: tuple[EstimatorSpec, ...]
+    description: str = ""
+    block_size: int = 5
+    backend: str = "loky"
+    scheduler: str | None = None
+    paper_table: Path | None = None
+    figure_gyros: tuple[str, ...] | None = None
+    path: Path | None = None
+    raw: dict = field(default_factory=dict)
+
+    def result_key(self) -> str:
+        """Hash of everything that determines the per-replicate results (not their count)."""
+        study = {k: v for k, v in self.raw.get("study", {}).items() if k in ("seed", "duration_s", "n_samples")}
+        payload = {
+            "study": study,
+            "gyros": self.raw.get("gyros"),
+            "estimators": [
+                {k: v for k, v in e.items() if k not in ("paper_method",)} for e in self.raw.get("estimators", [])
+            ],
+        }
+        blob = json.dumps(payload, sort_keys=True, default=str).encode()
+        return hashlib.sha256(blob).hexdigest()[:16]
+
+
+_STUDY_KEYS = {
+    "name": str,
+    "description": str,
+    "seed": int,
+    "replicates": int,
+    "duration_s": (int, float),
+    "n_samples": int,
+    "block_size": int,
+    "backend": str,
+    "scheduler": str,
+    "paper_table": str,
+    "figure_gyros": list,
+}
+_GYRO_KEYS = {"preset": str, "name": str, "label": str, "dt": (int, float), "terms": list, "paper_gyro": str}
+_EST_KEYS = {
+    "name": str,
+    "label": str,
+    "settings": dict,
+    "gyro_settings": dict,
+    "x0_truth_scale": (int, float),
+    "paper_method": str,
+}
+_TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", list: "an array", dict: "a table"}
+
+
+def _tname(t) -> str:
+    if isinstance(t, tuple):
+        return "a number"
+    return _TYPE_NAMES.get(t, t.__name__)
+
+
+class _Ctx:
+    def __init__(self, where: str):
+        self.where = where
+
+    def fail(self, key: str, msg: str):
+        raise ConfigError(f"{self.where}: {key}: {msg}")
+
+    def check_keys(self, table: dict, allowed: dict, prefix: str):
+        if not isinstance(table, dict):
+            self.fail(prefix, f"expected a table, got {type(table).__name__}")
+        for k, v in table.items():
+            key = f"{prefix}.{k}" if prefix else k
+            if k not in allowed:
+                self.fail(key, f"unknown key; expected one of {', '.join(sorted(allowed))}")
+            t = allowed[k]
+            ok = isinstance(v, t) and not (isinstance(v, bool) and t in (int, (int, float)))
+            if not ok:
+                self.fail(key, f"expected {_tname(t)}, got {v!r}")
+
+
+def _positive_int(ctx: _Ctx, key: str, v, minimum: int = 1) -> int:
+    if v < minimum:
+        ctx.fail(key, f"expected an integer >= {minimum}, got {v!r}")
+    return int(v)
+
+
+def _build_gyro(ctx: _Ctx, i: int, g: dict) -> tuple[str, Gyro, float | None]:
+    key = f"gyros[{i}]"
+    if ("preset" in g) == ("terms" in g):
+        ctx.fail(key, "expected either 'preset' or an explicit gyro ('name', 'dt', 'terms'), not both or neither")
+    if "preset" in g:
+        for k in ("dt", "terms", "name"):
+            if k in g:
+                ctx.fail(f"{key}.{k}", "not allowed with 'preset' (a preset has its own sample rate and terms)")
+        try:
+            info = presets.info(g["preset"])
+        except ValueError as e:
+            ctx.fail(f"{key}.preset", str(e))
+        return g.get("label", info.name), info.gyro(), info.duration_s
+    for k in ("name", "dt"):
+        if k not in g:
+            ctx.fail(f"{key}.{k}", "required for an explicit gyro")
+    terms = []
+    for j, t in enumerate(g["terms"]):
+        tkey = f"{key}.terms[{j}]"
+        if not isinstance(t, dict) or "type" not in t:
+            ctx.fail(tkey, f"expected a table with 'type' (one of {', '.join(TERM_TYPES)})")
+        kind = t["type"]
+        if kind not in TERM_TYPES:
+            ctx.fail(f"{tkey}.type", f"unknown term type {kind!r}; expected one of {', '.join(TERM_TYPES)}")
+        kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in t.items() if k != "type"}
+        try:
+            terms.append(TERM_TYPES[kind](**kwargs))
+        except TypeError as e:
+            ctx.fail(tkey, f"bad arguments for {kind}: {e}")
+        except ValueError as e:
+            ctx.fail(tkey, str(e))
+    try:
+        gyro = Gyro(dt=g["dt"], terms=terms, name=g["name"])
+    except ValueError as e:
+        ctx.fail(key, str(e))
+    return g.get("label", g["name"]), gyro, None
+
+
+def _tuplify(v):
+    """TOML arrays of [value, "unit"] become tuples (the units module reads pairs)."""
+    if isinstance(v, dict):
+        return {k: _tuplify(x) for k, x in v.items()}
+    if isinstance(v, list):
+        if len(v) == 2 and isinstance(v[1], str) and isinstance(v[0], int | float) and not isinstance(v[0], bool):
+            return (v[0], v[1])
+        return [_tuplify(x) for x in v]
+    return v
+
+
+def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -> StudyConfig:
+    """Validate a parsed TOML document and build the :class:`StudyConfig`."""
+    ctx = _Ctx(where)
+    ctx.check_keys(raw, {"study": dict, "gyros": list, "estimators": list}, "")
+    for k in ("study", "gyros", "estimators"):
+        if k not in raw:
+            ctx.fail(k, "required section is missing")
+    study = raw["study"]
+    ctx.check_keys(study, _STUDY_KEYS, "study")
+    for k in ("name", "seed", "replicates"):
+        if k not in study:
+            ctx.fail(f"study.{k}", "required")
+    name = study["name"]
+    if not name or any(c in name for c in "/\\") or name.startswith("."):
+        ctx.fail("study.name", f"expected a plain folder name, got {name!r}")
+    seed = _positive_int(ctx, "study.seed", study["seed"], 0)
+    replicates = _positive_int(ctx, "study.replicates", study["replicates"])
+    block = _positive_int(ctx, "study.block_size", study.get("block_size", 5))
+    if "duration_s" in study and "n_samples" in study:
+        ctx.fail("study.duration_s", "give duration_s or n_samples, not both")
+    if "duration_s" in study and not (math.isfinite(study["duration_s"]) and study["duration_s"] > 0):
+        ctx.fail("study.duration_s", f"expected a positive number of seconds, got {study['duration_s']!r}")
+    if "n_samples" in study:
+        _positive_int(ctx, "study.n_samples", study["n_samples"], 16)
+    backend = study.get("backend", "loky")
+    if backend not in ("loky", "dask"):
+        ctx.fail("study.backend", f"expected 'loky' or 'dask', got {backend!r}")
+    paper_table = None
+    if "paper_table" in study:
+        base = path.parent if path else Path.cwd()
+        paper_table = (base / study["paper_table"]).resolve()
+
+    if not raw["gyros"]:
+        ctx.fail("gyros", "expected at least one [[gyros]] entry")
+    gyros = []
+    for i, g in enumerate(raw["gyros"]):
+        ctx.check_keys(g, _GYRO_KEYS, f"gyros[{i}]")
+        label, gyro, paper_duration = _build_gyro(ctx, i, _tuplify(g))
+        if "n_samples" in study:
+            n = int(study["n_samples"])
+        else:
+            duration = study.get("duration_s", paper_duration)
+            if duration is None:
+                ctx.fail(f"gyros[{i}]", "an explicit gyro needs study.duration_s or study.n_samples")
+            n = int(round(duration / gyro.dt))
+        if n < 16:
+            ctx.fail(f"gyros[{i}]", f"the record has only {n} samples at dt = {gyro.dt} s; expected at least 16")
+        gyros.append(GyroSpec(label, gyro, n, g, g.get("paper_gyro")))
+    labels = [g.label for g in gyros]
+    if len(set(labels)) != len(labels):
+        ctx.fail("gyros", f"gyro labels must be unique, got {labels}")
+    if "figure_gyros" in study:
+        unknown = [x for x in study["figure_gyros"] if x not in labels]
+        if unknown:
+            ctx.fail("study.figure_gyros", f"unknown gyro label(s) {unknown}; expected some of {labels}")
+
+    if not raw["estimators"]:
+        ctx.fail("estimators", "expected at least one [[estimators]] entry")
+    ests = []
+    for i, e in enumerate(raw["estimators"]):
+        key = f"estimators[{i}]"
+        ctx.check_keys(e, _EST_KEYS, key)
+        if "name" not in e:
+            ctx.fail(f"{key}.name", f"required; expected one of {', '.join(estimators.names())}")
+        if e["name"] not in estimators.names():
+            ctx.fail(f"{key}.name", f"unknown estimator {e['name']!r}; expected one of {', '.join(estimators.names())}")
+        gs = e.get("gyro_settings", {})
+        for gl, v in gs.items():
+            if gl not in labels:
+                ctx.fail(f"{key}.gyro_settings.{gl}", f"unknown gyro label; expected one of {labels}")
+            if not isinstance(v, dict):
+                ctx.fail(f"{key}.gyro_settings.{gl}", "expected a table of settings")
+        scale = e.get("x0_truth_scale")
+        if scale is not None and not (math.isfinite(scale) and scale > 0):
+            ctx.fail(f"{key}.x0_truth_scale", f"expected a positive factor, got {scale!r}")
+        spec = EstimatorSpec(
+            label=e.get("label", e["name"]),
+            name=e["name"],
+            settings=_tuplify(e.get("settings", {})),
+            gyro_settings=_tuplify(gs),
+            x0_truth_scale=None if scale is None else float(scale),
+            paper_method=e.get("paper_method"),
+        )
+        # build one per gyro now, so bad settings fail before any work
+        for g in gyros:
+            try:
+                est = spec.make(g)
+                _probe_settings(est)
+            except ValueError as err:
+                ctx.fail(f"{key}.settings", f"(gyro {g.label}) {err}")
+        ests.append(spec)
+    elabels = [e.label for e in ests]
+    if len(set(elabels)) != len(elabels):
+        ctx.fail("estimators", f"estimator labels must be unique (set 'label'), got {elabels}")
+
+    return StudyConfig(
+        name=name,
+        seed=seed,
+        replicates=replicates,
+        gyros=tuple(gyros),
+        estimators=tuple(ests),
+        description=study.get("description", ""),
+        block_size=block,
+        backend=backend,
+        scheduler=study.get("scheduler"),
+        paper_table=paper_table,
+        figure_gyros=tuple(study["figure_gyros"]) if "figure_gyros" in study else None,
+        path=path,
+        raw=raw,
+    )
+
+
+def _probe_settings(est) -> None:
+    """Let an estimator check its settings before any work, if it can."""
+    check = getattr(est, "check_settings", None)
+    if callable(check):
+        check()
+
+
+def load_config(path, overrides: dict[str, Any] | None = None) -> StudyConfig:
+    """Read and validate a study TOML file (``overrides`` update its [study] table)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such study file")
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: not valid TOML: {e}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not a text file") from None
+    if overrides:
+        raw.setdefault("study", {}).update(overrides)
+    return parse_config(raw, where=str(path), path=path)
