@@ -19,7 +19,8 @@ For each incoming sample :math:`y_{k+1}` the kernel
 2. updates the coefficients :math:`a, b, d` of the quadratic forms whose conditional means are the
    sufficient statistics (eqs 22-27 for :math:`H^{(0)} = \\sum_{l=0}^{k} x_l x_l^T`,
    :math:`H^{(1)} = \\sum_{l=1}^{k} x_l x_{l-1}^T`, :math:`H^{(2)} = \\sum_{l=1}^{k} x_{l-1}x_{l-1}^T`;
-   eqs 31-32 for :math:`T = \\sum_{l=0}^k x_l y_l`); eq. 30 is used in its symmetric form
+   eqs 31-32 for :math:`T = \\sum_{l=0}^k x_l y_l`; and, for the exact Q update,
+   :math:`H^{(3)} = \\sum_{l=1}^{k} x_l x_l^T`, the recursion of :math:`H^{(0)}` started at 0); eq. 30 is used in its symmetric form
    :math:`b \\leftarrow O(b + 2(d + \\tfrac12(e_ie_j^T + e_je_i^T))S)` (the paper's
    :math:`e_je_i^T` gives a non-symmetric matrix whose symmetric part is the same statistic);
 3. runs the Kalman measurement update with :math:`y_{k+1}` (eqs 16-18) and accumulates the
@@ -80,7 +81,7 @@ def _inv_small(M, out):
 def evaluate_stats(a, b, d, aT, bT, x, P, U, E):
     """U^(M)_{ij} = a + b'x + tr(dP) + x'dx and E_i = aT_i + bT_i'x (Miao et al. 2015, eqs 32-33)."""
     m = x.shape[0]
-    for M in range(3):
+    for M in range(4):
         for i in range(m):
             for j in range(m):
                 v = a[M, i, j]
@@ -97,24 +98,26 @@ def evaluate_stats(a, b, d, aT, bT, x, P, U, E):
 
 
 @njit(cache=True)
-def m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R):
+def m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q=False):
     """M-step (Miao et al. 2015, eqs 28-31) into A, C, Q, R if valid; returns True if applied.
 
     :math:`A = U^{(1)}(U^{(2)})^{-1}`, :math:`Q = (U^{(0)} - AU^{(1)T} - U^{(1)}A^T + AU^{(2)}A^T)/k`
-    (eq. 29 prints the last sign as minus, a misprint: with it Q would be negative),
+    (eq. 29 prints the last sign as minus, a misprint: with it Q would be negative; with
+    ``exact_q`` the first term is :math:`\\sum_{l=1}^k x_lx_l^T` (statistic :math:`H^{(3)}`) instead
+    of eq. 29's :math:`U^{(0)} = \\sum_{l=0}^k x_lx_l^T`, which makes the step the exact EM update),
     :math:`C = E^T(U^{(0)})^{-1}`, :math:`R = (\\sum y^2 - 2CE + CU^{(0)}C^T)/(k+1)`.
     """
     m = x.shape[0]
-    return _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, np.empty((3, m, m)), np.empty(m),
-                   np.empty((4, m, m)), np.empty(m))
+    return _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, np.empty((4, m, m)),
+                   np.empty(m), np.empty((4, m, m)), np.empty(m))
 
 
 @njit(cache=True)
-def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, U, E, W, Cn):
+def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
     """Allocation-free M-step; U, E, W (4, m, m), Cn (m,) are scratch arrays."""
     m = x.shape[0]
     evaluate_stats(a, b, d, aT, bT, x, P, U, E)
-    for M in (0, 2):
+    for M in (0, 2, 3):
         for i in range(m):
             for j in range(i + 1, m):
                 s = 0.5 * (U[M, i, j] + U[M, j, i])
@@ -132,10 +135,11 @@ def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, U, E, W, Cn):
             for p in range(m):
                 v += U[1, i, p] * U2i[p, j]
             An[i, j] = v
-    # Q = (U0 - A U1' - U1 A' + A U2 A') / k
+    # Q = (U0 - A U1' - U1 A' + A U2 A') / k   (U3 instead of U0 if exact_q)
+    mq = 3 if exact_q else 0
     for i in range(m):
         for j in range(i, m):
-            v = U[0, i, j]
+            v = U[mq, i, j]
             for p in range(m):
                 v -= An[i, p] * U[1, j, p] + U[1, i, p] * An[j, p]
                 for q in range(m):
@@ -175,7 +179,7 @@ def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, U, E, W, Cn):
 
 @njit(cache=True)
 def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, update_every,
-           trace_every, trace):
+           trace_every, trace, exact_q=False):
     """Run the E-K filters (and, if ``recursive``, the recursive EM) over the samples ``y``.
 
     Parameters
@@ -187,8 +191,9 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
         Model parameters; updated in place by the recursive M-step.
     x, P : ndarray (m,), (m, m)
         Filtered state mean and covariance at the last sample seen.
-    a, b, d : ndarray (3, m, m), (3, m, m, m), (3, m, m, m, m)
-        Coefficients of the E-K filters for :math:`H^{(0)}, H^{(1)}, H^{(2)}`.
+    a, b, d : ndarray (4, m, m), (4, m, m, m), (4, m, m, m, m)
+        Coefficients of the E-K filters for :math:`H^{(0)}, H^{(1)}, H^{(2)}` and
+        :math:`H^{(3)} = \\sum_{l=1}^k x_lx_l^T` (same recursion as :math:`H^{(0)}`, started at 0).
     aT, bT : ndarray (m,), (m, m)
         Coefficients of the E-K filter for :math:`T = \\sum x_l y_l`.
     sc : ndarray (2,) float
@@ -202,6 +207,8 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
     trace_every : int
         Record ``[k, A, C, Q, R]`` in ``trace`` every ``trace_every`` transitions (0: never).
     trace : ndarray (n_rows, 1 + 2m^2 + m + 1)
+    exact_q : bool
+        Use :math:`H^{(3)}` instead of :math:`H^{(0)}` in the Q update (see :func:`m_step`).
 
     Returns
     -------
@@ -223,7 +230,7 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
     tmp = np.empty((m, m))
     xp = np.empty(m)
     PC = np.empty(m)
-    wU = np.empty((3, m, m))
+    wU = np.empty((4, m, m))
     wE = np.empty(m)
     wW = np.empty((4, m, m))
     wC = np.empty(m)
@@ -276,7 +283,7 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
                 Zi[i, j] = v
                 Zi[j, i] = v
         # ---- E-K filters for H0, H1, H2
-        for M in range(3):
+        for M in range(4):
             for i in range(m):
                 for j in range(m):
                     for p in range(m):
@@ -318,7 +325,7 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
                             for r in range(m):
                                 w += tmp[p, r] * O[q, r]
                             d[M, i, j, p, q] = w
-                    if M == 0:
+                    if M == 0 or M == 3:
                         d[M, i, j, i, j] += 0.5
                         d[M, i, j, j, i] += 0.5
                     elif M == 1:
@@ -382,7 +389,7 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
         ic[I_K] += 1
         k = ic[I_K]
         if recursive and k >= warmup and k % update_every == 0:
-            if _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, wU, wE, wW, wC):
+            if _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, wU, wE, wW, wC):
                 ic[I_UPDATES] += 1
             else:
                 if ic[I_REJECTED] == 0:

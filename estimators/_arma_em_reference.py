@@ -36,8 +36,8 @@ def _sym(i: int, j: int, m: int) -> np.ndarray:
 def evaluate_stats_reference(a, b, d, aT, bT, x, P):
     """U^(M) (M = 0, 1, 2) and E from the filter coefficients (Miao et al. 2015, eqs 32-33)."""
     m = x.shape[0]
-    U = np.empty((3, m, m))
-    for M in range(3):
+    U = np.empty((4, m, m))
+    for M in range(4):
         for i in range(m):
             for j in range(m):
                 dij = d[M, i, j]
@@ -46,7 +46,7 @@ def evaluate_stats_reference(a, b, d, aT, bT, x, P):
     return U, E
 
 
-def m_step_reference(a, b, d, aT, bT, x, P, sc, k):
+def m_step_reference(a, b, d, aT, bT, x, P, sc, k, exact_q=False):
     """Parameter update (Miao et al. 2015, eqs 28-31, sign of eq. 29 corrected).
 
     Returns ``(ok, A, C, Q, R)``; ``ok`` is False when U^(0) or U^(2) is singular or the new
@@ -54,13 +54,14 @@ def m_step_reference(a, b, d, aT, bT, x, P, sc, k):
     """
     U, E = evaluate_stats_reference(a, b, d, aT, bT, x, P)
     U0 = 0.5 * (U[0] + U[0].T)
+    U3 = 0.5 * (U[3] + U[3].T)
     U1 = U[1]
     U2 = 0.5 * (U[2] + U[2].T)
     m = x.shape[0]
     if np.linalg.det(U2) <= 0 or np.linalg.det(U0) <= 0:
         return False, None, None, None, None
     A = U1 @ np.linalg.inv(U2)
-    Q = (U0 - A @ U1.T - U1 @ A.T + A @ U2 @ A.T) / k
+    Q = ((U3 if exact_q else U0) - A @ U1.T - U1 @ A.T + A @ U2 @ A.T) / k
     Q = 0.5 * (Q + Q.T)
     C = np.linalg.solve(U0, E)
     R = (sc[S_SYY] - 2.0 * C @ E + C @ U0 @ C) / (k + 1)
@@ -70,7 +71,7 @@ def m_step_reference(a, b, d, aT, bT, x, P, sc, k):
 
 
 def ek_run_reference(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic,
-                     recursive, warmup, update_every, trace_every, trace):
+                     recursive, warmup, update_every, trace_every, trace, exact_q=False):
     """Same contract as :func:`estimators._arma_em_kernels.ek_run`, one sample at a time in NumPy."""
     m = x.shape[0]
     eye = np.eye(m)
@@ -96,6 +97,11 @@ def ek_run_reference(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic,
                 a[0, i, j] += b[0, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
                 b[0, i, j] = O @ (b[0, i, j] + 2.0 * dd @ S)
                 d[0, i, j] = O @ dd @ O.T + Eij
+                # M = 3: as M = 0, started at 0 (sum over l >= 1)
+                dd = d[3, i, j]
+                a[3, i, j] += b[3, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
+                b[3, i, j] = O @ (b[3, i, j] + 2.0 * dd @ S)
+                d[3, i, j] = O @ dd @ O.T + Eij
                 # M = 1: sum of x_l[i] x_{l-1}[j]
                 dd = d[1, i, j]
                 a[1, i, j] += b[1, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
@@ -125,7 +131,7 @@ def ek_run_reference(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic,
         ic[I_K] += 1
         k = ic[I_K]
         if recursive and k >= warmup and k % update_every == 0:
-            ok, An, Cn, Qn, Rn = m_step_reference(a, b, d, aT, bT, x, P, sc, k)
+            ok, An, Cn, Qn, Rn = m_step_reference(a, b, d, aT, bT, x, P, sc, k, exact_q)
             if ok:
                 A[:], C[:], Q[:], R[:] = An, Cn, Qn, Rn
                 ic[I_UPDATES] += 1

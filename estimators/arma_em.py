@@ -255,9 +255,9 @@ class EKFilter:
         self.x = K * y0
         IKC = np.eye(m) - np.outer(K, self.C)
         self.P = IKC @ P0 @ IKC.T + np.outer(K, K) * self.R[0]
-        self.a = np.zeros((3, m, m))
-        self.b = np.zeros((3, m, m, m))
-        self.d = np.zeros((3, m, m, m, m))
+        self.a = np.zeros((4, m, m))
+        self.b = np.zeros((4, m, m, m))
+        self.d = np.zeros((4, m, m, m, m))
         for i in range(m):
             for j in range(m):
                 self.d[0, i, j, i, j] += 0.5
@@ -275,7 +275,8 @@ class EKFilter:
     def status(self) -> int:
         return int(self.ic[_k.I_STATUS])
 
-    def run(self, y, *, recursive, warmup, update_every, trace_every, engine="numba") -> np.ndarray:
+    def run(self, y, *, recursive, warmup, update_every, trace_every, exact_q=False,
+            engine="numba") -> np.ndarray:
         """Feed samples ``y`` (after the first); returns the trace rows written."""
         m = self.m
         start = int(self.ic[_k.I_K])
@@ -288,23 +289,23 @@ class EKFilter:
             from estimators._arma_em_reference import ek_run_reference as run
         ntr = run(np.ascontiguousarray(y, dtype=float), self.A, self.C, self.Q, self.R, self.x, self.P,
                   self.a, self.b, self.d, self.aT, self.bT, self.sc, self.ic, bool(recursive),
-                  int(warmup), int(update_every), int(trace_every), trace)
+                  int(warmup), int(update_every), int(trace_every), trace, bool(exact_q))
         return trace[:ntr]
 
     def statistics(self) -> dict:
-        """E[H^(0)], E[H^(1)], E[H^(2)], E[T] given the data so far (eqs 32-33)."""
+        """E[H^(0)], E[H^(1)], E[H^(2)], E[H^(3)], E[T] given the data so far (eqs 32-33)."""
         m = self.m
-        U = np.empty((3, m, m))
+        U = np.empty((4, m, m))
         E = np.empty(m)
         _k.evaluate_stats(self.a, self.b, self.d, self.aT, self.bT, self.x, self.P, U, E)
-        return {"U0": U[0], "U1": U[1], "U2": U[2], "T": E, "syy": self.sc[_k.S_SYY],
+        return {"U0": U[0], "U1": U[1], "U2": U[2], "U3": U[3], "T": E, "syy": self.sc[_k.S_SYY],
                 "k": int(self.ic[_k.I_K])}
 
-    def m_step(self) -> bool:
+    def m_step(self, exact_q=False) -> bool:
         """Batch M-step from the statistics of the pass; False (parameters kept) if invalid."""
         k = int(self.ic[_k.I_K])
         return bool(k > 0 and _k.m_step(self.a, self.b, self.d, self.aT, self.bT, self.x, self.P,
-                                        self.sc, k, self.A, self.C, self.Q, self.R))
+                                        self.sc, k, self.A, self.C, self.Q, self.R, bool(exact_q)))
 
     @property
     def loglik(self) -> float:
@@ -345,6 +346,11 @@ class ArmaEM(Estimator):
         within a pass, one batch EM M-step at its end.
     warmup, update_every : int
         On-line M-steps start after ``warmup`` samples and happen every ``update_every`` samples.
+    exact_q : bool
+        False (the paper, eq. 29): Q from :math:`U^{(0)} = \sum_{l=0}^k x_lx_l^T`. True
+        (improvement): from :math:`\sum_{l=1}^k x_lx_l^T`, the exact EM update. The difference
+        is one term, but Q is a small difference of large sums (Q is tiny beside the state
+        variance), so the extra :math:`x_0x_0^T/k` biases Q and hence K and B noticeably.
     trace_every : int
         Record the coefficient trajectory every so many samples (0: never), in
         ``diagnostics_["trajectory"]``.
@@ -363,7 +369,7 @@ class ArmaEM(Estimator):
     online = True
 
     def __init__(self, *, terms="NBK", x0=None, tc0=None, init_form="eq63", passes=1, recursive=True,
-                 warmup=100, update_every=1, trace_every=1000, engine="numba"):
+                 warmup=100, update_every=1, exact_q=False, trace_every=1000, engine="numba"):
         self.terms = terms
         self.x0 = x0
         self.tc0 = tc0
@@ -372,6 +378,7 @@ class ArmaEM(Estimator):
         self.recursive = recursive
         self.warmup = warmup
         self.update_every = update_every
+        self.exact_q = exact_q
         self.trace_every = trace_every
         self.engine = engine
 
@@ -382,8 +389,9 @@ class ArmaEM(Estimator):
             raise ValueError(f"init_form: expected one of {_INIT_FORMS}, got {self.init_form!r}")
         if self.engine not in _ENGINES:
             raise ValueError(f"engine: expected one of {_ENGINES}, got {self.engine!r}")
-        if not isinstance(self.recursive, (bool, np.bool_)):
-            raise ValueError(f"recursive: expected True or False, got {self.recursive!r}")
+        for name in ("recursive", "exact_q"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")
         x0 = None
         if self.x0 is not None:
             if not hasattr(self.x0, "keys"):
@@ -457,6 +465,7 @@ class ArmaEM(Estimator):
         self._x0_si, self._tc0 = x0, tc0
         self._filter = EKFilter(A=A.copy(), C=C / scale, Q=Q.copy(), R=R / scale**2)
         self._pass = 0
+        self._stopped = None
         self._loglik: list[float] = []
         self._trace: list[np.ndarray] = []
         self._begin_pass(float((y[0] - offset) / scale))
@@ -472,7 +481,7 @@ class ArmaEM(Estimator):
         ys = (y - self._offset) / self._scale
         rows = self._filter.run(ys, recursive=self.recursive, warmup=cfg["warmup"],
                                 update_every=cfg["update_every"], trace_every=cfg["trace_every"],
-                                engine=self.engine)
+                                exact_q=self.exact_q, engine=self.engine)
         if len(rows) and self._pass == 1:
             self._trace.append(rows)
 
@@ -511,9 +520,12 @@ class ArmaEM(Estimator):
             if f.status != _k.OK:
                 break
             self._loglik.append(f.loglik)
-            if not self.recursive and not f.m_step():
-                f.ic[_k.I_STATUS] = _k.FAIL_MSTEP
-                f.ic[_k.I_FAIL_INDEX] = f.ic[_k.I_K]
+            if not self.recursive and not f.m_step(self.exact_q):
+                if p == 0:
+                    f.ic[_k.I_STATUS] = _k.FAIL_MSTEP
+                    f.ic[_k.I_FAIL_INDEX] = f.ic[_k.I_K]
+                else:  # EM walked to the boundary (a variance -> 0): keep the last valid estimate
+                    self._stopped = f"M-step invalid after pass {p + 1}; kept the parameters of pass {p + 1}"
                 break
         return self._results()
 
@@ -531,6 +543,7 @@ class ArmaEM(Estimator):
             coefs, bad, extra = coefficients_from_model(f.A, f.C * s, f.Q, f.R * s**2, dt, terms)
         diag = {
             "failure": failure,
+            "stopped": self._stopped,
             "A": f.A.copy(), "C": f.C.copy(), "Q": f.Q.copy(), "R": float(f.R[0]),
             "scale": s, "offset": self._offset, "passes": self._pass,
             "x0": dict(self._x0_si), "tc0": self._tc0,
