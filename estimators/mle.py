@@ -39,8 +39,8 @@ The default ``block="auto"`` takes the smallest m giving at most ``max_blocks`` 
 but never more than a fifth of the Gauss-Markov correlation time found by the GMWM starting fit (so
 that the GM stays resolved). For 1e6 samples at 100 Hz this is m = 20 (0.2 s blocks) and a fit
 takes about 10 s (GMWM start included). The price is paid by N: the white-noise information sits
-at the shortest time scales, so its relative standard error becomes :math:`1/\sqrt{2n/m}` instead
-of the CRLB :math:`1/\sqrt{2n}`; B, K and R, whose information lies at long time scales, lose
+at the shortest time scales, so its relative standard error becomes :math:`1/\\sqrt{2n/m}` instead
+of the CRLB :math:`1/\\sqrt{2n}`; B, K and R, whose information lies at long time scales, lose
 almost nothing. Use ``block=1`` for the full sample-level likelihood.
 
 Starting values come from :class:`estimators.gmwm.GMWM` with the same latent model. Standard errors

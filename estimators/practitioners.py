@@ -33,7 +33,15 @@ from estimators.av_model import (
 )
 from estimators.base import Estimator, register
 
-__all__ = ["SlopeLines", "LogFit", "NNLSRel", "slope_line_coefficients", "READ_TAU"]
+__all__ = [
+    "SlopeLines",
+    "LogFit",
+    "NNLSRel",
+    "slope_line_coefficients",
+    "log_fit_beta",
+    "nnls_rel_beta",
+    "READ_TAU",
+]
 
 #: The tau (s) at which each slope line is read (IEEE Std 952 Annex C; MathWorks example):
 #: slope -1 at sqrt(3) (sigma = Q), -1/2 at 1 (sigma = N), 0 anywhere (sigma = 0.6643 B),
@@ -153,9 +161,10 @@ class LogFit(_AVBaseline):
 
     with :math:`X, \\beta` of Lv et al. (2015, eqs 3-6), solved in :math:`u = \\log\\beta` by
     ``scipy.optimize.least_squares`` (trust-region reflective) from the ``nnls_rel`` solution.
-    Elements of beta are bounded below by ``1e-12`` times their largest possible contribution
-    (``max_j avar_j / tau_j^p``): a term the data do not need ends at that floor and is reported as
-    0 (its contribution is then below 1e-12 of the AV everywhere on the grid).
+    Elements of beta are bounded below by ``1e-12 * min_j avar_j / tau_j^p``: a term the data do not
+    need ends at that floor and is reported as 0 (its contribution is then below 1e-12 of the AV
+    everywhere on the grid), and above by ``max_j avar_j / tau_j^p`` (the term alone explaining the
+    largest AV value).
 
     Parameters
     ----------
@@ -172,31 +181,42 @@ class LogFit(_AVBaseline):
 
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
-        X = design_matrix(tau, terms)
-        y = np.log10(avar)
-        ceiling = np.max(avar[:, None] / X, axis=0)
-        floor = 1e-12 * ceiling
-        beta0 = _nnls_rel_beta(X, avar)
-        u0 = np.log(np.clip(beta0, floor * 10, ceiling))
-
-        def resid(u):
-            return np.log10(X @ np.exp(u)) - y
-
-        sol = least_squares(resid, u0, bounds=(np.log(floor), np.log(ceiling)), method="trf",
-                            x_scale=1.0, xtol=1e-12, ftol=1e-12)
-        beta = np.exp(sol.x)
-        at_floor = sol.x <= np.log(floor) + 1e-6
-        beta[at_floor] = 0.0
+        beta, sol = log_fit_beta(tau, avar, terms)
         coefs, nonphys = coefficients_from_beta(beta, terms)
-        diag = {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": X @ beta,
+        diag = {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": design_matrix(tau, terms) @ beta,
                 "cost": float(sol.cost), "success": bool(sol.success)}
         if not sol.success:
             diag["failure"] = f"least_squares: {sol.message}"
         return coefs, nonphys, diag
 
 
-def _nnls_rel_beta(X, avar):
-    A = X / avar[:, None]
+def log_fit_beta(tau, avar, terms):
+    """beta >= 0 minimising sum_j [log10(X beta) - log10 avar_j]^2 (see :class:`LogFit`).
+
+    Returns ``(beta, scipy OptimizeResult)``; elements that end at the floor are set to 0.
+    """
+    tau, avar = np.asarray(tau, dtype=float), np.asarray(avar, dtype=float)
+    X = design_matrix(tau, terms)
+    y = np.log10(avar)
+    ceiling = np.max(avar[:, None] / X, axis=0)
+    floor = 1e-12 * np.min(avar[:, None] / X, axis=0)
+    beta0 = nnls_rel_beta(tau, avar, terms)
+    u0 = np.log(np.clip(beta0, floor * 10, ceiling))
+
+    def resid(u):
+        return np.log10(X @ np.exp(u)) - y
+
+    sol = least_squares(resid, u0, bounds=(np.log(floor), np.log(ceiling)), method="trf",
+                        x_scale=1.0, xtol=1e-12, ftol=1e-12)
+    beta = np.exp(sol.x)
+    beta[sol.x <= np.log(floor) + 1e-6] = 0.0
+    return beta, sol
+
+
+def nnls_rel_beta(tau, avar, terms) -> np.ndarray:
+    """beta >= 0 minimising sum_j (X_j beta / avar_j - 1)^2 (see :class:`NNLSRel`)."""
+    tau, avar = np.asarray(tau, dtype=float), np.asarray(avar, dtype=float)
+    A = design_matrix(tau, terms) / avar[:, None]
     # column scaling keeps nnls well conditioned when the columns span many decades
     s = np.linalg.norm(A, axis=0)
     beta, _ = nnls(A / s, np.ones(len(avar)))
@@ -230,7 +250,7 @@ class NNLSRel(_AVBaseline):
 
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
-        X = design_matrix(tau, terms)
-        beta = _nnls_rel_beta(X, avar)
+        beta = nnls_rel_beta(tau, avar, terms)
         coefs, nonphys = coefficients_from_beta(beta, terms)
-        return coefs, nonphys, {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": X @ beta}
+        fitted = design_matrix(tau, terms) @ beta
+        return coefs, nonphys, {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": fitted}
