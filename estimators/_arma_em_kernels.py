@@ -159,6 +159,13 @@ def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
         for p in range(m):
             cuc += Cn[i] * U[0, i, p] * Cn[p]
     Rn = (sc[S_SYY] - 2.0 * ce + cuc) / (k + 1)
+    # Q is a Schur complement, positive semi-definite up to rounding: a diagonal element that is
+    # negative by less than 1e-9 of its first term is rounding; set it (and its row) to 0
+    for i in range(m):
+        if Qn[i, i] < 0.0 and Qn[i, i] > -1e-9 * abs(U[mq, i, i]) / k:
+            for j in range(m):
+                Qn[i, j] = 0.0
+                Qn[j, i] = 0.0
     ok = Rn > 0.0 and math.isfinite(Rn)
     for i in range(m):
         ok = ok and Qn[i, i] >= 0.0 and math.isfinite(Cn[i])

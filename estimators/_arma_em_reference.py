@@ -65,6 +65,11 @@ def m_step_reference(a, b, d, aT, bT, x, P, sc, k, exact_q=False):
     Q = 0.5 * (Q + Q.T)
     C = np.linalg.solve(U0, E)
     R = (sc[S_SYY] - 2.0 * C @ E + C @ U0 @ C) / (k + 1)
+    first = U3 if exact_q else U0
+    for i in range(m):  # rounding-level negative diagonal of Q -> 0 (with its row and column)
+        if -1e-9 * abs(first[i, i]) / k < Q[i, i] < 0:
+            Q[i, :] = 0.0
+            Q[:, i] = 0.0
     ok = R > 0 and np.all(np.diag(Q) >= 0) and (m == 1 or np.linalg.det(Q) >= -1e-10 * Q[0, 0] * Q[1, 1])
     ok = ok and np.all(np.isfinite(A)) and np.all(np.isfinite(Q)) and np.all(np.isfinite(C))
     return bool(ok), A, C, Q, np.array([R])
