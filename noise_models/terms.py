@@ -36,6 +36,7 @@ SecondOrderGaussMarkov exact discretisation of Miao et al. 2015,    from the exa
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import ClassVar
 
@@ -462,6 +463,13 @@ def _kasdin_walter_h(n_taps: int, alpha: float = 1.0) -> np.ndarray:
     return np.concatenate(([1.0], np.cumprod((alpha / 2 + k - 1) / k)))
 
 
+@functools.lru_cache(maxsize=8)
+def _kasdin_walter_h_cached(n_taps: int) -> np.ndarray:
+    h = _kasdin_walter_h(n_taps)
+    h.setflags(write=False)
+    return h
+
+
 class _FIRStream(TermStream):
     """Overlap-save FIR filtering of white noise in fixed segments (chunk-invariant)."""
 
@@ -495,6 +503,14 @@ class _FIRStream(TermStream):
         allv = np.concatenate(parts) if len(parts) > 1 else self.buf
         out, self.buf = allv[:n], allv[n:]
         return out
+
+
+@functools.lru_cache(maxsize=8)
+def _full_autocorrelation(h_bytes: bytes, L: int) -> np.ndarray:
+    h = np.frombuffer(h_bytes, dtype=np.float64)
+    nfft = 1 << int(math.ceil(math.log2(2 * L)))
+    Hf = np.fft.rfft(h, nfft)
+    return np.fft.irfft(Hf * np.conj(Hf), nfft)[:L]
 
 
 class BiasInstability(NoiseTerm):
@@ -536,17 +552,19 @@ class BiasInstability(NoiseTerm):
         return max(2, int(math.ceil(self.tau_max / _check_dt(dt) - 1e-9)))
 
     def impulse_response(self, dt) -> np.ndarray:
-        return _kasdin_walter_h(self.n_taps(dt))
+        return _kasdin_walter_h_cached(self.n_taps(dt))
 
     def autocovariance(self, max_lag: int, dt) -> np.ndarray:
-        """r(0..max_lag) of the truncated-filter process (exact, by FFT)."""
+        """r(0..max_lag) of the truncated-filter process (exact: direct sums or FFT)."""
         h = self.impulse_response(dt)
         L = len(h)
-        nfft = 1 << int(math.ceil(math.log2(2 * L)))
-        Hf = np.fft.rfft(h, nfft)
-        r = np.fft.irfft(Hf * np.conj(Hf), nfft)[: min(L, max_lag + 1)]
-        out = np.zeros(max_lag + 1)
-        out[: len(r)] = r
+        K = min(L - 1, int(max_lag))
+        if (K + 1) * L <= 5e7:  # a few lags: direct dot products
+            r = np.array([np.dot(h[: L - k], h[k:]) for k in range(K + 1)])
+        else:
+            r = _full_autocorrelation(h.tobytes(), L)[: K + 1]
+        out = np.zeros(int(max_lag) + 1)
+        out[: K + 1] = r
         return self.B**2 * out
 
     def avar(self, m, dt):
@@ -564,7 +582,7 @@ class BiasInstability(NoiseTerm):
     def stream(self, dt, rng):
         dt = _check_dt(dt)
         h = self.impulse_response(dt)
-        segment = max(1 << 16, 1 << int(math.ceil(math.log2(len(h)))))
+        segment = max(1 << 12, 1 << int(math.ceil(math.log2(len(h)))))
         return _FIRStream(dt, rng, h, self.B, segment)
 
 

@@ -132,6 +132,7 @@ def as_si(coef: str, quantity) -> float:
 
     Raises ``ValueError`` for a negative or non-finite value, an unknown unit, or a malformed pair.
     """
+    _check_coef(coef)
     if isinstance(quantity, tuple | list):
         if len(quantity) != 2 or not isinstance(quantity[1], str):
             raise ValueError(
