@@ -1,0 +1,125 @@
+"""GMWM: weighting matrix against known variances, recovery within its own standard errors."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import estimators
+from estimators.allan import allan_variance, edf_overlapping
+from estimators.gmwm import av_covariance, build_gyro, parse_model
+from noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
+
+
+def test_parse_model():
+    assert parse_model("rw+WN + GM") == ("WN", "GM", "RW")
+    assert parse_model(["DR", "QN"]) == ("QN", "DR")
+    for bad in ("WN+XX", "", "WN+WN", 3, []):
+        with pytest.raises(ValueError, match="model"):
+            parse_model(bad)
+
+
+def test_build_gyro_uses_the_exact_discrete_av():
+    g = build_gyro(("WN", "GM", "RW"), [1e-3, 1e-4, 20.0, 1e-6], 0.01)
+    ref = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=1e-4, tc=20.0), RateRandomWalk(K=1e-6)])
+    tau = 0.01 * 2.0 ** np.arange(12)
+    assert np.array_equal(g.avar(tau), ref.avar(tau))
+
+
+def test_covariance_matches_nist_edf_for_white_noise():
+    # Var(AV) = 2 AV^2 / edf with the white-FM edf of NIST SP 1065 Table 5; the two agree to O(m/n)
+    g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3)])
+    n = 1_000_000
+    m = 2 ** np.arange(0, 14)
+    omega = av_covariance(g, m, n)
+    expected = 2 * g.avar(m * 0.1) ** 2 / edf_overlapping(m, n, "white_fm")
+    assert np.allclose(np.diag(omega) / expected, 1.0, atol=10 * m.max() / n)
+
+
+def test_covariance_matches_monte_carlo():
+    # empirical covariance of the AV over replicates of white + random walk: each element within
+    # 4 standard errors (se of a covariance estimate ~ sqrt((s_jj s_kk + s_jk^2)/(R-1)))
+    g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=2e-5)])
+    n, R = 2048, 200
+    m = np.array([1, 4, 16, 64])
+    rng = np.random.SeedSequence(7).spawn(R)
+    av = np.array([allan_variance(g.simulate(n, np.random.default_rng(s)), 0.1, taus=m * 0.1).avar for s in rng])
+    emp = np.cov(av.T)
+    model = av_covariance(g, m, n)
+    d = np.diag(emp)
+    se = np.sqrt((np.outer(d, d) + emp**2) / (R - 1))
+    assert np.all(np.abs(emp - model) < 4 * se + 0.1 * np.abs(model))
+
+
+def _check_recovery(est, g, coefs, k=4.0):
+    se = est.diagnostics_["std_err"]
+    for c in coefs:
+        true = g.coefficients[c]
+        assert abs(est.coefficients_[c] - true) < k * se[c], (c, est.coefficients_[c], true, se[c])
+
+
+def test_recovers_white_plus_random_walk():
+    g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5)])
+    x = g.simulate(200_000, np.random.default_rng(11))
+    est = estimators.get("gmwm", model="WN+RW").fit(x, 0.1)
+    _check_recovery(est, g, "NK")
+    # Hansen's J: chi^2 with dof degrees of freedom under the model
+    d = est.diagnostics_
+    assert d["J_stat"] < stats.chi2.ppf(0.999, d["dof"])
+    assert est.coefficients_[["Q", "B", "R"]].isna().all()
+
+
+def test_recovers_quantization_and_drift():
+    g = Gyro(dt=0.1, terms=[Quantization(Q=2e-5), AngleRandomWalk(N=1e-4), RateRamp(R=1e-7)])
+    x = g.simulate(200_000, np.random.default_rng(12))
+    est = estimators.get("gmwm", model="QN+WN+DR").fit(x, 0.1)
+    _check_recovery(est, g, "QN")
+    # the ramp is deterministic: its AV is exactly R^2 tau^2/2, no replicate spread; a few % off
+    assert est.coefficients_["R"] == pytest.approx(1e-7, rel=0.05)
+
+
+def test_white_gm_rw_short_record_reports_b_equiv():
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=5e-4), GaussMarkov(sigma=2e-4, tc=5.0), RateRandomWalk(K=1e-6)])
+    x = g.simulate(150_000, np.random.default_rng(13))
+    est = estimators.get("gmwm").fit(x, 0.01)
+    _check_recovery(est, g, "NB")
+    p = est.diagnostics_["params"]
+    assert est.coefficients_["B"] == pytest.approx(0.9294 * p["GM.sigma"], rel=1e-3)
+
+
+@pytest.mark.slow
+def test_monte_carlo_white_gm_rw_hours():
+    # 2.8 h at 100 Hz, 8 replicates: mean within 3 standard errors of the mean, and the GMM standard
+    # errors consistent with the replicate spread (ratio inside the chi^2_{R-1} 99.8 % interval)
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=8.7e-4), GaussMarkov(sigma=1e-4, tc=50.0), RateRandomWalk(K=2e-6)])
+    R, n = 8, 1_000_000
+    est, se = [], []
+    for s in np.random.SeedSequence(2013).spawn(R):
+        e = estimators.get("gmwm").fit(g.simulate(n, np.random.default_rng(s)), 0.01)
+        est.append(e.coefficients_[["N", "B"]].values)
+        se.append(e.diagnostics_["std_err"][["N", "B"]].values)
+    est, se = np.array(est), np.array(se)
+    truth = g.coefficients[["N", "B"]].values
+    sd = est.std(axis=0, ddof=1)
+    assert np.all(np.abs(est.mean(axis=0) - truth) < 3 * sd / math.sqrt(R))
+    lo, hi = stats.chi2.ppf([0.001, 0.999], R - 1) / (R - 1)
+    ratio = sd**2 / np.mean(se**2, axis=0)
+    assert np.all((ratio > lo) & (ratio < hi)), ratio
+
+
+@pytest.mark.parametrize(
+    "settings, match",
+    [({"model": "WN+AR"}, "model"), ({"min_clusters": 1}, "min_clusters"),
+     ({"weighting": "full"}, "weighting"), ({"n_starts": 0}, "n_starts")],
+)
+def test_bad_settings(settings, match):
+    x = np.random.default_rng(0).standard_normal(10_000)
+    with pytest.raises(ValueError, match=match):
+        estimators.get("gmwm", **settings).fit(x, 0.01)
+
+
+def test_too_short_record():
+    x = np.random.default_rng(0).standard_normal(100)
+    with pytest.raises(ValueError, match="usable octave taus"):
+        estimators.get("gmwm", model="QN+WN+GM+RW+DR").fit(x, 0.01)
