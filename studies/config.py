@@ -27,7 +27,12 @@ Schema (every key optional unless marked required)::
     x0_truth_scale = 0.5        # set settings["x0"] = truth x 0.5 for the modelled coefficients
     paper_method = "wls"        # the method's name in paper_table
 
-Errors name the file, the key and what was expected.
+Errors name the file, the key and what was expected (:class:`ConfigError`), and are raised before any
+work starts and before anything is written. Besides types and ranges, every gyro is simulated for a
+few samples and every estimator's settings are probed per gyro (:func:`probe_settings`): the
+estimator's own ``check_settings()`` if it has one, else a trial fit on short records simulated
+from that gyro at the study's dt; ``terms`` and ``taus`` settings are checked against the study's
+real record (a ``taus`` beyond half the record is rejected here, not on every replicate).
 """
 
 from __future__ import annotations
@@ -35,7 +40,9 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 import tomllib
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -69,6 +76,9 @@ class EstimatorSpec:
     gyro_settings: dict
     x0_truth_scale: float | None = None
     paper_method: str | None = None
+    #: the registered class; pickled with the spec, so a worker process that has not imported the
+    #: module registering it (e.g. an estimator defined in a script or a test) can still build it
+    cls: type | None = field(default=None, compare=False, repr=False)
 
     def settings_for(self, gyro: GyroSpec) -> dict:
         s = dict(self.settings)
@@ -80,6 +90,11 @@ class EstimatorSpec:
         return s
 
     def make(self, gyro: GyroSpec) -> "estimators.Estimator":
+        if self.cls is not None:
+            from estimators.base import _REGISTRY, register
+
+            if self.name not in _REGISTRY:
+                register(self.name)(self.cls)
         return estimators.get(self.name, **self.settings_for(gyro))
 
 
@@ -112,6 +127,13 @@ class StudyConfig:
         blob = json.dumps(payload, sort_keys=True, default=str).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
 
+
+#: upper limits that keep an absurd config from exhausting memory before any useful work
+MAX_REPLICATES = 1_000_000
+MAX_SAMPLES = 1_000_000_000  # 8 GB per record
+MAX_FILTER_TAPS = 100_000_000  # flicker filter memory tau_max / dt
+PROBE_SAMPLES = 1024  # trial-fit record length (see probe_settings)
+PROBE_LONG_SAMPLES = 1 << 20  # second chance for settings that need a longer record
 
 _STUDY_KEYS = {
     "name": str,
@@ -164,10 +186,21 @@ class _Ctx:
                 self.fail(key, f"expected {_tname(t)}, got {v!r}")
 
 
-def _positive_int(ctx: _Ctx, key: str, v, minimum: int = 1) -> int:
+def _positive_int(ctx: _Ctx, key: str, v, minimum: int = 1, maximum: int | None = None) -> int:
     if v < minimum:
         ctx.fail(key, f"expected an integer >= {minimum}, got {v!r}")
+    if maximum is not None and v > maximum:
+        ctx.fail(key, f"expected an integer <= {maximum:,}, got {v!r}")
     return int(v)
+
+
+_BAD_NAME_CHARS = re.compile(r"[\x00-\x1f\x7f]")
+
+
+def _check_label(ctx: _Ctx, key: str, v) -> str:
+    if not isinstance(v, str) or not v.strip() or _BAD_NAME_CHARS.search(v) or len(v) > 200:
+        ctx.fail(key, f"expected a non-empty printable name (at most 200 characters), got {v!r}")
+    return v
 
 
 def _build_gyro(ctx: _Ctx, i: int, g: dict) -> tuple[str, Gyro, float | None]:
@@ -180,8 +213,8 @@ def _build_gyro(ctx: _Ctx, i: int, g: dict) -> tuple[str, Gyro, float | None]:
                 ctx.fail(f"{key}.{k}", "not allowed with 'preset' (a preset has its own sample rate and terms)")
         try:
             info = presets.info(g["preset"])
-        except ValueError as e:
-            ctx.fail(f"{key}.preset", str(e))
+        except (ValueError, KeyError) as e:
+            ctx.fail(f"{key}.preset", str(e).strip("'\""))
         return g.get("label", info.name), info.gyro(), info.duration_s
     for k in ("name", "dt"):
         if k not in g:
@@ -192,18 +225,18 @@ def _build_gyro(ctx: _Ctx, i: int, g: dict) -> tuple[str, Gyro, float | None]:
         if not isinstance(t, dict) or "type" not in t:
             ctx.fail(tkey, f"expected a table with 'type' (one of {', '.join(TERM_TYPES)})")
         kind = t["type"]
-        if kind not in TERM_TYPES:
+        if not isinstance(kind, str) or kind not in TERM_TYPES:
             ctx.fail(f"{tkey}.type", f"unknown term type {kind!r}; expected one of {', '.join(TERM_TYPES)}")
         kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in t.items() if k != "type"}
         try:
             terms.append(TERM_TYPES[kind](**kwargs))
         except TypeError as e:
             ctx.fail(tkey, f"bad arguments for {kind}: {e}")
-        except ValueError as e:
-            ctx.fail(tkey, str(e))
+        except Exception as e:  # ValueError from the term, or anything the unit parser raises
+            ctx.fail(tkey, f"{kind}: {e}")
     try:
         gyro = Gyro(dt=g["dt"], terms=terms, name=g["name"])
-    except ValueError as e:
+    except Exception as e:
         ctx.fail(key, str(e))
     return g.get("label", g["name"]), gyro, None
 
@@ -220,7 +253,11 @@ def _tuplify(v):
 
 
 def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -> StudyConfig:
-    """Validate a parsed TOML document and build the :class:`StudyConfig`."""
+    """Validate a parsed TOML document and build the :class:`StudyConfig`.
+
+    Raises :class:`ConfigError` (naming ``where``, the key and what was expected) for anything
+    invalid; nothing else escapes for any input a TOML file can hold.
+    """
     ctx = _Ctx(where)
     ctx.check_keys(raw, {"study": dict, "gyros": list, "estimators": list}, "")
     for k in ("study", "gyros", "estimators"):
@@ -232,20 +269,26 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         if k not in study:
             ctx.fail(f"study.{k}", "required")
     name = study["name"]
-    if not name or any(c in name for c in "/\\") or name.startswith("."):
+    if not name or any(c in name for c in "/\\") or name.startswith(".") or _BAD_NAME_CHARS.search(name):
         ctx.fail("study.name", f"expected a plain folder name, got {name!r}")
     seed = _positive_int(ctx, "study.seed", study["seed"], 0)
-    replicates = _positive_int(ctx, "study.replicates", study["replicates"])
+    replicates = _positive_int(ctx, "study.replicates", study["replicates"], 1, MAX_REPLICATES)
     block = _positive_int(ctx, "study.block_size", study.get("block_size", 5))
     if "duration_s" in study and "n_samples" in study:
         ctx.fail("study.duration_s", "give duration_s or n_samples, not both")
     if "duration_s" in study and not (math.isfinite(study["duration_s"]) and study["duration_s"] > 0):
         ctx.fail("study.duration_s", f"expected a positive number of seconds, got {study['duration_s']!r}")
     if "n_samples" in study:
-        _positive_int(ctx, "study.n_samples", study["n_samples"], 16)
+        _positive_int(ctx, "study.n_samples", study["n_samples"], 16, MAX_SAMPLES)
     backend = study.get("backend", "loky")
     if backend not in ("loky", "dask"):
         ctx.fail("study.backend", f"expected 'loky' or 'dask', got {backend!r}")
+    scheduler = study.get("scheduler")
+    if scheduler is not None:
+        if backend != "dask":
+            ctx.fail("study.scheduler", 'a scheduler address needs backend = "dask"')
+        if not _SCHEDULER_RE.match(scheduler):
+            ctx.fail("study.scheduler", f"expected a dask scheduler address like tcp://host:8786, got {scheduler!r}")
     paper_table = None
     if "paper_table" in study:
         base = path.parent if path else Path.cwd()
@@ -254,8 +297,12 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
     if not raw["gyros"]:
         ctx.fail("gyros", "expected at least one [[gyros]] entry")
     gyros = []
+    probes = []
     for i, g in enumerate(raw["gyros"]):
         ctx.check_keys(g, _GYRO_KEYS, f"gyros[{i}]")
+        for k in ("label", "name", "paper_gyro"):
+            if k in g:
+                _check_label(ctx, f"gyros[{i}].{k}", g[k])
         label, gyro, paper_duration = _build_gyro(ctx, i, _tuplify(g))
         if "n_samples" in study:
             n = int(study["n_samples"])
@@ -263,10 +310,25 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
             duration = study.get("duration_s", paper_duration)
             if duration is None:
                 ctx.fail(f"gyros[{i}]", "an explicit gyro needs study.duration_s or study.n_samples")
-            n = int(round(duration / gyro.dt))
+            n = duration / gyro.dt
+            if not n <= MAX_SAMPLES:
+                ctx.fail(
+                    "study.duration_s" if "duration_s" in study else f"gyros[{i}]",
+                    f"the record would have {n:.3g} samples at dt = {gyro.dt} s; expected at most {MAX_SAMPLES:,}",
+                )
+            n = int(round(n))
         if n < 16:
             ctx.fail(f"gyros[{i}]", f"the record has only {n} samples at dt = {gyro.dt} s; expected at least 16")
-        gyros.append(GyroSpec(label, gyro, n, g, g.get("paper_gyro")))
+        for j, t in enumerate(gyro.terms):
+            taps = getattr(t, "n_taps", None)
+            if callable(taps) and taps(gyro.dt) > MAX_FILTER_TAPS:
+                ctx.fail(
+                    f"gyros[{i}].terms[{j}]",
+                    f"filter memory of {taps(gyro.dt):,} samples (tau_max / dt); expected at most {MAX_FILTER_TAPS:,}",
+                )
+        spec = GyroSpec(label, gyro, n, g, g.get("paper_gyro"))
+        probes.append(_probe_records(ctx, f"gyros[{i}]", spec))
+        gyros.append(spec)
     labels = [g.label for g in gyros]
     if len(set(labels)) != len(labels):
         ctx.fail("gyros", f"gyro labels must be unique, got {labels}")
@@ -278,19 +340,23 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
     if not raw["estimators"]:
         ctx.fail("estimators", "expected at least one [[estimators]] entry")
     ests = []
+    known = estimators.names()
     for i, e in enumerate(raw["estimators"]):
         key = f"estimators[{i}]"
         ctx.check_keys(e, _EST_KEYS, key)
         if "name" not in e:
-            ctx.fail(f"{key}.name", f"required; expected one of {', '.join(estimators.names())}")
-        if e["name"] not in estimators.names():
-            ctx.fail(f"{key}.name", f"unknown estimator {e['name']!r}; expected one of {', '.join(estimators.names())}")
+            ctx.fail(f"{key}.name", f"required; expected one of {', '.join(known)}")
+        if e["name"] not in known:
+            ctx.fail(f"{key}.name", f"unknown estimator {e['name']!r}; expected one of {', '.join(known)}")
+        for k in ("label", "paper_method"):
+            if k in e:
+                _check_label(ctx, f"{key}.{k}", e[k])
         gs = e.get("gyro_settings", {})
         for gl, v in gs.items():
             if gl not in labels:
                 ctx.fail(f"{key}.gyro_settings.{gl}", f"unknown gyro label; expected one of {labels}")
             if not isinstance(v, dict):
-                ctx.fail(f"{key}.gyro_settings.{gl}", "expected a table of settings")
+                ctx.fail(f"{key}.gyro_settings.{gl}", f"expected a table of settings, got {v!r}")
         scale = e.get("x0_truth_scale")
         if scale is not None and not (math.isfinite(scale) and scale > 0):
             ctx.fail(f"{key}.x0_truth_scale", f"expected a positive factor, got {scale!r}")
@@ -301,14 +367,18 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
             gyro_settings=_tuplify(gs),
             x0_truth_scale=None if scale is None else float(scale),
             paper_method=e.get("paper_method"),
+            cls=estimators.estimator_class(e["name"]),
         )
-        # build one per gyro now, so bad settings fail before any work
-        for g in gyros:
+        # build one per gyro now and probe it, so bad settings fail before any work
+        for g, records in zip(gyros, probes):
+            where = f"{key}.gyro_settings.{g.label}" if g.label in gs else f"{key}.settings"
             try:
                 est = spec.make(g)
-                _probe_settings(est)
-            except ValueError as err:
-                ctx.fail(f"{key}.settings", f"(gyro {g.label}) {err}")
+            except Exception as err:
+                ctx.fail(where, f"(gyro {g.label}) {err}")
+            problem = probe_settings(est, g, records)
+            if problem:
+                ctx.fail(where, f"(gyro {g.label}) {problem}")
         ests.append(spec)
     elabels = [e.label for e in ests]
     if len(set(elabels)) != len(elabels):
@@ -323,7 +393,7 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         description=study.get("description", ""),
         block_size=block,
         backend=backend,
-        scheduler=study.get("scheduler"),
+        scheduler=scheduler,
         paper_table=paper_table,
         figure_gyros=tuple(study["figure_gyros"]) if "figure_gyros" in study else None,
         path=path,
@@ -331,11 +401,122 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
     )
 
 
-def _probe_settings(est) -> None:
-    """Let an estimator check its settings before any work, if it can."""
+_SCHEDULER_RE = re.compile(r"^([a-z][a-z0-9+.-]*://[^\s/]+|[^\s:/]+:\d+)/?$")
+_PROBE_SEEDS = (20240601, 20240602)
+
+
+def _quiet_call(f, *args):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with np.errstate(all="ignore"):
+            return f(*args)
+
+
+class _ProbeRecords:
+    """Short records simulated (lazily) from a gyro, for the trial fits of :func:`probe_settings`.
+
+    Terms with a long filter memory (flicker ``tau_max``) are copied with the memory cut to the
+    probe record's length: the record keeps the gyro's scale and dt, without the cost of a
+    million-tap filter burn-in for 1024 samples.
+    """
+
+    def __init__(self, g: GyroSpec):
+        self.g = g
+        self.n = min(g.n_samples, PROBE_SAMPLES)
+        self._cache: dict[int, np.ndarray] = {}
+        self._gyro = None
+
+    def probe_gyro(self) -> Gyro:
+        if self._gyro is None:
+            import copy
+
+            dt = self.g.gyro.dt
+            terms = []
+            for t in self.g.gyro.terms:
+                if getattr(t, "tau_max", None) is not None and t.tau_max > self.n * dt:
+                    t = copy.copy(t)
+                    t.tau_max = float(self.n * dt)
+                terms.append(t)
+            self._gyro = Gyro(dt=dt, terms=terms, name=self.g.gyro.name)
+        return self._gyro
+
+    def __getitem__(self, k: int) -> np.ndarray:
+        if k not in self._cache:
+            self._cache[k] = _quiet_call(self.probe_gyro().simulate, self.n, np.random.default_rng(_PROBE_SEEDS[k]))
+        return self._cache[k]
+
+    def __len__(self) -> int:
+        return len(_PROBE_SEEDS)
+
+
+def _probe_records(ctx: _Ctx, key: str, g: GyroSpec) -> _ProbeRecords:
+    records = _ProbeRecords(g)
+    try:
+        records[0]
+    except Exception as e:
+        ctx.fail(key, f"cannot simulate this gyro: {type(e).__name__}: {e}")
+    return records
+
+
+def _fit_error(est, rate, dt) -> str | None:
+    try:
+        _quiet_call(est.fit, rate, dt)
+    except Exception as e:
+        return f"{type(e).__name__}: {e}".splitlines()[0][:300]
+    return None
+
+
+def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | None:
+    """Why ``est`` (configured for ``gyro``) cannot run in the study, or None if it can.
+
+    1. the estimator's own ``check_settings()``, if it defines one (then no trial fit is made);
+    2. generic checks against the study's real record: a ``terms`` setting must be a subset of
+       QNBKR, a ``taus`` setting must give Allan-variance cluster sizes within half the record;
+    3. otherwise a trial fit on short records (``PROBE_SAMPLES``) simulated from the gyro at the
+       study's dt, with an array ``taus`` replaced by "octave" (already checked in 2). The
+       settings are rejected only if the fit raises on every trial record and also on one
+       longer record (up to ``PROBE_LONG_SAMPLES``), so a data-dependent failure on one record,
+       or a setting that merely needs more data, is not mistaken for a settings error. Reported
+       failures (``diagnostics_["failure"]``) are data, never a settings error.
+    """
+    from estimators.allan import cluster_sizes
+    from estimators.av_model import check_terms
+
+    dt, n = gyro.gyro.dt, gyro.n_samples
     check = getattr(est, "check_settings", None)
+    try:
+        if callable(check):
+            check()
+        params = est.get_params()
+        if "terms" in params and params["terms"] is not None:
+            check_terms(params["terms"])
+        if "taus" in params and params["taus"] is not None:
+            cluster_sizes(params["taus"], n, dt)
+    except Exception as e:
+        return f"{type(e).__name__}: {e}".splitlines()[0][:300]
     if callable(check):
-        check()
+        return None
+    trial = est.clone()
+    if "taus" in params and not isinstance(params["taus"], str | None):
+        trial.set_params(taus="octave")
+    if records is None:
+        records = _ProbeRecords(gyro)
+    first = None
+    for k in range(len(records)):
+        err = _fit_error(trial.clone(), records[k], dt)
+        if err is None:
+            return None
+        first = first or err
+    long_n = min(n, PROBE_LONG_SAMPLES)
+    if long_n > records.n:
+        rate = _quiet_call(gyro.gyro.simulate, long_n, np.random.default_rng(_PROBE_SEEDS[0]))
+        if _fit_error(trial.clone(), rate, dt) is None:
+            return None
+    return (
+        f"a trial fit with these settings failed on every record simulated from this gyro "
+        f"({records.n} and {long_n} samples at dt = {dt} s): {first}; expected settings "
+        f"that estimator {est.name!r} accepts"
+    )
 
 
 def load_config(path, overrides: dict[str, Any] | None = None) -> StudyConfig:
