@@ -114,17 +114,26 @@ class StudyConfig:
     path: Path | None = None
     raw: dict = field(default_factory=dict)
 
-    def result_key(self) -> str:
-        """Hash of everything that determines the per-replicate results (not their count)."""
+    def result_payload(self) -> dict:
+        """Everything that determines the per-replicate results (not their count, not the backend).
+
+        The seed, the record length, the gyros and the estimators with their settings and labels
+        as written in the config; not ``replicates`` (more replicates reuse the finished blocks),
+        ``block_size`` (it only names the shards), ``backend``, ``scheduler``, ``description`` or
+        the paper references.
+        """
         study = {k: v for k, v in self.raw.get("study", {}).items() if k in ("seed", "duration_s", "n_samples")}
-        payload = {
+        return {
             "study": study,
             "gyros": self.raw.get("gyros"),
             "estimators": [
                 {k: v for k, v in e.items() if k not in ("paper_method",)} for e in self.raw.get("estimators", [])
             ],
         }
-        blob = json.dumps(payload, sort_keys=True, default=str).encode()
+
+    def result_key(self) -> str:
+        """Hash of :meth:`result_payload`: names the shard folder ``_shards/<key>/``."""
+        blob = json.dumps(self.result_payload(), sort_keys=True, default=str).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
 
 

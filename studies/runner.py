@@ -3,10 +3,14 @@
 Work is cut into tasks of ``block_size`` replicates of one gyro. Replicate ``r`` of gyro ``g`` draws
 from ``SeedSequence(seed, spawn_key=(g, r))`` -- the same stream ``SeedSequence(seed).spawn`` would
 give its (g, r) grandchild -- so every number depends only on the config and the seed, never on the
-worker count, the backend or the order tasks finish in. Each finished block is written atomically
-(temporary name, then rename) under ``<out>/_shards/<result key>/``, the key being a hash of
-everything that determines the results; rerunning the same study computes only the missing blocks,
-and a changed config gets a new key instead of mixing old and new results.
+worker count, the backend or the order tasks finish in. A worker (a loky process, or a Dask worker
+anywhere on a cluster) receives only the config (gyros and estimator settings, a few kB) and the
+block's replicate range, simulates its replicates itself and sends back their tidy rows; the process
+running the study writes each finished block atomically (temporary name, then ``os.replace``) under
+``<out>/_shards/<result key>/``, the key being a hash of everything that determines the results
+(``config.json`` there shows which). Rerunning the same study computes only the missing blocks, and
+a changed config gets a new key instead of mixing old and new results. A worker that dies is
+replaced and its blocks retried a bounded number of times (:class:`StudyError` after that).
 
 Failures are data: an estimator that raises, reports a failure, or returns non-finite values on a
 replicate is recorded in the tidy table (column ``failure``) and the study goes on.
@@ -14,10 +18,13 @@ replicate is recorded in the tidy table (column ``failure``) and the study goes 
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
 import sys
+import threading
 import time
-import traceback
+import uuid
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +34,17 @@ import pandas as pd
 
 from studies.config import StudyConfig
 
-__all__ = ["run_study", "replicate_rng", "run_block", "Task", "tasks_of", "collect", "TIDY_COLUMNS"]
+__all__ = [
+    "run_study",
+    "resolve_execution",
+    "replicate_rng",
+    "run_block",
+    "Task",
+    "tasks_of",
+    "collect",
+    "StudyError",
+    "TIDY_COLUMNS",
+]
 
 TIDY_COLUMNS = [
     "gyro",
@@ -126,21 +143,92 @@ def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=TIDY_COLUMNS)
 
 
+class StudyError(RuntimeError):
+    """A study could not finish: workers kept dying, a block raised, or the cluster is unreachable.
+
+    Finished blocks are saved; the message says what is missing and why.
+    """
+
+
+def _tmp_path(path: Path) -> Path:
+    """A hidden temporary name beside ``path``, unique per process, thread and call."""
+    return path.with_name(f".{path.name}.{os.getpid()}-{threading.get_ident()}-{uuid.uuid4().hex[:8]}.tmp")
+
+
 def _atomic_write_parquet(df: pd.DataFrame, path: Path) -> None:
-    tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
-    df.to_parquet(tmp, index=False)
-    os.replace(tmp, path)
+    """Write ``df`` under a temporary name, then rename: ``path`` is complete or absent."""
+    tmp = _tmp_path(path)
+    try:
+        df.to_parquet(tmp, index=False)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():  # the write failed or was interrupted
+            tmp.unlink()
 
 
-def _run_and_save(cfg: StudyConfig, task: Task, shard_dir: str) -> str:
-    df = run_block(cfg, task)
-    path = Path(shard_dir) / task.shard_name
-    _atomic_write_parquet(df, path)
-    return str(path)
+def _atomic_write_text(text: str, path: Path) -> None:
+    tmp = _tmp_path(path)
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
 
 
-def collect(shard_dir: Path, tasks: list[Task]) -> pd.DataFrame:
-    frames = [pd.read_parquet(shard_dir / t.shard_name) for t in tasks]
+def _remove_stale_tmp(folder: Path) -> None:
+    """Temporary files left by a killed run (their process is gone); they never had a final name."""
+    for f in folder.glob(".*.tmp"):
+        try:
+            pid = int(f.name.rsplit(".", 2)[-2].split("-")[0])
+        except (ValueError, IndexError):
+            continue
+        if pid != os.getpid() and not _pid_alive(pid):
+            f.unlink(missing_ok=True)
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+def _compute_block(cfg: StudyConfig, task: Task) -> tuple[Task, pd.DataFrame]:
+    """What a worker runs: simulate and fit one block from the seed; returns only the small table.
+
+    Workers never write files (on a cluster they may not share the client's disk): the process
+    that runs the study saves each block as it arrives.
+    """
+    return task, run_block(cfg, task)
+
+
+def _save_block(shard_dir: Path, task: Task, df: pd.DataFrame) -> None:
+    _atomic_write_parquet(df, shard_dir / task.shard_name)
+
+
+def collect(shard_dir: Path, tasks: list[Task], cfg: StudyConfig | None = None) -> pd.DataFrame:
+    """The tidy table of the given blocks, sorted; each shard checked against its task."""
+    frames = []
+    for t in tasks:
+        path = shard_dir / t.shard_name
+        try:
+            df = pd.read_parquet(path)
+        except Exception as e:
+            raise StudyError(f"{path}: unreadable shard ({type(e).__name__}: {e}); delete it and rerun") from e
+        bad = None
+        if list(df.columns) != TIDY_COLUMNS:
+            bad = f"columns {list(df.columns)}, expected {TIDY_COLUMNS}"
+        elif set(df["replicate"].unique()) != set(range(t.start, t.stop)):
+            bad = f"replicates {sorted(set(df['replicate']))}, expected {t.start}..{t.stop - 1}"
+        elif cfg is not None and set(df["gyro"].unique()) != {cfg.gyros[t.gyro_index].label}:
+            bad = f"gyro {sorted(set(df['gyro']))}, expected {cfg.gyros[t.gyro_index].label!r}"
+        if bad:
+            raise StudyError(f"{path}: shard does not match its block ({bad}); delete it and rerun")
+        frames.append(df)
     df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=TIDY_COLUMNS)
     return df.sort_values(["gyro", "replicate", "estimator", "coefficient"], kind="stable").reset_index(drop=True)
 
@@ -155,6 +243,33 @@ def _progress(total: int, initial: int, enabled: bool):
     return tqdm(total=total, initial=initial, unit="block", desc="replicate blocks", file=sys.stderr)
 
 
+def resolve_execution(cfg: StudyConfig, n_jobs=1, backend=None, scheduler=None) -> tuple[int, str, str | None]:
+    """Check and combine the command-line choices with the config's: (n_jobs, backend, scheduler).
+
+    ``scheduler`` without ``backend`` implies "dask"; the config's scheduler is used only with the
+    dask backend. Raises ValueError (before anything is written) for impossible combinations.
+    """
+    from studies.config import _SCHEDULER_RE
+
+    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int | np.integer) or n_jobs == 0:
+        raise ValueError(f"jobs: expected a positive number of workers, or -1 for all cores, got {n_jobs!r}")
+    n_jobs = int(n_jobs)
+    cpus = os.cpu_count() or 1
+    if n_jobs < -cpus:
+        raise ValueError(f"jobs: expected at least -{cpus} (-1 = all {cpus} cores), got {n_jobs}")
+    if backend is None:
+        backend = "dask" if scheduler else cfg.backend
+    if backend not in ("loky", "dask"):
+        raise ValueError(f"backend: expected 'loky' or 'dask', got {backend!r}")
+    if scheduler and backend != "dask":
+        raise ValueError(f"scheduler: a dask scheduler address ({scheduler}) needs the dask backend, not {backend!r}")
+    if backend == "dask" and not scheduler:
+        scheduler = cfg.scheduler
+    if scheduler and not _SCHEDULER_RE.match(scheduler):
+        raise ValueError(f"scheduler: expected a dask scheduler address like tcp://host:8786, got {scheduler!r}")
+    return n_jobs, backend, scheduler or None
+
+
 def run_study(
     cfg: StudyConfig,
     out: Path | str | None = None,
@@ -165,21 +280,39 @@ def run_study(
     max_retries: int = 2,
     make_report: bool = True,
 ) -> pd.DataFrame:
-    """Run (or resume) a study; write the tidy table, tables and figures; return the tidy table."""
+    """Run (or resume) a study; write the tidy table, tables and figures; return the tidy table.
+
+    Blocks already saved under ``<out>/_shards/<result key>/`` are not recomputed. ``backend``
+    "loky" runs ``n_jobs`` local processes (1: in this process); "dask" runs on the scheduler at
+    ``scheduler`` (``tcp://host:port``), or on a local cluster of ``n_jobs`` worker processes.
+    A worker that dies is replaced and its blocks retried up to ``max_retries`` times; then
+    :class:`StudyError`. On KeyboardInterrupt the finished blocks stay saved: run again to resume.
+    """
+    n_jobs, backend, scheduler = resolve_execution(cfg, n_jobs, backend, scheduler)
     out = Path(out) if out is not None else Path("results") / cfg.name
     shard_dir = out / "_shards" / cfg.result_key()
     shard_dir.mkdir(parents=True, exist_ok=True)
+    _remove_stale_tmp(shard_dir)
+    about = shard_dir / "config.json"
+    if not about.exists():  # which config these shards belong to (for people, not read back)
+        _atomic_write_text(json.dumps(cfg.result_payload(), indent=2, sort_keys=True, default=str), about)
     tasks = tasks_of(cfg)
     todo = [t for t in tasks if not (shard_dir / t.shard_name).exists()]
-    backend = backend or cfg.backend
-    scheduler = scheduler or cfg.scheduler
     bar = _progress(len(tasks), len(tasks) - len(todo), progress and bool(todo))
     try:
         _execute(cfg, todo, shard_dir, n_jobs, backend, scheduler, bar, max_retries)
+    except KeyboardInterrupt:
+        saved = sum((shard_dir / t.shard_name).exists() for t in tasks)
+        print(
+            f"\nstudy {cfg.name}: interrupted; {saved} of {len(tasks)} blocks of replicates are saved in "
+            f"{shard_dir}; run the same study again (same config, same --out) to compute only the rest",
+            file=sys.stderr,
+        )
+        raise
     finally:
         if bar is not None:
             bar.close()
-    tidy = collect(shard_dir, tasks)
+    tidy = collect(shard_dir, tasks, cfg)
     _atomic_write_parquet(tidy, out / "tidy.parquet")
     if make_report:
         from studies.report import write_report
@@ -191,84 +324,122 @@ def run_study(
 def _execute(cfg, todo, shard_dir, n_jobs, backend, scheduler, bar, max_retries):
     if not todo:
         return
-    if n_jobs == 1 and backend == "loky":
+
+    def done(task, df):
+        _save_block(shard_dir, task, df)
+        if bar is not None:
+            bar.update(1)
+
+    if n_jobs == 1 and backend == "loky":  # in this process
         for t in todo:
-            _run_and_save(cfg, t, str(shard_dir))
-            if bar is not None:
-                bar.update(1)
+            done(t, run_block(cfg, t))
         return
     from joblib import Parallel, delayed, parallel_config
 
-    attempt = 0
-    remaining = list(todo)
-    while remaining:
-        try:
-            if backend == "dask":
-                ctx = _dask_context(scheduler, n_jobs)
-            else:
-                ctx = parallel_config(backend="loky", n_jobs=n_jobs)
-            with ctx:
-                gen = Parallel(return_as="generator_unordered")(
-                    delayed(_run_and_save)(cfg, t, str(shard_dir)) for t in remaining
-                )
-                for _ in gen:
-                    if bar is not None:
-                        bar.update(1)
-            remaining = []
-        except Exception as e:  # a worker died: retry what is missing, a bounded number of times
-            remaining = [t for t in remaining if not (shard_dir / t.shard_name).exists()]
+    with contextlib.ExitStack() as stack:
+        if backend == "dask":
+            client = stack.enter_context(_dask_context(scheduler, n_jobs))
+            config = dict(backend="dask", client=client.client, wait_for_workers_timeout=120)
+        else:
+            config = dict(backend="loky", n_jobs=n_jobs)
+        remaining, attempt = list(todo), 0
+        while remaining:
             attempt += 1
-            if attempt > max_retries or not _is_worker_death(e):
-                raise RuntimeError(
-                    f"study {cfg.name}: {len(remaining)} block(s) not computed after {attempt} attempt(s): "
-                    f"{type(e).__name__}: {e}"
-                ) from e
-            print(
-                f"worker failure ({type(e).__name__}); retrying {len(remaining)} block(s), attempt {attempt + 1}",
-                file=sys.stderr,
-            )
+            try:
+                with parallel_config(**config):
+                    # one task per block (the blocks are the chunks); results come back as they
+                    # finish and are saved here at once, so a later failure loses nothing
+                    results = Parallel(return_as="generator_unordered", batch_size=1)(
+                        delayed(_compute_block)(cfg, t) for t in remaining
+                    )
+                    for task, df in results:
+                        done(task, df)
+                remaining = []
+            except Exception as e:
+                remaining = [t for t in remaining if not (shard_dir / t.shard_name).exists()]
+                which = ", ".join(_block_label(cfg, t) for t in remaining[:6]) + (" ..." if len(remaining) > 6 else "")
+                if not _is_worker_death(e):
+                    raise StudyError(
+                        f"study {cfg.name}: a block failed with {type(e).__name__}: {e}\n"
+                        f"{len(remaining)} block(s) not computed ({which}); the finished ones are saved. "
+                        "Estimator exceptions are recorded as data, so this is an error in the simulation "
+                        "or the runner (run with --jobs 1 to get its traceback)."
+                    ) from e
+                if attempt > max_retries:
+                    raise StudyError(
+                        f"study {cfg.name}: a worker process died {attempt} time(s) "
+                        f"(last: {type(e).__name__}: {_first_line(e)}); gave up after {max_retries} "
+                        f"retries with {len(remaining)} block(s) not computed: {which}. The finished blocks "
+                        "are saved. A worker dies when an estimator ends its process (os._exit, a crash in "
+                        "compiled code) or runs out of memory; rerun to retry only the missing blocks."
+                    ) from e
+                print(
+                    f"study {cfg.name}: a worker process died ({type(e).__name__}); retrying "
+                    f"{len(remaining)} block(s), attempt {attempt + 1} of {max_retries + 1}",
+                    file=sys.stderr,
+                )
 
 
-def _is_worker_death(e: Exception) -> bool:
-    name = type(e).__name__
-    text = "".join(traceback.format_exception_only(type(e), e))
-    return name in ("TerminatedWorkerError", "KilledWorker", "BrokenProcessPool") or "worker" in text.lower()
+def _block_label(cfg, t: Task) -> str:
+    return f"{cfg.gyros[t.gyro_index].label} replicates {t.start}-{t.stop - 1}"
+
+
+def _first_line(e: BaseException) -> str:
+    return (str(e).strip().splitlines() or [""])[0][:200]
+
+
+_WORKER_DEATH = ("TerminatedWorkerError", "KilledWorker", "BrokenProcessPool", "WorkerLostError")
+
+
+def _is_worker_death(e: BaseException) -> bool:
+    """A worker process ended (killed, crashed, out of memory), as opposed to a block raising."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if type(e).__name__ in _WORKER_DEATH:
+            return True
+        e = e.__cause__ or e.__context__
+    return False
 
 
 class _dask_context:
-    """joblib's dask backend on a given scheduler, or on a local cluster started for the run."""
+    """A dask client for the run: on a given scheduler, or on a local cluster started for it."""
 
     def __init__(self, scheduler, n_jobs):
         self.scheduler = scheduler
         self.n_jobs = n_jobs
         self.cluster = None
         self.client = None
-        self.cfg = None
 
     def __enter__(self):
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError:
-            raise RuntimeError(
-                "backend 'dask' needs dask.distributed: pip install 'avbench[dask]'"
+            raise StudyError(
+                "backend 'dask' needs dask.distributed: pip install -e \".[dask]\" (or pip install 'dask[distributed]')"
             ) from None
-        from joblib import parallel_config
-
         if self.scheduler:
-            self.client = Client(self.scheduler)
+            try:
+                self.client = Client(self.scheduler, timeout=30)
+            except Exception as e:
+                raise StudyError(
+                    f"cannot connect to the dask scheduler at {self.scheduler}: {type(e).__name__}: {_first_line(e)} "
+                    "(start one with 'dask scheduler' and workers with 'dask worker ADDRESS')"
+                ) from None
         else:
-            workers = max(1, self.n_jobs if self.n_jobs and self.n_jobs > 0 else os.cpu_count() or 1)
-            self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+            cpus = os.cpu_count() or 1
+            workers = self.n_jobs if self.n_jobs > 0 else max(1, cpus + 1 + self.n_jobs)
+            self.cluster = LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+            )
             self.client = Client(self.cluster)
-        self.cfg = parallel_config(backend="dask")
-        self.cfg.__enter__()
         return self
 
     def __exit__(self, *exc):
         try:
-            self.cfg.__exit__(*exc)
+            if self.client is not None:
+                self.client.close()
         finally:
-            self.client.close()
             if self.cluster is not None:
                 self.cluster.close()
         return False
