@@ -238,6 +238,12 @@ def main(argv=None) -> int:
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError) as e:
         return _fail(str(e))
+    except Exception as e:
+        from studies.runner import StudyError
+
+        if isinstance(e, StudyError):  # workers kept dying, cluster unreachable, ...: no traceback
+            return _fail(str(e))
+        raise
     except KeyboardInterrupt:
         print("avbench: interrupted; finished blocks are saved, rerun the same command to resume", file=sys.stderr)
         return 130
