@@ -248,10 +248,7 @@ def allan_variance(
     n = rate.size
     m = cluster_sizes(taus, n, dt, points_per_decade)
     # removing the mean changes no AV value (second differences kill it) but keeps S small
-    S = np.empty(n + 1)
-    S[0] = 0.0
-    np.subtract(rate, rate.mean(), out=S[1:])
-    np.cumsum(S[1:], out=S[1:])
+    S = _kernels.centred_cumsum(rate, float(rate.mean()), np.empty(n + 1))
     mf = m.astype(float)
     if overlapping:
         av = _kernels.oavar_sums(S, m) / (2.0 * mf * mf * (n - 2 * mf + 1))
