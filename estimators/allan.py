@@ -17,7 +17,9 @@ given; for the non-overlapping estimator edf = J - 1 (the white-noise value behi
 
 from __future__ import annotations
 
+import contextlib
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +37,7 @@ __all__ = [
     "StreamingAllan",
     "RecursiveAllan",
     "recursive_avar",
+    "memoize_allan",
 ]
 
 NOISE_TYPES = ("white_pm", "white_fm", "flicker_fm", "rw_fm")
@@ -244,6 +247,57 @@ def allan_variance(
     >>> bool(np.all(np.abs(r.avar * r.m - 1) < 0.05))
     True
     """
+    memo = getattr(_MEMO, "table", None)
+    if memo is not None:
+        key = _memo_key(rate, dt, taus, overlapping, points_per_decade, noise, confidence)
+        hit = memo.get(key)
+        if hit is not None and hit[0] is rate:
+            return hit[1]
+    result = _allan_variance(rate, dt, taus, overlapping, points_per_decade, noise, confidence)
+    if memo is not None and key is not None:
+        memo[key] = (rate, result)  # the reference keeps id(rate) from being reused meanwhile
+    return result
+
+
+_MEMO = threading.local()
+
+
+@contextlib.contextmanager
+def memoize_allan():
+    """Within this block, :func:`allan_variance` of the *same array object* is computed once.
+
+    Several estimators fitted to one record (a Monte Carlo replicate) often ask for the same AV
+    curve; the study runner enables this per replicate so that the curve is computed once and the
+    same :class:`AllanResult` is shared. The key is (id(rate), dt, taus, overlapping, options) and
+    the cached entry holds a reference to the array, so an id cannot be reused while the block is
+    open. Do not modify the array (or the returned result) inside the block.
+    """
+    prev = getattr(_MEMO, "table", None)
+    _MEMO.table = {}
+    try:
+        yield
+    finally:
+        _MEMO.table = prev
+
+
+def _memo_key(rate, dt, taus, overlapping, points_per_decade, noise, confidence):
+    if not isinstance(rate, np.ndarray):
+        return None
+    if isinstance(taus, str):
+        tkey = taus
+    else:
+        try:
+            tkey = ("array", np.asarray(taus, dtype=float).tobytes())
+        except (TypeError, ValueError):
+            return None
+    nkey = noise if isinstance(noise, str) else ("array", tuple(np.ravel(np.asarray(noise, dtype=object)).tolist()))
+    try:
+        return (id(rate), rate.shape, float(dt), tkey, bool(overlapping), points_per_decade, nkey, float(confidence))
+    except (TypeError, ValueError):
+        return None
+
+
+def _allan_variance(rate, dt, taus, overlapping, points_per_decade, noise, confidence) -> AllanResult:
     rate, dt = check_record(rate, dt)
     n = rate.size
     m = cluster_sizes(taus, n, dt, points_per_decade)

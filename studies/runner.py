@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from estimators.allan import memoize_allan
 from studies.config import StudyConfig
 
 __all__ = [
@@ -129,8 +130,9 @@ def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
     rows = []
     for r in range(task.start, task.stop):
         rate = gspec.gyro.simulate(gspec.n_samples, replicate_rng(cfg.seed, task.gyro_index, r))
-        for e in cfg.estimators:
-            modelled, coefs, nonphys, failure, secs = _fit_one(e, gspec, rate, gspec.gyro.dt)
+        with memoize_allan():  # estimators asking for the same AV curve of this record share it
+            fits = [(e, _fit_one(e, gspec, rate, gspec.gyro.dt)) for e in cfg.estimators]
+        for e, (modelled, coefs, nonphys, failure, secs) in fits:
             if not modelled:  # failed before saying what it models: one row per true coefficient
                 modelled = [c for c in COEFS if np.isfinite(truth[c])]
             for c in modelled:
@@ -203,7 +205,18 @@ def _compute_block(cfg: StudyConfig, task: Task) -> tuple[Task, pd.DataFrame]:
     Workers never write files (on a cluster they may not share the client's disk): the process
     that runs the study saves each block as it arrives.
     """
+    _one_numba_thread()
     return task, run_block(cfg, task)
+
+
+def _one_numba_thread() -> None:
+    """Workers already fill the cores: numba's parallel kernels in each would oversubscribe them."""
+    try:
+        import numba
+
+        numba.set_num_threads(1)
+    except (ImportError, ValueError):  # pragma: no cover
+        pass
 
 
 def _save_block(shard_dir: Path, task: Task, df: pd.DataFrame) -> None:
