@@ -148,6 +148,10 @@ class GMWM(Estimator):
     min_clusters : int
         Octave taus with fewer than this many clusters floor(n/m) are not used (default 8: the
         Gaussian large-M covariance is poor at the last octaves).
+    min_m : int
+        Octave cluster sizes below this are not used (default 1: all). Real sensors often low-pass
+        filter their output, which bends the first octaves away from any latent model here; and
+        :class:`estimators.mle.MLE` starts from a GMWM fit on the scales its block means resolve.
     weighting : {"model", "diagonal"}
         "model" (default): two-step efficient GMM with the parametric covariance
         :func:`av_covariance`; "diagonal": stop after the first step (edf weights).
@@ -173,9 +177,10 @@ class GMWM(Estimator):
     True
     """
 
-    def __init__(self, *, model="WN+GM+RW", min_clusters=8, weighting="model", n_starts=6):
+    def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m=1, weighting="model", n_starts=6):
         self.model = model
         self.min_clusters = min_clusters
+        self.min_m = min_m
         self.weighting = weighting
         self.n_starts = n_starts
 
@@ -185,6 +190,8 @@ class GMWM(Estimator):
         if isinstance(self.min_clusters, bool) or not isinstance(self.min_clusters, (int, np.integer)) \
                 or self.min_clusters < 2:
             raise ValueError(f"min_clusters: expected an integer >= 2, got {self.min_clusters!r}")
+        if isinstance(self.min_m, bool) or not isinstance(self.min_m, (int, np.integer)) or self.min_m < 1:
+            raise ValueError(f"min_m: expected a positive integer, got {self.min_m!r}")
         if self.weighting not in ("model", "diagonal"):
             raise ValueError(f"weighting: expected 'model' or 'diagonal', got {self.weighting!r}")
         if isinstance(self.n_starts, bool) or not isinstance(self.n_starts, (int, np.integer)) \
@@ -197,12 +204,13 @@ class GMWM(Estimator):
         latents = self._check()
         n = rate.size
         res = allan_variance(rate, dt, taus="octave", overlapping=True)
-        keep = (res.J >= self.min_clusters) & (res.avar > 0)
+        keep = (res.J >= self.min_clusters) & (res.m >= self.min_m) & (res.avar > 0)
         tau, avar, m, edf = res.tau[keep], res.avar[keep], res.m[keep], res.edf[keep]
         n_par = sum(len(LATENTS[lat][0]) for lat in latents)
         if tau.size < n_par + 1:
             raise ValueError(
-                f"rate: {n} samples give {tau.size} usable octave taus (>= {self.min_clusters} clusters), "
+                f"rate: {n} samples give {tau.size} usable octave taus (>= {self.min_clusters} clusters, "
+                f"m >= {self.min_m}), "
                 f"fewer than the {n_par + 1} needed for model {'+'.join(latents)}; use a longer record"
             )
         T = n * dt

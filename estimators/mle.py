@@ -43,7 +43,8 @@ at the shortest time scales, so its relative standard error becomes :math:`1/\\s
 of the CRLB :math:`1/\\sqrt{2n}`; B, K and R, whose information lies at long time scales, lose
 almost nothing. Use ``block=1`` for the full sample-level likelihood.
 
-Starting values come from :class:`estimators.gmwm.GMWM` with the same latent model. Standard errors
+Starting values come from :class:`estimators.gmwm.GMWM` with the same latent model, fitted on the
+octaves the block means resolve (cluster sizes >= m). Standard errors
 are from the observed information (numerical Hessian of the log-likelihood in the log-parameters,
 statsmodels ``cov_type="approx"``) by the delta method; the drift, a diffuse state, gets the filtered
 GLS estimate and its filtered standard deviation.
@@ -223,14 +224,14 @@ class MLE(Estimator):
     def _fit(self, rate, dt):
         latents = self._check()
         n = rate.size
-        start = GMWM(model="+".join(latents)).fit(rate, dt)
+        m = max(1, math.ceil(n / self.max_blocks)) if self.block == "auto" else int(self.block)
+        if n // m < 16:
+            raise ValueError(f"block: {m} samples per block leave {n // m} block means; expected at least 16")
+        # the start is fitted on the scales the block means resolve (tau >= m dt)
+        start = GMWM(model="+".join(latents), min_m=_pow2_at_least(m)).fit(rate, dt)
         sp = start.diagnostics_["params"]
-        if self.block == "auto":
-            m = max(1, math.ceil(n / self.max_blocks))
-            if "GM" in latents:
-                m = max(1, min(m, int(sp["GM.tc"] / (5 * dt))))
-        else:
-            m = int(self.block)
+        if self.block == "auto" and "GM" in latents:
+            m = max(1, min(m, int(sp["GM.tc"] / (5 * dt))))
         y = block_means(rate, m)
         if y.size < 16:
             raise ValueError(f"block: {m} samples per block leave {y.size} block means; expected at least 16")
@@ -270,6 +271,10 @@ class MLE(Estimator):
         if not np.isfinite(res.llf):
             diag["failure"] = "non-finite log-likelihood at the optimum"
         return coefs, {}, diag
+
+
+def _pow2_at_least(m: int) -> int:
+    return 1 << max(0, math.ceil(math.log2(m)))
 
 
 def _start_values(latents, sp, gdiag, dt):
