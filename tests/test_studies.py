@@ -1,0 +1,285 @@
+"""The study runner: identical tables for any job count, failures recorded as data, worker deaths
+retried then reported, small tasks, atomic shards, execution choices checked before writing.
+
+A test-only estimator ``test_flaky`` (registered below) fits OLS but misbehaves on the records whose
+first sample is positive (about half the replicates; replicates are separate fits, so the condition
+must depend on the data): it raises, reports a divergence, returns non-finite values, or ends its
+worker process, depending on its ``mode`` setting.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pickle
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from estimators.base import Estimator, register
+from estimators.least_squares import OLS
+from studies.config import load_config, parse_config
+from studies.report import summarize
+from studies.runner import (
+    StudyError,
+    Task,
+    _atomic_write_parquet,
+    collect,
+    replicate_rng,
+    resolve_execution,
+    run_study,
+    tasks_of,
+)
+
+
+@register("test_flaky")
+class Flaky(Estimator):
+    """Test only: OLS that misbehaves (``mode``) on records whose first sample is positive."""
+
+    def __init__(self, *, mode="raise", terms="QN", parent_pid=0, marker=""):
+        self.mode = mode
+        self.terms = terms
+        self.parent_pid = parent_pid
+        self.marker = marker
+
+    def _fit(self, rate, dt):
+        if rate[0] > 0:
+            if self.mode == "raise":
+                raise RuntimeError("deliberate failure (rate[0] > 0)")
+            if self.mode == "report":
+                return {c: math.nan for c in self.terms}, {}, {"failure": "diverged at sample 7 (deliberate)"}
+            if self.mode == "nonfinite":
+                return {c: math.inf for c in self.terms}, {}, {}
+            if self.mode == "exit" and os.getpid() != self.parent_pid:  # never in the test process
+                if not self.marker or not os.path.exists(self.marker):
+                    if self.marker:
+                        Path(self.marker).touch()
+                    os._exit(3)
+        return OLS(terms=self.terms, taus="octave")._fit(rate, dt)
+
+COLS = ["gyro", "replicate", "estimator", "coefficient", "true", "estimate", "nonphysical", "failure"]
+
+
+def study_toml(name="tiny", seed=7, replicates=6, block_size=2, n_samples=3000, extra_estimators=""):
+    return textwrap.dedent(
+        f"""
+        [study]
+        name = "{name}"
+        seed = {seed}
+        replicates = {replicates}
+        n_samples = {n_samples}
+        block_size = {block_size}
+
+        [[gyros]]
+        name = "g1"
+        dt = 0.1
+        terms = [{{type = "AngleRandomWalk", N = [0.5, "deg/sqrt(h)"]}}, {{type = "Quantization", Q = 1e-5}},
+                 {{type = "BiasInstability", B = [10.0, "deg/h"], tau_max = 600.0}}]
+
+        [[gyros]]
+        name = "g2"
+        dt = 0.05
+        terms = [{{type = "AngleRandomWalk", N = [0.2, "deg/sqrt(h)"]}}, {{type = "RateRandomWalk", K = [50.0, "deg/h^1.5"]}}]
+
+        [[estimators]]
+        name = "ols"
+        settings = {{ terms = "QNB", taus = "octave" }}
+
+        [[estimators]]
+        name = "wls"
+        settings = {{ terms = "QNBK", taus = "all" }}
+        """
+    ) + textwrap.dedent(extra_estimators)
+
+
+def flaky_toml(mode, label=None, **settings):
+    s = ", ".join(f"{k} = {v!r}" if isinstance(v, str) else f"{k} = {v}" for k, v in {"mode": mode, **settings}.items())
+    s = s.replace("'", '"')
+    return f'\n[[estimators]]\nname = "test_flaky"\nlabel = "{label or "flaky_" + mode}"\nsettings = {{ {s} }}\n'
+
+
+def write(tmp_path, text, name="study.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def first_sample_positive(cfg, g, r) -> bool:
+    gs = cfg.gyros[g]
+    return bool(gs.gyro.simulate(gs.n_samples, replicate_rng(cfg.seed, g, r))[0] > 0)
+
+
+def test_tidy_identical_for_jobs_1_and_2(tmp_path):
+    """--jobs 1 (in process) and --jobs 2 (loky workers) give the same table row for row; the
+    test-only estimator class reaches the workers with the config."""
+    extra = flaky_toml("raise") + flaky_toml("report")
+    cfg = load_config(write(tmp_path, study_toml(extra_estimators=extra)))
+    a = run_study(cfg, tmp_path / "j1", n_jobs=1, progress=False, make_report=False)
+    b = run_study(cfg, tmp_path / "j2", n_jobs=2, progress=False, make_report=False)
+    pd.testing.assert_frame_equal(a[COLS], b[COLS])
+    assert len(a) == 2 * 6 * (3 + 4 + 2 + 2)  # gyros x replicates x modelled coefficients
+    assert (a["failure"] != "").any() and (a["failure"] == "").any()
+    assert not a[a["estimator"].isin(["ols", "wls"])]["failure"].astype(bool).any()
+
+
+def test_same_numbers_for_any_block_size(tmp_path):
+    """Replicate r of gyro g draws from its own stream: the blocking does not change any number."""
+    a = run_study(load_config(write(tmp_path, study_toml(block_size=1))), tmp_path / "b1", progress=False, make_report=False)
+    b = run_study(load_config(write(tmp_path, study_toml(block_size=4))), tmp_path / "b4", progress=False, make_report=False)
+    pd.testing.assert_frame_equal(a[COLS], b[COLS])
+    assert sorted((tmp_path / "b1" / "_shards").iterdir())[0].name == sorted((tmp_path / "b4" / "_shards").iterdir())[0].name
+
+
+@pytest.mark.parametrize(
+    "mode, reason",
+    [
+        ("raise", "RuntimeError: deliberate failure (rate[0] > 0)"),
+        ("report", "diverged at sample 7 (deliberate)"),
+        ("nonfinite", "non-finite estimate"),
+    ],
+)
+def test_failures_are_data(tmp_path, mode, reason):
+    """An estimator that raises, reports a divergence or returns non-finite values on some
+    replicates: recorded with its reason, the study goes on, n_failed counts those replicates."""
+    cfg = load_config(write(tmp_path, study_toml(replicates=8, extra_estimators=flaky_toml(mode, label="flaky"))))
+    report = mode == "raise"  # the report (with figures) once
+    tidy = run_study(cfg, tmp_path / "out", progress=False, make_report=report)
+    f = tidy[tidy["estimator"] == "flaky"]
+    expected_bad = {(cfg.gyros[g].label, r) for g in range(2) for r in range(8) if first_sample_positive(cfg, g, r)}
+    assert 0 < len(expected_bad) < 16
+    bad = f[f["failure"] != ""]
+    assert set(zip(bad["gyro"], bad["replicate"])) == expected_bad
+    assert set(bad["failure"]) == {reason}
+    assert bad["estimate"].isna().all() if mode != "nonfinite" else True
+    good = f[f["failure"] == ""]
+    assert (np.isfinite(good["estimate"]) | good["nonphysical"]).all() and set(good["coefficient"]) == {"Q", "N"}
+    # the other estimators are untouched
+    assert (tidy[tidy["estimator"] != "flaky"]["failure"] == "").all()
+    # the summary counts failed replicates per gyro x estimator x coefficient
+    s = summarize(tidy)
+    for g in ("g1", "g2"):
+        n_bad = sum(1 for gl, _ in expected_bad if gl == g)
+        row = s[(s["gyro"] == g) & (s["estimator"] == "flaky")]
+        assert list(row["n_failed"]) == [n_bad, n_bad]
+        assert list(row["n_ok"] + row["n_nonphysical"]) == [8 - n_bad, 8 - n_bad]
+    if not report:
+        return
+    csv = pd.read_csv(tmp_path / "out" / "table.csv")
+    assert csv[csv["estimator"] == "flaky"]["n_failed"].sum() == 2 * len(expected_bad)
+    assert "flaky non-physical / failed" in (tmp_path / "out" / "table.md").read_text()
+
+
+def test_estimator_failing_on_every_record_is_a_config_error(tmp_path):
+    """The settings probe: an estimator that cannot fit any record simulated from the gyro is
+    rejected before any work (here: OLS trimmed with an impossible threshold)."""
+    extra = '\n[[estimators]]\nname = "ols_trimmed"\nsettings = { max_error_pct = -1.0 }\n'
+    with pytest.raises(ValueError, match=r"estimators\[2\]\.settings: \(gyro g1\).*max_error_pct"):
+        load_config(write(tmp_path, study_toml(extra_estimators=extra)))
+
+
+def test_worker_death_retried_once_then_study_completes(tmp_path):
+    """A worker that dies once (os._exit) is replaced and its blocks retried: same table as serial."""
+    marker = tmp_path / "died_once"
+    extra = flaky_toml("exit", label="flaky", parent_pid=os.getpid(), marker=str(marker))
+    cfg = load_config(write(tmp_path, study_toml(replicates=4, block_size=1, extra_estimators=extra)))
+    assert any(first_sample_positive(cfg, g, r) for g in range(2) for r in range(4))
+    b = run_study(cfg, tmp_path / "j2", n_jobs=2, progress=False, make_report=False, max_retries=2)
+    assert marker.exists()  # a worker did die
+    a = run_study(cfg, tmp_path / "j1", n_jobs=1, progress=False, make_report=False)
+    pd.testing.assert_frame_equal(a[COLS], b[COLS])
+
+
+def test_worker_death_every_time_is_reported_clearly(tmp_path, capsys):
+    """A worker that dies on every attempt: bounded retries, then a StudyError naming the blocks;
+    the blocks that finished are saved and no tidy table is written."""
+    extra = flaky_toml("exit", label="flaky", parent_pid=os.getpid())
+    cfg = load_config(write(tmp_path, study_toml(replicates=4, block_size=1, extra_estimators=extra)))
+    dying = {(cfg.gyros[g].label, r) for g in range(2) for r in range(4) if first_sample_positive(cfg, g, r)}
+    assert dying
+    with pytest.raises(StudyError) as info:
+        run_study(cfg, tmp_path / "out", n_jobs=2, progress=False, make_report=False, max_retries=1)
+    msg = str(info.value)
+    assert "worker process died 2 time(s)" in msg and "gave up after 1 retries" in msg
+    for g, r in sorted(dying)[:3]:
+        assert f"{g} replicates {r}-{r}" in msg
+    assert "attempt 2 of 2" in capsys.readouterr().err
+    shard_dir = tmp_path / "out" / "_shards" / cfg.result_key()
+    saved = {p.name for p in shard_dir.glob("*.parquet")}
+    for g in range(2):
+        for r in range(4):
+            if (cfg.gyros[g].label, r) in dying:
+                assert Task(g, r, r + 1).shard_name not in saved
+    assert not (tmp_path / "out" / "tidy.parquet").exists()
+    assert not list(shard_dir.glob(".*.tmp"))
+
+
+def test_what_is_shipped_per_task_is_small(tmp_path):
+    """Workers get the config (gyros and settings) and a replicate range, never records."""
+    cfg = load_config(write(tmp_path, study_toml(n_samples=1_000_000, extra_estimators=flaky_toml("raise"))))
+    for t in tasks_of(cfg):
+        assert len(pickle.dumps((cfg, t))) < 20_000
+    import cloudpickle
+
+    from studies.runner import _compute_block
+
+    assert len(cloudpickle.dumps((_compute_block, cfg, tasks_of(cfg)[0]))) < 20_000
+    # a block's result is a few rows, not samples
+    lv = load_config("studies/lv2015.toml")
+    assert len(pickle.dumps(lv)) < 20_000
+
+
+def test_execution_choices_rejected_before_anything_is_written(tmp_path):
+    cfg = load_config(write(tmp_path, study_toml()))
+    for kwargs, match in [
+        (dict(n_jobs=0), "jobs: expected a positive number"),
+        (dict(n_jobs=-1000), "jobs: expected at least"),
+        (dict(backend="loky", scheduler="tcp://127.0.0.1:8786"), "needs the dask backend"),
+        (dict(backend="spark"), "backend: expected 'loky' or 'dask'"),
+        (dict(scheduler="my laptop"), "scheduler: expected a dask scheduler address"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            run_study(cfg, tmp_path / "out", progress=False, **kwargs)
+        assert not (tmp_path / "out").exists()
+    # --scheduler alone means the dask backend; the config's scheduler is only used with dask
+    assert resolve_execution(cfg, 2, None, "tcp://h:1") == (2, "dask", "tcp://h:1")
+    raw = parse_config({**_raw(tmp_path), "study": {**_raw(tmp_path)["study"], "backend": "dask", "scheduler": "tcp://h:2"}})
+    assert resolve_execution(raw, 1, None, None) == (1, "dask", "tcp://h:2")
+    assert resolve_execution(raw, 1, "loky", None) == (1, "loky", None)
+
+
+def _raw(tmp_path):
+    import tomllib
+
+    return tomllib.loads(study_toml())
+
+
+def test_shards_are_written_atomically(tmp_path, monkeypatch):
+    """A write that fails half-way leaves neither a final name nor a temporary file."""
+    df = pd.DataFrame({"a": [1, 2]})
+    target = tmp_path / "x.parquet"
+
+    def broken(self, path, **kw):
+        Path(path).write_bytes(b"PAR1 half a file")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(pd.DataFrame, "to_parquet", broken)
+    with pytest.raises(OSError, match="disk full"):
+        _atomic_write_parquet(df, target)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_collect_rejects_a_shard_that_does_not_match_its_block(tmp_path):
+    cfg = load_config(write(tmp_path, study_toml()))
+    run_study(cfg, tmp_path / "out", progress=False, make_report=False)
+    shard_dir = tmp_path / "out" / "_shards" / cfg.result_key()
+    tasks = tasks_of(cfg)
+    wrong = pd.read_parquet(shard_dir / tasks[1].shard_name)
+    wrong.to_parquet(shard_dir / tasks[0].shard_name, index=False)
+    with pytest.raises(StudyError, match=r"does not match its block \(replicates \[2, 3\], expected 0\.\.1\); delete it"):
+        collect(shard_dir, tasks, cfg)
+    (shard_dir / tasks[0].shard_name).write_bytes(b"garbage")
+    with pytest.raises(StudyError, match="unreadable shard"):
+        collect(shard_dir, tasks, cfg)
