@@ -71,9 +71,28 @@ def _numeric(arr, path, what="data"):
     return arr.astype(float)
 
 
+def _delimiter(path: Path) -> str:
+    """The separator of a text table, from its first data line: comma, semicolon, tab or blanks."""
+    try:
+        with open(path, encoding="utf-8", errors="strict") as fh:
+            for line in fh:
+                line = line.strip()
+                if line and not line.startswith("#"):
+                    break
+            else:
+                raise ValueError(f"{path}: the file is empty")
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text file (cannot decode as UTF-8)") from None
+    for sep in (",", ";", "\t"):
+        if sep in line:
+            return sep
+    return r"\s+"
+
+
 def _read_text(path: Path, column):
     try:
-        df = pd.read_csv(path, sep=None, engine="python", header=None, comment="#", skip_blank_lines=True)
+        df = pd.read_csv(path, sep=_delimiter(path), engine="python", header=None, comment="#",
+                         skip_blank_lines=True, dtype=str)
     except pd.errors.EmptyDataError:
         raise ValueError(f"{path}: the file is empty") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as e:

@@ -1,0 +1,143 @@
+"""``avbench estimate``: file formats, --json purity, clear failures that write nothing."""
+
+import json
+
+import numpy as np
+import pytest
+
+from noise_models import AngleRandomWalk, Gyro, RateRandomWalk
+from noise_models.units import from_si, rate_to_si
+from studies.cli import main
+from studies.estimate import load_record
+
+FS = 100.0
+N_TRUE = 2e-3  # rad/sqrt(s)
+
+
+@pytest.fixture(scope="module")
+def record():
+    g = Gyro(dt=1 / FS, terms=[AngleRandomWalk(N=N_TRUE), RateRandomWalk(K=1e-5)])
+    return g.simulate(60_000, np.random.default_rng(42))
+
+
+def _deg(x):
+    return x / rate_to_si(1.0, "deg/s")
+
+
+def test_csv_with_header_json_only(tmp_path, record, capsys):
+    f = tmp_path / "rec.csv"
+    np.savetxt(f, np.column_stack([np.arange(record.size), _deg(record)]), delimiter=",",
+               header="t,gyro_x", comments="")
+    out = tmp_path / "out"
+    code = main(["estimate", str(f), "--fs", "100", "--column", "gyro_x", "--units", "deg/s",
+                 "--method", "nnls_rel,slope_lines", "--json", "--out", str(out)])
+    assert code == 0
+    payload = json.loads(capsys.readouterr().out)  # stdout holds the JSON object and nothing else
+    assert set(payload) == {"nnls_rel", "slope_lines"}
+    n = payload["nnls_rel"]["N"]
+    assert n["unit"] == "deg/sqrt(h)"
+    assert n["value"] == pytest.approx(from_si("N", n["si"], "deg/sqrt(h)"))
+    # the CLI reports what the estimator gives on the converted record, in both units
+    import estimators
+
+    direct = estimators.get("nnls_rel").fit(rate_to_si(_deg(record), "deg/s"), 1 / FS).coefficients_
+    assert n["si"] == pytest.approx(direct["N"], rel=1e-9)
+    assert payload["nnls_rel"]["B"]["value"] is None or payload["nnls_rel"]["B"]["value"] >= 0
+    for suffix in ("_av.png", "_av.csv", "_coefficients.csv", "_coefficients.json"):
+        assert (out / f"rec_gyro_x{suffix}").is_file()
+
+
+@pytest.mark.parametrize("kind", ["npy", "npz", "txt"])
+def test_formats_agree(tmp_path, record, kind, capsys):
+    f = tmp_path / f"rec.{kind}"
+    if kind == "npy":
+        np.save(f, record)
+    elif kind == "npz":
+        np.savez(f, data=np.column_stack([record, -record]), columns=np.array(["a", "b"]))
+    else:
+        np.savetxt(f, record)
+    col = ["--column", "a"] if kind == "npz" else []
+    assert main(["estimate", str(f), "--fs", "100", *col, "--method", "nnls_rel", "--json",
+                 "--out", str(tmp_path)]) == 0
+    si = json.loads(capsys.readouterr().out)["nnls_rel"]["N"]["si"]
+    np.save(tmp_path / "ref.npy", record)
+    assert main(["estimate", str(tmp_path / "ref.npy"), "--fs", "100", "--method", "nnls_rel", "--json",
+                 "--out", str(tmp_path)]) == 0
+    assert si == pytest.approx(json.loads(capsys.readouterr().out)["nnls_rel"]["N"]["si"], rel=1e-12)
+
+
+def test_table_output_and_settings(tmp_path, record, capsys):
+    f = tmp_path / "r.npy"
+    np.save(f, record)
+    assert main(["estimate", str(f), "--fs", "100", "--method", "gmwm", "--set", "gmwm.model=WN+RW",
+                 "--out", str(tmp_path)]) == 0
+    text = capsys.readouterr().out
+    assert "N (deg/sqrt(h))" in text and "gmwm" in text
+
+
+def _bad_files(tmp_path):
+    cases = {}
+    p = tmp_path / "nan.npy"
+    x = np.ones(100)
+    x[17] = np.nan
+    np.save(p, x)
+    cases["nan"] = ([str(p)], "non-finite")
+    p = tmp_path / "inf.csv"
+    p.write_text("1\n2\ninf\n" + "3\n" * 50)
+    cases["inf"] = ([str(p)], "non-finite")
+    p = tmp_path / "empty.csv"
+    p.write_text("")
+    cases["empty"] = ([str(p)], "empty")
+    p = tmp_path / "cube.npy"
+    np.save(p, np.zeros((10, 10, 3)))
+    cases["shape"] = ([str(p)], "shape")
+    p = tmp_path / "words.csv"
+    p.write_text("rate\n" + "\n".join(["1.0"] * 20 + ["abc"] + ["2.0"] * 20) + "\n")
+    cases["non-numeric"] = ([str(p)], "not numeric")
+    p = tmp_path / "two.csv"
+    p.write_text("a,b\n" + "1,2\n" * 40)
+    cases["unknown column"] = ([str(p), "--column", "c"], "unknown column")
+    cases["no column"] = ([str(p)], "choose one with --column")
+    p = tmp_path / "short.npy"
+    np.save(p, np.ones(5))
+    cases["short"] = ([str(p)], "at least 16")
+    cases["missing"] = ([str(tmp_path / "nope.csv")], "no such file")
+    p = tmp_path / "rec.xlsx"
+    p.write_text("x")
+    cases["type"] = ([str(p)], "unknown file type")
+    return cases
+
+
+@pytest.mark.parametrize("case", ["nan", "inf", "empty", "shape", "non-numeric", "unknown column",
+                                  "no column", "short", "missing", "type"])
+def test_bad_files_fail_clearly_and_write_nothing(tmp_path, case, capsys):
+    argv, message = _bad_files(tmp_path)[case]
+    out = tmp_path / "out"
+    code = main(["estimate", *argv, "--fs", "100", "--method", "nnls_rel", "--json", "--out", str(out)])
+    err = capsys.readouterr()
+    assert code != 0
+    assert message in err.err
+    assert err.out == ""
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [(["--method", "nope"], "unknown estimator"), (["--units", "furlong/s"], "unknown rate unit"),
+     (["--fs", "-3"], "--fs"), (["--set", "gmwm.colour=red", "--method", "gmwm"], "unknown setting"),
+     (["--set", "wls.model=x"], "not among")],
+)
+def test_bad_arguments(tmp_path, record, extra, message, capsys):
+    f = tmp_path / "r.npy"
+    np.save(f, record)
+    args = ["estimate", str(f), "--fs", "100", "--method", "nnls_rel", "--out", str(tmp_path / "o")]
+    # later occurrences of an option override the earlier ones
+    code = main(args + extra)
+    assert code != 0 and message in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_load_record_npz_without_data_key(tmp_path, record):
+    f = tmp_path / "one.npz"
+    np.savez(f, rate=record)
+    assert np.array_equal(load_record(f), record)
