@@ -26,6 +26,18 @@ def _as_generator(rng) -> np.random.Generator:
     )
 
 
+def _sum_next(streams, n: int) -> np.ndarray:
+    """Sum of the next ``n`` samples of every term, in term order (the first sum makes a new array,
+    the later ones add in place: same values as ``a + b + c``, fewer allocations)."""
+    out = streams[0].next(n)
+    for i, s in enumerate(streams[1:]):
+        if i == 0:
+            out = out + s.next(n)
+        else:
+            out += s.next(n)
+    return out
+
+
 class Gyro:
     """A gyro whose rate noise is the sum of independent ``terms`` sampled every ``dt`` seconds.
 
@@ -119,10 +131,7 @@ class Gyro:
         """``n_samples`` rate samples (rad/s)."""
         n = _check_n(n_samples)
         streams = self._term_streams(rng)
-        out = streams[0].next(n)
-        for s in streams[1:]:
-            out = out + s.next(n)
-        return out
+        return _sum_next(streams, n)
 
     def stream(self, n_samples: int, rng, chunk_size: int = 1 << 18) -> Iterator[np.ndarray]:
         """Yield the same record as :meth:`simulate` in chunks of ``chunk_size`` samples."""
@@ -134,8 +143,6 @@ class Gyro:
         done = 0
         while done < n:
             c = min(chunk_size, n - done)
-            out = streams[0].next(c)
-            for s in streams[1:]:
-                out = out + s.next(c)
+            out = _sum_next(streams, c)
             done += c
             yield out

@@ -41,8 +41,6 @@ import math
 from typing import ClassVar
 
 import numpy as np
-from scipy.linalg import expm, solve_continuous_lyapunov
-from scipy.signal import lfilter
 
 from noise_models.exact_avar import avar_from_autocovariance, check_m
 from noise_models.units import as_si
@@ -161,7 +159,9 @@ class _WhiteStream(TermStream):
         self.scale = scale
 
     def next(self, n):
-        return self.rng.standard_normal(n) * self.scale
+        x = self.rng.standard_normal(n)
+        x *= self.scale  # in place: one array, one pass fewer
+        return x
 
 
 class AngleRandomWalk(NoiseTerm):
@@ -209,13 +209,10 @@ class _QuantStream(TermStream):
         self.prev = rng.standard_normal() * Q  # theta_{-1}: the record starts stationary
 
     def next(self, n):
-        theta = self.rng.standard_normal(n) * self.Q
-        out = np.empty(n)
-        if n:
-            out[0] = theta[0] - self.prev
-            np.subtract(theta[1:], theta[:-1], out=out[1:])
-            self.prev = theta[-1]
-        return out / self.dt
+        out = self.rng.standard_normal(n)
+        if n:  # theta_k = Q n_k; w_k = (theta_k - theta_{k-1}) / dt, in place, one pass
+            self.prev = _diff_kernel(out, self.Q, self.prev, self.dt)
+        return out
 
 
 class Quantization(NoiseTerm):
@@ -261,11 +258,9 @@ class _RRWStream(TermStream):
         self.last = np.zeros(1)
 
     def next(self, n):
-        incr = self.rng.standard_normal(n) * self.step
-        # the carry goes first, so the running sum is the same sequential sum as in one shot
-        out = np.cumsum(np.concatenate((self.last, incr)))[1:]
-        if n:
-            self.last = out[-1:].copy()
+        out = self.rng.standard_normal(n)
+        if n:  # w_k = w_{k-1} + K sqrt(dt) n_k: the same sequential sum in one shot or in chunks
+            self.last[0] = _walk_kernel(out, self.step, self.last[0])
         return out
 
 
@@ -361,9 +356,37 @@ class _AR1Stream(TermStream):
         self.zi = np.array([phi * rng.standard_normal() * sigma])
 
     def next(self, n):
-        e = self.rng.standard_normal(n) * self.scale
-        out, self.zi = lfilter([1.0], [1.0, -self.phi], e, zi=self.zi)
+        out = self.rng.standard_normal(n)
+        out *= self.scale
+        if n:  # x_k = e_k + phi x_{k-1}, in place (the recursion of lfilter([1], [1, -phi]))
+            self.zi[0] = _ar1_kernel(out, self.phi, self.zi[0])
         return out
+
+
+def _diff_kernel_py(x, Q, prev, dt):
+    """x_k <- (Q x_k - theta_{k-1}) / dt in place (theta_{-1} = prev); returns theta_last."""
+    last = Q * x[x.shape[0] - 1]
+    for k in range(x.shape[0] - 1, 0, -1):
+        x[k] = (Q * x[k] - Q * x[k - 1]) / dt
+    x[0] = (Q * x[0] - prev) / dt
+    return last
+
+
+def _walk_kernel_py(x, step, acc):
+    """x_k <- acc_k = acc_{k-1} + step x_k in place; returns the last value."""
+    for k in range(x.shape[0]):
+        acc = acc + step * x[k]
+        x[k] = acc
+    return acc
+
+
+def _ar1_kernel_py(e, phi, z):
+    """e_k <- e_k + z, z <- phi e_k (in place); returns the carry phi x_last for the next chunk."""
+    for k in range(e.shape[0]):
+        x = e[k] + z
+        e[k] = x
+        z = phi * x
+    return z
 
 
 def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:
@@ -470,27 +493,76 @@ def _kasdin_walter_h_cached(n_taps: int) -> np.ndarray:
     return h
 
 
-class _FIRStream(TermStream):
-    """Overlap-save FIR filtering of white noise in fixed segments (chunk-invariant)."""
+def _fft_sizes(L: int) -> tuple[int, int]:
+    """FFT lengths (first, steady) of the overlap-save filter with ``L`` taps.
 
-    def __init__(self, dt, rng, h, scale, segment):
+    A segment gives nfft - (L - 1) new samples. The first segment is short (nfft ~ 1.5 L: the
+    presets' records are L / 2 samples long, so one short segment covers them); the following ones
+    are longer (nfft ~ 2-4 L, at most 2^22 unless 2 L is more) so that long streams spend less
+    FFT work per sample. Both lengths depend on L only, so every record that starts from the same
+    generator shares its prefix, and chunked streaming equals one-shot generation bit for bit.
+    Lengths are 2-3-5-smooth (``scipy.fft.next_fast_len``).
+    """
+    from scipy.fft import next_fast_len
+
+    first = next_fast_len(max(L + L // 2, L - 1 + (1 << 12)), real=True)
+    steady = next_fast_len(max(first, 2 * L, min(4 * L, 1 << 22)), real=True)
+    return first, steady
+
+
+@functools.lru_cache(maxsize=4)
+def _fir_spectrum(h_bytes: bytes, nfft: int) -> np.ndarray:
+    """rfft of the impulse response zero-padded to ``nfft`` (cached across replicates)."""
+    H = np.fft.rfft(np.frombuffer(h_bytes, dtype=np.float64), nfft)
+    H.setflags(write=False)
+    return H
+
+
+class _FIRStream(TermStream):
+    """Overlap-save FIR filtering of white noise in fixed segments (chunk-invariant).
+
+    Segment j filters the buffer [last L-1 noise samples | nfft - L + 1 new ones] with one real FFT
+    of length nfft (no zero padding: the first L-1 outputs of the circular convolution are
+    discarded). The buffers (noise, spectrum, output) are allocated once per FFT length and reused,
+    and the filter's spectrum is cached per (filter, nfft).
+    """
+
+    def __init__(self, dt, rng, h, scale):
         super().__init__(dt, rng)
         self.h = h
         self.scale = scale
         self.L = len(h)
-        self.seg = segment
-        nfft = 1 << int(math.ceil(math.log2(self.seg + self.L - 1)))
-        self.nfft = nfft
-        self.H = np.fft.rfft(h, nfft)
+        self.sizes = _fft_sizes(self.L)
+        self.n_segments = 0
+        self._nfft = 0
         # burn-in: L-1 past noise samples, so the first output is already stationary
-        self.hist = rng.standard_normal(self.L - 1) * scale
+        self._buffers(self.sizes[0])
+        hist = self._x[: self.L - 1]
+        rng.standard_normal(out=hist)
+        hist *= scale
         self.buf = np.empty(0)
 
+    def _buffers(self, nfft):
+        if nfft == self._nfft:
+            return
+        x = np.empty(nfft)
+        if self._nfft:  # carry the history into the new buffer
+            x[: self.L - 1] = self._x[self._nfft - (self.L - 1) :]
+        self._x, self._X, self._y, self._nfft = x, np.empty(nfft // 2 + 1, complex), np.empty(nfft), nfft
+        self._H = _fir_spectrum(self.h.tobytes(), nfft)
+
     def _segment(self):
-        w = self.rng.standard_normal(self.seg) * self.scale
-        x = np.concatenate((self.hist, w))
-        y = np.fft.irfft(np.fft.rfft(x, self.nfft) * self.H, self.nfft)[self.L - 1 : self.L - 1 + self.seg]
-        self.hist = x[len(x) - (self.L - 1) :] if self.L > 1 else np.empty(0)
+        self._buffers(self.sizes[0] if self.n_segments == 0 else self.sizes[1])
+        L1, x = self.L - 1, self._x
+        w = x[L1:]
+        self.rng.standard_normal(out=w)
+        w *= self.scale
+        X = np.fft.rfft(x, out=self._X)
+        X *= self._H
+        y = np.fft.irfft(X, self._nfft, out=self._y)[L1:].copy()
+        if L1:
+            x[:L1] = x[len(x) - L1 :]  # the history of the next segment
+        self.n_segments += 1
         return y
 
     def next(self, n):
@@ -581,9 +653,7 @@ class BiasInstability(NoiseTerm):
 
     def stream(self, dt, rng):
         dt = _check_dt(dt)
-        h = self.impulse_response(dt)
-        segment = max(1 << 12, 1 << int(math.ceil(math.log2(len(h)))))
-        return _FIRStream(dt, rng, h, self.B, segment)
+        return _FIRStream(dt, rng, self.impulse_response(dt), self.B)
 
 
 # --- second-order Gauss-Markov ---------------------------------------------------------------
@@ -621,8 +691,14 @@ try:  # compiled when numba is available (it is a dependency); same arithmetic e
     from numba import njit
 
     _sogm_kernel = njit(cache=True)(_sogm_kernel_py)
+    _ar1_kernel = njit(cache=True)(_ar1_kernel_py)
+    _diff_kernel = njit(cache=True)(_diff_kernel_py)
+    _walk_kernel = njit(cache=True)(_walk_kernel_py)
 except ImportError:  # pragma: no cover
+    _diff_kernel = _diff_kernel_py
+    _walk_kernel = _walk_kernel_py
     _sogm_kernel = _sogm_kernel_py
+    _ar1_kernel = _ar1_kernel_py
 
 
 class SecondOrderGaussMarkov(NoiseTerm):
@@ -680,10 +756,14 @@ class SecondOrderGaussMarkov(NoiseTerm):
         M[:n, :n] = -F
         M[:n, n:] = G @ G.T
         M[n:, n:] = F.T
+        from scipy.linalg import expm
+
         E = expm(M * dt)
         A = E[n:, n:].T
         Qd = A @ E[:n, n:]
         Qd = (Qd + Qd.T) / 2
+        from scipy.linalg import solve_continuous_lyapunov
+
         P = solve_continuous_lyapunov(F, -G @ G.T)
         return A, Qd, (P + P.T) / 2
 
