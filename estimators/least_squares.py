@@ -162,12 +162,13 @@ class EDFWeightedLS(_AVCurveFit):
         if not isinstance(self.n_iter, int) or self.n_iter < 1:
             raise ValueError(f"n_iter: expected a positive integer, got {self.n_iter!r}")
         beta = solve_scaled(X, av.avar, av.J.astype(float))
+        noise_of_column = np.array([_NOISE_OF_TERM[t] for t in terms], dtype=object)
         scale = None
         for _ in range(self.n_iter):
             contrib = X * np.maximum(beta, 0)[None, :]
             model = contrib.sum(axis=1)
             level = np.where(model > 0, model, av.avar)
-            dominant = np.array([_NOISE_OF_TERM[terms[j]] for j in contrib.argmax(axis=1)], dtype=object)
+            dominant = noise_of_column[contrib.argmax(axis=1)]
             if av.overlapping:
                 edf = edf_overlapping(av.m, av.n_samples, dominant)
             else:
