@@ -415,6 +415,10 @@ def _is_worker_death(e: BaseException) -> bool:
     return False
 
 
+#: seconds to wait for a remote dask scheduler to answer
+DASK_CONNECT_TIMEOUT = 30
+
+
 class _dask_context:
     """A dask client for the run: on a given scheduler, or on a local cluster started for it."""
 
@@ -433,7 +437,7 @@ class _dask_context:
             ) from None
         if self.scheduler:
             try:
-                self.client = Client(self.scheduler, timeout=30)
+                self.client = Client(self.scheduler, timeout=DASK_CONNECT_TIMEOUT)
             except Exception as e:
                 raise StudyError(
                     f"cannot connect to the dask scheduler at {self.scheduler}: {type(e).__name__}: {_first_line(e)} "
@@ -443,7 +447,7 @@ class _dask_context:
             cpus = os.cpu_count() or 1
             workers = self.n_jobs if self.n_jobs > 0 else max(1, cpus + 1 + self.n_jobs)
             self.cluster = LocalCluster(
-                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
             )
             self.client = Client(self.cluster)
         return self
