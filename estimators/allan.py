@@ -174,13 +174,24 @@ def edf_overlapping(m, n: int, noise) -> np.ndarray:
     return np.maximum(out, 1.0)
 
 
-def _noise_from_slope(tau, avar) -> np.ndarray:
-    if len(tau) < 2:
-        return np.array(["white_fm"] * len(tau), dtype=object)
-    slope = np.gradient(np.log(np.maximum(avar, np.finfo(float).tiny)), np.log(tau))
-    slope = np.clip(np.rint(slope), -2, 1).astype(int)
+def _noise_from_slope(tau, avar, J) -> np.ndarray:
+    """Noise type per tau from the local log-log slope of the AV (rounded to -2, -1, 0, +1).
+
+    The slope is only trusted where the AV values are precise (J >= 16 clusters); beyond, each tau
+    takes the type identified at the longest trusted tau (a noisy tail would otherwise pass for
+    quantization noise and get an absurdly large edf).
+    """
     names = {v: k for k, v in _SLOPE_OF.items()}
-    return np.array([names[s] for s in slope], dtype=object)
+    out = np.array(["white_fm"] * len(tau), dtype=object)
+    good = np.flatnonzero(J >= 16)
+    if len(good) < 2:
+        return out
+    g = good
+    slope = np.gradient(np.log(np.maximum(avar[g], np.finfo(float).tiny)), np.log(tau[g]))
+    kinds = [names[int(v)] for v in np.clip(np.rint(slope), -2, 1)]
+    out[g] = kinds
+    out[g[-1] + 1 :] = kinds[-1]
+    return out
 
 
 def _interval(avar, edf, confidence):
@@ -197,7 +208,7 @@ def _result(m, avar, n, dt, overlapping, noise, confidence) -> AllanResult:
     with np.errstate(divide="ignore"):
         rel = 1.0 / np.sqrt(2.0 * (J - 1))
     if overlapping:
-        kinds = _noise_from_slope(tau, avar) if noise == "auto" else noise
+        kinds = _noise_from_slope(tau, avar, J) if noise == "auto" else noise
         edf = edf_overlapping(m, n, kinds)
     else:
         edf = np.maximum(J - 1, 1).astype(float)
