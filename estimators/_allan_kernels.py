@@ -108,3 +108,44 @@ def avar_sums(S, m):
             acc += d * d
         out[i] = acc
     return out
+
+
+@njit(cache=True)
+def streaming_octaves(x, offset, pending, has_pending, prev, has_prev, ssq, ndiff):
+    """One chunk of the streaming non-overlapping octave AV (state arrays updated in place).
+
+    Level j holds clusters of m = 2^j samples aligned with the start of the record. The chunk's
+    completed level-j cluster sums are paired (with a carried ``pending`` sum) into level j+1 sums,
+    so the work is 2 n per chunk whatever the number of levels; for every completed cluster the
+    squared difference of its mean and the previous one is added to ``ssq[j]``.
+    """
+    L = ssq.size
+    cur = np.empty(x.size)
+    for k in range(x.size):
+        cur[k] = x[k] - offset
+    ncur = x.size
+    m = 1.0
+    for j in range(L):
+        for i in range(ncur):
+            mean = cur[i] / m
+            if has_prev[j]:
+                d = mean - prev[j]
+                ssq[j] += d * d
+                ndiff[j] += 1
+            prev[j] = mean
+            has_prev[j] = True
+        if j + 1 == L:
+            break
+        nnext = 0
+        for i in range(ncur):
+            if has_pending[j + 1]:
+                cur[nnext] = pending[j + 1] + cur[i]
+                nnext += 1
+                has_pending[j + 1] = False
+            else:
+                pending[j + 1] = cur[i]
+                has_pending[j + 1] = True
+        ncur = nnext
+        m *= 2.0
+        if ncur == 0:
+            break

@@ -376,12 +376,15 @@ class StreamingAllan:
         L = n_octaves
         self.n = 0
         self.offset = None  # subtracted from every sample (AV-invariant) to keep sums small
-        self.partial = np.zeros(L)  # sum over the open cluster
-        self.prev = np.full(L, np.nan)  # previous complete cluster mean
+        self.pending = np.zeros(L)  # level j: a completed level-(j-1) cluster sum awaiting its pair
+        self.has_pending = np.zeros(L, dtype=np.bool_)
+        self.prev = np.zeros(L)  # previous complete cluster mean (valid where ndiff or has_prev)
+        self.has_prev = np.zeros(L, dtype=np.bool_)
         self.ssq = np.zeros(L)  # sum of squared differences of adjacent means
         self.ndiff = np.zeros(L, dtype=np.int64)
 
     def update(self, chunk) -> None:
+        """Add the next samples: one compiled pass, cluster sums of level j+1 from pairs of level j."""
         x = np.asarray(chunk, dtype=np.float64)
         if x.ndim != 1:
             raise ValueError(f"chunk: expected a 1-D array, got shape {x.shape}")
@@ -391,27 +394,10 @@ class StreamingAllan:
             raise ValueError(f"chunk: non-finite sample(s) after {self.n} samples")
         if self.offset is None:
             self.offset = float(x.mean())
-        S = np.concatenate(([0.0], np.cumsum(x - self.offset)))
-        t0, c = self.n, x.size
-        for j, m in enumerate(self.m):
-            # chunk index (1..m) of the first cluster end in this chunk; an end at index 0 was
-            # already closed as the last index of the previous chunk
-            first = (-t0) % m or m
-            if first > c:  # no boundary in this chunk
-                self.partial[j] += S[c]
-                continue
-            bounds = np.arange(first, c + 1, m)
-            sums = np.empty(len(bounds))
-            sums[0] = self.partial[j] + S[bounds[0]]
-            sums[1:] = np.diff(S[bounds])
-            self.partial[j] = S[c] - S[bounds[-1]]
-            means = sums / m
-            seq = np.concatenate(([self.prev[j]], means)) if np.isfinite(self.prev[j]) else means
-            d = np.diff(seq)
-            self.ssq[j] += np.dot(d, d)
-            self.ndiff[j] += d.size
-            self.prev[j] = means[-1]
-        self.n += c
+        _kernels.streaming_octaves(
+            x, self.offset, self.pending, self.has_pending, self.prev, self.has_prev, self.ssq, self.ndiff
+        )
+        self.n += x.size
 
     def result(self, confidence: float = 0.683) -> AllanResult:
         ok = self.ndiff >= 1
