@@ -164,7 +164,7 @@ def test_killed_study_resumes_to_the_uninterrupted_result(tmp_path):
     """SIGINT after the first block, SIGKILL after the next: no partial file ever has a final
     name, the interrupt says how to resume, and the third run ends with the same table as an
     uninterrupted run, computing only what was missing."""
-    text = toml(seed=11, replicates=24, block_size=1, n_samples=200_000)
+    text = toml(seed=11, replicates=40, block_size=1, n_samples=200_000)
     config = tmp_path / "study.toml"
     config.write_text(text)
     cfg = load_config(config)
