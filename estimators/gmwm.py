@@ -324,7 +324,8 @@ def _report(latents, values, jac, at_floor):
         cov_u = np.linalg.inv(jac.T @ jac)
     except np.linalg.LinAlgError:
         cov_u = np.full((values.size, values.size), np.nan)
-    se_u = np.sqrt(np.clip(np.diag(cov_u), 0, None))
+    var_u = np.diag(cov_u)
+    se_u = np.sqrt(np.where(var_u > 0, var_u, np.nan))  # no curvature: no standard error
     coefs, std, params = {}, {}, {}
     i = 0
     for lat in latents:

@@ -246,8 +246,10 @@ class MLE(Estimator):
                           cov_kwds={"approx_complex_step": False, "approx_centered": True})
             cov = np.asarray(res.cov_params())
         vals = mod.values(res.params)
-        se_log = dict(zip(mod.param_names, np.sqrt(np.clip(np.diag(cov), 0, None))
-                          if np.all(np.isfinite(cov)) else np.full(len(vals), np.nan)))
+        # a non-positive variance (flat or non-concave likelihood, e.g. a term at zero) has no
+        # standard error: NaN, not 0
+        var = np.diag(cov) if np.all(np.isfinite(cov)) else np.full(len(vals), np.nan)
+        se_log = dict(zip(mod.param_names, np.sqrt(np.where(var > 0, var, np.nan))))
         from noise_models.terms import B_EQUIV_OVER_SIGMA
 
         coefs, std = {}, {}
