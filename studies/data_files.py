@@ -1,0 +1,80 @@
+"""Reading recordings given on the command line: every problem a ``ValueError`` naming the file.
+
+Small shared helpers for loaders such as ``avbench estimate`` (``studies/estimate.py``), for the
+cases where NumPy's own errors do not name the file or are misleading:
+
+* :func:`check_file` -- missing path, a folder, an empty file;
+* :func:`load_npy` / :func:`load_npz` -- a corrupt or non-NumPy file (NumPy raises a ValueError
+  about "pickled (object) data" without the file name), an archive that is not a zip;
+* :func:`is_header_row` -- a first text row is a header only if none of its cells is a number,
+  counting ``nan``/``inf`` spellings as numbers (a record starting with NaN must be rejected as
+  non-finite, not silently read as a column named "nan").
+"""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["check_file", "load_npy", "load_npz", "is_header_row"]
+
+_NONFINITE_WORDS = {"nan", "+nan", "-nan", "inf", "+inf", "-inf", "infinity", "+infinity", "-infinity"}
+
+
+def check_file(path) -> Path:
+    """``path`` as a Path if it is a non-empty regular file; else a ValueError saying what it is."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{path}: is a folder; expected a recording file (.npy, .npz, .csv, .txt, .dat, .tsv)")
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    if path.stat().st_size == 0:
+        raise ValueError(f"{path}: the file is empty")
+    return path
+
+
+def load_npy(path) -> np.ndarray:
+    """The array of a ``.npy`` file (never unpickles); a corrupt file is a ValueError naming it."""
+    path = check_file(path)
+    try:
+        return np.load(path, allow_pickle=False)
+    except Exception as e:  # ValueError (bad header / object array), OSError, EOFError, ...
+        raise ValueError(f"{path}: not a readable .npy array ({_reason(e)})") from None
+
+
+def load_npz(path) -> dict[str, np.ndarray]:
+    """All arrays of a ``.npz`` archive, read eagerly; a corrupt archive is a ValueError naming it."""
+    path = check_file(path)
+    try:
+        z = np.load(path, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            raise ValueError("a single .npy array, not an .npz archive")
+        with z:
+            return {k: z[k] for k in z.files}
+    except Exception as e:  # zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError, ...
+        raise ValueError(f"{path}: not a readable .npz archive ({_reason(e)})") from None
+
+
+def is_header_row(cells) -> bool:
+    """True if no cell of a first text row reads as a number (``nan``/``inf`` count as numbers)."""
+    for c in cells:
+        s = str(c).strip()
+        if s.lower() in _NONFINITE_WORDS:
+            return False
+        try:
+            float(s)
+        except ValueError:
+            continue
+        return False
+    return True
+
+
+def _reason(e: BaseException) -> str:
+    if isinstance(e, zipfile.BadZipFile):
+        return "not a zip archive"
+    text = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    if "pickled" in text or "allow_pickle" in text:
+        return "not a NumPy file, or one holding Python objects, which are never loaded"
+    return text[:200]
