@@ -45,8 +45,7 @@ def _ssq_second_diff(a, b, c):
     return acc
 
 
-@njit(cache=True, parallel=True, fastmath=True)
-def _oavar_sums_per_tau(S, m):
+def _oavar_sums_per_tau_py(S, m):
     out = np.empty(m.size)
     n1 = S.size
     for i in prange(m.size):
@@ -56,8 +55,7 @@ def _oavar_sums_per_tau(S, m):
     return out
 
 
-@njit(cache=True, parallel=True, fastmath=True)
-def _oavar_sums_blocked(S, m, n_chunks, block):
+def _oavar_sums_blocked_py(S, m, n_chunks, block):
     nm = m.size
     n1 = S.size
     kmax = n1 - 2 * m.min()
@@ -89,13 +87,14 @@ def oavar_sums(S, m):
     m = np.ascontiguousarray(m, dtype=np.int64)
     if m.size == 0:
         return np.empty(0)
+    par = _parallel(S.size * m.size)
     if m.size <= MAX_BLOCKED_TAUS:
-        return _oavar_sums_blocked(S, m, max(1, get_num_threads()), BLOCK)
-    return _oavar_sums_per_tau(S, m)
+        kern = _oavar_sums_blocked_par if par else _oavar_sums_blocked_ser
+        return kern(S, m, max(1, get_num_threads()) if par else 1, BLOCK)
+    return (_oavar_sums_per_tau_par if par else _oavar_sums_per_tau_ser)(S, m)
 
 
-@njit(cache=True, parallel=True)
-def avar_sums(S, m):
+def _avar_sums_py(S, m):
     """sum_j (C_{j+1} - C_j)^2 over adjacent non-overlapping cluster sums C_j, for each m."""
     out = np.empty(m.size)
     n = S.size - 1
@@ -149,3 +148,29 @@ def streaming_octaves(x, offset, pending, has_pending, prev, has_prev, ssq, ndif
         m *= 2.0
         if ncur == 0:
             break
+
+
+#: below this many (sample x tau) visits a kernel runs serially: waking the thread pool costs
+#: milliseconds on a loaded machine, more than the work
+PARALLEL_MIN_WORK = 20_000_000
+
+
+def _parallel(work: int) -> bool:
+    return work >= PARALLEL_MIN_WORK and get_num_threads() > 1
+
+
+_oavar_sums_per_tau_par = njit(cache=True, parallel=True, fastmath=True)(_oavar_sums_per_tau_py)
+_oavar_sums_per_tau_ser = njit(cache=True, fastmath=True)(_oavar_sums_per_tau_py)
+_oavar_sums_blocked_par = njit(cache=True, parallel=True, fastmath=True)(_oavar_sums_blocked_py)
+_oavar_sums_blocked_ser = njit(cache=True, fastmath=True)(_oavar_sums_blocked_py)
+_avar_sums_par = njit(cache=True, parallel=True)(_avar_sums_py)
+_avar_sums_ser = njit(cache=True)(_avar_sums_py)
+
+
+def avar_sums(S, m):
+    """sum_j (C_{j+1} - C_j)^2 over adjacent non-overlapping cluster sums C_j, for each m."""
+    m = np.ascontiguousarray(m, dtype=np.int64)
+    if m.size == 0:
+        return np.empty(0)
+    work = int(np.sum((S.size - 1) // m))
+    return (_avar_sums_par if _parallel(work) else _avar_sums_ser)(S, m)

@@ -1,0 +1,62 @@
+"""``python -m bench [--quick] [--out results/bench]`` (also ``avbench bench ...``).
+
+Runs the benchmark classes of :mod:`bench.suite` and writes README.md (targets and tables),
+results.json, results.csv and scaling.png under ``--out``. ``--quick`` runs tiny sizes in well
+under a minute (the CI smoke test; its figures make no claims).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["add_parser", "run", "main"]
+
+
+def _arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    p.add_argument("--quick", action="store_true", help="tiny sizes, < 1 minute (smoke test; no timing claims)")
+    p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
+    p.add_argument("--only", help="comma-separated benchmark class names to run (default: all)")
+    p.add_argument("--notes", help="a Markdown file whose text is added under the targets table")
+    return p
+
+
+def add_parser(sub) -> None:
+    """Register the ``bench`` subcommand on an argparse subparsers object (used by ``avbench``)."""
+    p = sub.add_parser("bench", help="run the performance benchmarks (python -m bench)",
+                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from bench import harness, report, suite
+
+    t0 = time.perf_counter()
+    chosen = suite.classes(args.quick)
+    if getattr(args, "only", None):
+        names = {s.strip() for s in args.only.split(",")}
+        chosen = [c for c in chosen if c.__name__ in names]
+    cases = []
+    for cls in chosen:
+        print(f"{cls.__name__}", flush=True)
+        cases += harness.run_class(cls, quick=args.quick, log=lambda s: print(s, flush=True))
+    notes = Path(args.notes).read_text() if getattr(args, "notes", None) else ""
+    payload = report.write_outputs(cases, harness.machine_info(), Path(args.out), args.quick,
+                                   time.perf_counter() - t0, notes)
+    for t in payload["targets"]:
+        print(f"{t['target']}: {t['measured']} (met: {t['met']})")
+    print(f"wrote {args.out}/README.md, results.json, results.csv, scaling.png")
+    return 0
+
+
+def main(argv=None) -> int:
+    p = _arguments(argparse.ArgumentParser(prog="python -m bench", description=__doc__,
+                                           formatter_class=argparse.RawDescriptionHelpFormatter))
+    return run(p.parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

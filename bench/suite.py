@@ -1,0 +1,368 @@
+"""The benchmarks (asv-style classes run by :mod:`bench.harness`; ``python -m bench`` runs them all).
+
+Every speed claim is a ratio against a baseline timed in the same loop:
+
+* ``Generation`` -- the composite five-term gyro (Q + N + B + K + R) against NumPy's own
+  standard-normal generator drawing the same number of normals (4 per sample: Q, N, B, K; R is
+  deterministic), the physical limit of any Gaussian generator. B is a Gauss-Markov term or the
+  flicker (Kasdin-Walter) filter with ``tau_max`` = 1 h at 100 Hz (360 000 taps).
+* ``AllanOverlapping`` -- :func:`estimators.allan_variance` (overlapping, octave taus) against
+  allantools ``oadev`` on the same data, values checked equal to 1e-10 relative.
+* ``AllanEngine`` -- non-overlapping octave AV and :class:`StreamingAllan` (scaling only).
+* ``EstimatorScaling`` -- every estimator's ``fit`` against n (linear cost), an ADIS16405-like
+  100 Hz record (N, B, K), octave grids; larger n are skipped once a fit takes > ``budget_s``.
+* ``OnlineKernels`` -- SHAKF / NEKF / ARMA-EM kernels against their plain-NumPy per-sample
+  references (:mod:`bench.online_filters`, :mod:`bench.arma_em`).
+* ``StreamingMemory`` -- peak memory of Gyro.stream + StreamingAllan + SHAKF partial_fit, in a child
+  process, for growing n (flat in n), up to 24 h at 1 kHz (8.64e7 samples).
+* ``LvStudy`` -- wall time of ``avbench run studies/lv2015.toml --jobs 2`` from a fresh process
+  (full mode only), and where a replicate's time goes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "Generation",
+    "AllanOverlapping",
+    "AllanEngine",
+    "EstimatorScaling",
+    "OnlineKernels",
+    "StreamingMemory",
+    "LvStudy",
+    "ALL",
+]
+
+SIZES = [10**4, 10**5, 10**6, 10**7, 10**8]
+QUICK_SIZES = [10**4, 10**5]
+#: allantools is run up to this n (its memory and time grow fast beyond)
+ALLANTOOLS_MAX_N = 10**7
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _repeats_for(n):
+    return 5 if n <= 10**7 else 3
+
+
+def composite_gyro(kind: str, dt: float = 0.01):
+    """The five-term gyro: Q + N + B + K + R; B Gauss-Markov ("gauss_markov") or flicker ("flicker")."""
+    from noise_models import (
+        AngleRandomWalk,
+        BiasInstability,
+        GaussMarkov,
+        Gyro,
+        Quantization,
+        RateRamp,
+        RateRandomWalk,
+    )
+
+    if kind == "gauss_markov":
+        b = GaussMarkov.from_bias_instability((28.0, "deg/h"), tau_peak=100.0)
+    elif kind == "flicker":
+        b = BiasInstability(B=(28.0, "deg/h"), tau_max=3600.0)
+    else:
+        raise ValueError(f"kind: expected 'gauss_markov' or 'flicker', got {kind!r}")
+    return Gyro(dt=dt, terms=[Quantization(Q=(20.0, "urad")), AngleRandomWalk(N=(2.2, "deg/sqrt(h)")), b,
+                              RateRandomWalk(K=(68.0, "deg/h^1.5")), RateRamp(R=(1.0, "deg/h^2"))])
+
+
+class Generation:
+    """Composite gyro simulation vs raw standard normals (4 per sample)."""
+
+    params = [["gauss_markov", "flicker"], SIZES]
+    quick_params = [["gauss_markov", "flicker"], QUICK_SIZES]
+    param_names = ["composite", "n"]
+    repeats = 5
+    budget_s = 60.0
+    baselines = {"time_simulate": ("baseline_normals", "NumPy standard_normal, 4 normals per sample")}
+    NORMALS_PER_SAMPLE = 4
+
+    def setup(self, composite, n):
+        self.gyro = composite_gyro(composite)
+        self.gyro.simulate(20_000, np.random.default_rng(0))  # compile kernels, cache the filter spectrum
+        self.rng = np.random.default_rng(1)
+
+    def time_simulate(self, composite, n):
+        self.gyro.simulate(n, np.random.default_rng(2))
+
+    def baseline_normals(self, composite, n):
+        self.rng.standard_normal(self.NORMALS_PER_SAMPLE * n)
+
+    def teardown(self, composite, n):
+        self.gyro = None
+
+
+class AllanOverlapping:
+    """Overlapping AV at octave taus: avbench vs allantools ``oadev`` (same values, 1e-10)."""
+
+    params = [SIZES]
+    quick_params = [QUICK_SIZES]
+    param_names = ["n"]
+    repeats = 5
+    budget_s = 60.0
+    baselines = {"time_allan_variance": ("baseline_allantools_oadev", "allantools.oadev (octave taus)")}
+
+    def setup(self, n):
+        from estimators.allan import allan_variance
+
+        self.x = np.random.default_rng(3).standard_normal(n)
+        self.x += np.cumsum(np.random.default_rng(4).standard_normal(n)) * 1e-3  # white + RRW
+        allan_variance(self.x[:1000], 1.0)
+        if n <= ALLANTOOLS_MAX_N:
+            import allantools
+
+            ours = allan_variance(self.x, 1.0, "octave", overlapping=True)
+            t, dev, _, _ = allantools.oadev(self.x, rate=1.0, data_type="freq", taus="octave")
+            k = min(len(t), len(ours.tau))
+            if not (np.allclose(t[:k], ours.tau[:k]) and np.allclose(dev[:k] ** 2, ours.avar[:k], rtol=1e-10, atol=0)):
+                raise AssertionError(f"allan_variance differs from allantools.oadev at n = {n}")
+
+    def time_allan_variance(self, n):
+        from estimators.allan import allan_variance
+
+        allan_variance(self.x, 1.0, "octave", overlapping=True)
+
+    def baseline_allantools_oadev_available(self, n):
+        return n <= ALLANTOOLS_MAX_N
+
+    def baseline_allantools_oadev(self, n):
+        import allantools
+
+        allantools.oadev(self.x, rate=1.0, data_type="freq", taus="octave")
+
+    def teardown(self, n):
+        self.x = None
+
+
+class AllanEngine:
+    """Non-overlapping octave AV (batch) and the streaming accumulator (chunks of 2^18)."""
+
+    params = [SIZES]
+    quick_params = [QUICK_SIZES]
+    param_names = ["n"]
+    repeats = 5
+    budget_s = 60.0
+
+    def setup(self, n):
+        from estimators.allan import StreamingAllan, allan_variance
+
+        self.x = np.random.default_rng(5).standard_normal(n)
+        allan_variance(self.x[:1000], 1.0, overlapping=False)
+        StreamingAllan(1.0).update(self.x[:1000])
+
+    def time_nonoverlapping_octave(self, n):
+        from estimators.allan import allan_variance
+
+        allan_variance(self.x, 1.0, "octave", overlapping=False)
+
+    def time_streaming_octave(self, n):
+        from estimators.allan import StreamingAllan
+
+        acc = StreamingAllan(1.0)
+        for i in range(0, n, 1 << 18):
+            acc.update(self.x[i : i + (1 << 18)])
+
+    def teardown(self, n):
+        self.x = None
+
+
+_LS = {"taus": "octave", "overlapping": True}
+ESTIMATOR_SETTINGS = {
+    "ols": _LS,
+    "ols_trimmed": _LS,
+    "wls": _LS,
+    "wls_edf": _LS,
+    "slope_lines": {},
+    "log_fit": {},
+    "nnls_rel": {},
+    "gmwm": {},
+    "mle": {},
+    "shakf": {"x0": "truth", "trajectory_every": 0},
+    "nekf": {"x0": "truth", "trajectory_every": 0},
+    "shakf_multitau": {"x0": "truth", "trajectory_every": 0},
+    "nekf_multitau": {"x0": "truth", "trajectory_every": 0},
+    "arma_em": {},
+}
+
+
+class EstimatorScaling:
+    """Every registered estimator's ``fit`` (terms NBK) on an ADIS16405-like 100 Hz record."""
+
+    params = [sorted(ESTIMATOR_SETTINGS), SIZES[:-1] + [3 * 10**7]]
+    quick_params = [["wls", "shakf"], [10**4]]
+    param_names = ["estimator", "n"]
+    repeats = 3
+    quick_repeats = 1
+    budget_s = 15.0
+    _records: dict = {}
+
+    def setup(self, estimator, n):
+        import estimators
+        from noise_models import presets
+
+        if estimator not in estimators.names():
+            raise NotImplementedError
+        g = presets.get("ADIS16405_Y")
+        key = n
+        if key not in EstimatorScaling._records:
+            EstimatorScaling._records.clear()
+            EstimatorScaling._records[key] = g.simulate(n, np.random.default_rng(6))
+        self.rate, self.dt = EstimatorScaling._records[key], g.dt
+        settings = {"terms": "NBK"}
+        for k, v in ESTIMATOR_SETTINGS.get(estimator, {}).items():
+            settings[k] = {c: float(g.coefficients[c]) for c in "NBK"} if v == "truth" else v
+        try:
+            self.est = estimators.get(estimator, **settings)
+        except (TypeError, ValueError):
+            settings.pop("terms")
+            self.est = estimators.get(estimator, **settings)
+        self._fit(self.rate[: min(n, 5000)])  # compile / load kernels
+
+    def _fit(self, rate):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with np.errstate(all="ignore"):
+                self.est.fit(rate, self.dt)
+
+    def time_fit(self, estimator, n):
+        self._fit(self.rate)
+
+    def teardown(self, estimator, n):
+        self.rate = None
+
+
+class OnlineKernels:
+    """Compiled online-filter kernels vs the plain-NumPy per-sample references (authors' modules)."""
+
+    params = [["shakf_nekf", "arma_em"]]
+    param_names = ["module"]
+
+    def setup(self, module):
+        self.quick = False
+
+    def track_kernel_vs_reference(self, module):
+        rows = _online_rows(module, self.quick)
+        return rows
+
+
+def _online_rows(module, quick):
+    if module == "shakf_nekf":
+        from bench import online_filters
+
+        out = {}
+        for row in online_filters.run(quick=quick):
+            f = row["filter"]
+            out[f"{f}_kernel_samples_per_s"] = row["kernel_samples_per_s"]
+            out[f"{f}_reference_samples_per_s"] = row["reference_samples_per_s"]
+            out[f"{f}_ratio"] = row["speedup"]
+        return out
+    from bench import arma_em
+
+    r = arma_em.run(quick=quick)["arma_em"]
+    return {
+        "arma_em_kernel_samples_per_s": r["kernel_samples_per_s"],
+        "arma_em_batch_samples_per_s": r["batch_samples_per_s"],
+        "arma_em_reference_samples_per_s": r["reference_samples_per_s"],
+        "arma_em_ratio": r["ratio"],
+    }
+
+
+class QuickOnlineKernels(OnlineKernels):
+    def setup(self, module):
+        self.quick = True
+
+
+class StreamingMemory:
+    """Peak memory (child process) of streaming generation + StreamingAllan + SHAKF, against n."""
+
+    params = [[10**6, 10**7, 86_400_000]]
+    quick_params = [[10**5, 10**6]]
+    param_names = ["n"]
+
+    def setup(self, n):
+        pass
+
+    def peakmem_stream(self, n):
+        from bench.streaming import measure
+
+        return measure(n)
+
+
+class LvStudy:
+    """``avbench run studies/lv2015.toml --jobs 2`` from a fresh process, and a replicate's profile."""
+
+    params = [["lv2015"]]
+    quick_params = [[]]
+    param_names = ["study"]
+
+    def setup(self, study):
+        pass
+
+    def track_wall(self, study):
+        out = Path(tempfile.mkdtemp(prefix="avbench_bench_"))
+        try:
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "studies.cli", "run", str(ROOT / "studies" / f"{study}.toml"),
+                            "--jobs", "2", "--out", str(out), "--no-progress"],
+                           check=True, capture_output=True, cwd=ROOT, timeout=1800)
+            wall = time.perf_counter() - t0
+        finally:
+            shutil.rmtree(out, ignore_errors=True)
+        return {"wall_s": wall, "loadavg_after": list(os.getloadavg()), **replicate_profile(study)}
+
+
+def replicate_profile(study: str = "lv2015") -> dict:
+    """Where the time goes: imports (fresh process), config, one replicate's simulation and fits."""
+    code = "import time; t=time.perf_counter(); import studies.runner, studies.report; print(time.perf_counter()-t)"
+    imp = float(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                               check=True).stdout.strip())
+    from estimators.allan import memoize_allan
+    from studies.config import load_config
+    from studies.runner import _fit_one, replicate_rng
+
+    t0 = time.perf_counter()
+    cfg = load_config(ROOT / "studies" / f"{study}.toml")
+    t_cfg = time.perf_counter() - t0
+    sims, fits = [], []
+    for r in range(4):
+        g = cfg.gyros[r % len(cfg.gyros)]
+        t0 = time.perf_counter()
+        rate = g.gyro.simulate(g.n_samples, replicate_rng(cfg.seed, r % len(cfg.gyros), 100 + r))
+        t1 = time.perf_counter()
+        with memoize_allan():
+            for e in cfg.estimators:
+                _fit_one(e, g, rate, g.gyro.dt)
+        sims.append(t1 - t0)
+        fits.append(time.perf_counter() - t1)
+    return {"imports_s": imp, "config_s": t_cfg, "replicate_simulate_s": float(np.median(sims[1:])),
+            "replicate_fits_s": float(np.median(fits[1:])), "replicates": cfg.replicates * len(cfg.gyros)}
+
+
+ALL = [Generation, AllanOverlapping, AllanEngine, EstimatorScaling, OnlineKernels, StreamingMemory, LvStudy]
+
+
+def classes(quick: bool) -> list:
+    """The benchmark classes of a run (``quick``: the CI subset on tiny sizes)."""
+    if quick:
+        return [Generation, AllanOverlapping, AllanEngine, EstimatorScaling, QuickOnlineKernels, StreamingMemory]
+    return ALL
+
+
+def loglog_slope(n, t) -> float:
+    """Least-squares slope of log t against log n (1 = linear cost)."""
+    n, t = np.asarray(n, float), np.asarray(t, float)
+    ok = (n > 0) & (t > 0)
+    if ok.sum() < 2:
+        return math.nan
+    return float(np.polyfit(np.log(n[ok]), np.log(t[ok]), 1)[0])
