@@ -1,0 +1,86 @@
+"""Smoke test of the benchmark suite: the quick run on tiny sizes writes well-formed outputs.
+
+No timing assertions: only that every output exists and has the expected structure.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("allantools")
+
+from bench import harness, suite  # noqa: E402
+from bench.__main__ import add_parser, main  # noqa: E402
+
+
+def test_quick_run_writes_outputs(tmp_path, monkeypatch):
+    # tiny sizes: the smallest quick sizes only
+    monkeypatch.setattr(suite.Generation, "quick_params", [["gauss_markov", "flicker"], [10_000]])
+    monkeypatch.setattr(suite.AllanOverlapping, "quick_params", [[10_000]])
+    monkeypatch.setattr(suite.AllanEngine, "quick_params", [[10_000]])
+    monkeypatch.setattr(suite.StreamingMemory, "quick_params", [[20_000, 40_000]])
+    assert main(["--quick", "--out", str(tmp_path)]) == 0
+    for name in ("README.md", "results.json", "results.csv", "scaling.png"):
+        assert (tmp_path / name).stat().st_size > 0
+    payload = json.loads((tmp_path / "results.json").read_text())
+    assert payload["quick"] is True
+    assert {"cpu_count", "loadavg_1_5_15", "numpy"} <= set(payload["machine"])
+    cases = payload["cases"]
+    benches = {c["benchmark"] for c in cases}
+    assert {"Generation", "AllanOverlapping", "AllanEngine", "EstimatorScaling", "StreamingMemory"} <= benches
+    for c in cases:
+        if c["kind"] == "time":
+            assert c["median_s"] > 0 and c["repeats"] >= 1
+    with_baseline = [c for c in cases if c.get("baseline_median_s") is not None and c["kind"] == "time"]
+    assert {c["benchmark"] for c in with_baseline} >= {"Generation", "AllanOverlapping"}
+    for c in with_baseline:
+        assert np.isclose(c["ratio"], c["baseline_median_s"] / c["median_s"])
+    mem = [c for c in cases if c["kind"] == "peakmem"]
+    assert len(mem) == 2 and all(c["peak_rss_mb"] > 0 and c["traced_peak_mb"] > 0 for c in mem)
+    readme = (tmp_path / "README.md").read_text()
+    assert "## Targets" in readme and "allantools" in readme
+
+
+def test_harness_grid_budget_and_skip():
+    calls = []
+
+    class B:
+        params = [["a", "b"], [1, 2, 3]]
+        param_names = ["kind", "n"]
+        repeats = 3
+        budget_s = -1.0  # every run is "over budget": larger n are skipped
+        baselines = {"time_x": ("base_x", "nothing")}
+
+        def setup(self, kind, n):
+            if kind == "b":
+                raise NotImplementedError
+
+        def time_x(self, kind, n):
+            calls.append((kind, n))
+
+        def base_x(self, kind, n):
+            pass
+
+        def track_y(self, kind, n):
+            return 2.0
+
+    cases = harness.run_class(B, log=lambda s: None)
+    assert calls == [("a", 1)]  # one run, then over budget; kind "b" skipped by setup
+    assert [c.method for c in cases] == ["time_x", "track_y", "track_y", "track_y"]
+    assert cases[0].result["repeats"] == 1 and "ratio" in cases[0].result
+    assert cases[1].result == {"value": 2.0}
+
+
+def test_add_parser_registers_bench():
+    import argparse
+
+    p = argparse.ArgumentParser()
+    add_parser(p.add_subparsers())
+    args = p.parse_args(["bench", "--quick", "--out", "x"])
+    assert args.quick and args.out == "x" and callable(args.func)
+
+
+def test_loglog_slope():
+    n = np.array([1e4, 1e5, 1e6])
+    assert suite.loglog_slope(n, 3e-8 * n) == pytest.approx(1.0)
