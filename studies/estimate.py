@@ -32,6 +32,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from studies import data_files
+
 __all__ = ["add_parser", "run", "load_record", "fit_methods", "fitted_avar"]
 
 _TEXT = {".csv", ".txt", ".dat", ".tsv"}
@@ -99,9 +101,8 @@ def _read_text(path: Path, column):
         raise ValueError(f"{path}: cannot parse as a text table ({e})") from None
     if df.empty:
         raise ValueError(f"{path}: the file is empty")
-    first = pd.to_numeric(df.iloc[0], errors="coerce")
     names = None
-    if first.isna().all():  # a header row
+    if data_files.is_header_row(df.iloc[0].tolist()):  # a header row ("nan"/"inf" are numbers)
         names = [str(v).strip() for v in df.iloc[0]]
         df = df.iloc[1:].reset_index(drop=True)
         df.columns = names
@@ -137,32 +138,21 @@ def _read_text(path: Path, column):
 
 def load_record(path, column=None) -> np.ndarray:
     """The rate samples of one column of a ``.npy``, ``.npz`` or text file (see module docstring)."""
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
-    if path.stat().st_size == 0:
-        raise ValueError(f"{path}: the file is empty")
+    path = data_files.check_file(path)
     suffix = path.suffix.lower()
     if suffix == ".npy":
-        try:
-            arr = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as e:
-            raise ValueError(f"{path}: not a readable .npy array ({e})") from None
-        x = _select(_numeric(arr, path), None, column, path)
+        x = _select(_numeric(data_files.load_npy(path), path), None, column, path)
     elif suffix == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                keys = list(z.keys())
-                if "data" in keys:
-                    arr = z["data"]
-                else:
-                    arrays = [k for k in keys if k not in ("columns", "fs")]
-                    if len(arrays) != 1:
-                        raise ValueError(f"{path}: expected an array 'data' or a single array, found {keys}")
-                    arr = z[arrays[0]]
-                names = [str(c) for c in z["columns"]] if "columns" in keys else None
-        except (OSError, EOFError) as e:
-            raise ValueError(f"{path}: not a readable .npz archive ({e})") from None
+        z = data_files.load_npz(path)
+        keys = list(z)
+        if "data" in keys:
+            arr = z["data"]
+        else:
+            arrays = [k for k in keys if k not in ("columns", "fs")]
+            if len(arrays) != 1:
+                raise ValueError(f"{path}: expected an array 'data' or a single array, found {keys}")
+            arr = z[arrays[0]]
+        names = [str(c) for c in z["columns"]] if "columns" in keys else None
         x = _select(_numeric(arr, path), names, column, path)
     elif suffix in _TEXT:
         x = _read_text(path, column)
