@@ -80,7 +80,7 @@ def slope_line_coefficients(tau, adev, terms="NBK") -> tuple[dict, dict]:
     --------
     >>> tau = np.logspace(-1, 3, 13)
     >>> c, _ = slope_line_coefficients(tau, np.sqrt(4e-6 / tau), "N")
-    >>> round(c["N"], 9)
+    >>> round(float(c["N"]), 9)
     0.002
     """
     terms = check_terms(terms)
@@ -94,7 +94,7 @@ def slope_line_coefficients(tau, adev, terms="NBK") -> tuple[dict, dict]:
         i = int(np.argmin(np.abs(slopes - s)))
         b = la[i] - s * lt[i]
         scale = math.sqrt(PLATEAU) if c == "B" else 1.0
-        coefs[c] = 10.0 ** (s * math.log10(READ_TAU[c]) + b) / scale
+        coefs[c] = float(10.0 ** (s * math.log10(READ_TAU[c]) + b) / scale)
         used[c] = i
     return coefs, used
 
