@@ -24,7 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from estimators import _allan_kernels as _kernels
 from estimators.base import check_record
@@ -195,6 +194,8 @@ def _noise_from_slope(tau, avar, J) -> np.ndarray:
 
 
 def _interval(avar, edf, confidence):
+    from scipy import stats  # imported here: scipy.stats costs ~0.5 s of every process's start-up
+
     a = (1 - confidence) / 2
     lo = edf * avar / stats.chi2.ppf(1 - a, edf)
     hi = edf * avar / stats.chi2.ppf(a, edf)
