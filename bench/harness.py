@@ -21,6 +21,7 @@ methods return a number or a dict.
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import platform
 import sys
@@ -80,11 +81,13 @@ def run_class(cls, quick: bool = False, log=print) -> list[Case]:
     methods = [m for m in sorted(dir(cls)) if m.split("_")[0] in ("time", "peakmem", "track")]
     cases: list[Case] = []
     over_budget: set = set()
+    last_time: dict = {}  # (method, other params) -> (n, seconds of one run)
     for p in grid:
         bench = cls()
         pd_ = dict(zip(names, p))
         others = tuple(v for k, v in pd_.items() if k != "n")
-        wanted = [m for m in methods if (m, others) not in over_budget]
+        n = pd_.get("n")
+        wanted = [m for m in methods if (m, others) not in over_budget and not _predicted_over(last_time.get((m, others)), n, budget)]
         if not wanted:
             continue
         try:
@@ -101,7 +104,10 @@ def run_class(cls, quick: bool = False, log=print) -> list[Case]:
                     base = baselines.get(m)
                     if base is not None and getattr(bench, base[0] + "_available", lambda *a: True)(*p):
                         fns.append(lambda b=base[0]: getattr(bench, b)(*p))
-                    times = median_times(fns, repeats, budget)
+                    reps = bench.repeats_for(*p) if hasattr(bench, "repeats_for") and not quick else repeats
+                    times = median_times(fns, reps, budget)
+                    if n is not None:
+                        last_time[(m, others)] = (n, float(np.min(times[0])))
                     case.result = {"median_s": float(np.median(times[0])), "min_s": float(np.min(times[0])), "repeats": len(times[0])}
                     if len(fns) > 1:
                         tb = float(np.median(times[1]))
@@ -120,6 +126,14 @@ def run_class(cls, quick: bool = False, log=print) -> list[Case]:
             if teardown is not None:
                 teardown(*p)
     return cases
+
+
+def _predicted_over(last, n, budget) -> bool:
+    """Skip a larger n when linear extrapolation from the last size predicts > 4x the budget."""
+    if last is None or n is None or not math.isfinite(budget):
+        return False
+    n0, t0 = last
+    return t0 * n / n0 > 4 * budget
 
 
 def _short(result: dict) -> str:

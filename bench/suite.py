@@ -52,7 +52,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _repeats_for(n):
-    return 5 if n <= 10**7 else 3
+    return 5 if n < 10**8 else 3
 
 
 def composite_gyro(kind: str, dt: float = 0.01):
@@ -88,6 +88,9 @@ class Generation:
     baselines = {"time_simulate": ("baseline_normals", "NumPy standard_normal, 4 normals per sample")}
     NORMALS_PER_SAMPLE = 4
 
+    def repeats_for(self, *p):
+        return _repeats_for(p[-1])
+
     def setup(self, composite, n):
         self.gyro = composite_gyro(composite)
         self.gyro.simulate(20_000, np.random.default_rng(0))  # compile kernels, cache the filter spectrum
@@ -112,6 +115,9 @@ class AllanOverlapping:
     repeats = 5
     budget_s = 60.0
     baselines = {"time_allan_variance": ("baseline_allantools_oadev", "allantools.oadev (octave taus)")}
+
+    def repeats_for(self, *p):
+        return _repeats_for(p[-1])
 
     def setup(self, n):
         from estimators.allan import allan_variance
@@ -153,6 +159,9 @@ class AllanEngine:
     param_names = ["n"]
     repeats = 5
     budget_s = 60.0
+
+    def repeats_for(self, *p):
+        return _repeats_for(p[-1])
 
     def setup(self, n):
         from estimators.allan import StreamingAllan, allan_variance
