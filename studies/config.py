@@ -13,6 +13,7 @@ Schema (every key optional unless marked required)::
     scheduler = "tcp://..."     # dask scheduler address (backend = "dask"; none: local cluster)
     paper_table = "../../shared/paper_tables/lv2015_tables_2_4_6.csv"  # relative to this file
     figure_gyros = ["SRS2000"]  # gyros that get figures (default: all)
+    units = { Q = "arcsec" }    # table units per coefficient (default: the papers' units)
 
     [[gyros]]                   # at least one
     preset = "SRS2000"          # a preset name, or an explicit gyro:
@@ -111,6 +112,7 @@ class StudyConfig:
     scheduler: str | None = None
     paper_table: Path | None = None
     figure_gyros: tuple[str, ...] | None = None
+    units: dict = field(default_factory=dict)
     path: Path | None = None
     raw: dict = field(default_factory=dict)
 
@@ -125,7 +127,7 @@ class StudyConfig:
         study = {k: v for k, v in self.raw.get("study", {}).items() if k in ("seed", "duration_s", "n_samples")}
         return {
             "study": study,
-            "gyros": self.raw.get("gyros"),
+            "gyros": [{k: v for k, v in g.items() if k != "paper_gyro"} for g in self.raw.get("gyros", [])],
             "estimators": [
                 {k: v for k, v in e.items() if k not in ("paper_method",)} for e in self.raw.get("estimators", [])
             ],
@@ -156,6 +158,7 @@ _STUDY_KEYS = {
     "scheduler": str,
     "paper_table": str,
     "figure_gyros": list,
+    "units": dict,
 }
 _GYRO_KEYS = {"preset": str, "name": str, "label": str, "dt": (int, float), "terms": list, "paper_gyro": str}
 _EST_KEYS = {
@@ -341,6 +344,13 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
     labels = [g.label for g in gyros]
     if len(set(labels)) != len(labels):
         ctx.fail("gyros", f"gyro labels must be unique, got {labels}")
+    for c, u in study.get("units", {}).items():
+        try:
+            from noise_models.units import from_si
+
+            from_si(c, 1.0, u)
+        except ValueError as e:
+            ctx.fail(f"study.units.{c}", str(e))
     if "figure_gyros" in study:
         unknown = [x for x in study["figure_gyros"] if x not in labels]
         if unknown:
@@ -405,6 +415,7 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         scheduler=scheduler,
         paper_table=paper_table,
         figure_gyros=tuple(study["figure_gyros"]) if "figure_gyros" in study else None,
+        units=dict(study.get("units", {})),
         path=path,
         raw=raw,
     )

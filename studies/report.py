@@ -78,12 +78,36 @@ def summarize(tidy: pd.DataFrame, units: dict | None = None) -> pd.DataFrame:
 
 
 def load_paper_table(path: Path) -> pd.DataFrame:
-    """A paper table in long format: gyro, method, coefficient, mean[, error_pct, std]."""
+    """A paper's result table as long format: gyro, method, coefficient, mean, error_pct, std.
+
+    Long tables (Lv et al. 2015) are read as they are. Wide tables (Miao et al. 2014, 2015: one row
+    per gyro and coefficient, a column per method) are melted: a column ``<method>_mean``,
+    ``<method>_indicator_pct`` or ``<method>_std`` gives that statistic of ``<method>``; any other
+    numeric column (``allan_variance``, ``online``) is the mean of the method it names. The gyro
+    is the ``gyro`` column, else ``fog`` (FOG number).
+    """
     df = pd.read_csv(path, comment="#")
-    need = {"gyro", "method", "coefficient", "mean"}
-    if not need <= set(df.columns):
-        raise ValueError(f"{path}: expected columns {sorted(need)} (long format), got {list(df.columns)}")
-    return df
+    if "method" in df.columns:
+        need = {"gyro", "method", "coefficient", "mean"}
+        if not need <= set(df.columns):
+            raise ValueError(f"{path}: expected columns {sorted(need)} (long format), got {list(df.columns)}")
+        return df
+    gcol = next((c for c in ("gyro", "fog") if c in df.columns), None)
+    if gcol is None or "coefficient" not in df.columns:
+        raise ValueError(f"{path}: expected a 'gyro' (or 'fog') and a 'coefficient' column, got {list(df.columns)}")
+    stats = {"_mean": "mean", "_indicator_pct": "error_pct", "_std": "std"}
+    rows = []
+    for _, r in df.iterrows():
+        entries: dict = {}
+        for col in df.columns:
+            if col in (gcol, "coefficient") or not pd.api.types.is_numeric_dtype(df[col]) or col == "rate_hz":
+                continue
+            suffix = next((sfx for sfx in stats if col.endswith(sfx)), None)
+            method, stat = (col[: -len(suffix)], stats[suffix]) if suffix else (col, "mean")
+            entries.setdefault(method, {})[stat] = r[col]
+        for method, vals in entries.items():
+            rows.append({"gyro": str(r[gcol]), "method": method, "coefficient": r["coefficient"], **vals})
+    return pd.DataFrame(rows)
 
 
 def add_paper(summary: pd.DataFrame, paper: pd.DataFrame, gyro_map: dict, method_map: dict) -> pd.DataFrame:
@@ -220,7 +244,7 @@ def _atomic_text(path: Path, text: str) -> None:
 def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     """table.csv, table.md, meta.json and figures for a study; returns the summary."""
     out = Path(out)
-    summary = _crlb_column(cfg, summarize(tidy))
+    summary = _crlb_column(cfg, summarize(tidy, getattr(cfg, 'units', None)))
     if cfg.paper_table is not None and Path(cfg.paper_table).is_file():
         paper = load_paper_table(cfg.paper_table)
         gmap = {g.label: g.paper_gyro for g in cfg.gyros if g.paper_gyro}
