@@ -20,6 +20,8 @@ def _arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--only", help="comma-separated benchmark class names to run (default: all)")
     p.add_argument("--notes", help="a Markdown file whose text is added under the targets table")
+    p.add_argument("--merge", action="store_true",
+                   help="keep the other benchmarks' results already in --out/results.json (with --only)")
     return p
 
 
@@ -43,6 +45,8 @@ def run(args) -> int:
     for cls in chosen:
         print(f"{cls.__name__}", flush=True)
         cases += harness.run_class(cls, quick=args.quick, log=lambda s: print(s, flush=True))
+    if getattr(args, "merge", False):
+        cases = harness.load_cases(Path(args.out) / "results.json", exclude={c.__name__ for c in chosen}) + cases
     notes = Path(args.notes).read_text() if getattr(args, "notes", None) else ""
     payload = report.write_outputs(cases, harness.machine_info(), Path(args.out), args.quick,
                                    time.perf_counter() - t0, notes)

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Case", "run_class", "machine_info", "median_times"]
+__all__ = ["Case", "run_class", "machine_info", "median_times", "load_cases"]
 
 
 @dataclass
@@ -175,3 +175,21 @@ def machine_info() -> dict:
     except ImportError:  # pragma: no cover
         pass
     return info
+
+
+def load_cases(path, exclude=frozenset()) -> list[Case]:
+    """The cases of an earlier run's results.json (flat rows back to Case), minus ``exclude``d classes."""
+    import json
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file():
+        return []
+    cases = []
+    for row in json.loads(path.read_text())["cases"]:
+        if row["benchmark"] in exclude:
+            continue
+        params = {k[6:]: v for k, v in row.items() if k.startswith("param_") and v is not None}
+        result = {k: v for k, v in row.items() if not k.startswith("param_") and k not in ("benchmark", "method", "kind") and v is not None}
+        cases.append(Case(row["benchmark"], row["method"], params, row["kind"], result))
+    return cases
