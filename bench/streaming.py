@@ -9,7 +9,9 @@ and reports
   ``resource.getrusage``), imports included;
 * ``rss_after_imports_mb`` -- the peak before the stream started (libraries + warm-up);
 * ``traced_peak_mb`` -- the peak of memory allocated during the stream (``tracemalloc``, which
-  sees NumPy's buffers): this is the part that would grow with n if anything kept the record.
+  sees NumPy's buffers): this is the part that would grow with n if anything kept the record;
+* ``rss_anon_end_mb`` / ``rss_file_end_mb`` -- private (heap) and file-backed (library code,
+  shared between processes) resident memory at the end.
 
 ``python -m bench.streaming N`` runs one measurement in this process and prints it as JSON.
 """
@@ -78,6 +80,7 @@ def stream_record(n_samples: int, chunk_size: int = 1 << 18, dt: float = 1e-3, t
     _, traced_peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     av = acc.result()
+    status = _proc_status()
     return {
         "n_samples": int(n_samples),
         "chunk_size": int(chunk_size),
@@ -88,10 +91,26 @@ def stream_record(n_samples: int, chunk_size: int = 1 << 18, dt: float = 1e-3, t
         "peak_rss_mb": rss_mb(),
         "rss_after_imports_mb": base,
         "traced_peak_mb": traced_peak / 2**20,
+        "rss_anon_end_mb": status.get("RssAnon", float("nan")),
+        "rss_file_end_mb": status.get("RssFile", float("nan")),
         "n_taus": int(len(av)),
         "shakf_N": float(kf.coefficients_["N"]),
         "true_N": x0["N"],
     }
+
+
+def _proc_status() -> dict:
+    """MB figures of /proc/self/status (RssAnon: private heap; RssFile: mapped library files)."""
+    out = {}
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                key, _, rest = line.partition(":")
+                if rest.strip().endswith("kB"):
+                    out[key] = int(rest.split()[0]) / 1024.0
+    except OSError:  # pragma: no cover - not Linux
+        pass
+    return out
 
 
 def measure(n_samples: int, timeout: float = 3600.0, **kwargs) -> dict:
