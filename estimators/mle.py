@@ -31,9 +31,13 @@ time scales below m dt is given up). Per sample,
 :math:`\\bar y_{j+1} = \\bar x_{j+1} + \\bar L_{j+1} + \\bar\\varepsilon_{j+1}` with
 :math:`\\mathrm{var}\\,\\bar\\varepsilon = N^2/(m\\Delta t)`. The state is
 :math:`(s, \\bar x, L, \\bar L[, r])`; the disturbance covariances follow from the sums above. For
-m = 1 this is the sample-level model itself. Quantization noise is not modelled: averaging divides
-its variance by m^2 (its block mean telescopes to a difference of two angle errors), so for m > 1 it
-is negligible beside the white noise; for m = 1 it is absorbed into N (biasing it).
+m = 1 this is the sample-level model itself. Quantization noise: averaging divides its variance by
+m^2 (its block mean telescopes to a difference of two angle errors), so for m > 1 it
+is often negligible beside the white noise; it can be modelled exactly with the latent "QN": with
+white angle noise :math:`\\theta` of std Q the block mean of the quantization rate telescopes to
+:math:`(\\theta_j - \\theta_{j-1})/(m\\Delta t)`, :math:`\\theta_j` the angle error at the end of
+block j, i.e. two more states :math:`(\\theta_j, \\theta_{j-1})` with
+:math:`T = \\begin{pmatrix}0&0\\\\1&0\\end{pmatrix}`, disturbance variance :math:`Q^2` on the first.
 
 The default ``block="auto"`` takes the smallest m giving at most ``max_blocks`` (50,000) block means,
 but never more than a fifth of the Gauss-Markov correlation time found by the GMWM starting fit (so
@@ -66,7 +70,7 @@ from estimators.gmwm import GMWM, parse_model
 
 __all__ = ["MLE", "BlockMeanModel", "block_means"]
 
-_ALLOWED = ("WN", "GM", "RW", "DR")
+_ALLOWED = ("QN", "WN", "GM", "RW", "DR")
 
 
 def block_means(rate, m: int) -> np.ndarray:
@@ -100,10 +104,12 @@ def _level_block(K2dt, m, dt, drift):
 
 
 class BlockMeanModel(MLEModel):
-    """Exact state-space model of the block means of white + GM + RW (+ drift) (module docstring).
+    """Exact state-space model of the block means of (quantization +) white + GM + RW (+ drift).
 
-    Parameters (``params``) are the natural logarithms of, in order, N (if "WN"), sigma and Tc (if
-    "GM"), K (if "RW"). The level (and the drift slope, if "DR") are diffuse states.
+    See the module docstring for the block algebra.
+
+    Parameters (``params``) are the natural logarithms of, in order, Q (if "QN"), N (if "WN"),
+    sigma and Tc (if "GM"), K (if "RW"). The level (and the drift slope, if "DR") are diffuse states.
 
     The filter runs on ``endog * scale`` (default: 1 / std of the block means), with the noise
     parameters scaled to match: statsmodels declares the filter converged (steady state) once the
@@ -119,19 +125,24 @@ class BlockMeanModel(MLEModel):
         self.latents = tuple(latents)
         self.m, self.dt = int(m), float(dt)
         self.has_gm = "GM" in latents
+        self.has_q = "QN" in latents
         self.drift = "DR" in latents
-        k = (2 if self.has_gm else 0) + 2 + (1 if self.drift else 0)
+        self._q = 2 if self.has_gm else 0  # first state of the quantization block
+        self._lev = self._q + (2 if self.has_q else 0)
+        k = self._lev + 2 + (1 if self.drift else 0)
         super().__init__(endog, k_states=k, k_posdef=k)
-        self._lev = 2 if self.has_gm else 0
         Z = np.zeros((1, k))
         Z[0, self._lev + 1] = 1.0
         if self.has_gm:
             Z[0, 1] = 1.0
+        if self.has_q:  # block mean of theta-differences telescopes: (theta_j - theta_{j-1}) / (m dt)
+            Z[0, self._q], Z[0, self._q + 1] = 1.0 / (m * dt), -1.0 / (m * dt)
         self["design"] = Z
         self["selection"] = np.eye(k)
         self._names = []
         for lat in self.latents:
-            self._names += {"WN": ["log_N"], "GM": ["log_sigma", "log_tc"], "RW": ["log_K"]}.get(lat, [])
+            self._names += {"QN": ["log_Q"], "WN": ["log_N"], "GM": ["log_sigma", "log_tc"],
+                            "RW": ["log_K"]}.get(lat, [])
 
     @property
     def param_names(self):
@@ -156,6 +167,11 @@ class BlockMeanModel(MLEModel):
             T[:2, :2], Qc[:2, :2] = Tg, Qg
             P0 = sigma**2 * np.outer(Tg[:, 0], Tg[:, 0]) + Qg  # (s_1, xbar_1) from a stationary s_0
             init.set((0, 2), "known", constant=np.zeros(2), stationary_cov=P0)
+        if self.has_q:
+            q, Q2 = self._q, v["log_Q"] ** 2
+            T[q + 1, q] = 1.0
+            Qc[q, q] = Q2
+            init.set((q, q + 2), "known", constant=np.zeros(2), stationary_cov=Q2 * np.eye(2))
         K2dt = v.get("log_K", 0.0) ** 2 * dt
         Tl, Ql = _level_block(K2dt, m, dt, self.drift)
         T[self._lev :, self._lev :], Qc[self._lev :, self._lev :] = Tl, Ql
@@ -168,12 +184,12 @@ class BlockMeanModel(MLEModel):
 
 @register("mle")
 class MLE(Estimator):
-    """Maximum-likelihood estimator of N, B (via GM), K (and R) through the Kalman filter.
+    """Maximum-likelihood estimator of (Q,) N, B (via GM), K (and R) through the Kalman filter.
 
     Parameters
     ----------
     model : str or list of str
-        Latent model from "WN", "GM", "RW", "DR" (default "WN+GM+RW"); see
+        Latent model from "QN", "WN", "GM", "RW", "DR" (default "WN+GM+RW"); see
         :func:`estimators.gmwm.parse_model`.
     block : "auto" or int
         Block size m for the exact block-mean likelihood (module docstring); 1 = the samples themselves.
@@ -210,8 +226,8 @@ class MLE(Estimator):
         bad = [lat for lat in latents if lat not in _ALLOWED]
         if bad:
             raise ValueError(f"model: the MLE supports latents {', '.join(_ALLOWED)}; got {', '.join(bad)}")
-        if not any(lat in latents for lat in ("WN", "GM", "RW")):
-            raise ValueError("model: expected at least one stochastic latent (WN, GM or RW)")
+        if not any(lat in latents for lat in ("QN", "WN", "GM", "RW")):
+            raise ValueError("model: expected at least one stochastic latent (QN, WN, GM or RW)")
         if not (self.block == "auto" or (isinstance(self.block, (int, np.integer))
                                          and not isinstance(self.block, bool) and self.block >= 1)):
             raise ValueError(f"block: expected 'auto' or a positive integer, got {self.block!r}")
@@ -253,7 +269,7 @@ class MLE(Estimator):
         from noise_models.terms import B_EQUIV_OVER_SIGMA
 
         coefs, std = {}, {}
-        for name, coef, scale in (("log_N", "N", 1.0), ("log_sigma", "B", B_EQUIV_OVER_SIGMA), ("log_K", "K", 1.0)):
+        for name, coef, scale in (("log_Q", "Q", 1.0), ("log_N", "N", 1.0), ("log_sigma", "B", B_EQUIV_OVER_SIGMA), ("log_K", "K", 1.0)):
             if name in vals:
                 coefs[coef] = scale * vals[name]
                 std[coef] = coefs[coef] * se_log[name]
@@ -283,6 +299,8 @@ def _start_values(latents, sp, gdiag, dt):
     """log-parameters from the GMWM fit; a term GMWM set to 0 starts at 1 % of its largest value."""
     avar, tau = gdiag["avar"], gdiag["tau"]
     out = []
+    if "QN" in latents:
+        out.append(sp["QN.Q"] if sp["QN.Q"] > 0 else 0.01 * math.sqrt(avar[0] * tau[0] ** 2 / 3))
     if "WN" in latents:
         out.append(sp["WN.N"] if sp["WN.N"] > 0 else 0.01 * math.sqrt(avar[0] * tau[0]))
     if "GM" in latents:

@@ -9,7 +9,7 @@ from scipy.linalg import solve_discrete_lyapunov
 
 import estimators
 from estimators.mle import BlockMeanModel, _gm_block, _level_block, block_means
-from noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRamp, RateRandomWalk
+from noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
 
 
 @pytest.mark.parametrize("m, tc", [(1, 0.5), (7, 0.5), (20, 50.0), (64, 0.05)])
@@ -83,6 +83,15 @@ def test_recovers_white_random_walk_and_drift():
     _within(est, g, "NKR")
 
 
+def test_recovers_quantization_through_block_means():
+    # the quantization block (theta_j, theta_{j-1}) is exact for any block size
+    g = Gyro(dt=0.1, terms=[Quantization(Q=3e-5), AngleRandomWalk(N=2e-4), RateRandomWalk(K=1e-6)])
+    x = g.simulate(20_000, np.random.default_rng(23))
+    for m in (1, 3):
+        est = estimators.get("mle", model="QN+WN+RW", block=m).fit(x, 0.1)
+        _within(est, g, "QN")
+
+
 @pytest.mark.slow
 def test_monte_carlo_white_gm_rw_hours():
     # 2.8 h at 100 Hz with the default block averaging; the mean within 3 standard errors of the
@@ -105,7 +114,7 @@ def test_monte_carlo_white_gm_rw_hours():
 
 @pytest.mark.parametrize(
     "settings, match",
-    [({"model": "QN+WN"}, "supports"), ({"model": "DR"}, "stochastic"), ({"block": 0}, "block"),
+    [({"model": "WN+XX"}, "model"), ({"model": "DR"}, "stochastic"), ({"block": 0}, "block"),
      ({"block": "big"}, "block"), ({"max_blocks": 0}, "max_blocks"), ({"maxiter": 2.5}, "maxiter")],
 )
 def test_bad_settings(settings, match):
