@@ -274,9 +274,10 @@ class MLE(Estimator):
                 coefs[coef] = scale * vals[name]
                 std[coef] = coefs[coef] * se_log[name]
         if "DR" in latents:
-            r = float(res.filtered_state[-1, -1])
+            # the filter runs on scaled data: the slope state is in scaled units
+            r = float(res.filtered_state[-1, -1]) / mod.scale
             coefs["R"] = abs(r)
-            std["R"] = float(math.sqrt(max(res.filtered_state_cov[-1, -1, -1], 0.0)))
+            std["R"] = float(math.sqrt(max(res.filtered_state_cov[-1, -1, -1], 0.0))) / mod.scale
         converged = bool(res.mle_retvals.get("converged", False)) if res.mle_retvals else False
         diag = {
             "std_err": pd.Series(std, dtype=float).reindex(["Q", "N", "B", "K", "R"]),
