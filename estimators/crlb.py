@@ -10,7 +10,7 @@ For a Gaussian record of ``n`` samples whose (discrete-time, two-sided) spectral
         \\frac{\\partial \\log S(\\omega_k)}{\\partial\\theta_j},
     \\qquad \\omega_k = 2\\pi k/n,
 
-(Whittle 1953; e.g. Percival & Walden 1993, eq. 293; SPEC "The accuracy limit"), and the bound
+(Whittle 1953; SPEC "The accuracy limit"), and the bound
 :math:`\\mathrm{std}(\\hat\\theta_i) \\ge \\sqrt{(I^{-1})_{ii}}`. The zero frequency is left out so
 that non-stationary terms (rate random walk, flicker) can be handled through their pseudo-spectra:
 differencing a record multiplies every term's spectrum by the same known factor

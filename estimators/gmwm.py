@@ -2,11 +2,14 @@
 
 The Haar wavelet variance of the record at dyadic scales is matched to the wavelet variance implied
 by a composite latent model. For the Haar filter at scale tau the (maximal-overlap) wavelet variance
-is half the overlapping Allan variance at the same tau (Guerrier et al. 2013, Sec. 2; SPEC),
+is half the overlapping Allan variance at the same tau (SPEC; it agrees term by term with the Haar
+wavelet variances nu^2 = sigma^2/tau_j (white), (tau_j^2 + 2) gamma^2 / (12 tau_j) (random walk),
+tau_j^2 omega^2 / 16 (drift) of the SMAC group's ``wv`` package, with tau_j = 2m samples),
 
 .. math:: \\nu^2(\\tau) = \\sigma^2_{AV}(\\tau)/2 ,
 
-so the GMWM estimator (Guerrier et al. 2013, eq. 3)
+so the GMWM estimator (Guerrier et al. 2013, the GMWM criterion of their Sec. 3; the equation
+numbers of that paper were not available to check here)
 
 .. math::
 
@@ -21,7 +24,7 @@ Weighting matrix
 Efficient GMM needs :math:`\\Omega`, the covariance of :math:`\\hat\\nu`. For a Gaussian process
 the overlapping AV at cluster size m is :math:`\\frac12\\overline{d_t^2}` with :math:`d = h_m * \\omega`,
 :math:`|H_m(\\omega)|^2 = 4\\sin^4(m\\omega/2)/(m^2\\sin^2(\\omega/2))`, and (Isserlis; Percival &
-Walden 2000, eq. 307a for one scale)
+Walden 2000, Sec. 8.3 for one scale)
 
 .. math::
 
@@ -29,7 +32,8 @@ Walden 2000, eq. 307a for one scale)
     \\frac1\\pi\\int_0^\\pi |H_j|^2|H_k|^2\\,S(\\omega)^2\\,d\\omega ,
 
 with :math:`M_j = n - 2m_j + 1` terms and :math:`S` the model spectrum (``Gyro.psd``). This is the
-asymptotic covariance of Guerrier et al. (2013, Prop. 2) evaluated *parametrically* at a first-step
+asymptotic covariance of the wavelet variances (Guerrier et al. 2013, their asymptotic-normality
+result; Percival 1995 for one scale) evaluated *parametrically* at a first-step
 estimate (two-step GMM), rather than by their non-parametric spectral estimate at frequency zero of
 the squared wavelet coefficients. Why: the parametric form is smooth and never singular, costs one
 FFT-grid integral instead of a bootstrap, and uses the full inter-scale correlation, which for

@@ -1,10 +1,10 @@
 """Exact Gaussian maximum likelihood of the composite gyro model through the Kalman filter.
 
 The rate is modelled as white noise (N) + first-order Gauss-Markov (sigma, Tc) + rate random walk (K)
-(+ deterministic drift R), the model of Nikolic, Grewal et al. (IEEE Sensors J. 2016) and of the
+(+ deterministic drift R), the model of Nikolic et al. (IEEE Sensors J. 2016) and of the
 GMWM literature; the likelihood is evaluated exactly by the Kalman filter of a linear Gaussian
-state-space model (statsmodels ``MLEModel``; Durbin & Koopman 2012, eqs 7.2-7.3 for the prediction
-error decomposition and Ch. 5 for the exact diffuse initialisation of the level and drift).
+state-space model (statsmodels ``MLEModel``; Durbin & Koopman 2012, Ch. 7 for the prediction error
+decomposition and Ch. 5 for the exact diffuse initialisation of the level and drift).
 
 Block averaging (setting ``block``)
 -----------------------------------
