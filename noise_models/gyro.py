@@ -26,6 +26,10 @@ def _as_generator(rng) -> np.random.Generator:
     )
 
 
+#: block length (samples) in which :meth:`Gyro.simulate` fills long records
+_SIMULATE_BLOCK = 1 << 16
+
+
 def _sum_next(streams, n: int) -> np.ndarray:
     """Sum of the next ``n`` samples of every term, in term order (the first sum makes a new array,
     the later ones add in place: same values as ``a + b + c``, fewer allocations)."""
@@ -131,7 +135,15 @@ class Gyro:
         """``n_samples`` rate samples (rad/s)."""
         n = _check_n(n_samples)
         streams = self._term_streams(rng)
-        return _sum_next(streams, n)
+        if n <= _SIMULATE_BLOCK:
+            return _sum_next(streams, n)
+        # long records: fill the output block by block (the terms' streams are chunk-invariant, so
+        # the values are the same), keeping every temporary array small and in cache
+        out = np.empty(n)
+        for a in range(0, n, _SIMULATE_BLOCK):
+            b = min(n, a + _SIMULATE_BLOCK)
+            out[a:b] = _sum_next(streams, b - a)
+        return out
 
     def stream(self, n_samples: int, rng, chunk_size: int = 1 << 18) -> Iterator[np.ndarray]:
         """Yield the same record as :meth:`simulate` in chunks of ``chunk_size`` samples."""
