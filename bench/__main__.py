@@ -45,11 +45,20 @@ def run(args) -> int:
     for cls in chosen:
         print(f"{cls.__name__}", flush=True)
         cases += harness.run_class(cls, quick=args.quick, log=lambda s: print(s, flush=True))
+    machine = harness.machine_info()
     if getattr(args, "merge", False):
-        cases = harness.load_cases(Path(args.out) / "results.json", exclude={c.__name__ for c in chosen}) + cases
+        old = Path(args.out) / "results.json"
+        kept = harness.load_cases(old, exclude={c.__name__ for c in chosen})
+        if kept:
+            import json
+
+            prev = json.loads(old.read_text())
+            machine["earlier_run"] = {k: prev["machine"].get(k) for k in ("when", "loadavg_1_5_15")}
+            machine["earlier_run"]["seconds"] = prev.get("seconds")
+            machine["rerun"] = sorted(c.__name__ for c in chosen)
+        cases = kept + cases
     notes = Path(args.notes).read_text() if getattr(args, "notes", None) else ""
-    payload = report.write_outputs(cases, harness.machine_info(), Path(args.out), args.quick,
-                                   time.perf_counter() - t0, notes)
+    payload = report.write_outputs(cases, machine, Path(args.out), args.quick, time.perf_counter() - t0, notes)
     for t in payload["targets"]:
         print(f"{t['target']}: {t['measured']} (met: {t['met']})")
     print(f"wrote {args.out}/README.md, results.json, results.csv, scaling.png")

@@ -251,7 +251,12 @@ def write_outputs(cases, machine: dict, out: Path, quick: bool, seconds: float, 
           f"({machine['processor']}), load average {machine['loadavg_1_5_15']} at the end (other work was running: "
           f"figures are medians of interleaved repeats, and ratios compare runs made in the same loop). "
           f"numpy {machine['numpy']}, numba {machine['numba']} ({machine['numba_threads']} threads), "
-          f"allantools {machine.get('allantools', '-')}. Total {seconds:.0f} s.", ""]
+          f"allantools {machine.get('allantools', '-')}. Total {seconds:.0f} s."]
+    if machine.get("earlier_run"):
+        e = machine["earlier_run"]
+        md[-1] += (f" This run re-ran {', '.join(machine['rerun'])}; the other figures are from the run of {e['when']} "
+                   f"({e['seconds']:.0f} s, load average {e['loadavg_1_5_15']} at its end).")
+    md += [""]
     md += ["## Targets", "", "| target | measured | met | what limits it |", "|---|---|---|---|"]
     for t in tg:
         met = {True: "yes", False: "**no**", None: "n/a (size not run)"}[t["met"]]
