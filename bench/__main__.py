@@ -20,6 +20,8 @@ def _arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
     p.add_argument("--only", help="comma-separated benchmark class names to run (default: all)")
     p.add_argument("--notes", help="a Markdown file whose text is added under the targets table")
+    p.add_argument("--report-only", action="store_true",
+                   help="rewrite README.md, results.csv and scaling.png from --out/results.json; run nothing")
     p.add_argument("--merge", action="store_true",
                    help="keep the other benchmarks' results already in --out/results.json (with --only)")
     return p
@@ -36,6 +38,15 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from bench import harness, report, suite
 
+    if getattr(args, "report_only", False):
+        import json
+
+        prev = json.loads((Path(args.out) / "results.json").read_text())
+        cases = harness.load_cases(Path(args.out) / "results.json")
+        notes = Path(args.notes).read_text() if getattr(args, "notes", None) else ""
+        report.write_outputs(cases, prev["machine"], Path(args.out), prev["quick"], prev["seconds"], notes)
+        print(f"rewrote {args.out}/README.md, results.json, results.csv, scaling.png")
+        return 0
     t0 = time.perf_counter()
     chosen = suite.classes(args.quick)
     if getattr(args, "only", None):
@@ -53,9 +64,9 @@ def run(args) -> int:
             import json
 
             prev = json.loads(old.read_text())
-            machine["earlier_run"] = {k: prev["machine"].get(k) for k in ("when", "loadavg_1_5_15")}
-            machine["earlier_run"]["seconds"] = prev.get("seconds")
-            machine["rerun"] = sorted(c.__name__ for c in chosen)
+            machine["runs"] = harness.run_history(prev) + [
+                {"when": machine["when"], "loadavg_1_5_15": machine["loadavg_1_5_15"],
+                 "benchmarks": sorted(c.__name__ for c in chosen)}]
         cases = kept + cases
     notes = Path(args.notes).read_text() if getattr(args, "notes", None) else ""
     payload = report.write_outputs(cases, machine, Path(args.out), args.quick, time.perf_counter() - t0, notes)

@@ -193,3 +193,18 @@ def load_cases(path, exclude=frozenset()) -> list[Case]:
         result = {k: v for k, v in row.items() if not k.startswith("param_") and k not in ("benchmark", "method", "kind") and v is not None}
         cases.append(Case(row["benchmark"], row["method"], params, row["kind"], result))
     return cases
+
+
+def run_history(payload: dict) -> list[dict]:
+    """The runs whose figures a results.json holds: when, load, which benchmarks (oldest first)."""
+    m = payload.get("machine", {})
+    if m.get("runs"):
+        return list(m["runs"])
+    runs = []
+    if m.get("earlier_run"):
+        e = m["earlier_run"]
+        runs.append({"when": e.get("when"), "loadavg_1_5_15": e.get("loadavg_1_5_15"), "benchmarks": ["all"]})
+        runs.append({"when": m.get("when"), "loadavg_1_5_15": m.get("loadavg_1_5_15"), "benchmarks": m.get("rerun", [])})
+    else:
+        runs.append({"when": m.get("when"), "loadavg_1_5_15": m.get("loadavg_1_5_15"), "benchmarks": ["all"]})
+    return runs
