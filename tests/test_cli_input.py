@@ -116,7 +116,6 @@ GAPS = [
 ]
 
 
-@pytest.mark.xfail(strict=True, reason="studies/estimate.py does not use studies/data_files.py yet (reported to its owner)")
 @pytest.mark.parametrize("case, fname, writer, words", GAPS, ids=[g[0] for g in GAPS])
 def test_gaps_in_estimate(tmp_path, capsys, case, fname, writer, words):
     rc, captured, path, out = _run(tmp_path, fname, writer, [], capsys)
