@@ -207,7 +207,7 @@ def log_fit_beta(tau, avar, terms):
         return np.log10(X @ np.exp(u)) - y
 
     sol = least_squares(resid, u0, bounds=(np.log(floor), np.log(ceiling)), method="trf",
-                        x_scale=1.0, xtol=1e-12, ftol=1e-12, max_nfev=5000)
+                        x_scale=1.0, xtol=1e-10, ftol=1e-10, max_nfev=5000)
     beta = np.exp(sol.x)
     beta[sol.x <= np.log(floor) + 1e-6] = 0.0
     return beta, sol
