@@ -42,7 +42,8 @@ block j, i.e. two more states :math:`(\\theta_j, \\theta_{j-1})` with
 The default ``block="auto"`` takes the smallest m giving at most ``max_blocks`` (50,000) block means,
 but never more than a fifth of the Gauss-Markov correlation time found by the GMWM starting fit (so
 that the GM stays resolved). For 1e6 samples at 100 Hz this is m = 20 (0.2 s blocks) and a fit
-takes about 10 s (GMWM start included). The price is paid by N: the white-noise information sits
+of WN+GM+RW takes 10-25 s on a shared 2-core machine (GMWM start included; measured on the ADIS16405
+records and on simulated records). The price is paid by N: the white-noise information sits
 at the shortest time scales, so its relative standard error becomes :math:`1/\\sqrt{2n/m}` instead
 of the CRLB :math:`1/\\sqrt{2n}`; B, K and R, whose information lies at long time scales, lose
 almost nothing. Use ``block=1`` for the full sample-level likelihood.
