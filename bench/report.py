@@ -69,6 +69,11 @@ lstsq on 72 000 x 3). Start-up: ~5 s of imports per process (parent and each wor
 scipy.stats, statsmodels via `estimators.mle`). Report: ~12-15 s (matplotlib `savefig(bbox_inches=
 'tight')` and mathtext parsing of log-axis tick labels).
 
+After (same command, fresh output folder, estimates equal to the earlier run's to 1e-13): 13.0 s wall
+at load average 1.4-1.5 (16.9 s user + 3.0 s sys), 23.0 s at load 2.8, 37.8 s at load ~4-5 (2026-11-22).
+The study needs ~10 CPU-seconds of its own on two cores (table above); the rest is waiting for a
+core while other work runs, so the 15 s target holds only on a lightly loaded machine.
+
 ### What is left (not in this files)
 
 - Imports: `estimators/__init__` imports every estimator module, and `estimators/mle.py` imports
