@@ -79,7 +79,9 @@ core while other work runs, so the 15 s target holds only on a lightly loaded ma
 - Imports: `estimators/__init__` imports every estimator module, and `estimators/mle.py` imports
   statsmodels at module level (which pulls in scipy.stats, scipy.signal, formulaic, ...): ~1.1 s of the
   ~1.9 s import time of `studies.runner` on an idle machine, paid by the parent and by every loky
-  worker, and ~80 MB of every process's memory. A lazy import inside `mle` would remove it.
+  worker, and ~40 MB of every process's resident memory (198 -> 238 MB when imported beside numpy,
+  pandas, numba and scipy.optimize/linalg/fft). A lazy import inside `mle` would remove it, and with
+  it the 24 h stream's peak would be ~290 MB, under the 300 MB target that it now misses by 28 MB.
 - Figures (`studies/figures.py`): six PNGs cost several seconds (`bbox_inches='tight'` lays every
   figure out twice; log-axis tick labels go through mathtext).
 - `least_squares.solve_scaled` (SVD `lstsq` of 72 000 x 3, six times in `wls_edf`) and pandas result
