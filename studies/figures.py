@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -21,7 +22,7 @@ __all__ = ["av_figure", "spread_figure", "study_figures"]
 
 def _save(fig, path: Path) -> None:
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    fig.savefig(tmp, dpi=110)
     plt.close(fig)
     os.replace(tmp, path)
 
@@ -50,6 +51,7 @@ def av_figure(rate, gyro, fits: dict, title: str):
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
+    fig.tight_layout()
     return fig
 
 
@@ -69,7 +71,11 @@ def spread_figure(tidy: pd.DataFrame, gyro_label: str):
         ax.set_xticks(range(len(ests)))
         ax.set_xticklabels(ests, rotation=60, ha="right", fontsize=7)
         ax.set_title(f"{c}: estimate / true")
-        ax.set_yscale("log")
+        allv = np.concatenate([x for x in data if x.size]) if pos else np.ones(1)
+        allv = allv[allv > 0]
+        if allv.size and allv.max() / allv.min() > 5:  # wide spread: log scale, no minor labels
+            ax.set_yscale("log")
+            ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.grid(True, axis="y", which="both", alpha=0.3)
     fig.suptitle(gyro_label)
     fig.tight_layout()
