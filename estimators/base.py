@@ -34,6 +34,7 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
+from noise_models.terms import _check_dt as check_dt
 from noise_models.units import COEFFICIENTS
 
 __all__ = [
@@ -125,12 +126,7 @@ def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill
 
 def check_record(rate, dt) -> tuple[np.ndarray, float]:
     """Validate a gyro record: 1-D, finite, at least 16 samples; ``dt`` finite and > 0."""
-    try:
-        dt = float(dt)
-    except (TypeError, ValueError):
-        raise ValueError(f"dt: expected a positive number of seconds, got {dt!r}") from None
-    if not math.isfinite(dt) or dt <= 0:
-        raise ValueError(f"dt: expected a positive, finite sample interval in seconds, got {dt!r}")
+    dt = check_dt(dt)
     arr = np.asarray(rate)
     if arr.dtype.kind not in "iuf":
         raise ValueError(f"rate: expected numeric samples, got dtype {arr.dtype}")
