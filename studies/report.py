@@ -210,6 +210,52 @@ def render_markdown(summary: pd.DataFrame, meta: dict | None = None) -> str:
     return "\n".join(out) + "\n"
 
 
+def leaderboard(summary: pd.DataFrame) -> str:
+    """Who wins where: per coefficient, each estimator over all gyros of the study.
+
+    Columns: the number of gyros on which the estimator has the lowest RMSE (among those with a
+    physical estimate in at least half the replicates), the median over gyros of the absolute error %, of the
+    relative std (std / true), of std / CRLB, the share of replicates without a physical estimate,
+    and the median fit time per replicate.
+    """
+    s = summary.copy()
+    s["rel_rmse"] = s["rmse"] / s["true"]
+    s["rel_std_pct"] = s["std"] / s["true"] * 100
+    s["bad_share"] = (s["n_nonphysical"] + s["n_failed"]) / s["n"]
+    if "std_over_crlb" not in s:
+        s["std_over_crlb"] = math.nan
+    ok = s[(s["n_ok"] >= np.ceil(s["n"] / 2)) & np.isfinite(s["rel_rmse"])]
+    winners = ok.loc[ok.groupby(["gyro", "coefficient"])["rel_rmse"].idxmin()]
+    out = ["# Who wins where", ""]
+    out.append(leaderboard.__doc__.split("\n\n")[1].strip().replace("\n    ", " "))
+    out.append("")
+    for c in [c for c in COEFFICIENTS if c in set(s["coefficient"])]:
+        d = s[s["coefficient"] == c]
+        wins = winners[winners["coefficient"] == c]["estimator"].value_counts()
+        g = d.groupby("estimator", sort=False)
+        table = pd.DataFrame(
+            {
+                "gyros": g["gyro"].nunique(),
+                "lowest RMSE on": wins.reindex(g.size().index).fillna(0).astype(int),
+                "median abs. error %": g["error_pct"].median().round(1),
+                "median std %": g["rel_std_pct"].median().round(1),
+                "median std / CRLB": g["std_over_crlb"].median().round(2),
+                "no estimate %": (g["bad_share"].mean() * 100).round(0),
+                "time / replicate (s)": g["seconds_per_replicate"].median().round(3),
+            }
+        ).sort_values(["lowest RMSE on", "median std %"], ascending=[False, True])
+        out.append(f"## {c}")
+        out.append("")
+        out.append("| estimator | " + " | ".join(table.columns) + " |")
+        out.append("|---|" + "---|" * len(table.columns))
+        for e, r in table.iterrows():
+            cells = ["–" if pd.isna(v) else (str(int(v)) if k in ("gyros", "lowest RMSE on", "no estimate %") else f"{v:g}")
+                     for k, v in r.items()]
+            out.append(f"| {e} | " + " | ".join(cells) + " |")
+        out.append("")
+    return "\n".join(out) + "\n"
+
+
 def render_latex(summary: pd.DataFrame) -> str:
     cols = ["gyro", "estimator", "coefficient", "unit", "true", "mean", "error_pct", "std", "n_nonphysical", "n_failed"]
     return summary[cols].to_latex(index=False, float_format=lambda x: f"{x:.4g}", na_rep="--")
@@ -264,6 +310,8 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     os.replace(tmp, out / "table.csv")
     _atomic_text(out / "meta.json", json.dumps(meta, indent=2))
     _atomic_text(out / "table.md", render_markdown(summary, meta))
+    if len(cfg.gyros) > 1 or len(cfg.estimators) > 1:
+        _atomic_text(out / "leaderboard.md", leaderboard(summary))
     from studies.figures import study_figures
 
     study_figures(cfg, tidy, out)
