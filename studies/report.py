@@ -213,12 +213,13 @@ def render_markdown(summary: pd.DataFrame, meta: dict | None = None) -> str:
 def leaderboard(summary: pd.DataFrame) -> str:
     """Who wins where: per coefficient, each estimator over all gyros of the study.
 
-    Columns: the number of gyros on which the estimator has the lowest RMSE (among those with a
+    Only gyros that have the coefficient count. Columns: the number of gyros on which the
+    estimator has the lowest RMSE (among those with a
     physical estimate in at least half the replicates), the median over gyros of the absolute error %, of the
     relative std (std / true), of std / CRLB, the share of replicates without a physical estimate,
     and the median fit time per replicate.
     """
-    s = summary.copy()
+    s = summary[np.isfinite(summary["true"]) & (summary["true"] > 0)].copy()  # gyros that have the term
     s["rel_rmse"] = s["rmse"] / s["true"]
     s["rel_std_pct"] = s["std"] / s["true"] * 100
     s["bad_share"] = (s["n_nonphysical"] + s["n_failed"]) / s["n"]
