@@ -1,12 +1,12 @@
 """GMWM: weighting matrix against known variances, recovery within its own standard errors."""
 
-import math
 
 import numpy as np
 import pytest
 from scipy import stats
 
 import estimators
+from conftest import check_monte_carlo_recovery
 from estimators.allan import allan_variance, edf_overlapping
 from estimators.gmwm import av_covariance, build_gyro, parse_model
 from noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
@@ -90,22 +90,7 @@ def test_white_gm_rw_short_record_reports_b_equiv():
 
 @pytest.mark.slow
 def test_monte_carlo_white_gm_rw_hours():
-    # 2.8 h at 100 Hz, 8 replicates: mean within 3 standard errors of the mean, and the GMM standard
-    # errors consistent with the replicate spread (ratio inside the chi^2_{R-1} 99.8 % interval)
-    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=8.7e-4), GaussMarkov(sigma=1e-4, tc=50.0), RateRandomWalk(K=2e-6)])
-    R, n = 8, 1_000_000
-    est, se = [], []
-    for s in np.random.SeedSequence(2013).spawn(R):
-        e = estimators.get("gmwm").fit(g.simulate(n, np.random.default_rng(s)), 0.01)
-        est.append(e.coefficients_[["N", "B"]].values)
-        se.append(e.diagnostics_["std_err"][["N", "B"]].values)
-    est, se = np.array(est), np.array(se)
-    truth = g.coefficients[["N", "B"]].values
-    sd = est.std(axis=0, ddof=1)
-    assert np.all(np.abs(est.mean(axis=0) - truth) < 3 * sd / math.sqrt(R))
-    lo, hi = stats.chi2.ppf([0.001, 0.999], R - 1) / (R - 1)
-    ratio = sd**2 / np.mean(se**2, axis=0)
-    assert np.all((ratio > lo) & (ratio < hi)), ratio
+    check_monte_carlo_recovery("gmwm", seed=2013, R=8)
 
 
 @pytest.mark.parametrize(

@@ -4,10 +4,10 @@ import math
 
 import numpy as np
 import pytest
-from scipy import stats
 from scipy.linalg import solve_discrete_lyapunov
 
 import estimators
+from conftest import check_monte_carlo_recovery
 from estimators.mle import BlockMeanModel, _gm_block, _level_block, block_means
 from noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
 
@@ -96,22 +96,7 @@ def test_recovers_quantization_through_block_means():
 
 @pytest.mark.slow
 def test_monte_carlo_white_gm_rw_hours():
-    # 2.8 h at 100 Hz with the default block averaging; the mean within 3 standard errors of the
-    # mean of truth, and the observed-information standard errors consistent with the spread
-    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=8.7e-4), GaussMarkov(sigma=1e-4, tc=50.0), RateRandomWalk(K=2e-6)])
-    R, n = 6, 1_000_000
-    est, se = [], []
-    for s in np.random.SeedSequence(2016).spawn(R):
-        e = estimators.get("mle").fit(g.simulate(n, np.random.default_rng(s)), 0.01)
-        est.append(e.coefficients_[["N", "B"]].values)
-        se.append(e.diagnostics_["std_err"][["N", "B"]].values)
-    est, se = np.array(est), np.array(se)
-    truth = g.coefficients[["N", "B"]].values
-    sd = est.std(axis=0, ddof=1)
-    assert np.all(np.abs(est.mean(axis=0) - truth) < 3 * sd / math.sqrt(R))
-    lo, hi = stats.chi2.ppf([0.001, 0.999], R - 1) / (R - 1)
-    ratio = sd**2 / np.mean(se**2, axis=0)
-    assert np.all((ratio > lo) & (ratio < hi)), ratio
+    check_monte_carlo_recovery("mle", seed=2016, R=6)
 
 
 @pytest.mark.parametrize(
