@@ -66,7 +66,7 @@ import pandas as pd
 from estimators.base import Estimator, register
 from estimators.gmwm import GMWM, parse_model
 
-__all__ = ["MLE", "BlockMeanModel", "block_means"]
+__all__ = ["MLE", "block_means"]
 
 _ALLOWED = ("QN", "WN", "GM", "RW", "DR")
 

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators._online_common import OnlineAVFilter, _matrix, _positive
+from estimators._online_common import OnlineAVFilter, _matrix
 from estimators._online_kernels import shakf_run
 from estimators.base import register
 

@@ -157,7 +157,6 @@ def render_markdown(summary: pd.DataFrame, meta: dict | None = None) -> str:
             r = d[(d["estimator"] == e) & (d["coefficient"] == c)]
             return None if r.empty else r.iloc[0][key]
 
-        first_e = d["estimator"].iloc[0]
         true_cells = []
         for c in coefs:
             r = d[d["coefficient"] == c]

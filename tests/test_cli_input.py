@@ -5,7 +5,6 @@ stderr), a non-zero exit, and nothing written for rejected input. Also the share
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
