@@ -43,3 +43,39 @@ def check_monte_carlo_recovery(name: str, seed: int, R: int, n: int = 1_000_000,
     lo, hi = stats.chi2.ppf([0.001, 0.999], R - 1) / (R - 1)
     ratio = sd**2 / np.mean(se**2, axis=0)
     assert np.all((ratio > lo) & (ratio < hi)), ratio
+
+
+#: tidy-table columns that must be identical between runs (all but the fit time)
+STUDY_COLS = ["gyro", "replicate", "estimator", "coefficient", "true", "estimate", "nonphysical", "failure"]
+
+_TINY_BODY = """
+[[gyros]]
+name = "g1"
+dt = 0.1
+terms = [{type = "AngleRandomWalk", N = [0.5, "deg/sqrt(h)"]}, {type = "Quantization", Q = 1e-5},
+         {type = "BiasInstability", B = [10.0, "deg/h"], tau_max = 600.0}]
+
+[[gyros]]
+name = "g2"
+dt = 0.05
+terms = [{type = "AngleRandomWalk", N = [0.2, "deg/sqrt(h)"]}, {type = "RateRandomWalk", K = [50.0, "deg/h^1.5"]}]
+
+[[estimators]]
+name = "ols"
+settings = { terms = "QNB", taus = "octave" }
+
+[[estimators]]
+name = "wls"
+settings = { terms = "QNBK", taus = "all" }
+"""
+
+
+def study_toml(name="tiny", seed=7, replicates=6, block_size=2, n_samples=3000, extra_study="", extra_estimators=""):
+    """A tiny two-gyro study (short records, cheap estimators) for the runner tests."""
+    import textwrap
+
+    head = (
+        f'[study]\nname = "{name}"\nseed = {seed}\nreplicates = {replicates}\n'
+        f"n_samples = {n_samples}\nblock_size = {block_size}\n{extra_study}\n"
+    )
+    return head + _TINY_BODY + textwrap.dedent(extra_estimators)

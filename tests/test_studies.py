@@ -12,13 +12,14 @@ from __future__ import annotations
 import math
 import os
 import pickle
-import textwrap
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from conftest import STUDY_COLS as COLS
+from conftest import study_toml
 from estimators.base import Estimator, register
 from estimators.least_squares import OLS
 from studies.config import load_config, parse_config
@@ -60,39 +61,6 @@ class Flaky(Estimator):
                     os._exit(3)
         return OLS(terms=self.terms, taus="octave")._fit(rate, dt)
 
-COLS = ["gyro", "replicate", "estimator", "coefficient", "true", "estimate", "nonphysical", "failure"]
-
-
-def study_toml(name="tiny", seed=7, replicates=6, block_size=2, n_samples=3000, extra_estimators=""):
-    return textwrap.dedent(
-        f"""
-        [study]
-        name = "{name}"
-        seed = {seed}
-        replicates = {replicates}
-        n_samples = {n_samples}
-        block_size = {block_size}
-
-        [[gyros]]
-        name = "g1"
-        dt = 0.1
-        terms = [{{type = "AngleRandomWalk", N = [0.5, "deg/sqrt(h)"]}}, {{type = "Quantization", Q = 1e-5}},
-                 {{type = "BiasInstability", B = [10.0, "deg/h"], tau_max = 600.0}}]
-
-        [[gyros]]
-        name = "g2"
-        dt = 0.05
-        terms = [{{type = "AngleRandomWalk", N = [0.2, "deg/sqrt(h)"]}}, {{type = "RateRandomWalk", K = [50.0, "deg/h^1.5"]}}]
-
-        [[estimators]]
-        name = "ols"
-        settings = {{ terms = "QNB", taus = "octave" }}
-
-        [[estimators]]
-        name = "wls"
-        settings = {{ terms = "QNBK", taus = "all" }}
-        """
-    ) + textwrap.dedent(extra_estimators)
 
 
 def flaky_toml(mode, label=None, **settings):

@@ -5,7 +5,6 @@ the [study] table; a scheduler that cannot be reached is a clear error."""
 from __future__ import annotations
 
 import socket
-import textwrap
 
 import pandas as pd
 import pytest
@@ -13,44 +12,14 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 import studies.runner as runner  # noqa: E402
+from conftest import STUDY_COLS as COLS  # noqa: E402
+from conftest import study_toml  # noqa: E402
 from studies.cli import main  # noqa: E402
 from studies.config import load_config  # noqa: E402
 from studies.runner import run_study, tasks_of  # noqa: E402
 
-COLS = ["gyro", "replicate", "estimator", "coefficient", "true", "estimate", "nonphysical", "failure"]
-
-
 def toml(extra_study=""):
-    return textwrap.dedent(
-        f"""
-        [study]
-        name = "tiny_dask"
-        seed = 5
-        replicates = 6
-        n_samples = 3000
-        block_size = 2
-        {extra_study}
-
-        [[gyros]]
-        name = "g1"
-        dt = 0.1
-        terms = [{{type = "AngleRandomWalk", N = [0.5, "deg/sqrt(h)"]}}, {{type = "Quantization", Q = 1e-5}},
-                 {{type = "BiasInstability", B = [10.0, "deg/h"], tau_max = 600.0}}]
-
-        [[gyros]]
-        name = "g2"
-        dt = 0.05
-        terms = [{{type = "AngleRandomWalk", N = [0.2, "deg/sqrt(h)"]}}, {{type = "RateRandomWalk", K = [50.0, "deg/h^1.5"]}}]
-
-        [[estimators]]
-        name = "ols"
-        settings = {{ terms = "QNB", taus = "octave" }}
-
-        [[estimators]]
-        name = "wls"
-        settings = {{ terms = "QNBK", taus = "all" }}
-        """
-    )
+    return study_toml(name="tiny_dask", seed=5, extra_study=extra_study)
 
 
 @pytest.fixture(scope="module")

@@ -16,11 +16,11 @@ import pandas as pd
 import pytest
 
 import studies.runner as runner
+from conftest import STUDY_COLS as COLS
 from studies.config import load_config
 from studies.runner import collect, run_study, tasks_of
 
 ROOT = Path(__file__).resolve().parents[1]
-COLS = ["gyro", "replicate", "estimator", "coefficient", "true", "estimate", "nonphysical", "failure"]
 
 
 def toml(seed=3, replicates=6, block_size=2, n_samples=4000, wls_terms="QNB", description="x"):
