@@ -319,7 +319,7 @@ class OnlineAVFilter(Estimator):
         terms = self._cfg["terms"]
         if not self._started:
             return coefficient_series(), ""
-        s = np.abs(self._state["s_view"]())
+        s = np.abs(self._scales())
         vals = {c: float(v) for c, v in zip(terms, s * self._c_ref)}
         code = int(self._istate[2])
         if code:
@@ -347,7 +347,7 @@ class OnlineAVFilter(Estimator):
         }
         if self._started:
             if failure:
-                last = np.abs(self._state["s_view"]()) * self._c_ref
+                last = np.abs(self._scales()) * self._c_ref
                 diag["last_good"] = coefficient_series(dict(zip(self._cfg["terms"], last)))
             diag.update(self._filter_diagnostics())
         self._set_results(coefs.to_dict(), None, diag)

@@ -149,6 +149,9 @@ def render_markdown(summary: pd.DataFrame, meta: dict | None = None) -> str:
         if ginfo:
             head += f" ({int(d['n'].max())} replicates of {ginfo.get('n_samples')} samples at dt = {ginfo.get('dt')} s)"
         out.append(head + "\n")
+        if ginfo.get("truth_curve"):
+            out.append(f"Truth curve (exact Allan variance) {ginfo['truth_curve']}; the true coefficients "
+                       "below are those the terms declare.\n")
         cols = [f"{c} ({UNIT_LABEL.get(units[c], units[c])})" for c in coefs]
         out.append("| | " + " | ".join(cols) + " |")
         out.append("|---|" + "---|" * len(coefs))
@@ -287,6 +290,14 @@ def _atomic_text(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+def _truth_curve(gyro) -> dict:
+    """``{"truth_curve": reason}`` when the gyro has a term without an exact AV, else nothing."""
+    missing = [type(t).__name__ for t in gyro.terms if not getattr(t, "has_exact_avar", True)]
+    if not missing:
+        return {}
+    return {"truth_curve": f"unavailable: term {', '.join(missing)} has no exact Allan variance"}
+
+
 def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     """table.csv, table.md, meta.json and figures for a study; returns the summary."""
     out = Path(out)
@@ -302,7 +313,7 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
         "seed": cfg.seed,
         "replicates": cfg.replicates,
         "result_key": cfg.result_key(),
-        "gyros": {g.label: {"n_samples": g.n_samples, "dt": g.gyro.dt} for g in cfg.gyros},
+        "gyros": {g.label: {"n_samples": g.n_samples, "dt": g.gyro.dt, **_truth_curve(g.gyro)} for g in cfg.gyros},
         "paper_table": os.path.basename(str(cfg.paper_table)) if cfg.paper_table else None,
     }
     tmp = out / ("table.csv." + str(os.getpid()) + ".tmp")
