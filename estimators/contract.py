@@ -24,7 +24,8 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
     where finite;
 ``determinism``
     a fresh copy (unpickled) fitted on the same record gives identical coefficients (and standard
-    errors), and refitting a fitted estimator on another record and back gives the first answer;
+    errors); refitting a fitted estimator on another record equals a fresh fit on it, and refitting
+    back gives the first answer;
 ``bad input``
     a record with NaN or inf, a record too short (8 samples), a 2-D array, and a ``dt`` that is
     zero, negative, NaN or not a number are each refused with a ``ValueError`` with a message;
@@ -416,7 +417,7 @@ class _Checker:
         se = getattr(est, "std_err_", None)
         ci_f = getattr(est, "conf_int", None)
         if se is None and ci_f is None:
-            return []  # optional
+            return [], "std_err_ and conf_int not provided (optional)"
         if se is not None:
             if not isinstance(se, pd.Series) or list(se.index) != _INDEX or se.dtype != float:
                 problems.append(f"std_err_ is not a float Series indexed {_INDEX}")
@@ -437,7 +438,8 @@ class _Checker:
                     bad = [k for k in _INDEX if ok[k] and not (lo[k] <= c[k] <= hi[k])]
                     if bad:
                         problems.append(f"conf_int() does not contain the estimate for {bad}")
-        return problems
+        provided = " and ".join(x for x, v in (("std_err_", se), ("conf_int", ci_f)) if v is not None)
+        return problems, f"{provided} checked"
 
     def check_determinism(self):
         est = self._need_fit()
@@ -456,6 +458,10 @@ class _Checker:
         if why:
             problems.append(f"the fitted estimator does not pickle with its coefficients ({why})")
         _quiet(est.fit, self.b, self.gyro.dt)
+        fresh = _quiet(self.new().fit, self.b, self.gyro.dt)
+        why = _series_equal(fresh.coefficients_, est.coefficients_)
+        if why:
+            problems.append(f"refitting a fitted estimator on another record differs from a fresh fit ({why})")
         _quiet(est.fit, self.a, self.gyro.dt)
         why = _series_equal(self.first, est.coefficients_)
         if why:

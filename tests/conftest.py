@@ -110,3 +110,11 @@ def example_plugin():
     subprocess.run(pip + ["uninstall", "-y", "avbench-example-plugin"], check=False)
     importlib.invalidate_caches()
     plugins._entry_points.cache_clear()
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    """A real ``distributed.LocalCluster`` (2 worker processes, 1 thread each) for a test module."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
+        yield c

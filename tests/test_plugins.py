@@ -67,8 +67,7 @@ def test_entry_points_and_import_paths_resolve(example_plugin):
         estimators.get("two_slope", terms="NK")
 
 
-def test_study_with_plugins_same_tables_on_loky_and_dask(example_plugin, tmp_path, capsys):
-    pytest.importorskip("distributed")
+def test_study_with_plugins_same_tables_on_loky_and_dask(example_plugin, dask_cluster, tmp_path, capsys):
     cfg_path = write(tmp_path)
     cfg = load_config(cfg_path)
     plugins = cfg.result_payload()["plugins"]
@@ -81,7 +80,8 @@ def test_study_with_plugins_same_tables_on_loky_and_dask(example_plugin, tmp_pat
     }
     rc = main(["run", str(cfg_path), "--jobs", "2", "--out", str(tmp_path / "loky"), "--no-progress"])
     assert rc == 0, capsys.readouterr().err
-    rc = main(["run", str(cfg_path), "--jobs", "2", "--backend", "dask", "--out", str(tmp_path / "dask"), "--no-progress"])
+    rc = main(["run", str(cfg_path), "--backend", "dask", "--scheduler", dask_cluster.scheduler_address,
+               "--out", str(tmp_path / "dask"), "--no-progress"])
     assert rc == 0, capsys.readouterr().err
     tables = {}
     for which in ("loky", "dask"):
