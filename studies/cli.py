@@ -289,6 +289,14 @@ def main(argv=None) -> int:
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError) as e:
         return _fail(str(e))
+    except BrokenPipeError:  # the reader went away (avbench table DIR | head): stop quietly
+        import os
+
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 0
     except Exception as e:
         from studies.runner import StudyError
 
