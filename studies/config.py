@@ -11,7 +11,7 @@ Schema (every key optional unless marked required)::
     block_size = 5              # replicates per task and per saved shard
     backend = "loky"            # "loky" (local processes) or "dask"
     scheduler = "tcp://..."     # dask scheduler address (backend = "dask"; none: local cluster)
-    paper_table = "../../shared/paper_tables/lv2015_tables_2_4_6.csv"  # relative to this file
+    paper_table = "paper_tables/lv2015_tables_2_4_6.csv"  # relative to this file; must be readable
     figure_gyros = ["SRS2000"]  # gyros that get figures (default: all)
     units = { Q = "arcsec" }    # table units per coefficient (default: the papers' units)
 
@@ -301,10 +301,11 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
             ctx.fail("study.scheduler", 'a scheduler address needs backend = "dask"')
         if not _SCHEDULER_RE.match(scheduler):
             ctx.fail("study.scheduler", f"expected a dask scheduler address like tcp://host:8786, got {scheduler!r}")
-    paper_table = None
+    paper_table = paper = None
     if "paper_table" in study:
         base = path.parent if path else Path.cwd()
         paper_table = (base / study["paper_table"]).resolve()
+        paper = _read_paper_table(ctx, paper_table)
 
     if not raw["gyros"]:
         ctx.fail("gyros", "expected at least one [[gyros]] entry")
@@ -344,6 +345,14 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
     labels = [g.label for g in gyros]
     if len(set(labels)) != len(labels):
         ctx.fail("gyros", f"gyro labels must be unique, got {labels}")
+    if paper is not None:
+        known_gyros = sorted(set(paper["gyro"]))
+        for i, g in enumerate(gyros):
+            if g.paper_gyro is not None and g.paper_gyro not in known_gyros:
+                ctx.fail(f"gyros[{i}].paper_gyro", f"{g.paper_gyro!r} is not a gyro of {paper_table.name}; "
+                         f"expected one of {known_gyros}")
+    elif any(g.paper_gyro is not None for g in gyros):
+        ctx.fail("study.paper_table", "required when a gyro names its paper_gyro")
     for c, u in study.get("units", {}).items():
         try:
             from noise_models.units import from_si
@@ -370,6 +379,13 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         for k in ("label", "paper_method"):
             if k in e:
                 _check_label(ctx, f"{key}.{k}", e[k])
+        if "paper_method" in e:
+            if paper is None:
+                ctx.fail(f"{key}.paper_method", "needs study.paper_table (the paper's results to print beside ours)")
+            methods = sorted(set(paper["method"]))
+            if e["paper_method"] not in methods:
+                ctx.fail(f"{key}.paper_method", f"{e['paper_method']!r} is not a method of {paper_table.name}; "
+                         f"expected one of {methods}")
         gs = e.get("gyro_settings", {})
         for gl, v in gs.items():
             if gl not in labels:
@@ -419,6 +435,20 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         path=path,
         raw=raw,
     )
+
+
+def _read_paper_table(ctx: _Ctx, path: Path):
+    from studies.papers import load_paper_table
+
+    try:
+        return load_paper_table(path)
+    except FileNotFoundError:
+        ctx.fail("study.paper_table", f"no such file {str(path)!r}; expected a CSV of the paper's results, "
+                 "given relative to the study file (e.g. \"paper_tables/lv2015_tables_2_4_6.csv\")")
+    except (OSError, UnicodeDecodeError) as e:
+        ctx.fail("study.paper_table", f"cannot read {str(path)!r}: {e}")
+    except Exception as e:  # a parser error or a table of the wrong shape
+        ctx.fail("study.paper_table", f"{str(path)!r} is not a paper table: {str(e).splitlines()[0][:200]}")
 
 
 _SCHEDULER_RE = re.compile(r"^([a-z][a-z0-9+.-]*://[^\s/]+|[^\s:/]+:\d+)/?$")

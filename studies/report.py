@@ -20,7 +20,7 @@ import pandas as pd
 
 from noise_models.units import COEFFICIENTS, PAPER_UNITS, from_si
 
-__all__ = ["summarize", "render_markdown", "render_latex", "write_report", "load_paper_table"]
+__all__ = ["summarize", "render_markdown", "render_latex", "write_report"]
 
 UNIT_LABEL = {
     "urad": "µrad",
@@ -75,56 +75,6 @@ def summarize(tidy: pd.DataFrame, units: dict | None = None) -> pd.DataFrame:
     out["_e"] = out["estimator"].map(eorder)
     out = out.sort_values(["_g", "_e", "_o"]).drop(columns=["_g", "_e", "_o"]).reset_index(drop=True)
     return out
-
-
-def load_paper_table(path: Path) -> pd.DataFrame:
-    """A paper's result table as long format: gyro, method, coefficient, mean, error_pct, std.
-
-    Long tables (Lv et al. 2015) are read as they are. Wide tables (Miao et al. 2014, 2015: one row
-    per gyro and coefficient, a column per method) are melted: a column ``<method>_mean``,
-    ``<method>_indicator_pct`` or ``<method>_std`` gives that statistic of ``<method>``; any other
-    numeric column (``allan_variance``, ``online``) is the mean of the method it names. The gyro
-    is the ``gyro`` column, else ``fog`` (FOG number).
-    """
-    df = pd.read_csv(path, comment="#")
-    if "method" in df.columns:
-        need = {"gyro", "method", "coefficient", "mean"}
-        if not need <= set(df.columns):
-            raise ValueError(f"{path}: expected columns {sorted(need)} (long format), got {list(df.columns)}")
-        return df
-    gcol = next((c for c in ("gyro", "fog") if c in df.columns), None)
-    if gcol is None or "coefficient" not in df.columns:
-        raise ValueError(f"{path}: expected a 'gyro' (or 'fog') and a 'coefficient' column, got {list(df.columns)}")
-    stats = {"_mean": "mean", "_indicator_pct": "error_pct", "_std": "std"}
-    rows = []
-    for _, r in df.iterrows():
-        entries: dict = {}
-        for col in df.columns:
-            if col in (gcol, "coefficient") or not pd.api.types.is_numeric_dtype(df[col]) or col == "rate_hz":
-                continue
-            suffix = next((sfx for sfx in stats if col.endswith(sfx)), None)
-            method, stat = (col[: -len(suffix)], stats[suffix]) if suffix else (col, "mean")
-            entries.setdefault(method, {})[stat] = r[col]
-        for method, vals in entries.items():
-            rows.append({"gyro": str(r[gcol]), "method": method, "coefficient": r["coefficient"], **vals})
-    return pd.DataFrame(rows)
-
-
-def add_paper(summary: pd.DataFrame, paper: pd.DataFrame, gyro_map: dict, method_map: dict) -> pd.DataFrame:
-    s = summary.copy()
-    for col in ("paper_mean", "paper_error_pct", "paper_std"):
-        s[col] = math.nan
-    for i, r in s.iterrows():
-        pg, pm = gyro_map.get(r["gyro"], r["gyro"]), method_map.get(r["estimator"])
-        if pm is None:
-            continue
-        hit = paper[(paper["gyro"] == pg) & (paper["method"] == pm) & (paper["coefficient"] == r["coefficient"])]
-        if len(hit):
-            h = hit.iloc[0]
-            s.at[i, "paper_mean"] = h["mean"]
-            s.at[i, "paper_error_pct"] = h.get("error_pct", math.nan)
-            s.at[i, "paper_std"] = h.get("std", math.nan)
-    return s
 
 
 def _fmt(x) -> str:
@@ -291,7 +241,9 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     """table.csv, table.md, meta.json and figures for a study; returns the summary."""
     out = Path(out)
     summary = _crlb_column(cfg, summarize(tidy, getattr(cfg, 'units', None)))
-    if cfg.paper_table is not None and Path(cfg.paper_table).is_file():
+    if cfg.paper_table is not None:  # validated by the config: a missing table is a ConfigError there
+        from studies.papers import add_paper, load_paper_table
+
         paper = load_paper_table(cfg.paper_table)
         gmap = {g.label: g.paper_gyro for g in cfg.gyros if g.paper_gyro}
         mmap = {e.label: e.paper_method for e in cfg.estimators if e.paper_method}
