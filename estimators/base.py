@@ -156,7 +156,7 @@ def get(name, **settings) -> "Estimator":
     try:
         check_common_settings(settings)
     except ValueError as e:
-        raise ValueError(f"estimator {name!r}: {e}") from None
+        raise ValueError(f"estimator {cls.name!r}: {e}") from None
     return cls(**settings)
 
 

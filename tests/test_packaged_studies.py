@@ -32,7 +32,7 @@ def test_run_by_name_writes_to_results_name_in_the_current_folder(tmp_path, monk
 
     def fake_run_study(cfg, out, **kw):  # the study itself is long: check what would run, where
         seen.update(name=cfg.name, out=Path(out), path=cfg.path)
-        Path(out).mkdir(parents=True)
+        Path(out).mkdir(parents=True, exist_ok=True)
         (Path(out) / "table.md").write_text("table\n")
 
     monkeypatch.setattr(studies.runner, "run_study", fake_run_study)
