@@ -88,8 +88,11 @@ class _NekfBase(OnlineAVFilter):
         Qbar[:nq, :nq] = cfg["Q0"]
         Qbar[nq:, nq:] = np.eye(nw) * cfg["wQ0"]
         st = dict(xa=xa, P=P, Qbar=Qbar, Rbar=np.full(nm, cfg["R0"]), nq=nq, p=p)
-        st["s_view"] = lambda: st["xa"][:nq]
         return st
+
+    def _scales(self):
+        """The state's coefficient scales (a method, not a stored lambda: a fitted filter pickles)."""
+        return self._state["xa"][: self._state["nq"]]
 
     def _run_kernel(self, chunk, traj):
         st, av, cfg = self._state, self._av, self._cfg
@@ -136,7 +139,7 @@ _COMMON_DOC = """
 
 @register("nekf")
 class Nekf(_NekfBase):
-    """NEKF estimator of Miao et al. 2015 (eqs 48-57) on the recursive AV at tau0.
+    __doc__ = """NEKF estimator of Miao et al. 2015 (eqs 48-57) on the recursive AV at tau0.
     """ + _COMMON_DOC + """
     Examples
     --------
@@ -168,7 +171,7 @@ class Nekf(_NekfBase):
 
 @register("nekf_multitau")
 class NekfMultitau(_NekfBase):
-    """Extension: NEKF with the recursive AVs at cluster sizes ``m`` as a vector measurement.
+    __doc__ = """Extension: NEKF with the recursive AVs at cluster sizes ``m`` as a vector measurement.
 
     Not in Miao et al. 2015. As :class:`estimators.shakf.ShakfMultitau`: one scalar update per
     completed cluster of each size (diagonal ``Rbar``), ``m = [1]`` is exactly :class:`Nekf`;

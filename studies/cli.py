@@ -5,7 +5,10 @@ Examples
 avbench presets                                  # the gyros of the papers
 avbench simulate SRS2000 --hours 4 --seed 1      # simulate one, print its Allan deviation table
 avbench simulate ADIS16405_Y --hours 1 --out y.npy
-avbench run studies/lv2015.toml --jobs 2         # a Monte Carlo study -> results/lv2015/
+avbench studies                                  # the studies shipped with avbench
+avbench run lv2015 --jobs 2                      # a packaged study by name -> ./results/lv2015/
+avbench run my_study.toml --jobs 2               # your own study file
+avbench check-estimator my_estimator.py:MyEstimator   # does it keep the estimator contract?
 avbench table results/lv2015 --latex             # re-print a finished study's table
 avbench estimate rec.csv --fs 100 --units deg/s --method wls,gmwm   # your own recording
 """
@@ -13,6 +16,8 @@ avbench estimate rec.csv --fs 100 --units deg/s --method wls,gmwm   # your own r
 from __future__ import annotations
 
 import argparse
+import os
+import re
 import sys
 from pathlib import Path
 
@@ -53,10 +58,73 @@ def cmd_estimators(args) -> int:
     import estimators
 
     for name in estimators.names():
-        cls = estimators.estimator_class(name)
-        doc = (cls.__doc__ or "").strip().splitlines()[0] if cls.__doc__ else ""
-        print(f"{name:16s} {doc}")
+        try:
+            cls = estimators.estimator_class(name)
+        except ValueError as e:  # an installed plugin that does not import: say so, list the rest
+            print(f"{name:16s} (cannot be loaded: {e})")
+            continue
+        where = "" if cls.__module__.startswith("estimators.") else f" [{cls.__module__}:{cls.__qualname__}]"
+        print(f"{name:16s} {describe(cls)}{where}")
     return 0
+
+
+def cmd_check_estimator(args) -> int:
+    import json
+
+    from estimators.contract import check_estimator, load_estimators
+
+    settings = {}
+    if args.settings:
+        try:
+            settings = json.loads(args.settings)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"--settings: expected a JSON object, got {args.settings!r} ({e})") from None
+        if not isinstance(settings, dict):
+            raise ValueError(f"--settings: expected a JSON object of settings, got {args.settings!r}")
+    classes = load_estimators(args.path)
+    failed = 0
+    for cls in classes:
+        report = check_estimator(cls, raise_on_failure=False, settings=settings)
+        print(report)
+        failed += not report.ok
+    return 1 if failed else 0
+
+
+def describe(cls) -> str:
+    """The one-line description of an estimator class: its docstring's first line, as plain text."""
+    lines = (cls.__doc__ or "").strip().splitlines()
+    return plain_text(lines[0].strip()) if lines else ""
+
+
+_REST = [
+    (re.compile(r":[a-z]+:`~?([^`<]*?)(?:\s*<[^>]*>)?`"), r"\1"),  # :func:`x`, :class:`~a.b`, :ref:`t <x>`
+    (re.compile(r"``([^`]*)``"), r"\1"),  # ``literal``
+    (re.compile(r"`([^`]*)`_?"), r"\1"),  # `text`, `link`_
+    (re.compile(r"^\.\. [a-z-]+::.*$", re.MULTILINE), ""),  # directives
+]
+
+
+def plain_text(text: str) -> str:
+    """``text`` without reST markup (double back-quotes, roles, directives): help shows plain text."""
+    for pattern, repl in _REST:
+        text = pattern.sub(repl, text)
+    return text
+
+
+def _plain_help(parser: argparse.ArgumentParser) -> None:
+    """Strip reST markup from every help text, description and epilog of a parser and its subcommands."""
+    for attr in ("description", "epilog", "usage"):
+        if getattr(parser, attr, None):
+            setattr(parser, attr, plain_text(getattr(parser, attr)))
+    for action in parser._actions:
+        if action.help and action.help is not argparse.SUPPRESS:
+            action.help = plain_text(action.help)
+        if isinstance(action, argparse._SubParsersAction):
+            for choice in action._choices_actions:
+                if choice.help:
+                    choice.help = plain_text(choice.help)
+            for sub in set(action.choices.values()):
+                _plain_help(sub)
 
 
 # -- simulate -----------------------------------------------------------------------------------
@@ -75,7 +143,34 @@ def _n_samples(args, dt: float, default_s: float) -> int:
         n = int(round(seconds / dt))
     if n < 16:
         raise ValueError(f"record length: {n} samples is too short (need at least 16)")
+    need = n * SIMULATE_BYTES_PER_SAMPLE
+    free = _available_memory()
+    if free is not None and need > free:
+        raise ValueError(
+            f"record length: {n:,} samples need about {need / 2**30:.1f} GiB of memory to simulate and analyse, "
+            f"and {free / 2**30:.1f} GiB are available; expected a shorter record"
+        )
     return n
+
+
+#: bytes of memory per simulated sample: the record (8) and the Allan-variance engine's cumulative
+#: sum (8) and temporaries, with a margin
+SIMULATE_BYTES_PER_SAMPLE = 32
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available now (MemAvailable), or None where the system does not say."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
 
 
 def cmd_simulate(args) -> int:
@@ -84,10 +179,16 @@ def cmd_simulate(args) -> int:
     from noise_models.units import rate_to_si
 
     gyro = presets.get(args.preset)
+    if args.seed < 0:
+        raise ValueError(f"--seed: expected a non-negative integer, got {args.seed}")
     n = _n_samples(args, gyro.dt, presets.record_seconds(args.preset))
     out = Path(args.out) if args.out else None
-    if out is not None and out.suffix not in (".npy", ".csv"):
-        raise ValueError(f"--out: expected a .npy or .csv file name, got {args.out!r}")
+    if out is not None:
+        from studies.outputs import prepare_out_dir
+
+        if out.suffix not in (".npy", ".csv"):
+            raise ValueError(f"--out: expected a .npy or .csv file name, got {args.out!r}")
+        prepare_out_dir(out.parent, "--out", outputs=(out.name,))
     rng = np.random.default_rng(args.seed)
     rate = gyro.simulate(n, rng)
     av = allan_variance(rate, gyro.dt, taus=args.taus, overlapping=not args.non_overlapping)
@@ -105,29 +206,48 @@ def cmd_simulate(args) -> int:
             f"{hi[i]:12.5g} {truth[i]:12.5g} {a / truth[i]:7.3f}"
         )
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(out.name + ".tmp" + out.suffix)
-        if out.suffix == ".npy":
-            np.save(tmp, rate)
-        else:
-            np.savetxt(tmp, rate, header=f"rate_rad_s (dt = {gyro.dt} s, preset {args.preset}, seed {args.seed})")
-        tmp.replace(out)
+        from studies.outputs import tmp_name
+
+        tmp = tmp_name(out).with_suffix(out.suffix)
+        try:
+            if out.suffix == ".npy":
+                np.save(tmp, rate)
+            else:
+                np.savetxt(tmp, rate, header=f"rate_rad_s (dt = {gyro.dt} s, preset {args.preset}, seed {args.seed})")
+            tmp.replace(out)
+        finally:
+            tmp.unlink(missing_ok=True)
         print(f"# wrote {n} samples (rad/s) to {out}", file=sys.stderr)
     return 0
 
 
 # -- studies ------------------------------------------------------------------------------------
 
+#: files 'avbench run' writes into its --out (figures are named per gyro)
+REPORT_FILES = ("tidy.csv", "table.csv", "table.md", "leaderboard.md", "meta.json", "timings.csv", "timings.md")
+
+
+def cmd_studies(args) -> int:
+    from studies import packaged
+
+    for name in packaged.names():
+        print(f"{name:22s} {packaged.description(name)}")
+    return 0
+
 
 def cmd_run(args) -> int:
+    from studies import packaged
     from studies.config import load_config
     from studies.runner import run_study
 
     overrides = {}
     if args.replicates is not None:
         overrides["replicates"] = args.replicates
-    cfg = load_config(args.config, overrides)
+    cfg = load_config(packaged.resolve(args.config), overrides)
     out = Path(args.out) if args.out else Path("results") / cfg.name
+    from studies.outputs import prepare_out_dir
+
+    prepare_out_dir(out, "--out", REPORT_FILES)
     run_study(
         cfg,
         out=out,
@@ -137,24 +257,16 @@ def cmd_run(args) -> int:
         progress=not args.no_progress,
     )
     print((out / "table.md").read_text())
-    print(f"# results in {out}/ (tidy.parquet, table.md, table.csv, figures)", file=sys.stderr)
+    print(f"# results in {out}/ (tidy.csv, table.md, table.csv, leaderboard.md, figures; fit times in timings.md)", file=sys.stderr)
     return 0
 
 
 def cmd_table(args) -> int:
-    import json
+    from studies.report import read_summary, render_latex, render_markdown
 
-    import pandas as pd
-
-    from studies.report import render_latex, render_markdown
-
-    d = Path(args.dir)
-    if not (d / "table.csv").is_file():
-        raise ValueError(f"{d}: no table.csv here; expected the output folder of 'avbench run'")
-    summary = pd.read_csv(d / "table.csv")
-    meta = json.loads((d / "meta.json").read_text()) if (d / "meta.json").is_file() else {}
+    summary, meta = read_summary(args.dir)  # ValueError for a foreign, corrupt or incomplete folder
     if args.latex:
-        print(render_latex(summary))
+        print(render_latex(summary, meta))
     elif args.csv:
         print(summary.to_csv(index=False))
     else:
@@ -196,8 +308,20 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", help="also write the samples (rad/s) to FILE.npy or FILE.csv")
     s.set_defaults(func=cmd_simulate)
 
+    s = sub.add_parser("check-estimator", help="check an estimator against the estimator contract")
+    s.add_argument(
+        "path",
+        help="a registered name (wls), an import path (my_pkg.my_module:MyEstimator), "
+        "FILE.py:Class, or FILE.py (every estimator defined in it)",
+    )
+    s.add_argument("--settings", help='settings as a JSON object, e.g. \'{"terms": "NK"}\' (default: the defaults)')
+    s.set_defaults(func=cmd_check_estimator)
+
+    s = sub.add_parser("studies", help="list the studies shipped with avbench (run one by name)")
+    s.set_defaults(func=cmd_studies)
+
     s = sub.add_parser("run", help="run a Monte Carlo study from a TOML config")
-    s.add_argument("config", help="study TOML file (e.g. studies/lv2015.toml)")
+    s.add_argument("config", help="study TOML file, or the name of a packaged study (see 'avbench studies')")
     s.add_argument("--jobs", "-j", type=int, default=1, help="parallel workers (default 1; -1 = all cores)")
     s.add_argument("--out", help="output folder (default results/<study name>)")
     s.add_argument("--backend", choices=["loky", "dask"], help="execution backend (default: the config's, else loky)")
@@ -225,6 +349,7 @@ def build_parser() -> argparse.ArgumentParser:
         bench_main.add_parser(sub)
     except (ImportError, AttributeError):
         pass
+    _plain_help(p)
     return p
 
 
@@ -236,8 +361,18 @@ def main(argv=None) -> int:
         return 0
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as e:
-        return _fail(str(e))
+    except BrokenPipeError:  # the reader went away (e.g. '| head'): not an error of ours
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 0
+    except (ValueError, OSError) as e:  # bad input, an unreadable or unwritable path: one line, exit 2
+        return _fail(_one_line(e))
+    except MemoryError:
+        return _fail("out of memory; use a shorter record or fewer replicates per block")
+    except RecursionError:
+        return _fail("input nested too deeply to read")
     except Exception as e:
         from studies.runner import StudyError
 
@@ -247,6 +382,13 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("avbench: interrupted; finished blocks are saved, rerun the same command to resume", file=sys.stderr)
         return 130
+
+
+def _one_line(e: BaseException) -> str:
+    """An exception as the one line a user reads; OSErrors name the path and the system's reason."""
+    if isinstance(e, OSError) and e.filename is not None and e.strerror:
+        return f"{e.filename}: {e.strerror}"
+    return str(e) if str(e) else type(e).__name__
 
 
 if __name__ == "__main__":
