@@ -196,7 +196,7 @@ def record():
 #: relative agreement between fits of x and of x * 1e300 (or 1e-200): the rounding of x * scale
 #: (1e-16) carried through a closed-form fit, or amplified to the tolerance of an iterative optimizer
 #: (objective to ~1e-10, so parameters to ~sqrt(1e-10) relative on flat directions)
-ITERATIVE = {"gmwm", "mle", "log_fit"}
+ITERATIVE = {"gmwm", "gmwm_robust", "gmwm_despiked", "mle", "log_fit"}
 
 
 @pytest.mark.parametrize("name", estimators.names())
