@@ -117,7 +117,7 @@ def _markdown(df: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _figures(data: Path, df: pd.DataFrame, out: Path, methods) -> None:
+def _figures(data: Path, df: pd.DataFrame, out: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -178,7 +178,7 @@ def main(argv=None) -> int:
     cons = consistency(df)
     cons.to_csv(out / "consistency.csv", index=False)
     (out / "consistency.md").write_text(_markdown(cons))
-    _figures(data, df, out, methods)
+    _figures(data, df, out)
     return 0
 
 
