@@ -309,12 +309,44 @@ def _memo_key(rate, dt, taus, overlapping, points_per_decade, noise, confidence)
         return None
 
 
-def _allan_variance(rate, dt, taus, overlapping, points_per_decade, noise, confidence) -> AllanResult:
+def _checked_record_and_mean(rate, dt):
+    """``check_record`` with the finiteness test folded into the mean's compiled pass.
+
+    For a 1-D float64 record the sum (one read-only pass) is finite exactly when every sample is
+    finite (barring overflow near 1e308, which falls back to the full check): no boolean
+    temporary and no separate mean pass. Anything else goes through :func:`check_record`.
+    """
+    arr = rate if isinstance(rate, np.ndarray) else None
+    if arr is not None and arr.dtype == np.float64 and arr.ndim == 1 and arr.size >= 16:
+        total = _kernels.finite_sum(arr)
+        if math.isfinite(total):
+            _, dt = check_record(arr[:16], dt)  # dt and the record's shape/dtype rules
+            return arr, dt, total / arr.size
     rate, dt = check_record(rate, dt)
+    return rate, dt, _kernels.finite_sum(rate) / rate.size
+
+
+_SCRATCH = threading.local()
+#: the cumulative-sum buffer of the last call is kept (per thread) for records up to this length
+#: (64 MB), so that repeated calls on same-length records (Monte Carlo) reuse it
+_SCRATCH_MAX = 1 << 23
+
+
+def _cumsum_buffer(n1: int) -> np.ndarray:
+    if n1 > _SCRATCH_MAX:
+        return np.empty(n1)
+    buf = getattr(_SCRATCH, "S", None)
+    if buf is None or buf.size < n1:
+        buf = _SCRATCH.S = np.empty(n1)
+    return buf[:n1]
+
+
+def _allan_variance(rate, dt, taus, overlapping, points_per_decade, noise, confidence) -> AllanResult:
+    rate, dt, mean = _checked_record_and_mean(rate, dt)
     n = rate.size
     m = cluster_sizes(taus, n, dt, points_per_decade)
     # removing the mean changes no AV value (second differences kill it) but keeps S small
-    S = _kernels.centred_cumsum(rate, float(rate.mean()), np.empty(n + 1))
+    S = _kernels.centred_cumsum(rate, mean, _cumsum_buffer(n + 1))
     mf = m.astype(float)
     if overlapping:
         av = _kernels.oavar_sums(S, m) / (2.0 * mf * mf * (n - 2 * mf + 1))
