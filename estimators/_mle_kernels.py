@@ -126,20 +126,25 @@ class BlockMeanSystem:
 
 
 @njit(cache=True)
-def _predict(T, Pf, Qc, P, tmp):
-    """P = T Pf T' + Qc, then forced symmetric (statsmodels' STABILITY_FORCE_SYMMETRY)."""
-    k = T.shape[0]
+def _predict(tp, ti, tl, tv, Pf, Qc, P, tmp):
+    """P = T Pf T' + Qc, then forced symmetric (statsmodels' STABILITY_FORCE_SYMMETRY).
+
+    T is given by its non-zero entries, row by row (``tp``: row pointers, ``tl``: columns, ``tv``:
+    values, ``ti`` unused): the block-mean transition has at most 8 of its 49 entries non-zero.
+    The sums run over the same terms in the same order as the dense product, less the zeros.
+    """
+    k = P.shape[0]
     for i in range(k):
         for j in range(k):
             acc = 0.0
-            for l in range(k):
-                acc += T[i, l] * Pf[l, j]
+            for e in range(tp[i], tp[i + 1]):
+                acc += tv[e] * Pf[tl[e], j]
             tmp[i, j] = acc
     for i in range(k):
         for j in range(k):
             acc = 0.0
-            for l in range(k):
-                acc += tmp[i, l] * T[j, l]
+            for e in range(tp[j], tp[j + 1]):
+                acc += tmp[i, tl[e]] * tv[e]
             P[i, j] = acc + Qc[i, j]
     for i in range(k):
         for j in range(i + 1, k):
@@ -169,6 +174,24 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
     Mi = np.empty(k)
     K0 = np.empty(k)
     K1 = np.empty(k)
+    # T's non-zero entries by rows (CSR), for the covariance prediction
+    tp = np.zeros(k + 1, dtype=np.int64)
+    nnz = 0
+    for i in range(k):
+        for j in range(k):
+            if T[i, j] != 0.0:
+                nnz += 1
+        tp[i + 1] = nnz
+    ti = np.empty(nnz, dtype=np.int64)
+    tl = np.empty(nnz, dtype=np.int64)
+    tv = np.empty(nnz)
+    e = 0
+    for i in range(k):
+        for j in range(k):
+            if T[i, j] != 0.0:
+                ti[e], tl[e], tv[e] = i, j, T[i, j]
+                e += 1
+    zero = np.zeros((k, k))
     log2pi = math.log(2.0 * math.pi)
     ll = 0.0
     nobs_diffuse = 0
@@ -197,8 +220,8 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
             ssq += v * v
             for i in range(k):
                 acc = 0.0
-                for j in range(k):
-                    acc += T[i, j] * af[j]
+                for e in range(tp[i], tp[i + 1]):
+                    acc += tv[e] * af[tl[e]]
                 a[i] = acc
             continue
         F = H
@@ -262,10 +285,9 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
         for i in range(k):
             for j in range(k):
                 Pprev[i, j] = P[i, j]
-        _predict(T, Pf, Qc, P, tmp)
+        _predict(tp, ti, tl, tv, Pf, Qc, P, tmp)
         if diffuse or t < nobs_diffuse + 1:
-            zero = np.zeros((k, k))
-            _predict(T, Pif, zero, Pi, tmp)
+            _predict(tp, ti, tl, tv, Pif, zero, Pi, tmp)
         elif t + 1 < n:
             ss = 0.0
             for i in range(k):

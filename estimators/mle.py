@@ -51,7 +51,7 @@ almost nothing. Use ``block=1`` for the full sample-level likelihood.
 
 Starting values come from :class:`estimators.gmwm.GMWM` with the same latent model and diagonal
 weights, fitted on the octaves the block means resolve (cluster sizes >= m). The likelihood is
-maximised by L-BFGS-B over the log-parameters with a central-difference gradient, to a tighter
+maximised by L-BFGS-B over the log-parameters with a forward-difference gradient, to a tighter
 tolerance than statsmodels' default (each evaluation costs milliseconds). Standard errors
 are from the observed information (numerical Hessian of the log-likelihood in the log-parameters,
 central differences as statsmodels ``cov_type="approx"``) by the delta method; the drift, a diffuse state, gets the filtered
@@ -220,7 +220,9 @@ def _start_values(latents, sp, gdiag, dt):
     return np.log(np.maximum(np.array(out, dtype=float), 1e-300))
 
 
-#: relative step of the central-difference gradient (statsmodels' ``_get_epsilon(x, 3)``)
+#: relative step of the optimiser's forward-difference gradient (statsmodels' ``_get_epsilon(x, 2)``)
+_EPS_FWD = np.finfo(float).eps ** (1 / 2)
+#: relative step of the central-difference score of the Hessian (statsmodels' ``_get_epsilon(x, 3)``)
 _EPS_GRAD = np.finfo(float).eps ** (1 / 3)
 #: relative step of the Hessian's outer differences (statsmodels ``approx_centered``: eps^(1/4)/2)
 _EPS_HESS = np.finfo(float).eps ** (1 / 4) / 2
@@ -230,7 +232,7 @@ def maximize_loglike(system, y, scale, x0, maxiter) -> dict:
     """Maximise the exact block-mean log-likelihood over the log-parameters (L-BFGS-B).
 
     The objective is ``-loglike / nobs`` (as statsmodels' ``MLEModel.fit``) with a
-    central-difference gradient of the compiled likelihood; the covariance of the
+    forward-difference gradient of the compiled likelihood (as statsmodels' optimiser); the covariance of the
     log-parameters is the inverse of the observed information, the Hessian by central
     differences of the central-difference score (statsmodels ``cov_type="approx"``,
     ``approx_centered=True``). Returns ``params``, ``cov``, ``loglike`` (scaled units),
@@ -259,7 +261,15 @@ def maximize_loglike(system, y, scale, x0, maxiter) -> dict:
         return g
 
     def gradient(p):
-        g = -score(p) / nobs
+        # forward differences (p + 1 evaluations; statsmodels' optimiser score) while iterating
+        f0 = loglike(p)
+        h = _EPS_FWD * np.maximum(np.abs(p), 0.1)
+        g = np.empty(p.size)
+        for i in range(p.size):
+            e = np.zeros(p.size)
+            e[i] = h[i]
+            g[i] = (loglike(p + e) - f0) / h[i]
+        g = -g / nobs
         return np.where(np.isfinite(g), g, 0.0)
 
     res = minimize(objective, np.asarray(x0, dtype=float), jac=gradient, method="L-BFGS-B",
