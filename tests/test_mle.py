@@ -98,22 +98,25 @@ def test_compiled_likelihood_equals_statsmodels(latents, m, dt, terms):
 
 
 def test_fit_equals_statsmodels_optimum():
-    # same data, same start: the compiled fit and statsmodels' fit of the same model reach the same
-    # optimum to the optimisers' tolerance. statsmodels stops at a gradient of 1e-5 per observation,
-    # so its log-likelihood may be short of ours by a little (never above it), and its estimates
-    # lie within a small fraction of a standard error of ours
+    # same data, same start: the compiled fit and statsmodels' fit of the same model, both run to a
+    # tight tolerance, reach the same optimum: log-likelihoods within 1e-3 (a parameter error of
+    # ~0.05 standard errors costs 1e-3) and estimates within 0.05 standard errors. (statsmodels'
+    # default pgtol = 1e-5 stops ~0.3 log-likelihood units short here.)
     from estimators.mle import maximize_loglike
 
-    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=2.0), RateRandomWalk(K=1e-5)])
+    # (a model whose likelihood is curved in every direction here: with RW added, 2000 s of data
+    # leave Tc and K nearly exchangeable and the observed information indefinite, in both fits)
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=2.0)])
     y = block_means(g.simulate(200_000, np.random.default_rng(8)), 4)
-    mod = BlockMeanModel(y, ("WN", "GM", "RW"), 4, 0.01)
-    x0 = np.log([1.3e-3, 2e-4, 1.0, 2e-5])
+    mod = BlockMeanModel(y, ("WN", "GM"), 4, 0.01)
+    x0 = np.log([1.3e-3, 2e-4, 1.0])
     ours = maximize_loglike(mod.system, y, mod.scale, x0, 200)
-    ref = mod.fit(start_params=x0, method="lbfgs", maxiter=200, disp=False, optim_complex_step=False, cov_type="none")
+    ref = mod.fit(start_params=x0, method="lbfgs", maxiter=500, disp=False, optim_complex_step=False, cov_type="none",
+                  pgtol=1e-10, factr=10.0)
     assert ours["converged"]
-    assert ref.llf - 1e-6 <= ours["loglike"] <= ref.llf + 0.05
+    assert ours["loglike"] == pytest.approx(ref.llf, abs=1e-3)
     se = np.sqrt(np.diag(ours["cov"]))
-    assert np.all(np.abs(ours["params"] - ref.params) < 0.1 * se), (ours["params"], ref.params, se)
+    assert np.all(np.abs(ours["params"] - ref.params) < 0.05 * se), (ours["params"], ref.params, se)
 
 
 def _within(est, g, coefs, k=4.0):
