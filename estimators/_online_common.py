@@ -228,7 +228,13 @@ class OnlineAVFilter(Estimator):
         contrib = np.column_stack(
             [BETA_SCALE[c] * x0[c] ** 2 * tau ** TAU_POWER[c] for c in terms]
         )  # (nm, nq) SI AV contributions at c_ref
-        href = contrib.sum(axis=1)
+        with np.errstate(over="ignore", under="ignore"):
+            href = contrib.sum(axis=1)
+        if not np.all(np.isfinite(href) & (href > 0)):
+            raise ValueError(
+                f"x0: the initial coefficients {x0} give a model Allan variance of {href.tolist()} at the "
+                "filter's cluster sizes (under- or overflow); expected initial values on the scale of the data"
+            )
         self._x0_si = dict(x0)
         self._c_ref = c_ref
         self._zinv = 1.0 / href
