@@ -154,6 +154,20 @@ def _predict(tp, ti, tl, tv, Pf, Qc, P, tmp):
 
 
 @njit(cache=True)
+def _forecast(P, Z, H, M):
+    """M = P Z and the forecast variance Z' P Z + H."""
+    k = P.shape[0]
+    F = H
+    for i in range(k):
+        acc = 0.0
+        for j in range(k):
+            acc += P[i, j] * Z[j]
+        M[i] = acc
+        F += Z[i] * acc
+    return F
+
+
+@njit(cache=True)
 def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
     """Log-likelihood of ``y * scale`` under the state-space model (module docstring).
 
@@ -224,27 +238,8 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
                     acc += tv[e] * af[tl[e]]
                 a[i] = acc
             continue
-        F = H
-        for i in range(k):
-            acc = 0.0
-            for j in range(k):
-                acc += P[i, j] * Z[j]
-            M[i] = acc
-            F += Z[i] * acc
-        if F < 0.0:
-            F = 0.0
-        if diffuse:
-            Fi = 0.0
-            for i in range(k):
-                acc = 0.0
-                for j in range(k):
-                    acc += Pi[i, j] * Z[j]
-                Mi[i] = acc
-                Fi += Z[i] * acc
-            if Fi < 0.0:
-                Fi = 0.0
-        else:
-            Fi = 0.0
+        F = max(_forecast(P, Z, H, M), 0.0)
+        Fi = max(_forecast(Pi, Z, 0.0, Mi), 0.0) if diffuse else 0.0
         if diffuse and Fi > TOL_DIFFUSE:
             for i in range(k):
                 K0[i] = Mi[i] / Fi
@@ -298,13 +293,7 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
                 # the next forecast's F and gain are those of this step's covariance
                 converged = True
                 t_conv = t + 1
-                Fc = H
-                for i in range(k):
-                    acc = 0.0
-                    for j in range(k):
-                        acc += P[i, j] * Z[j]
-                    M[i] = acc
-                    Fc += Z[i] * acc
+                Fc = _forecast(P, Z, H, M)
                 for i in range(k):
                     K0[i] = M[i] / Fc
                 for i in range(k):
