@@ -90,8 +90,11 @@ class _NekfBase(OnlineAVFilter):
         # the kernel adds Qbar by blocks (Qs, qw on the weights' diagonal); Qbar is kept for reference
         st = dict(xa=xa, P=P, Qbar=Qbar, Qs=np.ascontiguousarray(cfg["Q0"]), qw=float(cfg["wQ0"]),
                   Rbar=np.full(nm, cfg["R0"]), nq=nq, p=p)
-        st["s_view"] = lambda: st["xa"][:nq]
         return st
+
+    def _scales(self):
+        """The state's coefficient scales (a method, not a stored lambda: a fitted filter pickles)."""
+        return self._state["xa"][: self._state["nq"]]
 
     def _run_kernel(self, chunk, traj):
         st, av, cfg = self._state, self._av, self._cfg
