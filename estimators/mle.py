@@ -51,7 +51,7 @@ almost nothing. Use ``block=1`` for the full sample-level likelihood.
 
 Starting values come from :class:`estimators.gmwm.GMWM` with the same latent model, diagonal
 weights and three trial correlation times, fitted on the octaves the block means resolve (cluster sizes >= m). The likelihood is
-maximised by L-BFGS-B over the log-parameters with a forward-difference gradient, to a tighter
+maximised by L-BFGS-B over the log-parameters with a central-difference gradient, to a tighter
 tolerance than statsmodels' default (each evaluation costs milliseconds). Standard errors
 are from the observed information (numerical Hessian of the log-likelihood in the log-parameters,
 central differences as statsmodels ``cov_type="approx"``) by the delta method; the drift, a diffuse state, gets the filtered
@@ -225,8 +225,6 @@ def _start_values(latents, sp, gdiag, dt):
     return np.log(np.maximum(np.array(out, dtype=float), 1e-300))
 
 
-#: relative step of the optimiser's forward-difference gradient (statsmodels' ``_get_epsilon(x, 2)``)
-_EPS_FWD = np.finfo(float).eps ** (1 / 2)
 #: relative step of the central-difference score of the Hessian (statsmodels' ``_get_epsilon(x, 3)``)
 _EPS_GRAD = np.finfo(float).eps ** (1 / 3)
 #: relative step of the Hessian's outer differences (statsmodels ``approx_centered``: eps^(1/4)/2)
@@ -237,8 +235,9 @@ def maximize_loglike(system, y, scale, x0, maxiter) -> dict:
     """Maximise the exact block-mean log-likelihood over the log-parameters (L-BFGS-B).
 
     The objective is ``-loglike / nobs`` (as statsmodels' ``MLEModel.fit``) with a
-    forward-difference gradient of the compiled likelihood (as statsmodels' optimiser), then polished
-    with a central-difference gradient to a tight tolerance; the covariance of the
+    central-difference gradient of the compiled likelihood and a tight tolerance (forward
+    differences, statsmodels' choice, leave ~sqrt(eps) of gradient noise that the likelihood's flat
+    directions turn into ~1e-4 relative parameter noise); the covariance of the
     log-parameters is the inverse of the observed information, the Hessian by central
     differences of the central-difference score (statsmodels ``cov_type="approx"``,
     ``approx_centered=True``). Returns ``params``, ``cov``, ``loglike`` (scaled units),
@@ -267,26 +266,12 @@ def maximize_loglike(system, y, scale, x0, maxiter) -> dict:
         return g
 
     def gradient(p):
-        # forward differences (p + 1 evaluations; statsmodels' optimiser score) while iterating
-        f0 = loglike(p)
-        h = _EPS_FWD * np.maximum(np.abs(p), 0.1)
-        g = np.empty(p.size)
-        for i in range(p.size):
-            e = np.zeros(p.size)
-            e[i] = h[i]
-            g[i] = (loglike(p + e) - f0) / h[i]
-        g = -g / nobs
+        g = -score(p) / nobs
         return np.where(np.isfinite(g), g, 0.0)
 
     res = minimize(objective, np.asarray(x0, dtype=float), jac=gradient, method="L-BFGS-B",
-                   options={"maxiter": int(maxiter), "gtol": 1e-7, "ftol": 1e-13})
-    # polish with central differences (forward ones leave ~sqrt(eps) of gradient noise, which the
-    # flat directions of the likelihood turn into ~1e-4 relative parameter noise)
-    res2 = minimize(objective, res.x, jac=lambda p: -score(p) / nobs, method="L-BFGS-B",
-                    options={"maxiter": int(maxiter), "gtol": 1e-9, "ftol": 1e-15})
-    converged = bool(res.success or res2.success)  # the polish may end on a line search at round-off
-    if res2.fun <= res.fun:
-        res = res2
+                   options={"maxiter": int(maxiter), "gtol": 1e-8, "ftol": 1e-14})
+    converged = bool(res.success)
     p = res.x
     h = _EPS_HESS * np.maximum(np.abs(p), 0.1)
     hess = np.empty((p.size, p.size))
