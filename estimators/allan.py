@@ -354,7 +354,7 @@ def allan_variance_gaps(
     noise="auto",
     confidence: float = 0.683,
 ) -> AllanResult:
-    """Allan variance of a record with gaps: clusters that straddle a gap are left out.
+    r"""Allan variance of a record with gaps: clusters that straddle a gap are left out.
 
     The record is the concatenation of gap-free runs of uniformly sampled data; run ``i`` starts
     at sample ``starts[i]`` (0 is implied) and ends where the next begins. Within each run the sums

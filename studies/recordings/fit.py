@@ -94,7 +94,8 @@ class MethodFit:
 
 def _scale_of(x) -> float:
     """A power of two that brings the RMS of ``x`` near 1, or 1.0 when it is already within 2^+-40."""
-    rms = float(np.sqrt(np.mean(np.square(x - x[0], dtype=np.float64)))) if x.size else 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        rms = float(np.sqrt(np.mean(np.square(x - x[0], dtype=np.float64)))) if x.size else 0.0
     if not math.isfinite(rms):  # overflow of the square: rescale by the largest magnitude instead
         rms = float(np.max(np.abs(x)))
     if rms == 0 or not math.isfinite(rms) or 1 / _SCALE_LIMIT <= rms <= _SCALE_LIMIT:

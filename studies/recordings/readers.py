@@ -204,7 +204,7 @@ def _dialect(path, lines):
     first = lines[0]
     for sep in (";", "\t"):
         if sep in first:
-            return sep, ("," if any("," in c for c in first.split(sep)) else ".")
+            return sep, ("," if any("," in c for ln in lines[1:] or lines for c in ln.split(sep)) else ".")
     if "," in first:
         data = [ln for ln in lines if ln and not ln.startswith("#")]
         cells = [c.strip() for ln in data[1:] or data for c in ln.split(",")]
@@ -212,7 +212,7 @@ def _dialect(path, lines):
             raise ValueError(f"{path}: looks written with decimal commas ({data[-1]!r}); expected '.' as the decimal "
                              "mark with ',' separators (or ';'/tab separated columns with decimal commas)")
         return ",", "."
-    if any("," in c for c in first.split()):
+    if any("," in c for ln in lines[1:] or lines for c in ln.split()):
         return r"\s+", ","
     return r"\s+", "."
 
