@@ -173,10 +173,9 @@ def run(args) -> int:
     """Run ``avbench estimate`` (see the module docstring); returns the exit code."""
     from tqdm import tqdm
 
-    from estimators.allan import allan_variance_gaps
     from studies.outputs import atomic_write_bytes, atomic_write_text, prepare_out_dir
     from studies.recordings import figure, filter_yaml, report
-    from studies.recordings.fit import agreement, fit_axis
+    from studies.recordings.fit import agreement, fit_axis, scaled_allan
 
     methods, settings, filter_method, inflate = _check_args(args)
     progress = not args.no_progress and sys.stderr.isatty()
@@ -219,10 +218,14 @@ def run(args) -> int:
     for s in sensors:
         avs = {}
         for a, x in s.axes.items():
-            with np.errstate(over="ignore", invalid="ignore"):
-                av = allan_variance_gaps(x, dt, timing.starts, "octave")
-            avs[a] = av
-            av_rows.append(av.to_frame().assign(sensor=s.sensor, axis=a, unit=f"({s.si_unit})^2"))
+            av, scale = scaled_allan(x, dt, timing.starts)
+            avs[a] = (av, scale)
+            frame = av.to_frame()
+            with np.errstate(over="ignore", under="ignore"):
+                for col in ("avar", "ci_low", "ci_high"):
+                    frame[col] = frame[col] / scale / scale  # may overflow to inf for a record of 1e300: adev does not
+                frame["adev"] = frame["adev"] / scale
+            av_rows.append(frame.assign(sensor=s.sensor, axis=a, unit=f"avar ({s.si_unit})^2, adev {s.si_unit}"))
         flags = {a: {m: data["sensors"][s.sensor]["axes"][a]["methods"][m]["poor_fit"] for m in methods} for a in s.axes}
         figs.append((s.sensor, figure.figure(s, fits[s.sensor], avs, dt, args.title or rec.path.name, flags)))
 

@@ -28,7 +28,8 @@ _TERM = {
 
 def figure(sensor_record, axis_fits, avs, dt, title, flags):
     """A matplotlib Figure for one sensor (``axis_fits``: axis -> method -> MethodFit; ``avs``: axis ->
-    AllanResult; ``flags``: axis -> method -> poor-fit flag)."""
+    (AllanResult of the record times ``scale``, ``scale``), see :func:`~studies.recordings.fit.scaled_allan`;
+    ``flags``: axis -> method -> poor-fit flag). Deviations are drawn in SI units."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -42,10 +43,10 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags):
     axes_names = list(sensor_record.axes)
     fig, axs = plt.subplots(1, len(axes_names), figsize=(6.2 * len(axes_names), 5.0), squeeze=False)
     for ax, name in zip(axs[0], axes_names):
-        av = avs[name]
+        av, scale = avs[name]
         with np.errstate(invalid="ignore", over="ignore"):
-            lo, hi = np.sqrt(av.ci_low), np.sqrt(av.ci_high)
-        ax.errorbar(av.tau, av.adev, yerr=[av.adev - lo, hi - av.adev], fmt="o", ms=3, color="k",
+            lo, hi, adev = np.sqrt(av.ci_low) / scale, np.sqrt(av.ci_high) / scale, av.adev / scale
+        ax.errorbar(av.tau, adev, yerr=[adev - lo, hi - adev], fmt="o", ms=3, color="k",
                     label="overlapping ADEV (68 % χ²)")
         tau = np.unique(np.rint(np.logspace(0, np.log10(max(av.m.max(), 1)), 80)).astype(int)) * dt
         terms_drawn = False
@@ -53,10 +54,10 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags):
             if fit.estimator is None:
                 continue
             with np.errstate(invalid="ignore", over="ignore"):
-                curve = fitted_avar(fit, tau, dt)
+                curve = fitted_avar(fit, tau, dt, scaled=True) * (scale / fit.scale) ** 2
             label = method + ("  (POOR FIT)" if flags.get(name, {}).get(method) else "")
             if np.any(curve > 0):
-                ax.plot(tau, np.sqrt(np.where(curve > 0, curve, np.nan)), "--", color=f"C{i}", label=label)
+                ax.plot(tau, np.sqrt(np.where(curve > 0, curve, np.nan)) / scale, "--", color=f"C{i}", label=label)
             if not terms_drawn:
                 coefs = fit.coefficients()
                 for j, (c, f) in enumerate(_TERM.items()):

@@ -89,7 +89,7 @@ def kalibr_yaml(values, update_rate: float, topic: str | None, method: str, sour
         v, axis = values[key]
         v *= f_noise if key.endswith("noise_density") else f_walk
         note = "" if v > 0 else "; zero: no random walk seen in this record -- a filter needs a positive value"
-        lines.append(f"{key}: {v:.9e}  # {_UNITS[key]}, axis {axis}{note}")
+        lines.append(f"{key}: {v:.16e}  # {_UNITS[key]}, axis {axis}{note}")
     lines.append(f"rostopic: {topic if topic else '/imu0'}" + ("" if topic else "  # not a bag: Kalibr's default topic"))
-    lines.append(f"update_rate: {float(update_rate):.10g}  # Hz")
+    lines.append(f"update_rate: {float(update_rate):.6f}  # Hz")
     return "\n".join(lines) + "\n"

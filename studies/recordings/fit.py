@@ -4,8 +4,8 @@
   see a gap-aware AV (:func:`estimators.allan.skip_gaps`: clusters that straddle a gap are left out).
   Methods that work on the samples themselves (likelihood, ARMA-EM, filters) cannot skip a gap: on a
   record with gaps they are fitted to its longest gap-free run, and the result says so.
-* **Scale.** A record whose magnitude is far from 1 (say 1e-200 or 1e300 in SI) is multiplied by a
-  power of two before fitting and the coefficients divided by it after: every coefficient scales
+* **Scale.** A record whose largest magnitude is far from 1 (say 1e-200 or 1e300 in SI) is multiplied
+  by a power of two before fitting and the coefficients divided by it after: every coefficient scales
   linearly with the data, and a power of two changes no digit, so the estimates scale exactly.
 * **Failures.** A method that raises on this record is reported (its message, flag "failed") and
   the other methods go on; its warnings are kept.
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["MethodFit", "fit_axis", "fitted_avar", "agreement", "uses_allan_variance", "AV_MODULES"]
+__all__ = ["MethodFit", "fit_axis", "fitted_avar", "agreement", "uses_allan_variance", "scaled_allan", "AV_MODULES"]
 
 #: estimator modules whose methods see the record only through :func:`estimators.allan.allan_variance`
 AV_MODULES = ("estimators.least_squares", "estimators.practitioners", "estimators.gmwm")
@@ -92,15 +92,25 @@ class MethodFit:
             return None
 
 
+def scaled_allan(x, dt, starts):
+    """(gap-aware octave overlapping AV of ``x * scale``, scale): the curve at unit magnitude, so that
+    records of 1e300 or 1e-200 neither overflow nor underflow; divide AV by scale^2 (ADEV by scale)."""
+    from estimators.allan import allan_variance_gaps
+
+    x = np.asarray(x)
+    scale = _scale_of(x)
+    return allan_variance_gaps(x * scale if scale != 1.0 else x, dt, starts, "octave"), scale
+
+
 def _scale_of(x) -> float:
-    """A power of two that brings the RMS of ``x`` near 1, or 1.0 when it is already within 2^+-40."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        rms = float(np.sqrt(np.mean(np.square(x - x[0], dtype=np.float64)))) if x.size else 0.0
-    if not math.isfinite(rms):  # overflow of the square: rescale by the largest magnitude instead
-        rms = float(np.max(np.abs(x)))
-    if rms == 0 or not math.isfinite(rms) or 1 / _SCALE_LIMIT <= rms <= _SCALE_LIMIT:
+    """A power of two that brings the largest magnitude of ``x`` near 1, or 1.0 when it is already
+    within 2^+-40 (two passes, no copy; squares would over/underflow at the extremes)."""
+    if x.size == 0:
         return 1.0
-    return 2.0 ** (-round(math.log2(rms)))
+    big = max(float(x.max()), -float(x.min()))
+    if big == 0 or not math.isfinite(big) or 1 / _SCALE_LIMIT <= big <= _SCALE_LIMIT:
+        return 1.0
+    return 2.0 ** (-math.frexp(big)[1])
 
 
 def fit_axis(x, dt, starts, methods, settings=None, progress=None) -> dict[str, MethodFit]:
@@ -150,10 +160,10 @@ def fit_axis(x, dt, starts, methods, settings=None, progress=None) -> dict[str, 
     return out
 
 
-def fitted_avar(fit: MethodFit, tau, dt) -> np.ndarray:
+def fitted_avar(fit: MethodFit, tau, dt, scaled: bool = False) -> np.ndarray:
     """The AV curve (SI, rad^2/s^2 or (m/s^2)^2) a fitted method stands for: the exact AV of its latent
     model for ``gmwm`` and ``mle`` (a Gauss-Markov bump, not a plateau), the five-term model curve
-    otherwise."""
+    otherwise. With ``scaled`` the curve is that of the record as fitted (times ``fit.scale``)."""
     from estimators.av_model import model_avar
     from estimators.gmwm import build_gyro
 
@@ -161,7 +171,7 @@ def fitted_avar(fit: MethodFit, tau, dt) -> np.ndarray:
     if est is None:
         return np.full(np.shape(tau), np.nan)
     p = est.diagnostics_.get("params")
-    s2 = fit.scale**2
+    s2 = 1.0 if scaled else fit.scale**2
     if est.name in ("gmwm", "mle") and isinstance(p, dict):
         lat, vals = [], []
         pick = {"QN": ["Q"], "WN": ["N"], "GM": ["sigma", "tc"], "RW": ["K"]}
