@@ -42,7 +42,7 @@ def test_simulate_prints_table_and_writes_samples(tmp_path, capsys):
         (["simulate", "SRS2000", "--samples", "4"], "too short"),
         (["simulate", "SRS2000", "--hours", "1", "--samples", "100"], "at most one"),
         (["simulate", "SRS2000", "--hours", "0.1", "--out", "x.txt"], ".npy or .csv"),
-        (["table", "/nonexistent/folder"], "no table.csv"),
+        (["table", "/nonexistent/folder"], "not a folder"),
     ],
 )
 def test_errors_are_messages_not_tracebacks(argv, msg, capsys, tmp_path, monkeypatch):
