@@ -46,12 +46,11 @@ def check_path_kind(path, allow_dir: bool = False) -> Path:
     except OSError as e:
         raise ValueError(f"{path}: cannot read ({e.strerror or e})") from None
     mode = st.st_mode
-    if stat.S_ISFIFO(mode):
-        raise ValueError(f"{path}: is a FIFO (named pipe); {_EXPECTED}")
-    if stat.S_ISSOCK(mode):
-        raise ValueError(f"{path}: is a socket; {_EXPECTED}")
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        raise ValueError(f"{path}: is a device; {_EXPECTED}")
+    if not (stat.S_ISDIR(mode) or stat.S_ISREG(mode)):
+        from studies.outputs import _kind  # the one naming of file kinds ("a FIFO", "a socket", ...)
+
+        kind = _kind(mode)
+        raise ValueError(f"{path}: is {kind}{' (named pipe)' if kind == 'a FIFO' else ''}; {_EXPECTED}")
     if stat.S_ISDIR(mode):
         if not allow_dir:
             raise ValueError(f"{path}: is a folder; {_EXPECTED}")
@@ -60,8 +59,6 @@ def check_path_kind(path, allow_dir: bool = False) -> Path:
         except OSError as e:
             raise ValueError(f"{path}: cannot read the folder ({e.strerror or e})") from None
         return path
-    if not stat.S_ISREG(mode):
-        raise ValueError(f"{path}: not a regular file; {_EXPECTED}")
     try:
         with open(path, "rb") as fh:
             fh.read(1)
