@@ -262,7 +262,9 @@ def run(args) -> int:
 
 def _print_summary(data, tables, timing, fits, rec):
     src = ", ".join(data["sources"])
-    gaps = f", {timing.n_gaps} gap(s) ({np.nansum(timing.gap_seconds):.3g} s missing)" if timing.n_gaps else ""
+    joins = int(np.isnan(timing.gap_seconds).sum())  # --combine: file boundaries
+    gaps = (f", {timing.n_gaps - joins} gap(s) ({np.nansum(timing.gap_seconds):.3g} s missing)" if timing.n_gaps - joins else "") + \
+        (f", {joins} file boundary(ies) treated as gaps" if joins else "")
     jit = f", jitter {timing.jitter:.2%} of dt" if timing.jitter is not None else ""
     print(f"# {src}: {timing.n_samples} samples at {timing.fs:.6g} Hz ({timing.n_samples * timing.dt / 3600:.2f} h) "
           f"from {timing.source}{jit}{gaps}" + (f"; topic {rec.topic}" if rec.topic else ""))

@@ -151,3 +151,21 @@ def test_load_record_npz_without_data_key(tmp_path, record):
     np.savez(f, rate=record)
     rec = read_recording(f)
     assert [c.sensor for c in rec.channels] == ["gyro"] and np.array_equal(rec.channels[0].values, record)
+
+
+def test_combine_pools_recordings_and_tests_agreement(tmp_path, capsys):
+    """Two runs of one white-noise gyro agree; a third with three times the noise does not. The pooled
+    fit sees the file boundary as a gap."""
+    rng = np.random.default_rng(5)
+    for name, s in (("a", 1e-3), ("b", 1e-3), ("c", 3e-3)):
+        np.savez(tmp_path / f"{name}.npz", data=s * rng.standard_normal(20_000))
+    common = ["--combine", "--fs", "100", "--units", "rad/s", "--method", "nnls_rel", "--json", "--out", str(tmp_path / "o")]
+    assert main(["estimate", str(tmp_path / "a.npz"), str(tmp_path / "b.npz"), *common]) == 0
+    same = json.loads(capsys.readouterr().out)
+    assert same["combine"]["gyro"]["x"]["agree"] is True
+    assert [g["before_sample"] for g in same["timing"]["gaps"]] == [20_000]
+    assert (tmp_path / "o" / "a_combined_coefficients.json").is_file()
+    assert main(["estimate", str(tmp_path / "a.npz"), str(tmp_path / "c.npz"), *common]) == 0
+    assert json.loads(capsys.readouterr().out)["combine"]["gyro"]["x"]["agree"] is False
+    assert main(["estimate", str(tmp_path / "a.npz"), str(tmp_path / "b.npz"), "--fs", "100", "--units", "rad/s"]) == 2
+    assert "expected one recording, or --combine" in capsys.readouterr().err

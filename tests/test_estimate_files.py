@@ -30,7 +30,7 @@ def _imu(n, seed):
     return gyro, acc
 
 
-def write_imu_bag(path, kind, gyro, acc, t_ns, topic="/imu"):
+def write_imu_bag(path, kind, gyro, acc, t_ns, topic="/imu", frame_id="imu"):
     """A bag of sensor_msgs/Imu written by rosbags' own writer (ROS 2: sqlite3 storage)."""
     from rosbags.typesys import Stores, get_typestore
 
@@ -50,8 +50,8 @@ def write_imu_bag(path, kind, gyro, acc, t_ns, topic="/imu"):
         conn = writer.add_connection(topic, Imu.__msgtype__, typestore=ts)
         for i, t in enumerate(int(v) for v in t_ns):
             stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
-            hdr = (T["std_msgs/msg/Header"](stamp=stamp, frame_id="imu") if kind == "ros2"
-                   else T["std_msgs/msg/Header"](seq=i, stamp=stamp, frame_id="imu"))
+            hdr = (T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id) if kind == "ros2"
+                   else T["std_msgs/msg/Header"](seq=i, stamp=stamp, frame_id=frame_id))
             V = T["geometry_msgs/msg/Vector3"]
             msg = Imu(header=hdr, orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
                       orientation_covariance=cov, angular_velocity=V(*gyro[i]), angular_velocity_covariance=cov,
@@ -102,6 +102,29 @@ def test_bag_with_a_gap_to_kalibr_yaml(tmp_path, kind):
     assert sorted(p.name for p in out.iterdir()) == sorted(
         [f"{bag.stem}_gyro_av.png", f"{bag.stem}_accel_av.png", f"{bag.stem}_av.csv",
          f"{bag.stem}_coefficients.csv", f"{bag.stem}_coefficients.json"])
+
+
+@pytest.mark.parametrize("kind", ["ros2", "ros1"])
+@pytest.mark.parametrize("frame_id", ["", "imu_link7", "base"])
+def test_fast_bag_decoding_equals_rosbags_deserializer(tmp_path, kind, frame_id):
+    """The vectorised decoding of sensor_msgs/Imu bytes gives what rosbags' deserializer gives, for
+    frame ids whose lengths need different CDR padding."""
+    pytest.importorskip("rosbags")
+    from rosbags.highlevel import AnyReader
+
+    from studies.recordings.readers import _decode_imu, _deserialize_imu
+
+    gyro, acc = _imu(50, 7)
+    bag = tmp_path / ("b" if kind == "ros2" else "b.bag")
+    write_imu_bag(bag, kind, gyro, acc, 1_700_000_000 * 10**9 + np.arange(50) * 5_000_123, frame_id=frame_id)
+    with AnyReader([bag]) as reader:
+        block = list(reader.messages())
+        fast = _decode_imu([raw for _, _, raw in block], kind == "ros1")
+        slow = _deserialize_imu(reader, block)
+    assert fast is not None
+    np.testing.assert_array_equal(fast[0], slow[0])
+    np.testing.assert_array_equal(fast[1], slow[1])
+    np.testing.assert_array_equal(slow[0], np.column_stack([gyro, acc]))
 
 
 def test_bag_units_are_the_message_definition(tmp_path):
