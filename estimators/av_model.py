@@ -87,6 +87,6 @@ def model_avar(coefs: dict, tau) -> np.ndarray:
     out = np.zeros_like(tau)
     for c in COEFFICIENTS:
         v = coefs.get(c, math.nan) if hasattr(coefs, "get") else coefs[c]
-        if v is not None and np.isfinite(v):
-            out = out + BETA_SCALE[c] * v**2 * tau ** TAU_POWER[c]
+        if v is not None and np.isfinite(v):  # float64 arithmetic: an absurd value gives inf, not OverflowError
+            out = out + BETA_SCALE[c] * np.float64(v) ** 2 * tau ** TAU_POWER[c]
     return out

@@ -56,7 +56,10 @@ def av_figure(rate, gyro, fits: dict, title: str):
         if np.isfinite(adev).any():
             ax.errorbar(av.tau, adev, yerr=yerr, fmt="o", ms=3, color="k", label="replicate 0 (overlapping AV)")
         tau = np.unique(np.rint(np.logspace(0, np.log10(av.m.max()), 80)).astype(int)) * gyro.dt
-        truth = np.sqrt(_finite_positive(gyro.avar(tau)))
+        try:
+            truth = np.sqrt(_finite_positive(gyro.avar(tau)))
+        except (OverflowError, FloatingPointError):  # e.g. N = 1e200: N**2 is beyond float64
+            truth = np.full(tau.shape, np.nan)
         if np.isfinite(truth).any():
             ax.plot(tau, truth, "k-", lw=2, alpha=0.4, label="exact AV of the generator")
         for i, (label, coefs) in enumerate(fits.items()):
@@ -69,7 +72,8 @@ def av_figure(rate, gyro, fits: dict, title: str):
     ax.set_ylabel("Allan deviation (rad/s)")
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     return fig
 
 

@@ -36,6 +36,12 @@ UNIT_LABEL = {
 
 
 def summarize(tidy: pd.DataFrame, units: dict | None = None) -> pd.DataFrame:
+    """One row per gyro x estimator x coefficient (see the module docstring); absurd magnitudes give inf."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _summarize(tidy, units)
+
+
+def _summarize(tidy: pd.DataFrame, units: dict | None) -> pd.DataFrame:
     units = {**PAPER_UNITS, **(units or {})}
     rows = []
     order = {c: i for i, c in enumerate(COEFFICIENTS)}
