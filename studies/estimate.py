@@ -54,7 +54,9 @@ def add_parser(subparsers):
     s.add_argument("--time", default=None, help="time column of a table (default: one named t/time/timestamp; 'none' to ignore it)")
     s.add_argument("--time-units", default="s", choices=["s", "ms", "us", "ns"], help="units of the time column (default s)")
     s.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
-    s.add_argument("--method", default="nnls_rel,gmwm", help="comma-separated estimator names (avbench estimators)")
+    s.add_argument("--method", default=None,
+                   help="comma-separated estimator names (avbench estimators; default: the methods safe on real records, "
+                        "estimators.base.DEFAULT_METHODS)")
     s.add_argument("--set", action="append", default=[], metavar="METHOD.KEY=VALUE",
                    help="an estimator setting, e.g. gmwm.model=QN+WN+GM+RW (VALUE read as JSON if it parses)")
     s.add_argument("--combine", action="store_true", help="pool several recordings of one sensor in one fit (and test that they agree)")
@@ -78,7 +80,10 @@ def _check_args(args):
     from studies.recordings.timing import check_fs
 
     check_fs(args.fs)
-    methods = [m.strip() for m in str(args.method).split(",") if m.strip()]
+    from estimators.base import DEFAULT_METHODS
+
+    spec = ",".join(DEFAULT_METHODS) if args.method is None else str(args.method)
+    methods = [m.strip() for m in spec.split(",") if m.strip()]
     if not methods:
         raise ValueError("--method: expected at least one estimator name")
     known = estimators.names()
