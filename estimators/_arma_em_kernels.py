@@ -45,8 +45,8 @@ from numba import njit
 __all__ = ["ek_run", "m_step", "evaluate_stats"]
 
 # indices into the integer state vector ``ic``
-I_K, I_UPDATES, I_REJECTED, I_FIRST_REJECT, I_STATUS, I_FAIL_INDEX = range(6)
-N_IC = 6
+I_K, I_UPDATES, I_REJECTED, I_FIRST_REJECT, I_STATUS, I_FAIL_INDEX, I_CLIPPED = range(7)
+N_IC = 7
 # indices into the float state vector ``sc``
 S_SYY, S_LOGLIK = range(2)
 N_SC = 2
@@ -75,6 +75,49 @@ def _inv_small(M, out):
         out[0, 1] = -M[0, 1] / det
         out[1, 0] = -M[1, 0] / det
     return det
+
+
+@njit(cache=True)
+def _clip_spectrum(A):
+    """Move the eigenvalues of the 1x1 or 2x2 matrix A that lie outside the closed unit disk onto it.
+
+    Real eigenvalues are clipped to [-1, 1] with the eigenvectors kept (Sylvester's formula,
+    :math:`A' = A + \\sum_i (\\lambda_i' - \\lambda_i)\\prod_{j\\ne i}(A - \\lambda_jI)/(\\lambda_i-\\lambda_j)`);
+    a complex pair of modulus :math:`r > 1` is scaled by :math:`1/r`. Returns True if A changed.
+    """
+    if A.shape[0] == 1:
+        if abs(A[0, 0]) <= 1.0:
+            return False
+        A[0, 0] = 1.0 if A[0, 0] > 0 else -1.0
+        return True
+    tr = A[0, 0] + A[1, 1]
+    det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    if abs(det) <= 1.0 and abs(tr) <= 1.0 + det:  # Jury: both eigenvalues in the closed unit disk
+        return False
+    disc = tr * tr - 4.0 * det
+    if disc < 0.0:  # complex pair, modulus sqrt(det) > 1
+        r = math.sqrt(det)
+        for i in range(2):
+            for j in range(2):
+                A[i, j] /= r
+        return True
+    big = 0.5 * (tr + math.copysign(math.sqrt(disc), tr))
+    l1 = big
+    l2 = det / big
+    n1 = min(max(l1, -1.0), 1.0)
+    n2 = min(max(l2, -1.0), 1.0)
+    if l1 == l2:
+        for i in range(2):
+            A[i, i] += n1 - l1
+        return True
+    c1 = (n1 - l1) / (l1 - l2)  # coefficient of (A - l2 I)
+    c2 = (n2 - l2) / (l2 - l1)  # coefficient of (A - l1 I)
+    a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    A[0, 0] = a00 + c1 * (a00 - l2) + c2 * (a00 - l1)
+    A[1, 1] = a11 + c1 * (a11 - l2) + c2 * (a11 - l1)
+    A[0, 1] = a01 * (1.0 + c1 + c2)
+    A[1, 0] = a10 * (1.0 + c1 + c2)
+    return True
 
 
 @njit(cache=True)
@@ -109,12 +152,15 @@ def m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q=False):
     """
     m = x.shape[0]
     return _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, np.empty((4, m, m)),
-                   np.empty(m), np.empty((4, m, m)), np.empty(m))
+                   np.empty(m), np.empty((4, m, m)), np.empty(m)) > 0
 
 
 @njit(cache=True)
 def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
-    """Allocation-free M-step; U, E, W (4, m, m), Cn (m,) are scratch arrays."""
+    """Allocation-free M-step; U, E, W (4, m, m), Cn (m,) are scratch arrays.
+
+    Returns 0 (rejected, parameters kept), 1 (applied) or 2 (applied with A's spectrum clipped).
+    """
     m = x.shape[0]
     evaluate_stats(a, b, d, aT, bT, x, P, U, E)
     for M in (0, 2, 3):
@@ -128,13 +174,19 @@ def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
     An = W[2]
     Qn = W[3]
     if not (_inv_small(U[2], U2i) > 0.0) or not (_inv_small(U[0], U0i) > 0.0):
-        return False
+        return 0
     for i in range(m):
         for j in range(m):
             v = 0.0
             for p in range(m):
                 v += U[1, i, p] * U2i[p, j]
             An[i, j] = v
+    # the model has no explosive mode (eq. 63: eigenvalues 1 and 1 - beta dt): clip onto |z| <= 1
+    for i in range(m):
+        for j in range(m):
+            if not math.isfinite(An[i, j]):
+                return 0
+    clipped = _clip_spectrum(An)
     # Q = (U0 - A U1' - U1 A' + A U2 A') / k   (U3 instead of U0 if exact_q)
     mq = 3 if exact_q else 0
     for i in range(m):
@@ -174,14 +226,14 @@ def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
     if m == 2:
         ok = ok and Qn[0, 0] * Qn[1, 1] - Qn[0, 1] * Qn[1, 0] >= -1e-10 * Qn[0, 0] * Qn[1, 1]
     if not ok:
-        return False
+        return 0
     for i in range(m):
         C[i] = Cn[i]
         for j in range(m):
             A[i, j] = An[i, j]
             Q[i, j] = Qn[i, j]
     R[0] = Rn
-    return True
+    return 2 if clipped else 1
 
 
 @njit(cache=True)
@@ -205,8 +257,8 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
         Coefficients of the E-K filter for :math:`T = \\sum x_l y_l`.
     sc : ndarray (2,) float
         ``[sum y^2, log-likelihood]``.
-    ic : ndarray (6,) int64
-        ``[k (transitions), n_updates, n_rejected, first_rejected, status, fail_index]``.
+    ic : ndarray (7,) int64
+        ``[k (transitions), n_updates, n_rejected, first_rejected, status, fail_index, n_clipped]``.
     recursive : bool
         Apply the M-step on line (recursive EM); otherwise parameters stay fixed.
     warmup, update_every : int
@@ -396,8 +448,11 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
         ic[I_K] += 1
         k = ic[I_K]
         if recursive and k >= warmup and k % update_every == 0:
-            if _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, wU, wE, wW, wC):
+            res = _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, wU, wE, wW, wC)
+            if res > 0:
                 ic[I_UPDATES] += 1
+                if res == 2:
+                    ic[I_CLIPPED] += 1
             else:
                 if ic[I_REJECTED] == 0:
                     ic[I_FIRST_REJECT] = k

@@ -232,6 +232,29 @@ def _set_gm(coefs, bad, extra, eps, qg, dt):
         coefs["B"], bad["B"] = B_EQUIV_OVER_SIGMA * sigma, False
 
 
+def prior_covariance(A, Q, h: int) -> np.ndarray:
+    r"""Prior covariance of the state at the start of a pass: :math:`\sum_{j=0}^{h-1} A^jQA^{jT}`.
+
+    The covariance the model accumulates over ``h`` steps from a known state: for a stable mode
+    (Gauss-Markov) the stationary covariance once ``h`` exceeds its correlation time, for the
+    random walk the spread of its level over ``h`` samples. Computed by doubling,
+    :math:`S_{2h} = S_h + A^hS_hA^{hT}`, in :math:`O(\log h)` products.
+    """
+    A = np.asarray(A, float)
+    S = np.asarray(Q, float).copy()  # S_1
+    Ah = A.copy()  # A^1
+    todo, S_out, A_out = int(h), np.zeros_like(S), np.eye(A.shape[0])
+    while todo:  # binary expansion of h: S_out = S_a, A_out = A^a for the bits done so far
+        if todo & 1:
+            S_out = S_out + A_out @ S @ A_out.T
+            A_out = A_out @ Ah
+        todo >>= 1
+        if todo:
+            S = S + Ah @ S @ Ah.T
+            Ah = Ah @ Ah
+    return 0.5 * (S_out + S_out.T)
+
+
 @dataclass
 class EKFilter:
     """State of one E-K recursive-EM pass (all arrays; constant memory in the record length).
@@ -461,6 +484,7 @@ class ArmaEM(Estimator):
             scale = max(abs(offset), 1.0)
         self._cfg = cfg
         self._dt = dt
+        self._n_first = len(y)
         self._offset, self._scale = offset, scale
         self._x0_si, self._tc0 = x0, tc0
         self._filter = EKFilter(A=A.copy(), C=C / scale, Q=Q.copy(), R=R / scale**2)
@@ -472,7 +496,7 @@ class ArmaEM(Estimator):
 
     def _begin_pass(self, y0_scaled: float) -> None:
         f = self._filter
-        f.start(y0_scaled, np.eye(f.m) / float(f.C @ f.C))
+        f.start(y0_scaled, prior_covariance(f.A, f.Q, self._n_first))
         self._pass += 1
 
     # -- fitting -------------------------------------------------------------------------------
@@ -550,6 +574,7 @@ class ArmaEM(Estimator):
             "loglik": list(self._loglik) or [f.loglik],
             "n_samples": int(f.ic[_k.I_K]) + 1,
             "n_updates": int(f.ic[_k.I_UPDATES]), "n_rejected": int(f.ic[_k.I_REJECTED]),
+            "n_clipped": int(f.ic[_k.I_CLIPPED]),
             "first_rejected": int(f.ic[_k.I_FIRST_REJECT]) if f.ic[_k.I_REJECTED] else None,
             **extra,
             "trajectory": self._trajectory(),
