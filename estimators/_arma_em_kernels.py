@@ -28,7 +28,9 @@ For each incoming sample :math:`y_{k+1}` the kernel
 4. when ``recursive`` is set, every ``update_every`` samples after ``warmup``, replaces
    A, C, Q, R by the M-step (eqs 28-31) evaluated on the current filtered statistics
    (eqs 32-33) - the recursive EM of Elliott & Krishnamurthy. Updates that would give a singular
-   :math:`U^{(2)}`, a negative R or an indefinite Q are rejected (parameters kept) and counted.
+   :math:`U^{(2)}`, a negative R or an indefinite Q are rejected (parameters kept) and counted;
+   an A with an eigenvalue outside the closed unit disk is clipped onto it before Q is formed
+   (:func:`_clip_spectrum`; why: :mod:`estimators.arma_em`, "Numerics").
 
 State is carried in the arrays passed in (mutated in place), so a record can be fed in chunks
 with results identical to one call. The plain NumPy reference of the same recursion is

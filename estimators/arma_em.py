@@ -69,13 +69,42 @@ k: an O(1/k) bias we keep as printed.
 Choices the paper leaves open (settings): the initial A, C, Q, R are eq. 63 (corrected) at
 ``x0`` and ``tc0`` (``init_form="eq63"``), or the equivalent diagonal form (``"diagonal"``:
 :math:`A = \mathrm{diag}(1,\phi)`, :math:`C = [1, 1]`); the state prior is
-:math:`\hat x_0 = 0`, :math:`P_0 = I\,s^2/(CC^T)` with :math:`s^2` the data variance unit; the record's
+:math:`\hat x_0 = 0`, :math:`P_0 = \sum_{j<h}A^jQA^{jT}` (:func:`prior_covariance`, :math:`h` the
+length of the first chunk: the spread of the state about that chunk's mean under the current
+model; see "Numerics" for why not a diffuse prior); the record's
 first-chunk mean is removed and the data are divided by a fixed scale (the white-noise level of
 the first chunk) for conditioning; with ``recursive=True`` (the paper) parameters are updated after
 every ``update_every`` samples once ``warmup`` samples are in; an update that would be singular or
 give an indefinite Q is skipped and counted (the paper does not say). ``passes > 1`` repeats the
 pass over the record from the last estimate: with ``recursive=False`` each pass is one exact batch
 EM iteration (Shumway & Stoffer 1982; the E-K filters give the smoothed sufficient statistics).
+An M-step whose :math:`A` has an eigenvalue outside the closed unit disk has that eigenvalue moved
+onto it (real eigenvalues clipped to :math:`\pm1` with the eigenvectors kept, a complex pair
+scaled to modulus 1) before :math:`Q` is formed from it (Q's update is the maximiser for any given
+A, so this is a conditional-maximisation step); eq. 63's model has eigenvalues 1 and
+:math:`1-\beta\tau`, none explosive. The count is ``diagnostics_["n_clipped"]``.
+
+Numerics: why the filter once diverged, and what keeps it stable
+------------------------------------------------------------------
+The measurement update is the Joseph form and stays symmetric positive semi-definite; it was not
+the cause. With the former diffuse, isotropic prior :math:`P_0 = I s^2/(CC^T)` (here ~1e8 where the
+model's state variance is ~1-20), a record started 5-30x away from the truth (the chunk test of
+``tests/test_arma_em.py``) failed at sample 2791 with "A P A' + Q singular", and 7 of 50 such
+records failed. Tracing it (float64 against 80-bit long double: the two follow the same path for
+2000 samples, so rounding is not the cause): (1) eq. 29's :math:`U^{(0)}` contains
+:math:`E[x_0x_0^T|Y_k]`, which with that prior stays ~:math:`P_0` in the directions the first
+samples do not resolve, so the first M-steps put ~:math:`P_0/k` ~ 1e6 into Q; (2) the next
+M-steps give an :math:`A` with an explosive eigenvalue (1.005) whose eigenvector is almost in
+the null space of C; (3) EM cannot correct an unobservable mode (its statistics reproduce the
+model's own dynamics) and :math:`C = E^T(U^{(0)})^{-1}` shrinks along it as its variance grows, so
+P and the E-K statistics grow like :math:`\lambda^{2k}` (P ~ 3e19 at sample 2790, condition
+number ~1e13) until rounding makes P indefinite; in exact arithmetic it would overflow at
+~7e4 samples. No covariance factorisation survives that, so both links are cut at the source: the
+prior is the model's own accumulated covariance (the x_0 term of eq. 29 is then the documented
+O(1/k) bias, not 1e8), and an explosive M-step is clipped onto the unit disk (a random-walk or
+Gauss-Markov state then grows at most linearly in an unobservable direction). Rejecting such
+steps instead freezes the recursion: with a unit root the unconstrained estimate is > 1 about half
+the time. The tests run 60 short records per mode (starts up to 100x off) and long records.
 
 Examples
 --------
@@ -103,7 +132,8 @@ from estimators.base import DivergenceWarning, Estimator, register, warn
 from noise_models.terms import B_EQUIV_OVER_SIGMA, GM_PEAK_TAU_OVER_TC
 from noise_models.units import as_si
 
-__all__ = ["ArmaEM", "SUPPORTED_TERMS", "initial_model", "coefficients_from_model", "EKFilter"]
+__all__ = ["ArmaEM", "SUPPORTED_TERMS", "initial_model", "coefficients_from_model", "prior_covariance",
+           "EKFilter"]
 
 #: coefficient sets the equivalent-ARMA model can represent, and their state dimension
 SUPPORTED_TERMS = {("N", "K"): 1, ("N", "B"): 1, ("N", "B", "K"): 2}
@@ -385,7 +415,8 @@ class ArmaEM(Estimator):
     coefficients_, nonphysical_, diagnostics_
         See :class:`estimators.base.Estimator`. ``diagnostics_`` holds ``A, C, Q, R`` (scaled
         units, see ``scale``), ``scale``, ``offset``, ``tc``, ``lambda_rrw``, ``loglik`` (per pass),
-        ``n_updates``, ``n_rejected``, ``failure`` (None or a message with the sample index) and
+        ``n_updates``, ``n_rejected``, ``n_clipped``, ``failure`` (None or a message with the
+        sample index) and
         ``trajectory`` (DataFrame: sample, N, B, K in SI).
     """
 
