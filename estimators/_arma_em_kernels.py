@@ -122,19 +122,38 @@ def _clip_spectrum(A):
     return True
 
 
-@njit(cache=True)
 def evaluate_stats(a, b, d, aT, bT, x, P, U, E):
-    """U^(M)_{ij} = a + b'x + tr(dP) + x'dx and E_i = aT_i + bT_i'x (Miao et al. 2015, eqs 32-33)."""
-    m = x.shape[0]
-    for M in range(4):
+    """U^(M)_{ij} = a + b'x + tr(dP) + x'dx and E_i = aT_i + bT_i'x into U, E (see :func:`_evaluate_stats`)."""
+    _evaluate_stats((0,) * x.shape[0], a, b, d, aT, bT, x, P, U, E)
+
+
+@njit(cache=True)
+def _evaluate_stats(mt, a, b, d, aT, bT, x, P, U, E):
+    """U^(M)_{ij} = a + b'x + tr(dP) + x'dx and E_i = aT_i + bT_i'x (Miao et al. 2015, eqs 32-33).
+
+    :math:`U^{(2)} = U^{(0)} - (P + xx^T)`: :math:`H^{(2)}_k = \\sum_{l=0}^{k-1}x_lx_l^T` is
+    :math:`H^{(0)}_k - x_kx_k^T`, so its E-K filter is not run. ``U[3]`` (:math:`H^{(3)}`) is
+    meaningful only if the filter tracked it (``exact_q``).
+    """
+    m = len(mt)  # a tuple of length m: a compile-time constant (loops unrolled)
+    for i in range(m):  # U[2] holds P + x x' until the end
+        for j in range(m):
+            U[2, i, j] = P[i, j] + x[i] * x[j]
+    for M in (0, 1, 3):
         for i in range(m):
             for j in range(m):
+                if M != 1 and j < i:  # H0, H3 symmetric
+                    U[M, i, j] = U[M, j, i]
+                    continue
                 v = a[M, i, j]
                 for p in range(m):
                     v += b[M, i, j, p] * x[p]
                     for q in range(m):
-                        v += d[M, i, j, p, q] * (P[q, p] + x[p] * x[q])
+                        v += d[M, i, j, p, q] * U[2, q, p]
                 U[M, i, j] = v
+    for i in range(m):
+        for j in range(m):
+            U[2, i, j] = U[0, i, j] - U[2, i, j]
     for i in range(m):
         v = aT[i]
         for p in range(m):
@@ -142,7 +161,6 @@ def evaluate_stats(a, b, d, aT, bT, x, P, U, E):
         E[i] = v
 
 
-@njit(cache=True)
 def m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q=False):
     """M-step (Miao et al. 2015, eqs 28-31) into A, C, Q, R if valid; returns True if applied.
 
@@ -153,18 +171,18 @@ def m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q=False):
     :math:`C = E^T(U^{(0)})^{-1}`, :math:`R = (\\sum y^2 - 2CE + CU^{(0)}C^T)/(k+1)`.
     """
     m = x.shape[0]
-    return _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, np.empty((4, m, m)),
+    return _m_step((0,) * m, a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, bool(exact_q), np.empty((4, m, m)),
                    np.empty(m), np.empty((4, m, m)), np.empty(m)) > 0
 
 
 @njit(cache=True)
-def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
+def _m_step(mt, a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
     """Allocation-free M-step; U, E, W (4, m, m), Cn (m,) are scratch arrays.
 
     Returns 0 (rejected, parameters kept), 1 (applied) or 2 (applied with A's spectrum clipped).
     """
-    m = x.shape[0]
-    evaluate_stats(a, b, d, aT, bT, x, P, U, E)
+    m = len(mt)
+    _evaluate_stats(mt, a, b, d, aT, bT, x, P, U, E)
     for M in (0, 2, 3):
         for i in range(m):
             for j in range(i + 1, m):
@@ -238,7 +256,6 @@ def _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
     return 2 if clipped else 1
 
 
-@njit(cache=True)
 def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, update_every,
            trace_every, trace, exact_q=False):
     """Run the E-K filters (and, if ``recursive``, the recursive EM) over the samples ``y``.
@@ -277,7 +294,15 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
         Number of trace rows written. On failure ``ic[4]`` holds the status code and ``ic[5]``
         the sample index (transitions since the start of the pass) and the kernel returns early.
     """
-    m = x.shape[0]
+    return _ek_run((0,) * x.shape[0], y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, bool(recursive),
+                   int(warmup), int(update_every), int(trace_every), trace, bool(exact_q))
+
+
+@njit(cache=True)
+def _ek_run(mt, y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, update_every,
+            trace_every, trace, exact_q):
+    """Compiled body of :func:`ek_run`; ``mt`` is a tuple of length m (state dimension as a type)."""
+    m = len(mt)
     n = y.shape[0]
     Pp = np.empty((m, m))
     Ppi = np.empty((m, m))
@@ -286,8 +311,7 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
     IJA = np.empty((m, m))
     Zi = np.empty((m, m))
     S = np.empty(m)
-    dS = np.empty(m)
-    dd = np.empty((m, m))
+    ZS = np.empty((m, m))
     tmp = np.empty((m, m))
     xp = np.empty(m)
     PC = np.empty(m)
@@ -343,29 +367,30 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
                         v += IJA[i, p] * P[p, q] * IJA[j, q] + J[i, p] * Q[p, q] * J[j, q]
                 Zi[i, j] = v
                 Zi[j, i] = v
-        # ---- E-K filters for H0, H1, H2
-        for M in range(4):
+        # ---- E-K filters for H0, H1 (and H3 for the exact Q update); H2 = H0 - x_k x_k'.
+        # ZS = Zi + S S' so that a += b'S + tr(d ZS); d symmetric in (p, q) and, for H0 and H3,
+        # the filters of (i, j) and (j, i) are the same: computed once and copied.
+        for p in range(m):
+            for q in range(m):
+                ZS[p, q] = Zi[p, q] + S[p] * S[q]
+        for M in (0, 1, 3):
+            if M == 3 and not exact_q:
+                break
             for i in range(m):
                 for j in range(m):
-                    for p in range(m):
-                        for q in range(m):
-                            dd[p, q] = d[M, i, j, p, q]
-                    if M == 2:  # d + sym(e_i e_j')
-                        dd[i, j] += 0.5
-                        dd[j, i] += 0.5
-                    # a += b'S + tr(dd Zi) + S' dd S ; dS = dd S
+                    if M != 1 and j < i:
+                        continue
                     v = 0.0
                     for p in range(m):
                         w = 0.0
                         for q in range(m):
-                            w += dd[p, q] * S[q]
-                            v += dd[p, q] * Zi[q, p]
-                        dS[p] = w
-                        v += b[M, i, j, p] * S[p] + S[p] * w
+                            dpq = d[M, i, j, p, q]
+                            w += dpq * S[q]
+                            v += dpq * ZS[q, p]
+                        xp[p] = b[M, i, j, p] + 2.0 * w
+                        v += b[M, i, j, p] * S[p]
                     a[M, i, j] += v
-                    # b = O (b + 2 dd S) [+ e_i S_j for M = 1]
-                    for p in range(m):
-                        xp[p] = b[M, i, j, p] + 2.0 * dS[p]
+                    # b = O (b + 2 d S) [+ e_i S_j for M = 1]
                     for p in range(m):
                         w = 0.0
                         for q in range(m):
@@ -373,26 +398,33 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
                         b[M, i, j, p] = w
                     if M == 1:
                         b[M, i, j, i] += S[j]
-                    # d = O dd O' [+ sym(e_i e_j') for M = 0; + sym(e_i (O e_j)') for M = 1]
+                    # d = O d O' [+ sym(e_i e_j') for M = 0, 3; + sym(e_i (O e_j)') for M = 1]
                     for p in range(m):
                         for q in range(m):
                             w = 0.0
                             for r in range(m):
-                                w += O[p, r] * dd[r, q]
+                                w += O[p, r] * d[M, i, j, r, q]
                             tmp[p, q] = w
                     for p in range(m):
-                        for q in range(m):
+                        for q in range(p, m):
                             w = 0.0
                             for r in range(m):
                                 w += tmp[p, r] * O[q, r]
                             d[M, i, j, p, q] = w
-                    if M == 0 or M == 3:
-                        d[M, i, j, i, j] += 0.5
-                        d[M, i, j, j, i] += 0.5
-                    elif M == 1:
+                            d[M, i, j, q, p] = w
+                    if M == 1:
                         for q in range(m):
                             d[M, i, j, i, q] += 0.5 * O[q, j]
                             d[M, i, j, q, i] += 0.5 * O[q, j]
+                    else:
+                        d[M, i, j, i, j] += 0.5
+                        d[M, i, j, j, i] += 0.5
+                        if i != j:
+                            a[M, j, i] = a[M, i, j]
+                            for p in range(m):
+                                b[M, j, i, p] = b[M, i, j, p]
+                                for q in range(m):
+                                    d[M, j, i, p, q] = d[M, i, j, p, q]
         # ---- E-K filter for T = sum x_l y_l
         for i in range(m):
             v = 0.0
@@ -450,7 +482,7 @@ def ek_run(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic, recursive, warmup, upda
         ic[I_K] += 1
         k = ic[I_K]
         if recursive and k >= warmup and k % update_every == 0:
-            res = _m_step(a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, wU, wE, wW, wC)
+            res = _m_step(mt, a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, wU, wE, wW, wC)
             if res > 0:
                 ic[I_UPDATES] += 1
                 if res == 2:

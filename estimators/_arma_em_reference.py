@@ -35,14 +35,15 @@ def _sym(i: int, j: int, m: int) -> np.ndarray:
 
 
 def evaluate_stats_reference(a, b, d, aT, bT, x, P):
-    """U^(M) (M = 0, 1, 2) and E from the filter coefficients (Miao et al. 2015, eqs 32-33)."""
+    """U^(M) (M = 0, 1, 2, 3) and E from the filter coefficients (Miao et al. 2015, eqs 32-33)."""
     m = x.shape[0]
     U = np.empty((4, m, m))
-    for M in range(4):
+    for M in (0, 1, 3):
         for i in range(m):
             for j in range(m):
                 dij = d[M, i, j]
                 U[M, i, j] = a[M, i, j] + b[M, i, j] @ x + np.trace(dij @ P) + x @ dij @ x
+    U[2] = U[0] - (P + np.outer(x, x))  # H2_k = H0_k - x_k x_k'
     E = aT + bT @ x
     return U, E
 
@@ -130,21 +131,18 @@ def ek_run_reference(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic,
                 a[0, i, j] += b[0, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
                 b[0, i, j] = O @ (b[0, i, j] + 2.0 * dd @ S)
                 d[0, i, j] = O @ dd @ O.T + Eij
-                # M = 3: as M = 0, started at 0 (sum over l >= 1)
-                dd = d[3, i, j]
-                a[3, i, j] += b[3, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
-                b[3, i, j] = O @ (b[3, i, j] + 2.0 * dd @ S)
-                d[3, i, j] = O @ dd @ O.T + Eij
+                # M = 3: as M = 0, started at 0 (sum over l >= 1); needed for the exact Q only
+                if exact_q:
+                    dd = d[3, i, j]
+                    a[3, i, j] += b[3, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
+                    b[3, i, j] = O @ (b[3, i, j] + 2.0 * dd @ S)
+                    d[3, i, j] = O @ dd @ O.T + Eij
                 # M = 1: sum of x_l[i] x_{l-1}[j]
                 dd = d[1, i, j]
                 a[1, i, j] += b[1, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
                 b[1, i, j] = O @ (b[1, i, j] + 2.0 * dd @ S) + eye[i] * S[j]
                 d[1, i, j] = O @ dd @ O.T + 0.5 * (np.outer(eye[i], O[:, j]) + np.outer(O[:, j], eye[i]))
-                # M = 2: sum of x_{l-1}[i] x_{l-1}[j]
-                dd = d[2, i, j] + Eij
-                a[2, i, j] += b[2, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
-                b[2, i, j] = O @ (b[2, i, j] + 2.0 * dd @ S)
-                d[2, i, j] = O @ dd @ O.T
+                # M = 2 (sum of x_{l-1}[i] x_{l-1}[j]) is H0 - x_k x_k': see evaluate_stats_reference
         for i in range(m):
             aT[i] += bT[i] @ S
             bT[i] = O @ bT[i] + eye[i] * yk

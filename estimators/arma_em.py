@@ -319,6 +319,7 @@ class EKFilter:
         self.bT = np.eye(m) * y0
         self.sc = np.array([y0 * y0, -0.5 * (math.log(2 * math.pi * s) + y0 * y0 / s)])
         self.ic = np.zeros(_k.N_IC, dtype=np.int64)
+        self.tracks_h3 = True  # the E-K filter of H^(3) ran on every sample (exact_q)
 
     @property
     def m(self) -> int:
@@ -337,6 +338,7 @@ class EKFilter:
         trace = np.empty((max(n_rows, 0), 2 + 2 * m * m + m))
         if self.status != _k.OK or len(y) == 0:
             return trace[:0]
+        self.tracks_h3 = self.tracks_h3 and bool(exact_q)
         run = _k.ek_run
         if engine == "reference":
             from estimators._arma_em_reference import ek_run_reference as run
@@ -346,12 +348,16 @@ class EKFilter:
         return trace[:ntr]
 
     def statistics(self) -> dict:
-        """E[H^(0)], E[H^(1)], E[H^(2)], E[H^(3)], E[T] given the data so far (eqs 32-33)."""
+        """E[H^(0)], E[H^(1)], E[H^(2)], E[H^(3)], E[T] given the data so far (eqs 32-33).
+
+        ``U3`` (:math:`H^{(3)}`) is NaN unless every :meth:`run` of the pass had ``exact_q``.
+        """
         m = self.m
         U = np.empty((4, m, m))
         E = np.empty(m)
         _k.evaluate_stats(self.a, self.b, self.d, self.aT, self.bT, self.x, self.P, U, E)
-        return {"U0": U[0], "U1": U[1], "U2": U[2], "U3": U[3], "T": E, "syy": self.sc[_k.S_SYY],
+        U3 = U[3] if self.tracks_h3 else np.full((m, m), np.nan)
+        return {"U0": U[0], "U1": U[1], "U2": U[2], "U3": U3, "T": E, "syy": self.sc[_k.S_SYY],
                 "k": int(self.ic[_k.I_K])}
 
     def m_step(self, exact_q=False) -> bool:

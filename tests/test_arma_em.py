@@ -49,7 +49,7 @@ def test_ek_statistics_equal_kalman_smoother(terms, form):
     P0 = np.eye(m) / (C @ C)
     f = EKFilter(A.copy(), C.copy(), Q.copy(), R.copy())
     f.start(y[0], P0)
-    f.run(y[1:], recursive=False, warmup=1, update_every=1, trace_every=0)
+    f.run(y[1:], recursive=False, warmup=1, update_every=1, trace_every=0, exact_q=True)
     st = f.statistics()
 
     ks = KalmanSmoother(k_endog=1, k_states=m, design=C[None, :], obs_cov=R[None, :], transition=A,
