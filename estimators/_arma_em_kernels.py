@@ -72,10 +72,11 @@ def _inv_small(M, out):
         return det
     det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
     if det != 0.0:
-        out[0, 0] = M[1, 1] / det
-        out[1, 1] = M[0, 0] / det
-        out[0, 1] = -M[0, 1] / det
-        out[1, 0] = -M[1, 0] / det
+        r = 1.0 / det
+        out[0, 0] = M[1, 1] * r
+        out[1, 1] = M[0, 0] * r
+        out[0, 1] = -M[0, 1] * r
+        out[1, 0] = -M[1, 0] * r
     return det
 
 
@@ -182,13 +183,7 @@ def _m_step(mt, a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
     Returns 0 (rejected, parameters kept), 1 (applied) or 2 (applied with A's spectrum clipped).
     """
     m = len(mt)
-    _evaluate_stats(mt, a, b, d, aT, bT, x, P, U, E)
-    for M in (0, 2, 3):
-        for i in range(m):
-            for j in range(i + 1, m):
-                s = 0.5 * (U[M, i, j] + U[M, j, i])
-                U[M, i, j] = s
-                U[M, j, i] = s
+    _evaluate_stats(mt, a, b, d, aT, bT, x, P, U, E)  # U0, U2, U3 exactly symmetric
     U2i = W[0]
     U0i = W[1]
     An = W[2]
@@ -209,6 +204,7 @@ def _m_step(mt, a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
     clipped = _clip_spectrum(An)
     # Q = (U0 - A U1' - U1 A' + A U2 A') / k   (U3 instead of U0 if exact_q)
     mq = 3 if exact_q else 0
+    rk = 1.0 / k
     for i in range(m):
         for j in range(i, m):
             v = U[mq, i, j]
@@ -216,8 +212,8 @@ def _m_step(mt, a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
                 v -= An[i, p] * U[1, j, p] + U[1, i, p] * An[j, p]
                 for q in range(m):
                     v += An[i, p] * U[2, p, q] * An[j, q]
-            Qn[i, j] = v / k
-            Qn[j, i] = v / k
+            Qn[i, j] = v * rk
+            Qn[j, i] = v * rk
     # C = U0^-1 E ; R = (sum y^2 - 2 C E + C U0 C') / (k + 1)
     ce = 0.0
     cuc = 0.0
@@ -238,13 +234,13 @@ def _m_step(mt, a, b, d, aT, bT, x, P, sc, k, A, C, Q, R, exact_q, U, E, W, Cn):
             for j in range(m):
                 Qn[i, j] = 0.0
                 Qn[j, i] = 0.0
-    ok = Rn > 0.0 and math.isfinite(Rn)
+    ok = (Rn > 0.0) & math.isfinite(Rn)  # & rather than `and`: no branch per element
     for i in range(m):
-        ok = ok and Qn[i, i] >= 0.0 and math.isfinite(Cn[i])
+        ok &= (Qn[i, i] >= 0.0) & math.isfinite(Cn[i])
         for j in range(m):
-            ok = ok and math.isfinite(An[i, j]) and math.isfinite(Qn[i, j])
+            ok &= math.isfinite(Qn[i, j])
     if m == 2:
-        ok = ok and Qn[0, 0] * Qn[1, 1] - Qn[0, 1] * Qn[1, 0] >= -1e-10 * Qn[0, 0] * Qn[1, 1]
+        ok &= Qn[0, 0] * Qn[1, 1] - Qn[0, 1] * Qn[1, 0] >= -1e-10 * Qn[0, 0] * Qn[1, 1]
     if not ok:
         return 0
     for i in range(m):

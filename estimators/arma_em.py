@@ -307,7 +307,8 @@ class EKFilter:
         K = P0 @ self.C / s
         self.x = K * y0
         IKC = np.eye(m) - np.outer(K, self.C)
-        self.P = IKC @ P0 @ IKC.T + np.outer(K, K) * self.R[0]
+        P = IKC @ P0 @ IKC.T + np.outer(K, K) * self.R[0]
+        self.P = 0.5 * (P + P.T)
         self.a = np.zeros((4, m, m))
         self.b = np.zeros((4, m, m, m))
         self.d = np.zeros((4, m, m, m, m))
@@ -543,8 +544,8 @@ class ArmaEM(Estimator):
         rows = self._filter.run(ys, recursive=self.recursive, warmup=cfg["warmup"],
                                 update_every=cfg["update_every"], trace_every=cfg["trace_every"],
                                 exact_q=self.exact_q, engine=self.engine)
-        if len(rows) and self._pass == 1:
-            self._trace.append(rows)
+        if len(rows) and self._pass == 1:  # converted once, as they arrive
+            self._trace.append(self._trace_coefficients(rows))
 
     def partial_fit(self, chunk, dt) -> "ArmaEM":
         """Feed the next chunk of a record (on-line, one pass, constant memory).
@@ -618,22 +619,27 @@ class ArmaEM(Estimator):
         }
         return coefs, bad, diag
 
-    def _trajectory(self) -> pd.DataFrame:
-        """Coefficient estimates (SI) along the first pass, from the traced matrices."""
+    def _trace_coefficients(self, rows: np.ndarray) -> np.ndarray:
+        """Rows [sample, coefficients (SI)...] from traced kernel rows [k, A, C, Q, R]."""
         terms = self._cfg["terms"]
-        cols = ["sample", *terms]
-        if not self._trace:
-            return pd.DataFrame(columns=cols)
-        rows = np.concatenate(self._trace)
         m, s, dt = self._filter.m, self._scale, self._dt
-        out = []
-        for r in rows:
+        out = np.empty((len(rows), 1 + len(terms)))
+        for i, r in enumerate(rows):
             A = r[1 : 1 + m * m].reshape(m, m)
             C = r[1 + m * m : 1 + m * m + m] * s
             Q = r[1 + m * m + m : 1 + 2 * m * m + m].reshape(m, m)
             c, _, _ = coefficients_from_model(A, C, Q, r[-1] * s**2, dt, terms)
-            out.append([int(r[0]) + 1, *(c[t] for t in terms)])
-        return pd.DataFrame(out, columns=cols)
+            out[i] = [r[0] + 1, *(c[t] for t in terms)]
+        return out
+
+    def _trajectory(self) -> pd.DataFrame:
+        """Coefficient estimates (SI) along the first pass, every ``trace_every`` samples."""
+        cols = ["sample", *self._cfg["terms"]]
+        if not self._trace:
+            return pd.DataFrame(columns=cols)
+        df = pd.DataFrame(np.concatenate(self._trace), columns=cols)
+        df["sample"] = df["sample"].astype(np.int64)
+        return df
 
 
 def _check_record(chunk, dt, minimum):
