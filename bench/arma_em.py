@@ -29,13 +29,13 @@ __all__ = ["bench_arma_em", "run"]
 
 
 def _filter(g, y, recursive):
-    from estimators.arma_em import EKFilter, initial_model
+    from estimators.arma_em import EKFilter, initial_model, prior_covariance
 
     coefs = {c: g.coefficients[c] for c in "NBK"}
     A, C, Q, R = initial_model(coefs, 100.0, g.dt, "NBK", "eq63")
     s = float(np.sqrt(R[0]))
     f = EKFilter(A.copy(), C / s, Q.copy(), R / s**2)
-    f.start(float(y[0] / s), np.eye(2) / float(f.C @ f.C))
+    f.start(float(y[0] / s), prior_covariance(f.A, f.Q, len(y)))
     return f, y[1:] / s
 
 

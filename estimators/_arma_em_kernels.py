@@ -22,7 +22,12 @@ For each incoming sample :math:`y_{k+1}` the kernel
    eqs 31-32 for :math:`T = \\sum_{l=0}^k x_l y_l`; and, for the exact Q update,
    :math:`H^{(3)} = \\sum_{l=1}^{k} x_l x_l^T`, the recursion of :math:`H^{(0)}` started at 0); eq. 30 is used in its symmetric form
    :math:`b \\leftarrow O(b + 2(d + \\tfrac12(e_ie_j^T + e_je_i^T))S)` (the paper's
-   :math:`e_je_i^T` gives a non-symmetric matrix whose symmetric part is the same statistic);
+   :math:`e_je_i^T` gives a non-symmetric matrix whose symmetric part is the same statistic).
+   Only the filters that are needed run: :math:`H^{(2)}_k = H^{(0)}_k - x_kx_k^T`, so
+   :math:`U^{(2)} = U^{(0)} - (P_k + \\hat x_k\\hat x_k^T)` (eqs 24-25 and 32 give the same
+   value); :math:`H^{(3)}` only with ``exact_q``; the filters of :math:`H^{(0)}_{ij}` and
+   :math:`H^{(0)}_{ji}` (and of :math:`H^{(3)}`) are the same and run once; the state dimension
+   is passed as the length of a tuple, a compile-time constant, so the small loops unroll;
 3. runs the Kalman measurement update with :math:`y_{k+1}` (eqs 16-18) and accumulates the
    Gaussian log-likelihood of the innovations;
 4. when ``recursive`` is set, every ``update_every`` samples after ``warmup``, replaces
@@ -33,7 +38,7 @@ For each incoming sample :math:`y_{k+1}` the kernel
    (:func:`_clip_spectrum`; why: :mod:`estimators.arma_em`, "Numerics").
 
 State is carried in the arrays passed in (mutated in place), so a record can be fed in chunks
-with results identical to one call. The plain NumPy reference of the same recursion is
+with results identical to one call; nothing is allocated per sample. The plain NumPy reference of the same recursion is
 :mod:`estimators._arma_em_reference` (tests only).
 """
 
