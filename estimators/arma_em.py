@@ -363,6 +363,8 @@ class EKFilter:
 
     def m_step(self, exact_q=False) -> bool:
         """Batch M-step from the statistics of the pass; False (parameters kept) if invalid."""
+        if exact_q and not self.tracks_h3:
+            raise ValueError("exact_q: the pass did not track H^(3); run it with exact_q=True")
         k = int(self.ic[_k.I_K])
         return bool(k > 0 and _k.m_step(self.a, self.b, self.d, self.aT, self.bT, self.x, self.P,
                                         self.sc, k, self.A, self.C, self.Q, self.R, bool(exact_q)))
