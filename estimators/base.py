@@ -32,7 +32,6 @@ import warnings
 from typing import Any, ClassVar
 
 import numpy as np
-import pandas as pd
 
 from noise_models.terms import _check_dt as check_dt
 from noise_models.units import COEFFICIENTS
@@ -65,6 +64,26 @@ class IdentifiabilityWarning(AvbenchWarning):
 
 _REGISTRY: dict[str, type["Estimator"]] = {}
 
+#: the estimators shipped with avbench: registry name -> "module:Class". Their modules are imported
+#: on first use, so ``import estimators`` does not pay for scipy.optimize, statsmodels or the
+#: compiled filters (a test checks that importing each module registers exactly these names).
+BUILTIN: dict[str, str] = {
+    "arma_em": "estimators.arma_em:ArmaEM",
+    "gmwm": "estimators.gmwm:GMWM",
+    "log_fit": "estimators.practitioners:LogFit",
+    "mle": "estimators.mle:MLE",
+    "nekf": "estimators.nekf:Nekf",
+    "nekf_multitau": "estimators.nekf:NekfMultitau",
+    "nnls_rel": "estimators.practitioners:NNLSRel",
+    "ols": "estimators.least_squares:OLS",
+    "ols_trimmed": "estimators.least_squares:TrimmedOLS",
+    "shakf": "estimators.shakf:Shakf",
+    "shakf_multitau": "estimators.shakf:ShakfMultitau",
+    "slope_lines": "estimators.practitioners:SlopeLines",
+    "wls": "estimators.least_squares:WLS",
+    "wls_edf": "estimators.least_squares:EDFWeightedLS",
+}
+
 
 def register(name: str):
     """Class decorator: register an :class:`Estimator` subclass under ``name``."""
@@ -72,6 +91,8 @@ def register(name: str):
     def deco(cls):
         if name in _REGISTRY and _REGISTRY[name] is not cls:
             raise ValueError(f"estimator name {name!r} is already registered by {_REGISTRY[name]!r}")
+        if name not in _REGISTRY and name in BUILTIN and BUILTIN[name] != f"{cls.__module__}:{cls.__qualname__}":
+            raise ValueError(f"estimator name {name!r} is already registered by {BUILTIN[name]}")
         cls.name = name
         _REGISTRY[name] = cls
         return cls
@@ -79,20 +100,17 @@ def register(name: str):
     return deco
 
 
-def _load_all() -> None:
-    # importing the package imports every estimator module, which registers itself
-    import estimators  # noqa: F401
-
-
 def names() -> list[str]:
-    """Names of all registered estimators, sorted."""
-    _load_all()
-    return sorted(_REGISTRY)
+    """Names of all registered estimators (built-in and user-registered), sorted."""
+    return sorted(set(_REGISTRY) | set(BUILTIN))
 
 
 def estimator_class(name: str) -> type["Estimator"]:
-    """The class registered under ``name``; a clear error naming the known ones otherwise."""
-    _load_all()
+    """The class registered under ``name`` (importing its module on first use); a clear error otherwise."""
+    if name not in _REGISTRY and name in BUILTIN:
+        import importlib
+
+        importlib.import_module(BUILTIN[name].partition(":")[0])  # registers it
     try:
         return _REGISTRY[name]
     except KeyError:
@@ -117,6 +135,8 @@ def get(name: str, **settings) -> "Estimator":
 
 def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill=math.nan) -> pd.Series:
     """A Series indexed Q, N, B, K, R, filled from ``values`` (missing keys get ``fill``)."""
+    import pandas as pd
+
     values = values or {}
     bad = set(values) - set(COEFFICIENTS)
     if bad:
@@ -202,6 +222,8 @@ class Estimator:
     # -- presentation --------------------------------------------------------------------------
     def summary(self, units: dict[str, str] | None = None) -> pd.DataFrame:
         """The fitted coefficients in SI and in ``units`` (default: the papers' units)."""
+        import pandas as pd
+
         from noise_models.units import PAPER_UNITS, SI_UNITS, from_si
 
         units = units or PAPER_UNITS

@@ -16,7 +16,8 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
+# Heavy libraries (numpy, pandas, the simulators and estimators) are imported inside the commands:
+# `avbench --help` and every subcommand's help must start in a fraction of a second.
 
 __all__ = ["main", "build_parser"]
 
@@ -30,6 +31,8 @@ def _fail(msg: str) -> int:
 
 
 def cmd_presets(args) -> int:
+    import numpy as np
+
     from noise_models import presets
     from noise_models.units import PAPER_UNITS, from_si
 
@@ -63,6 +66,8 @@ def cmd_estimators(args) -> int:
 
 
 def _n_samples(args, dt: float, default_s: float) -> int:
+    import numpy as np
+
     given = [x is not None for x in (args.hours, args.seconds, args.samples)]
     if sum(given) > 1:
         raise ValueError("give at most one of --hours, --seconds, --samples")
@@ -79,6 +84,8 @@ def _n_samples(args, dt: float, default_s: float) -> int:
 
 
 def cmd_simulate(args) -> int:
+    import numpy as np
+
     from estimators.allan import allan_variance
     from noise_models import presets
     from noise_models.units import rate_to_si
