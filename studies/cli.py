@@ -127,6 +127,14 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_run(args) -> int:
+    from studies.workers import started_early
+
+    # local workers start now and import while this process reads the config
+    with started_early(args.jobs if _local_pool_wanted(args) else None):
+        return _run(args)
+
+
+def _run(args) -> int:
     from studies.config import load_config
     from studies.runner import run_study
 
@@ -146,6 +154,19 @@ def cmd_run(args) -> int:
     print((out / "table.md").read_text())
     print(f"# results in {out}/ (tidy.parquet, table.md, table.csv, figures)", file=sys.stderr)
     return 0
+
+
+def _local_pool_wanted(args) -> bool:
+    """Local workers will be needed (valid --jobs other than 1, no dask backend asked for)."""
+    import os
+
+    jobs = args.jobs
+    return (
+        isinstance(jobs, int)
+        and (jobs > 1 or -(os.cpu_count() or 1) <= jobs <= -1)
+        and args.backend in (None, "loky")
+        and not args.scheduler
+    )
 
 
 def cmd_table(args) -> int:

@@ -202,3 +202,61 @@ def test_killed_study_resumes_to_the_uninterrupted_result(tmp_path):
     resumed = pd.read_parquet(out / "tidy.parquet")
     straight = run_study(cfg, tmp_path / "straight", progress=False, make_report=False)
     pd.testing.assert_frame_equal(resumed[COLS], straight[COLS])
+
+
+def _children(pid: int) -> set[int]:
+    """Live (non-zombie) processes whose parent is ``pid`` (Linux /proc)."""
+    out = set()
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                fields = (d / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid and fields[0] != "Z":
+                out.add(int(d.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc to list the workers")
+def test_killed_parent_leaves_no_workers(tmp_path):
+    """SIGKILL of ``avbench run --jobs 2`` while its workers compute: every process it started
+    (loky workers, resource trackers) exits within seconds, and none keeps the caller's stdout open."""
+    config = tmp_path / "study.toml"
+    config.write_text(toml(seed=5, replicates=40, block_size=1, n_samples=200_000))
+    out = tmp_path / "out"
+    shard_dir = out / "_shards" / load_config(config).result_key()
+    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "studies.cli", "run", str(config), "--out", str(out), "--no-progress", "--jobs", "2"],
+        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+    )
+    _wait_for_shards(shard_dir, 1, proc)  # the workers are running blocks
+    children = _children(proc.pid)
+    assert len(children) >= 2, children  # at least the two workers
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=30)
+    t0 = time.monotonic()
+    while any(_alive(p) for p in children) and time.monotonic() - t0 < 10:
+        time.sleep(0.1)
+    survivors = [p for p in children if _alive(p)]
+    for p in survivors:  # clean up before failing
+        os.kill(p, signal.SIGKILL)
+    assert not survivors, f"{len(survivors)} process(es) of the killed study still alive after 10 s"
+    os.set_blocking(proc.stdout.fileno(), False)  # EOF on stdout: nobody holds the caller's pipe any more
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 10:
+        chunk = proc.stdout.read()
+        if chunk == b"":
+            break
+        time.sleep(0.1)
+    else:
+        raise AssertionError("the killed study's stdout is still held open by another process")
