@@ -526,8 +526,11 @@ def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | No
        study's dt, with an array ``taus`` replaced by "octave" (already checked in 2). The
        settings are rejected only if the fit raises on every trial record and also on one
        longer record (up to ``PROBE_LONG_SAMPLES``), so a data-dependent failure on one record,
-       or a setting that merely needs more data, is not mistaken for a settings error. Reported
-       failures (``diagnostics_["failure"]``) are data, never a settings error.
+       or a setting that merely needs more data, is not mistaken for a settings error; and only if
+       the estimator with its default settings fits that record, so a gyro or record length on
+       which the method cannot work (``N = 0``, 16 samples) is not blamed on settings: such
+       failures are data, recorded per replicate. Reported failures
+       (``diagnostics_["failure"]``) are data, never a settings error.
     """
     from estimators.allan import cluster_sizes
     from estimators.av_model import check_terms
@@ -558,10 +561,16 @@ def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | No
             return None
         first = first or err
     long_n = min(n, PROBE_LONG_SAMPLES)
+    rate = records[0]
     if long_n > records.n:
         rate = _quiet_call(gyro.gyro.simulate, long_n, np.random.default_rng(_PROBE_SEEDS[0]))
         if _fit_error(trial.clone(), rate, dt) is None:
             return None
+    # the settings are to blame only if the estimator's defaults fit where they fail; otherwise the
+    # failure belongs to the gyro or the record (N = 0, a 16-sample record, ...): it is data, recorded
+    # per replicate when the study runs, never a configuration error
+    if _fit_error(type(est)(), rate, dt) is not None:
+        return None
     return (
         f"a trial fit with these settings failed on every record simulated from this gyro "
         f"({records.n} and {long_n} samples at dt = {dt} s): {first}; expected settings "
@@ -571,15 +580,43 @@ def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | No
 
 def load_config(path, overrides: dict[str, Any] | None = None) -> StudyConfig:
     """Read and validate a study TOML file (``overrides`` update its [study] table)."""
+    from studies.outputs import check_input_file
+
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: no such study file")
+    try:
+        check_input_file(path, "study file")
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
     try:
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML: {e}") from None
     except UnicodeDecodeError:
         raise ConfigError(f"{path}: not a text file") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: nested too deeply to read; expected a study file (a few levels of tables)") from None
+    if _depth(raw) > MAX_NESTING:
+        raise ConfigError(f"{path}: nested {_depth(raw)} levels deep; expected at most {MAX_NESTING} "
+                          "(tables of settings inside [[estimators]])")
     if overrides:
         raw.setdefault("study", {}).update(overrides)
     return parse_config(raw, where=str(path), path=path)
+
+
+#: deepest nesting of tables/arrays a study file may have (settings of settings of ...)
+MAX_NESTING = 12
+
+
+def _depth(value) -> int:
+    """Nesting depth of TOML tables and arrays, without recursion (a hostile file cannot overflow it)."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        v, d = stack.pop()
+        deepest = max(deepest, d)
+        if deepest > MAX_NESTING:
+            break
+        if isinstance(v, dict):
+            stack.extend((x, d + 1) for x in v.values())
+        elif isinstance(v, list):
+            stack.extend((x, d + 1) for x in v)
+    return deepest

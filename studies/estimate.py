@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from studies import data_files
 
@@ -91,8 +92,6 @@ def _delimiter(path: Path) -> str:
 
 
 def _read_text(path: Path, column):
-    import pandas as pd
-
     try:
         df = pd.read_csv(path, sep=_delimiter(path), engine="python", header=None, comment="#",
                          skip_blank_lines=True, dtype=str)
@@ -216,8 +215,6 @@ def fitted_avar(est, tau, dt) -> np.ndarray:
 
 # -- output -------------------------------------------------------------------------------------
 def _table(fits) -> pd.DataFrame:
-    import pandas as pd
-
     from noise_models.units import COEFFICIENTS, PAPER_UNITS, from_si
 
     rows = {}
@@ -227,8 +224,6 @@ def _table(fits) -> pd.DataFrame:
 
 
 def _json(fits) -> dict:
-    import pandas as pd
-
     from noise_models.units import COEFFICIENTS, PAPER_UNITS, SI_UNITS, from_si
 
     def num(v):
@@ -336,8 +331,6 @@ def _check_args(args):
 
 def run(args) -> int:
     """Run ``avbench estimate`` (see the module docstring); returns the exit code."""
-    import pandas as pd
-
     from noise_models.units import rate_to_si
 
     methods, settings = _check_args(args)
