@@ -391,22 +391,33 @@ def _dask_runner(client):
 
 
 def _local_runner(n_jobs: int):
-    """Blocks on the local worker pool, yielded as they finish; on any error the rest is cancelled."""
+    """Blocks on the local worker pool, yielded as they finish; on any error the pool is stopped.
+
+    At most two blocks per worker are queued at a time (the rest are submitted as blocks finish),
+    so that stopping the pool has little to discard.
+    """
 
     def run(cfg, tasks):
-        from concurrent.futures import as_completed
+        from concurrent.futures import FIRST_COMPLETED, wait
 
-        from studies.workers import local_workers
+        from studies.workers import local_workers, worker_count
 
         executor = local_workers(n_jobs)
-        futures = [executor.submit(_compute_block, cfg, t) for t in tasks]
+        window = 2 * worker_count(n_jobs)
+        todo, running = iter(tasks), set()
         try:
-            for f in as_completed(futures):
-                yield f.result()
+            while True:
+                for t in todo:
+                    running.add(executor.submit(_compute_block, cfg, t))
+                    if len(running) >= window:
+                        break
+                if not running:
+                    return
+                finished, running = wait(running, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    yield f.result()
         except BaseException:
-            for f in futures:
-                f.cancel()
-            executor.shutdown(wait=False, kill_workers=True)  # stop the running blocks too
+            executor.shutdown(wait=True, kill_workers=True)  # stop the queued and the running blocks
             raise
 
     return run

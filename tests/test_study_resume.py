@@ -227,10 +227,25 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+def _read_to_eof(stream, timeout: float = 10.0) -> bytes:
+    """Everything left in a pipe until EOF; fails if some process still holds its write end."""
+    os.set_blocking(stream.fileno(), False)
+    data, t0 = b"", time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        chunk = stream.read()
+        if chunk == b"":
+            return data
+        data += chunk or b""
+        time.sleep(0.1)
+    raise AssertionError("the stopped study's output pipe is still held open by another process")
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc to list the workers")
-def test_killed_parent_leaves_no_workers(tmp_path):
-    """SIGKILL of ``avbench run --jobs 2`` while its workers compute: every process it started
-    (loky workers, resource trackers) exits within seconds, and none keeps the caller's stdout open."""
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
+def test_stopped_parent_leaves_no_workers(tmp_path, sig):
+    """SIGKILL (or Ctrl-C) of ``avbench run --jobs 2`` while its workers compute: every process it
+    started (loky workers, resource trackers) exits within seconds, none keeps the caller's stdout or
+    stderr open, and Ctrl-C ends with the resume message and no traceback."""
     config = tmp_path / "study.toml"
     config.write_text(toml(seed=5, replicates=40, block_size=1, n_samples=200_000))
     out = tmp_path / "out"
@@ -238,12 +253,12 @@ def test_killed_parent_leaves_no_workers(tmp_path):
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen(
         [sys.executable, "-m", "studies.cli", "run", str(config), "--out", str(out), "--no-progress", "--jobs", "2"],
-        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )
     _wait_for_shards(shard_dir, 1, proc)  # the workers are running blocks
     children = _children(proc.pid)
     assert len(children) >= 2, children  # at least the two workers
-    proc.send_signal(signal.SIGKILL)
+    proc.send_signal(sig)
     proc.wait(timeout=30)
     t0 = time.monotonic()
     while any(_alive(p) for p in children) and time.monotonic() - t0 < 10:
@@ -251,13 +266,9 @@ def test_killed_parent_leaves_no_workers(tmp_path):
     survivors = [p for p in children if _alive(p)]
     for p in survivors:  # clean up before failing
         os.kill(p, signal.SIGKILL)
-    assert not survivors, f"{len(survivors)} process(es) of the killed study still alive after 10 s"
-    os.set_blocking(proc.stdout.fileno(), False)  # EOF on stdout: nobody holds the caller's pipe any more
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < 10:
-        chunk = proc.stdout.read()
-        if chunk == b"":
-            break
-        time.sleep(0.1)
-    else:
-        raise AssertionError("the killed study's stdout is still held open by another process")
+    assert not survivors, f"{len(survivors)} process(es) of the stopped study still alive after 10 s"
+    _read_to_eof(proc.stdout)
+    err = _read_to_eof(proc.stderr).decode()
+    if sig == signal.SIGINT:
+        assert proc.returncode == 130, err
+        assert "rerun the same command to resume" in err and "Traceback" not in err, err
