@@ -32,7 +32,8 @@ __all__ = ["help_times", "import_cpu", "first_call", "study_walls", "HELP_COMMAN
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the help screens timed: the program's and every subcommand's
-HELP_COMMANDS = [[], ["presets"], ["estimators"], ["simulate"], ["run"], ["table"], ["estimate"], ["bench"]]
+HELP_COMMANDS = [[], ["presets"], ["estimators"], ["studies"], ["simulate"], ["run"], ["table"], ["estimate"],
+                 ["check-estimator"], ["bench"]]
 #: estimators whose first call is measured (the compiled filters and the optimiser-based fits)
 FIRST_CALL_ESTIMATORS = ["shakf", "shakf_multitau", "nekf", "nekf_multitau", "arma_em", "mle", "gmwm", "wls"]
 

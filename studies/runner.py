@@ -204,6 +204,7 @@ def _compute_block(cfg: StudyConfig, task: Task) -> tuple[Task, pd.DataFrame]:
     from studies.workers import one_numba_thread
 
     one_numba_thread()
+    cfg.import_plugins()  # the same plugin modules as the process that loaded the config
     return task, run_block(cfg, task)
 
 

@@ -40,7 +40,8 @@ def test_import_loads_no_heavy_library_and_no_estimator_module():
     assert loaded <= {"estimators.base", "estimators.crlb"}, loaded
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["simulate", "--help"], ["bench", "--help"]])
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["simulate", "--help"], ["studies", "--help"],
+                                  ["check-estimator", "--help"], ["bench", "--help"]])
 def test_help_imports_neither_simulators_nor_estimators(argv):
     mods = _fresh_modules(
         "import contextlib, io\nfrom studies.cli import main\n"
