@@ -16,6 +16,11 @@ Every speed claim is a ratio against a baseline timed in the same loop:
   references (:mod:`bench.online_filters`, :mod:`bench.arma_em`).
 * ``StreamingMemory`` -- peak memory of Gyro.stream + StreamingAllan + SHAKF partial_fit, in a child
   process, for growing n (flat in n), up to 24 h at 1 kHz (8.64e7 samples).
+* ``ReadRecording`` -- reading a 7-column CSV (time + 6 IMU axes) through ``avbench estimate``'s
+  reader (:mod:`studies.recordings.readers`) against a bare ``pandas.read_csv`` of the same file,
+  and the reader's peak memory over the numeric data (:mod:`bench.recordings`).
+* ``EstimateMemory`` -- peak RSS of ``avbench estimate`` (nnls_rel, gmwm) on an n-sample .npy in a
+  child process, against the record's size, up to 5e7 samples (400 MB).
 * ``LvStudy`` -- wall time of ``avbench run studies/lv2015.toml`` with ``--jobs 1`` and ``--jobs 2``
   from fresh processes, alternated (full mode only), and where a replicate's time goes.
 * ``StartUp`` / ``FirstCall`` -- ``avbench --help`` and every subcommand's help against the bare
@@ -46,6 +51,8 @@ __all__ = [
     "LvStudy",
     "StartUp",
     "FirstCall",
+    "ReadRecording",
+    "EstimateMemory",
     "ALL",
 ]
 
@@ -427,15 +434,65 @@ class FirstCall:
         return first_call(estimator, self.settings)
 
 
-ALL = [Generation, AllanOverlapping, AllanEngine, EstimatorScaling, OnlineKernels, StreamingMemory, LvStudy,
-       StartUp, FirstCall]
+class ReadRecording:
+    """A 7-column CSV read by ``avbench estimate``'s reader against ``pandas.read_csv`` (same file)."""
+
+    params = [[10**5, 10**6]]
+    quick_params = [[10**4]]
+    param_names = ["n"]
+    baselines = {"time_read": ("baseline_read", "pandas.read_csv of the same file (C engine, defaults)")}
+
+    def setup(self, n):
+        from bench.recordings import write_csv
+
+        self.dir = Path(tempfile.mkdtemp(prefix="avbench_csv_"))
+        self.path = write_csv(self.dir / "r.csv", n)
+        self.n = n
+
+    def teardown(self, n):
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def time_read(self, n):
+        from studies.recordings.readers import read_recording
+
+        read_recording(self.path, gyro="gyro_x,gyro_y,gyro_z", accel="acc_x,acc_y,acc_z")
+
+    def baseline_read(self, n):
+        import pandas as pd
+
+        pd.read_csv(self.path)
+
+    def peakmem_read(self, n):
+        from bench.recordings import read_peak
+
+        return read_peak(self.path, n)
+
+
+class EstimateMemory:
+    """Peak RSS of ``avbench estimate`` on an n-sample .npy (child process), against the record's size."""
+
+    params = [[10**6, 10**7, 5 * 10**7]]
+    quick_params = [[10**5]]
+    param_names = ["n"]
+
+    def setup(self, n):
+        pass
+
+    def peakmem_estimate(self, n):
+        from bench.recordings import estimate_peak
+
+        return estimate_peak(n)
+
+
+ALL = [Generation, AllanOverlapping, AllanEngine, EstimatorScaling, OnlineKernels, StreamingMemory, ReadRecording,
+       EstimateMemory, LvStudy, StartUp, FirstCall]
 
 
 def classes(quick: bool) -> list:
     """The benchmark classes of a run (``quick``: the CI subset on tiny sizes)."""
     if quick:
         return [Generation, AllanOverlapping, AllanEngine, EstimatorScaling, QuickOnlineKernels, StreamingMemory,
-                QuickStartUp, FirstCall]
+                ReadRecording, EstimateMemory, QuickStartUp, FirstCall]
     return ALL
 
 

@@ -64,7 +64,8 @@ import numpy as np
 import pandas as pd
 
 from estimators.base import Estimator, register
-from estimators.gmwm import GMWM, parse_model
+from estimators.fit_check import assess_fit
+from estimators.gmwm import GMWM, build_gyro, parse_model
 
 __all__ = ["MLE", "block_means"]
 
@@ -197,6 +198,14 @@ class MLE(Estimator):
         }
         if not np.isfinite(res.llf):
             diag["failure"] = "non-finite log-likelihood at the optimum"
+        else:
+            p = diag["params"]
+            names = {"QN": ("Q",), "WN": ("N",), "GM": ("sigma", "tc"), "RW": ("K",)}
+            values = [p[k] for lat in latents if lat in names for k in names[lat]]
+            if "DR" in latents:
+                values.append(coefs["R"])
+            gyro = build_gyro(latents, values, dt)
+            diag.update(assess_fit(rate, dt, gyro.avar, gyro, len(values), (m * dt, math.inf)))
         return coefs, {}, diag
 
 
