@@ -304,7 +304,7 @@ def cmd_table(args) -> int:
 
 
 #: the one-line help of ``avbench estimate`` in the list of commands (as in studies.estimate.add_parser)
-ESTIMATE_HELP = "fit the coefficients of a real static gyro recording"
+ESTIMATE_HELP = "fit the noise coefficients of a static IMU recording"
 
 
 def _command(argv) -> str | None:
