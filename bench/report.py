@@ -38,7 +38,9 @@ LIMITS = {
     "first_call": "Loading the compiled kernels from numba's disk cache (`cache=True`: `__pycache__` beside the "
     "source, else `~/.cache/numba`, else a per-user temp folder) and importing the estimator's module.",
     "scaling": "Serial parts in the parent: its imports, the config, saving blocks, and the report (tables and six "
-    "figures, several seconds); the workers start while the parent imports and stay warm for every block.",
+    "figures, several seconds); the workers start while the parent imports and stay warm for every block. On a "
+    "machine busy with other sessions, Linux's autogroup scheduler gives one session a fixed share of the cores "
+    "however many processes it runs, so the ratio only means something on a quiet machine.",
 }
 
 
