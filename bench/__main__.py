@@ -1,8 +1,10 @@
-"""``python -m bench [--quick] [--out results/bench]`` (also ``avbench bench ...``).
+"""``python -m bench [--quick] [--out DIR]`` (also ``avbench bench ...``).
 
 Runs the benchmark classes of :mod:`bench.suite` and writes README.md (targets and tables),
-results.json, results.csv and scaling.png under ``--out``. ``--quick`` runs tiny sizes in well
-under a minute (the CI smoke test; its figures make no claims).
+results.json, results.csv and scaling.png under ``--out``: by default ``results/bench`` for a full
+run, and a new temporary folder for ``--quick`` (tiny sizes, about a minute; the CI smoke test, its
+figures make no claims), so a smoke run never overwrites the committed benchmark unless asked to
+with an explicit ``--out``.
 """
 
 from __future__ import annotations
@@ -12,12 +14,27 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["add_parser", "run", "main"]
+__all__ = ["add_parser", "run", "main", "output_folder"]
+
+#: where a full run writes (the committed benchmark)
+FULL_OUT = "results/bench"
+
+
+def output_folder(args) -> Path:
+    """``--out`` if given; else a new temporary folder for ``--quick``, and ``results/bench`` for a
+    full run (or ``--report-only``, which rewrites it)."""
+    if getattr(args, "out", None):
+        return Path(args.out)
+    if args.quick and not getattr(args, "report_only", False):
+        import tempfile
+
+        return Path(tempfile.mkdtemp(prefix="avbench-bench-quick-"))
+    return Path(FULL_OUT)
 
 
 def _arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="tiny sizes, < 1 minute (smoke test; no timing claims)")
-    p.add_argument("--out", default="results/bench", help="output folder (default results/bench)")
+    p.add_argument("--out", help=f"output folder (default {FULL_OUT} for a full run, a new temporary folder for --quick)")
     p.add_argument("--only", help="comma-separated benchmark class names to run (default: all)")
     p.add_argument("--notes", help="a Markdown file whose text is added under the targets table")
     p.add_argument("--report-only", action="store_true",
@@ -38,6 +55,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from bench import harness, report, suite
 
+    args.out = str(output_folder(args))
     if getattr(args, "report_only", False):
         import json
 

@@ -26,14 +26,16 @@ Every speed claim is a ratio against a baseline timed in the same loop:
   and the reader's peak memory over the numeric data (:mod:`bench.recordings`).
 * ``EstimateMemory`` -- peak RSS of ``avbench estimate`` (nnls_rel, gmwm) on an n-sample .npy in a
   child process, against the record's size, up to 5e7 samples (400 MB).
-* ``LvStudy`` -- wall time of ``avbench run studies/lv2015.toml --jobs 2`` from a fresh process
-  (full mode only), and where a replicate's time goes.
+* ``LvStudy`` -- wall time of ``avbench run studies/lv2015.toml`` with ``--jobs 1`` and ``--jobs 2``
+  from fresh processes, alternated (full mode only), and where a replicate's time goes.
+* ``StartUp`` / ``FirstCall`` -- ``avbench --help`` and every subcommand's help against the bare
+  interpreter, CPU time of ``import estimators, noise_models``, and each filter's first-ever compile
+  and second-process first-call cost (:mod:`bench.startup`).
 """
 
 from __future__ import annotations
 
 import math
-import os
 import shutil
 import subprocess
 import sys
@@ -56,6 +58,8 @@ __all__ = [
     "OnlineDefaults",
     "MleFit",
     "FlickerPreset",
+    "StartUp",
+    "FirstCall",
     "ReadRecording",
     "EstimateMemory",
     "ALL",
@@ -338,18 +342,18 @@ class LvStudy:
         pass
 
     def track_wall(self, study):
+        from bench.startup import study_walls
+
         out = Path(tempfile.mkdtemp(prefix="avbench_bench_"))
-        try:
-            t0 = time.perf_counter()
+        try:  # untimed first run: warms numba's disk cache and the OS file cache, gives a tidy table
             subprocess.run([sys.executable, "-m", "studies.cli", "run", str(ROOT / "studies" / f"{study}.toml"),
                             "--jobs", "2", "--out", str(out), "--no-progress"],
                            check=True, capture_output=True, cwd=ROOT, timeout=1800)
-            wall = time.perf_counter() - t0
-            load = list(os.getloadavg())
             t_report = _time_report(out, study)
         finally:
             shutil.rmtree(out, ignore_errors=True)
-        return {"wall_s": wall, "loadavg_after": load, "report_s": t_report, **replicate_profile(study)}
+        walls = study_walls(study, rounds=2, warm=False)
+        return {"wall_s": walls["wall_jobs2_s"], "report_s": t_report, **walls, **replicate_profile(study)}
 
 
 def _time_report(out: Path, study: str) -> float:
@@ -592,6 +596,51 @@ class FlickerPreset:
 
     def teardown(self, preset, n):
         self.g = self.buf = None
+class StartUp:
+    """``avbench --help`` (and every subcommand's) vs the bare interpreter; CPU of the package imports."""
+
+    params = [["fresh process"]]
+    param_names = ["process"]
+    help_repeats = 5
+
+    def setup(self, process):
+        pass
+
+    def track_help(self, process):
+        from bench.startup import help_times
+
+        return help_times(self.help_repeats)
+
+    def track_import(self, process):
+        from bench.startup import import_cpu
+
+        return import_cpu(self.help_repeats)
+
+
+class QuickStartUp(StartUp):
+    help_repeats = 1
+
+
+class FirstCall:
+    """Each estimator's first fit: first-ever (empty numba cache) and in a second process."""
+
+    params = [["shakf", "shakf_multitau", "nekf", "nekf_multitau", "arma_em", "mle", "gmwm", "wls"]]
+    quick_params = [["wls"]]
+    param_names = ["estimator"]
+
+    def setup(self, estimator):
+        import estimators
+
+        if estimator not in estimators.names():
+            raise NotImplementedError
+        self.settings = dict(ESTIMATOR_SETTINGS.get(estimator, {}))
+        if "terms" in estimators.estimator_class(estimator)._param_names():
+            self.settings["terms"] = "NBK"
+
+    def track_first_call(self, estimator):
+        from bench.startup import first_call
+
+        return first_call(estimator, self.settings)
 
 
 class ReadRecording:
@@ -645,14 +694,15 @@ class EstimateMemory:
 
 
 ALL = [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, OnlineKernels, OnlineDefaults,
-       MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy]
+       MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy, StartUp, FirstCall]
 
 
 def classes(quick: bool) -> list:
     """The benchmark classes of a run (``quick``: the CI subset on tiny sizes)."""
     if quick:
         return [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, QuickOnlineKernels,
-                OnlineDefaults, MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory]
+                OnlineDefaults, MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, QuickStartUp,
+                FirstCall]
     return ALL
 
 

@@ -3,13 +3,22 @@
 Every estimator follows one interface (:class:`estimators.base.Estimator`): configure with settings,
 ``fit(rate, dt)``, read ``coefficients_`` (SI, ``pandas.Series`` indexed Q, N, B, K, R).
 ``estimators.get(name, **settings)`` builds one from its registry name; ``estimators.names()``
-lists them. Every module of this package that defines estimators registers them on import.
+lists them.
+
+Importing this package is cheap: the built-in estimators are listed by name in
+:data:`estimators.base.BUILTIN` and their modules (with scipy.optimize, statsmodels and the compiled
+filters they need) are imported the first time one of them is asked for; the Allan-variance names
+(``allan_variance``, ``StreamingAllan``, ...) and every submodule (``estimators.gmwm``, ...) are
+loaded on first access (PEP 562 module ``__getattr__``).
 """
 
 import importlib as _importlib
-import pkgutil as _pkgutil
 
-from estimators.base import (
+from noise_models._numba_cache import ensure_cache_dir as _ensure_cache_dir
+
+_ensure_cache_dir()  # before any module with compiled kernels is imported
+
+from estimators.base import (  # noqa: E402
     AvbenchWarning,
     DivergenceWarning,
     Estimator,
@@ -19,8 +28,7 @@ from estimators.base import (
     names,
     register,
 )
-from estimators.allan import AllanResult, RecursiveAllan, StreamingAllan, allan_variance
-from estimators.crlb import crlb
+from estimators.crlb import crlb  # noqa: E402
 
 __all__ = [
     "AllanResult",
@@ -38,7 +46,27 @@ __all__ = [
     "register",
 ]
 
-# Import every estimator module so that its classes register themselves.
-for _m in _pkgutil.iter_modules(__path__):
-    if not _m.name.startswith("_") and _m.name not in {"base", "allan", "av_model", "contract"}:
-        _importlib.import_module(f"{__name__}.{_m.name}")
+#: public names loaded on first access, and the module that holds them
+_LAZY = {name: "estimators.allan" for name in ("AllanResult", "RecursiveAllan", "StreamingAllan", "allan_variance")}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(_importlib.import_module(_LAZY[name]), name)
+    elif not name.startswith("__"):
+        try:  # a submodule, as if every module had been imported with the package
+            value = _importlib.import_module(f"{__name__}.{name}")
+        except ModuleNotFoundError as e:
+            if e.name != f"{__name__}.{name}":
+                raise
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    import pkgutil
+
+    return sorted(set(globals()) | set(_LAZY) | {m.name for m in pkgutil.iter_modules(__path__)})

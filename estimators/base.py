@@ -32,7 +32,6 @@ import warnings
 from typing import Any, ClassVar
 
 import numpy as np
-import pandas as pd
 
 from noise_models.terms import _check_dt as check_dt
 from noise_models.units import COEFFICIENTS
@@ -69,6 +68,28 @@ class IdentifiabilityWarning(AvbenchWarning):
 
 _REGISTRY: dict[str, type["Estimator"]] = {}
 
+#: the estimators shipped with avbench: registry name -> "module:Class". Their modules are imported
+#: on first use, so ``import estimators`` does not pay for scipy.optimize, statsmodels or the
+#: compiled filters (a test checks that importing each module registers exactly these names).
+BUILTIN: dict[str, str] = {
+    "arma_em": "estimators.arma_em:ArmaEM",
+    "gmwm": "estimators.gmwm:GMWM",
+    "gmwm_despiked": "estimators.robust:GMWMDespiked",
+    "gmwm_robust": "estimators.robust:GMWMRobust",
+    "log_fit": "estimators.practitioners:LogFit",
+    "mle": "estimators.mle:MLE",
+    "nekf": "estimators.nekf:Nekf",
+    "nekf_multitau": "estimators.nekf:NekfMultitau",
+    "nnls_rel": "estimators.practitioners:NNLSRel",
+    "ols": "estimators.least_squares:OLS",
+    "ols_trimmed": "estimators.least_squares:TrimmedOLS",
+    "shakf": "estimators.shakf:Shakf",
+    "shakf_multitau": "estimators.shakf:ShakfMultitau",
+    "slope_lines": "estimators.practitioners:SlopeLines",
+    "wls": "estimators.least_squares:WLS",
+    "wls_edf": "estimators.least_squares:EDFWeightedLS",
+}
+
 #: The methods to run on a user's recording when none are named (``avbench estimate``): methods
 #: whose default settings give physically plausible coefficients on all six ADIS16405 runs x 3 axes
 #: and the MTi-G (results/real/README.md). Left out on purpose: Lv et al.'s ``ols``,
@@ -86,6 +107,8 @@ def register(name: str):
     def deco(cls):
         if name in _REGISTRY and _REGISTRY[name] is not cls:
             raise ValueError(f"estimator name {name!r} is already registered by {_REGISTRY[name]!r}")
+        if name not in _REGISTRY and name in BUILTIN and BUILTIN[name] != f"{cls.__module__}:{cls.__qualname__}":
+            raise ValueError(f"estimator name {name!r} is already registered by {BUILTIN[name]}")
         cls.name = name
         _REGISTRY[name] = cls
         return cls
@@ -93,25 +116,20 @@ def register(name: str):
     return deco
 
 
-def _load_all() -> None:
-    # importing the package imports every estimator module, which registers itself
-    import estimators  # noqa: F401
-
-
 #: classes loaded from an import path or an entry point, by the name they were asked for
 _PLUGINS: dict[str, type["Estimator"]] = {}
 
 
 def names() -> list[str]:
-    """Names of all registered estimators and of those installed packages declare, sorted.
+    """Names of all registered estimators (built-in, see :data:`BUILTIN`, and user-registered) and of
+    those installed packages declare, sorted.
 
     Installed packages declare estimators in the entry-point group ``avbench.estimators``
     (:mod:`noise_models.plugins`); they are listed here without being imported.
     """
     from noise_models.plugins import ESTIMATOR_GROUP, entry_point_names
 
-    _load_all()
-    return sorted(set(_REGISTRY) | set(entry_point_names(ESTIMATOR_GROUP)))
+    return sorted(set(_REGISTRY) | set(BUILTIN) | set(entry_point_names(ESTIMATOR_GROUP)))
 
 
 def estimator_class(name: str, search=None) -> type["Estimator"]:
@@ -127,7 +145,10 @@ def estimator_class(name: str, search=None) -> type["Estimator"]:
 
     if not isinstance(name, str):
         raise ValueError(f"estimator name: expected a string, got {name!r}")
-    _load_all()
+    if name not in _REGISTRY and name in BUILTIN:  # a built-in: its module registers it on import
+        import importlib
+
+        importlib.import_module(BUILTIN[name].partition(":")[0])
     cls = _REGISTRY.get(name) or _PLUGINS.get(name)
     if cls is not None:
         return cls
@@ -190,6 +211,8 @@ def check_common_settings(params: dict) -> None:
 
 def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill=math.nan) -> pd.Series:
     """A Series indexed Q, N, B, K, R, filled from ``values`` (missing keys get ``fill``)."""
+    import pandas as pd
+
     values = values or {}
     bad = set(values) - set(COEFFICIENTS)
     if bad:
@@ -312,6 +335,8 @@ class Estimator:
     # -- presentation --------------------------------------------------------------------------
     def summary(self, units: dict[str, str] | None = None) -> pd.DataFrame:
         """The fitted coefficients in SI and in ``units`` (default: the papers' units)."""
+        import pandas as pd
+
         from noise_models.units import PAPER_UNITS, SI_UNITS, from_si
 
         units = units or PAPER_UNITS

@@ -48,7 +48,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
 from noise_models.units import COEFFICIENTS
 
@@ -219,4 +218,6 @@ def crlb(gyro, n_samples: int) -> pd.Series:
             out[c] = math.nan
     for c in unbounded:
         out[c] = math.nan
+    import pandas as pd
+
     return pd.Series(out, index=list(COEFFICIENTS), dtype=float)

@@ -6,9 +6,13 @@
 0.1
 """
 
-from noise_models import presets, units
-from noise_models.gyro import Gyro
-from noise_models.terms import (
+from noise_models._numba_cache import ensure_cache_dir as _ensure_cache_dir
+
+_ensure_cache_dir()  # before any module with compiled kernels is imported
+
+from noise_models import presets, units  # noqa: E402
+from noise_models.gyro import Gyro  # noqa: E402
+from noise_models.terms import (  # noqa: E402
     AngleRandomWalk,
     BiasInstability,
     GaussMarkov,

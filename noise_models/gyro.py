@@ -6,7 +6,6 @@ import math
 from collections.abc import Iterator, Sequence
 
 import numpy as np
-import pandas as pd
 
 from noise_models.terms import NoiseTerm, _check_dt, _check_n
 from noise_models.units import COEFFICIENTS
@@ -102,6 +101,8 @@ class Gyro:
         values = {}
         for t in self.terms:
             values.update(t.coefficients())
+        import pandas as pd  # imported where used: `import noise_models` stays light
+
         return pd.Series([values.get(c, math.nan) for c in COEFFICIENTS], index=list(COEFFICIENTS), dtype=float)
 
     # -- truth ---------------------------------------------------------------------------------

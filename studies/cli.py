@@ -21,7 +21,8 @@ import re
 import sys
 from pathlib import Path
 
-import numpy as np
+# Heavy libraries (numpy, pandas, the simulators and estimators) are imported inside the commands:
+# `avbench --help` and every subcommand's help must start in a fraction of a second.
 
 __all__ = ["main", "build_parser"]
 
@@ -35,6 +36,8 @@ def _fail(msg: str) -> int:
 
 
 def cmd_presets(args) -> int:
+    import numpy as np
+
     from noise_models import presets
     from noise_models.units import PAPER_UNITS, from_si
 
@@ -131,6 +134,8 @@ def _plain_help(parser: argparse.ArgumentParser) -> None:
 
 
 def _n_samples(args, dt: float, default_s: float) -> int:
+    import numpy as np
+
     given = [x is not None for x in (args.hours, args.seconds, args.samples)]
     if sum(given) > 1:
         raise ValueError("give at most one of --hours, --seconds, --samples")
@@ -174,6 +179,8 @@ def _available_memory() -> int | None:
 
 
 def cmd_simulate(args) -> int:
+    import numpy as np
+
     from estimators.allan import allan_variance
     from noise_models import presets
     from noise_models.units import rate_to_si
@@ -236,6 +243,14 @@ def cmd_studies(args) -> int:
 
 
 def cmd_run(args) -> int:
+    from studies.workers import started_early
+
+    # local workers start now and import while this process reads the config
+    with started_early(args.jobs if _local_pool_wanted(args) else None):
+        return _run(args)
+
+
+def _run(args) -> int:
     from studies import packaged
     from studies.config import load_config
     from studies.runner import run_study
@@ -261,6 +276,17 @@ def cmd_run(args) -> int:
     return 0
 
 
+def _local_pool_wanted(args) -> bool:
+    """Local workers will be needed (valid --jobs other than 1, no dask backend asked for)."""
+    jobs = args.jobs
+    return (
+        isinstance(jobs, int)
+        and (jobs > 1 or -(os.cpu_count() or 1) <= jobs <= -1)
+        and args.backend in (None, "loky")
+        and not args.scheduler
+    )
+
+
 def cmd_table(args) -> int:
     from studies.report import read_summary, render_latex, render_markdown
 
@@ -277,7 +303,17 @@ def cmd_table(args) -> int:
 # -- parser -------------------------------------------------------------------------------------
 
 
-def build_parser() -> argparse.ArgumentParser:
+#: the one-line help of ``avbench estimate`` in the list of commands (as in studies.estimate.add_parser)
+ESTIMATE_HELP = "fit the noise coefficients of a static IMU recording"
+
+
+def _command(argv) -> str | None:
+    """The subcommand named in ``argv`` (its first positional word), if any."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def build_parser(argv=None) -> argparse.ArgumentParser:
+    """The ``avbench`` parser; given ``argv``, commands other than the one it names are only listed."""
     p = argparse.ArgumentParser(
         prog="avbench",
         description=(
@@ -337,12 +373,12 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--csv", action="store_true", help="CSV")
     s.set_defaults(func=cmd_table)
 
-    try:
-        from studies import estimate
+    if argv is None or _command(argv) == "estimate":
+        from studies import estimate  # imports numpy and pandas: only when its parser is needed
 
         estimate.add_parser(sub)
-    except ImportError:
-        pass
+    else:  # the same entry in the list of commands, without importing it
+        sub.add_parser("estimate", help=ESTIMATE_HELP)
     try:
         import bench.__main__ as bench_main
 
@@ -354,7 +390,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

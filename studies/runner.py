@@ -201,19 +201,11 @@ def _compute_block(cfg: StudyConfig, task: Task) -> tuple[Task, pd.DataFrame]:
     Workers never write files (on a cluster they may not share the client's disk): the process
     that runs the study saves each block as it arrives.
     """
-    _one_numba_thread()
+    from studies.workers import one_numba_thread
+
+    one_numba_thread()
     cfg.import_plugins()  # the same plugin modules as the process that loaded the config
     return task, run_block(cfg, task)
-
-
-def _one_numba_thread() -> None:
-    """Workers already fill the cores: numba's parallel kernels in each would oversubscribe them."""
-    try:
-        import numba
-
-        numba.set_num_threads(1)
-    except (ImportError, ValueError):  # pragma: no cover
-        pass
 
 
 def _save_block(shard_dir: Path, task: Task, df: pd.DataFrame) -> None:
@@ -345,26 +337,20 @@ def _execute(cfg, todo, shard_dir, n_jobs, backend, scheduler, bar, max_retries)
         for t in todo:
             done(t, run_block(cfg, t))
         return
-    from joblib import Parallel, delayed, parallel_config
-
     with contextlib.ExitStack() as stack:
         if backend == "dask":
             client = stack.enter_context(_dask_context(scheduler, n_jobs))
-            config = dict(backend="dask", client=client.client, wait_for_workers_timeout=120)
+            run = _dask_runner(client.client)
         else:
-            config = dict(backend="loky", n_jobs=n_jobs)
+            run = _local_runner(n_jobs)
         remaining, attempt = list(todo), 0
         while remaining:
             attempt += 1
             try:
-                with parallel_config(**config):
-                    # one task per block (the blocks are the chunks); results come back as they
-                    # finish and are saved here at once, so a later failure loses nothing
-                    results = Parallel(return_as="generator_unordered", batch_size=1)(
-                        delayed(_compute_block)(cfg, t) for t in remaining
-                    )
-                    for task, df in results:
-                        done(task, df)
+                # one task per block (the blocks are the chunks); results come back as they
+                # finish and are saved here at once, so a later failure loses nothing
+                for task, df in run(cfg, remaining):
+                    done(task, df)
                 remaining = []
             except Exception as e:
                 remaining = [t for t in remaining if not (shard_dir / t.shard_name).exists()]
@@ -389,6 +375,53 @@ def _execute(cfg, todo, shard_dir, n_jobs, backend, scheduler, bar, max_retries)
                     f"{len(remaining)} block(s), attempt {attempt + 1} of {max_retries + 1}",
                     file=sys.stderr,
                 )
+
+
+def _dask_runner(client):
+    """Blocks on a dask cluster (through joblib's dask backend), yielded as they finish."""
+
+    def run(cfg, tasks):
+        from joblib import Parallel, delayed, parallel_config
+
+        with parallel_config(backend="dask", client=client, wait_for_workers_timeout=120):
+            yield from Parallel(return_as="generator_unordered", batch_size=1)(
+                delayed(_compute_block)(cfg, t) for t in tasks
+            )
+
+    return run
+
+
+def _local_runner(n_jobs: int):
+    """Blocks on the local worker pool, yielded as they finish; on any error the pool is stopped.
+
+    At most two blocks per worker are queued at a time (the rest are submitted as blocks finish),
+    so that stopping the pool has little to discard.
+    """
+
+    def run(cfg, tasks):
+        from concurrent.futures import FIRST_COMPLETED, wait
+
+        from studies.workers import local_workers, worker_count
+
+        executor = local_workers(n_jobs)
+        window = 2 * worker_count(n_jobs)
+        todo, running = iter(tasks), set()
+        try:
+            while True:
+                for t in todo:
+                    running.add(executor.submit(_compute_block, cfg, t))
+                    if len(running) >= window:
+                        break
+                if not running:
+                    return
+                finished, running = wait(running, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    yield f.result()
+        except BaseException:
+            executor.shutdown(wait=True, kill_workers=True)  # stop the queued and the running blocks
+            raise
+
+    return run
 
 
 def _block_label(cfg, t: Task) -> str:
@@ -442,10 +475,10 @@ class _dask_context:
                     "(start one with 'dask scheduler' and workers with 'dask worker ADDRESS')"
                 ) from None
         else:
-            cpus = os.cpu_count() or 1
-            workers = self.n_jobs if self.n_jobs > 0 else max(1, cpus + 1 + self.n_jobs)
+            from studies.workers import worker_count
+
             self.cluster = LocalCluster(
-                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
+                n_workers=worker_count(self.n_jobs), threads_per_worker=1, processes=True, dashboard_address=":0"
             )
             self.client = Client(self.cluster)
         return self

@@ -3,7 +3,10 @@
 No timing assertions: only that every output exists and has the expected structure.
 """
 
+import argparse
 import json
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,7 +33,8 @@ def test_quick_run_writes_outputs(tmp_path, monkeypatch):
     assert {"cpu_count", "loadavg_1_5_15", "numpy"} <= set(payload["machine"])
     cases = payload["cases"]
     benches = {c["benchmark"] for c in cases}
-    assert {"Generation", "AllanOverlapping", "AllanEngine", "EstimatorScaling", "StreamingMemory"} <= benches
+    assert {"Generation", "AllanOverlapping", "AllanEngine", "EstimatorScaling", "StreamingMemory", "QuickStartUp",
+            "FirstCall"} <= benches
     for c in cases:
         if c["kind"] == "time":
             assert c["median_s"] > 0 and c["repeats"] >= 1
@@ -46,6 +50,30 @@ def test_quick_run_writes_outputs(tmp_path, monkeypatch):
     assert read["time_read"]["baseline_median_s"] > 0 and read["peakmem_read"]["peak_over_data"] > 0
     readme = (tmp_path / "README.md").read_text()
     assert "## Targets" in readme and "allantools" in readme
+    # start-up and first-call rows are in the targets table, measured, with no claim in a quick run
+    targets = {t["target"]: t for t in payload["targets"]}
+    for key in ("`avbench --help`", "`import estimators, noise_models`", "a second process pays"):
+        row = next(t for name, t in targets.items() if name.startswith(key))
+        assert row["met"] is None and row["measured"]
+    first = next(c for c in cases if c["benchmark"] == "FirstCall")
+    assert first["first_ever_s"] > -1 and first["second_process_s"] > -1 and first["fit_s"] > 0
+    assert "## First call of each estimator" in readme
+
+
+def test_quick_run_never_writes_results_bench_unless_asked(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(suite.AllanEngine, "quick_params", [[10_000]])
+    assert main(["--quick", "--only", "AllanEngine"]) == 0
+    assert not (tmp_path / "results").exists()
+    wrote = capsys.readouterr().out.strip().splitlines()[-1]
+    folder = wrote.split()[1].rsplit("/README.md", 1)[0]
+    assert "avbench-bench-quick-" in folder and (Path(folder) / "results.json").is_file()
+    shutil.rmtree(folder)
+    # a full run (no --quick) and an explicit --out keep their folders
+    from bench.__main__ import output_folder
+
+    assert output_folder(argparse.Namespace(out=None, quick=False)) == Path("results/bench")
+    assert output_folder(argparse.Namespace(out="x", quick=True)) == Path("x")
 
 
 def test_harness_grid_budget_and_skip():

@@ -203,3 +203,72 @@ def test_killed_study_resumes_to_the_uninterrupted_result(tmp_path):
     resumed = read_tidy(out)  # estimates stored to 9 significant digits
     straight = run_study(cfg, tmp_path / "straight", progress=False, make_report=False)
     pd.testing.assert_frame_equal(resumed[COLS], straight[COLS], check_exact=False, rtol=1e-8, check_dtype=False)
+
+
+def _children(pid: int) -> set[int]:
+    """Live (non-zombie) processes whose parent is ``pid`` (Linux /proc)."""
+    out = set()
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                fields = (d / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid and fields[0] != "Z":
+                out.add(int(d.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def _read_to_eof(stream, timeout: float = 10.0) -> bytes:
+    """Everything left in a pipe until EOF; fails if some process still holds its write end."""
+    os.set_blocking(stream.fileno(), False)
+    data, t0 = b"", time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        chunk = stream.read()
+        if chunk == b"":
+            return data
+        data += chunk or b""
+        time.sleep(0.1)
+    raise AssertionError("the stopped study's output pipe is still held open by another process")
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc to list the workers")
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
+def test_stopped_parent_leaves_no_workers(tmp_path, sig):
+    """SIGKILL (or Ctrl-C) of ``avbench run --jobs 2`` while its workers compute: every process it
+    started (loky workers, resource trackers) exits within seconds, none keeps the caller's stdout or
+    stderr open, and Ctrl-C ends with the resume message and no traceback."""
+    config = tmp_path / "study.toml"
+    config.write_text(toml(seed=5, replicates=40, block_size=1, n_samples=200_000))
+    out = tmp_path / "out"
+    shard_dir = out / "_shards" / load_config(config).result_key()
+    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "studies.cli", "run", str(config), "--out", str(out), "--no-progress", "--jobs", "2"],
+        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )
+    _wait_for_shards(shard_dir, 1, proc)  # the workers are running blocks
+    children = _children(proc.pid)
+    assert len(children) >= 2, children  # at least the two workers
+    proc.send_signal(sig)
+    proc.wait(timeout=30)
+    t0 = time.monotonic()
+    while any(_alive(p) for p in children) and time.monotonic() - t0 < 10:
+        time.sleep(0.1)
+    survivors = [p for p in children if _alive(p)]
+    for p in survivors:  # clean up before failing
+        os.kill(p, signal.SIGKILL)
+    assert not survivors, f"{len(survivors)} process(es) of the stopped study still alive after 10 s"
+    _read_to_eof(proc.stdout)
+    err = _read_to_eof(proc.stderr).decode()
+    if sig == signal.SIGINT:
+        assert proc.returncode == 130, err
+        assert "rerun the same command to resume" in err and "Traceback" not in err, err

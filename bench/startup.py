@@ -1,0 +1,162 @@
+"""What a user waits for before any work: start-up, the first call of a compiled filter, parallel studies.
+
+Every figure is measured in fresh child processes (the runner's own imports and caches never count):
+
+* :func:`help_times` -- wall time of ``avbench --help`` and of every subcommand's help, against the
+  bare interpreter (``python -c pass``) timed in the same loop;
+* :func:`import_cpu` -- CPU seconds of ``import estimators, noise_models`` (``time.process_time``
+  around the import in a fresh interpreter);
+* :func:`first_call` -- for one estimator, with an empty numba cache folder (``NUMBA_CACHE_DIR``, so
+  the user's own cache is neither used nor touched): a first process compiles (the first-ever cost),
+  a second process loads the kernels from that cache; each fits the same record twice, and the
+  first-call cost is the first fit minus the second (what the fit imports lazily included; the
+  import of the estimator's own module is timed apart);
+* :func:`study_walls` -- ``avbench run studies/lv2015.toml`` with ``--jobs 1`` and ``--jobs 2``,
+  alternated, each into a fresh output folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["help_times", "import_cpu", "first_call", "study_walls", "HELP_COMMANDS", "FIRST_CALL_ESTIMATORS"]
+
+ROOT = Path(__file__).resolve().parents[1]
+#: the help screens timed: the program's and every subcommand's
+HELP_COMMANDS = [[], ["presets"], ["estimators"], ["studies"], ["simulate"], ["run"], ["table"], ["estimate"],
+                 ["check-estimator"], ["bench"]]
+#: estimators whose first call is measured (the compiled filters and the optimiser-based fits)
+FIRST_CALL_ESTIMATORS = ["shakf", "shakf_multitau", "nekf", "nekf_multitau", "arma_em", "mle", "gmwm", "wls"]
+
+
+def _env(**extra) -> dict:
+    return {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+            "MPLBACKEND": "Agg", **extra}
+
+
+def _avbench() -> list[str]:
+    """The installed ``avbench`` script beside this interpreter, else ``python -m studies.cli``."""
+    script = Path(sys.executable).with_name("avbench")
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "studies.cli"]
+
+
+def _wall(cmd, env=None) -> float:
+    t0 = time.perf_counter()
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT, env=env or _env())
+    return time.perf_counter() - t0
+
+
+def help_times(repeats: int = 5) -> dict:
+    """Median wall seconds of each help screen and of the bare interpreter (same loop, alternated)."""
+    cmds = {"python -c pass": [sys.executable, "-c", "pass"]}
+    cmds.update({" ".join(["avbench", *sub, "--help"]): _avbench() + [*sub, "--help"] for sub in HELP_COMMANDS})
+    times: dict[str, list[float]] = {k: [] for k in cmds}
+    for _ in range(repeats):
+        for k, c in cmds.items():
+            times[k].append(_wall(c))
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    helps = {k: v for k, v in med.items() if k.startswith("avbench")}
+    worst = max(helps, key=helps.get)
+    return {"help_max_s": helps[worst], "help_worst": worst, "help_median_s": float(np.median(list(helps.values()))),
+            "interpreter_s": med["python -c pass"], "help_s": helps, "repeats": repeats}
+
+
+def import_cpu(repeats: int = 5, modules: str = "estimators, noise_models") -> dict:
+    """CPU seconds (median) of ``import <modules>`` in a fresh interpreter, and its wall time."""
+    code = (f"import time; c = time.process_time(); w = time.perf_counter(); import {modules}; "
+            "print(time.process_time() - c, time.perf_counter() - w)")
+    cpu, wall = [], []
+    for _ in range(repeats):
+        out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, cwd=ROOT,
+                             env=_env()).stdout.split()
+        cpu.append(float(out[0]))
+        wall.append(float(out[1]))
+    return {"import_cpu_s": float(np.median(cpu)), "import_wall_s": float(np.median(wall)), "repeats": repeats}
+
+
+_FIRST_CALL_CHILD = r"""
+import json, sys, time, warnings
+import numpy as np
+t0 = time.perf_counter()
+import estimators
+from noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
+name, settings = sys.argv[1], json.loads(sys.argv[2])
+g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=8.7e-4), GaussMarkov(sigma=1e-4, tc=50.0), RateRandomWalk(K=2e-6)])
+truth = {c: float(g.coefficients[c]) for c in "NBK"}
+settings = {k: (truth if v == "truth" else v) for k, v in settings.items()}
+rate = g.simulate(20_000, np.random.default_rng(0))
+t1 = time.perf_counter()
+estimators.estimator_class(name)  # the estimator's module (and what it imports at its top)
+t2 = time.perf_counter()
+fits = []
+for _ in range(2):
+    est = estimators.get(name, **settings)
+    t = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with np.errstate(all="ignore"):
+            est.fit(rate, g.dt)
+    fits.append(time.perf_counter() - t)
+print(json.dumps({"setup_s": t1 - t0, "module_s": t2 - t1, "first_fit_s": fits[0], "second_fit_s": fits[1]}))
+"""
+
+
+def first_call(estimator: str, settings: dict) -> dict:
+    """First-ever compile cost and the second process's first-call cost of one estimator (seconds).
+
+    ``settings`` may hold the string "truth" for ``x0`` (the record's true N, B, K).
+    """
+    cache = tempfile.mkdtemp(prefix="avbench_numba_cache_")
+    try:
+        runs = []
+        for _ in range(2):  # 1: empty cache (compiles and writes it); 2: a later process (loads it)
+            out = subprocess.run([sys.executable, "-c", _FIRST_CALL_CHILD, estimator, json.dumps(settings)],
+                                 check=True, capture_output=True, text=True, cwd=ROOT,
+                                 env=_env(NUMBA_CACHE_DIR=cache), timeout=900)
+            runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+    cold, warm = runs
+    return {
+        "first_ever_s": cold["first_fit_s"] - cold["second_fit_s"],
+        "second_process_s": warm["first_fit_s"] - warm["second_fit_s"],
+        "fit_s": min(cold["second_fit_s"], warm["second_fit_s"]),
+        "second_process_first_fit_s": warm["first_fit_s"],
+        "second_process_setup_s": warm["setup_s"],
+        "second_process_module_s": warm["module_s"],
+    }
+
+
+def study_walls(study: str = "lv2015", rounds: int = 2, warm: bool = True) -> dict:
+    """Wall seconds of ``avbench run <study> --jobs 1`` and ``--jobs 2`` (alternated, medians).
+
+    ``warm``: first an untimed one-replicate run (kernels in numba's disk cache, files in the OS cache).
+    """
+    config = ROOT / "studies" / f"{study}.toml"
+
+    def run(jobs, *extra):
+        out = Path(tempfile.mkdtemp(prefix="avbench_bench_study_"))
+        try:
+            return _wall(_avbench() + ["run", str(config), "--jobs", str(jobs), "--out", str(out), "--no-progress",
+                                       *extra])
+        finally:
+            shutil.rmtree(out, ignore_errors=True)
+
+    if warm:
+        run(1, "--replicates", "1")
+    walls: dict[int, list[float]] = {1: [], 2: []}
+    for r in range(rounds):
+        for jobs in ((2, 1) if r % 2 else (1, 2)):
+            walls[jobs].append(run(jobs))
+    j1, j2 = float(np.median(walls[1])), float(np.median(walls[2]))
+    return {"wall_jobs1_s": j1, "wall_jobs2_s": j2, "speedup": j1 / j2, "rounds": rounds,
+            "loadavg_after": list(os.getloadavg())}

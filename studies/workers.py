@@ -1,0 +1,100 @@
+"""The local worker processes of a study: started early, warm for every block, gone with their parent.
+
+A study run with ``--jobs N`` (backend "loky") uses one pool of ``N`` processes per Python process
+(a loky reusable executor). Each worker, when it starts (:func:`_init_worker`), imports the study
+runner once and runs numba kernels and BLAS on one thread (the workers already fill the cores); the
+compiled kernels come from numba's disk cache, so a worker pays imports and cache loads once, never
+per block. ``avbench run`` calls :func:`local_workers` before it reads the config, so the workers
+start while the parent is still importing.
+
+No orphans: if the process running the study dies without shutting the pool down (SIGKILL, a
+crash), its workers are re-parented; each notices within :data:`PARENT_POLL_S` seconds and exits,
+and loky's resource trackers, which wait for the workers, exit with them.
+
+This module imports only the standard library (``avbench run`` imports it before anything heavy).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+import time
+
+__all__ = ["local_workers", "started_early", "worker_count", "one_numba_thread", "PARENT_POLL_S", "IDLE_WORKER_TIMEOUT_S"]
+
+#: seconds between two checks, in a local worker, that the process running the study is alive
+PARENT_POLL_S = 0.5
+#: seconds an idle local worker waits for more blocks before it exits (it is reused meanwhile)
+IDLE_WORKER_TIMEOUT_S = 300
+
+
+def worker_count(n_jobs: int) -> int:
+    """Processes for ``n_jobs``: itself if positive, else ``cpus + 1 + n_jobs`` (-1 = all cores)."""
+    cpus = os.cpu_count() or 1
+    return n_jobs if n_jobs > 0 else max(1, cpus + 1 + n_jobs)
+
+
+def local_workers(n_jobs: int, start: bool = False):
+    """The pool of warm local worker processes for ``n_jobs`` (a loky reusable executor).
+
+    The same pool is returned (and reused) for every call with the same ``n_jobs`` in this process;
+    ``start=True`` starts its processes now instead of at the first block.
+    """
+    from joblib.externals.loky import get_reusable_executor
+
+    workers = worker_count(n_jobs)
+    threads = str(max(1, (os.cpu_count() or 1) // workers))
+    executor = get_reusable_executor(
+        max_workers=workers,
+        timeout=IDLE_WORKER_TIMEOUT_S,
+        initializer=_init_worker,
+        initargs=(os.getpid(),),
+        env={v: threads for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
+    )
+    if start:
+        executor.submit(os.getpid)  # loky starts every worker at the first submission
+    return executor
+
+
+@contextlib.contextmanager
+def started_early(n_jobs: int | None):
+    """Start the local pool for ``n_jobs`` now (``None``: do nothing); stop it at once on an error.
+
+    An error (a bad config, Ctrl-C) must not wait for workers that are still importing.
+    """
+    if n_jobs is None:
+        yield None
+        return
+    executor = local_workers(n_jobs, start=True)
+    try:
+        yield executor
+    except BaseException:
+        executor.shutdown(wait=False, kill_workers=True)
+        raise
+
+
+def _init_worker(parent_pid: int) -> None:
+    """Run once in each local worker as it starts: exit with the parent, one thread, warm imports."""
+    if os.getppid() != parent_pid:  # the parent died before this worker started
+        os._exit(1)
+
+    def watch():
+        while True:
+            time.sleep(PARENT_POLL_S)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="avbench-exit-with-parent", daemon=True).start()
+    one_numba_thread()
+    import studies.runner  # noqa: F401  (imported once here, not with the first block)
+
+
+def one_numba_thread() -> None:
+    """Workers already fill the cores: numba's parallel kernels in each would oversubscribe them."""
+    try:
+        import numba
+
+        numba.set_num_threads(1)
+    except (ImportError, ValueError):  # pragma: no cover
+        pass

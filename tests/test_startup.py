@@ -1,0 +1,149 @@
+"""Start-up stays light: what ``import estimators, noise_models`` and ``avbench --help`` load, the lazy
+estimator registry, and where numba caches the compiled kernels.
+
+No timings here (they are in bench/): the checks are on which modules a fresh interpreter imports.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import pkgutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+HEAVY = ("pandas", "scipy.optimize", "statsmodels", "matplotlib", "joblib", "dask", "pyarrow")
+
+
+def _fresh_modules(code: str) -> set[str]:
+    """The modules loaded by ``code`` in a fresh interpreter."""
+    run = subprocess.run(
+        [sys.executable, "-c", code + "\nimport sys, json; print(json.dumps(sorted(sys.modules)))"],
+        capture_output=True, text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)}, check=True,
+    )
+    return set(json.loads(run.stdout.strip().splitlines()[-1]))
+
+
+def _heavy(mods: set[str]) -> list[str]:
+    return [h for h in HEAVY if h in mods]
+
+
+def test_import_loads_no_heavy_library_and_no_estimator_module():
+    mods = _fresh_modules("import estimators, noise_models")
+    assert not _heavy(mods)
+    loaded = {m for m in mods if m.startswith("estimators.")}
+    assert loaded <= {"estimators.base", "estimators.crlb"}, loaded
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["simulate", "--help"], ["studies", "--help"],
+                                  ["check-estimator", "--help"], ["bench", "--help"]])
+def test_help_imports_neither_simulators_nor_estimators(argv):
+    mods = _fresh_modules(
+        "import contextlib, io\nfrom studies.cli import main\n"
+        f"with contextlib.redirect_stdout(io.StringIO()):\n    try:\n        main({argv!r})\n    except SystemExit:\n        pass"
+    )
+    assert not _heavy(mods)
+    assert not {m for m in mods if m.split(".")[0] in ("estimators", "noise_models")}
+
+
+def test_listed_estimate_help_is_the_real_one():
+    """``avbench --help`` lists ``estimate`` without importing it: with the parser's own help line."""
+    import argparse
+
+    from studies.cli import build_parser
+
+    def listed(parser):
+        action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        return {c.dest: c.help for c in action._choices_actions}
+
+    assert listed(build_parser(["--help"]))["estimate"] == listed(build_parser())["estimate"]
+    assert listed(build_parser(["--help"])) == listed(build_parser())
+
+
+def test_registry_table_matches_what_the_modules_register():
+    """BUILTIN (name -> module:Class) is exactly what importing every estimator module registers."""
+    import estimators
+    from estimators.base import _REGISTRY, BUILTIN
+
+    for m in pkgutil.iter_modules(estimators.__path__):
+        if not m.name.startswith("_"):
+            importlib.import_module(f"estimators.{m.name}")
+    shipped = {n: f"{c.__module__}:{c.__qualname__}" for n, c in _REGISTRY.items() if c.__module__.startswith("estimators.")}
+    assert shipped == BUILTIN
+    assert set(BUILTIN) <= set(estimators.names())
+
+
+def test_lazy_names_and_user_registration():
+    code = (
+        "import estimators, sys\n"
+        "assert 'estimators.gmwm' not in sys.modules\n"
+        "assert estimators.estimator_class('gmwm').__name__ == 'GMWM' and 'estimators.gmwm' in sys.modules\n"
+        "from estimators import allan_variance, StreamingAllan\n"
+        "assert estimators.least_squares.WLS is estimators.estimator_class('wls')\n"
+        "@estimators.register('my_est')\n"
+        "class Mine(estimators.Estimator):\n"
+        "    '''A user's estimator.'''\n"
+        "assert 'my_est' in estimators.names() and estimators.get('my_est').__class__ is Mine\n"
+        "try:\n"
+        "    estimators.register('mle')(Mine)\n"
+        "except ValueError as e:\n"
+        "    assert 'already registered' in str(e)\n"
+        "else:\n"
+        "    raise AssertionError('a built-in name was taken over')\n"
+        "try:\n"
+        "    estimators.no_such_thing\n"
+        "except AttributeError:\n"
+        "    pass\n"
+        "print('ok')\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr
+
+
+def test_estimators_command_describes_every_estimator(capsys):
+    import estimators
+    from studies.cli import main
+
+    assert main(["estimators"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert [ln.split()[0] for ln in lines] == estimators.names()
+    assert all(len(ln.split(None, 1)) == 2 for ln in lines)  # a description on every line
+
+
+def test_numba_cache_falls_back_to_a_temp_folder(tmp_path, monkeypatch):
+    """Neither the source tree nor the user's cache folder writable: NUMBA_CACHE_DIR is set to a
+    writable per-user folder (numba would otherwise refuse to import a cache=True kernel)."""
+    from noise_models import _numba_cache as nc
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setattr(nc, "_checked", False)
+    monkeypatch.setattr(nc.os, "access", lambda *a, **k: False)
+    monkeypatch.setattr(nc, "_user_cache", lambda: blocker / "numba")  # cannot be created
+    monkeypatch.setattr(nc.tempfile, "gettempdir", lambda: str(tmp_path))
+    from numba.core import config
+
+    monkeypatch.setattr(config, "CACHE_DIR", config.CACHE_DIR)
+    folder = nc.ensure_cache_dir()
+    assert folder is not None and Path(folder).parent == tmp_path and Path(folder).is_dir()
+    assert os.environ["NUMBA_CACHE_DIR"] == folder == config.CACHE_DIR
+    # a user's own choice is never overridden
+    monkeypatch.setattr(nc, "_checked", False)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
+    assert nc.ensure_cache_dir() is None and os.environ["NUMBA_CACHE_DIR"] == str(tmp_path / "mine")
+
+
+def test_numba_cache_untouched_when_the_source_tree_is_writable(monkeypatch):
+    from noise_models import _numba_cache as nc
+
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setattr(nc, "_checked", False)
+    monkeypatch.setattr(nc.os, "access", lambda *a, **k: True)
+    assert nc.ensure_cache_dir() is None and "NUMBA_CACHE_DIR" not in os.environ
