@@ -71,7 +71,11 @@ class _AVCurveFit(Estimator):
         beta = solve_scaled(X[mask], av.avar[mask], None if scale is None else scale[mask])
         coefs, nonphys = coefficients_from_beta(beta, terms)
         fitted = X @ beta
+        from estimators.uncertainty import ls_std_err
+
+        rs = None if scale is None else scale[mask]
         diag = {
+            "std_err": ls_std_err(beta, terms, X[mask], rs, av, mask, dt),
             "allan": av,
             "used": mask,
             "beta": dict(zip(terms, beta)),

@@ -1,0 +1,187 @@
+"""Standard errors and confidence intervals of the coefficients, common to every estimator.
+
+After ``fit`` every estimator has ``std_err_`` (``pandas.Series`` indexed Q, N, B, K, R; SI; NaN
+where the method gives none) and ``conf_int(level=0.95, conservative=False)``. Where the standard
+errors come from:
+
+=====================  ==========================================================================
+``whittle``            inverse Whittle information at the estimate (:func:`estimators.crlb.crlb`)
+``gmwm``               GMM sandwich :math:`(D^T\\Omega^{-1}D)^{-1}` (Guerrier et al. 2013)
+``mle``                observed information of the exact likelihood, delta method
+LS curve fits          :func:`ls_std_err`: the sandwich of the least-squares solution with the
+                       covariance of the AV values under the fitted model (Isserlis; the same
+                       :func:`estimators.gmwm.av_covariance` GMWM weights with), delta method
+                       from :math:`\\beta` to the coefficients
+every estimator        :meth:`Estimator.bootstrap` (:func:`parametric_bootstrap`): refit
+                       ``n_draws`` records simulated from the fitted model with the exact
+                       generators of :mod:`noise_models`; the only source for the practitioners'
+                       baselines and the online filters (their cost is n_draws fits, so it is a
+                       call, never automatic)
+=====================  ==========================================================================
+
+Intervals (:func:`interval`). The coefficients are positive scale parameters; their estimators are
+closer to normal on the log scale (a variance estimate is roughly scaled chi^2), so the interval is
+:math:`c\\,\\exp(\\pm z\\,\\mathrm{se}/c)` (the delta-method interval of log c, mapped back): always
+positive, wider above than below, and identical to :math:`c \\pm z\\,\\mathrm{se}` to first order.
+A coefficient estimated as 0 (a term dropped by model selection, or a scale run to its floor) has
+lower bound 0 and the upper bound the estimator supplies (``diagnostics_["zero_upper"]`` times
+:math:`z^{p}`, p = ``diagnostics_["zero_upper_power"]``; ``whittle`` gives the boundary bound of a
+variance, :math:`c^2 \\le z\\,\\mathrm{se}(c^2)`), else NaN. Intervals ignore any bias of the estimator: coverage is
+what the coverage study measures.
+
+``conservative=True`` gives an *overbound* in the sense of Lethander & Taylor (NAVIGATION 2023):
+one-sided upper bounds that hold for all modelled coefficients at once with probability at least
+``level`` (Bonferroni over the p coefficients with a finite bound: each at one-sided level
+1 - (1 - level)/p); the lower column is then 0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from noise_models.units import COEFFICIENTS
+
+__all__ = ["interval", "ls_std_err", "parametric_bootstrap", "gyro_from_coefficients"]
+
+
+def _check_level(level) -> float:
+    if isinstance(level, bool) or not isinstance(level, (int, float, np.floating)) or not 0 < level < 1:
+        raise ValueError(f"level: expected a probability strictly between 0 and 1, got {level!r}")
+    return float(level)
+
+
+def interval(coefs: pd.Series, se: pd.Series, level=0.95, conservative=False, upper_if_zero=None) -> pd.DataFrame:
+    """Log-scale intervals for positive coefficients (module docstring); DataFrame lower, upper (SI)."""
+    level = _check_level(level)
+    c = coefs.reindex(list(COEFFICIENTS)).astype(float)
+    s = se.reindex(list(COEFFICIENTS)).astype(float)
+    ok = np.isfinite(c) & np.isfinite(s) & (c > 0)
+    z = _z(level, conservative, int(ok.sum()))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        r = np.where(ok, s / c, np.nan)
+        lower = np.where(ok, c * np.exp(-z * r), np.nan)
+        upper = np.where(ok, c * np.exp(z * r), np.nan)
+    zero = np.isfinite(c) & (c == 0)
+    lower = np.where(zero, 0.0, lower)
+    if upper_if_zero is not None:
+        u0 = upper_if_zero.reindex(list(COEFFICIENTS)).astype(float).to_numpy()
+        upper = np.where(zero, u0, upper)
+    if conservative:
+        lower = np.where(np.isfinite(upper), 0.0, lower)
+    return pd.DataFrame({"lower": lower, "upper": upper}, index=list(COEFFICIENTS))
+
+
+def _z(level, conservative, n_bounds):
+    if conservative:
+        return stats.norm.ppf(1 - (1 - level) / max(int(n_bounds), 1))
+    return stats.norm.ppf(0.5 + level / 2)
+
+
+def zero_quantile(level, conservative, se, coefs) -> float:
+    """The normal quantile :func:`interval` uses, for the bounds of terms estimated as 0."""
+    level = _check_level(level)
+    c = coefs.reindex(list(COEFFICIENTS)).astype(float)
+    s = se.reindex(list(COEFFICIENTS)).astype(float)
+    return float(_z(level, conservative, int((np.isfinite(c) & np.isfinite(s) & (c > 0)).sum())))
+
+
+def gyro_from_coefficients(coefs, dt: float, duration_s: float):
+    """The model a coefficient set stands for, with the exact generators: Q quantization, N white,
+    B flicker (Kasdin-Walter, ``tau_max`` = 2 x the record, as the presets), K random walk, R ramp.
+    NaN and zero coefficients are left out."""
+    from noise_models import AngleRandomWalk, BiasInstability, Gyro, Quantization, RateRamp, RateRandomWalk
+
+    make = {
+        "Q": lambda v: Quantization(Q=v),
+        "N": lambda v: AngleRandomWalk(N=v),
+        "B": lambda v: BiasInstability(B=v, tau_max=2 * duration_s),
+        "K": lambda v: RateRandomWalk(K=v),
+        "R": lambda v: RateRamp(R=v),
+    }
+    terms = [make[c](float(coefs[c])) for c in COEFFICIENTS if np.isfinite(coefs[c]) and coefs[c] > 0]
+    if not terms:
+        raise ValueError("bootstrap: the fit gave no positive coefficient to simulate from")
+    return Gyro(dt=dt, terms=terms)
+
+
+def parametric_bootstrap(estimator, n_samples: int, dt: float, n_draws: int = 20, seed=0) -> pd.Series:
+    """Standard errors (SI) by refitting ``n_draws`` records simulated from the fitted model.
+
+    ``estimator`` is fitted; each draw uses an independent stream
+    ``SeedSequence(seed).spawn(n_draws)`` and a clone of the estimator. The standard error is the
+    standard deviation of the physical refits (NaN with fewer than 3).
+    """
+    if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 3:
+        raise ValueError(f"n_draws: expected an integer >= 3, got {n_draws!r}")
+    g = gyro_from_coefficients(estimator.coefficients_, dt, n_samples * dt)
+    draws = []
+    for ss in np.random.SeedSequence(seed).spawn(int(n_draws)):
+        e = estimator.clone()
+        try:
+            e.fit(g.simulate(n_samples, np.random.default_rng(ss)), dt)
+        except Exception:  # a failed refit is a missing draw, as in the studies
+            continue
+        draws.append(e.coefficients_.to_numpy(dtype=float))
+    arr = np.array(draws) if draws else np.full((0, len(COEFFICIENTS)), np.nan)
+    out = {}
+    for j, c in enumerate(COEFFICIENTS):
+        v = arr[:, j][np.isfinite(arr[:, j])] if arr.size else np.array([])
+        out[c] = float(np.std(v, ddof=1)) if v.size >= 3 else math.nan
+    return pd.Series(out, dtype=float)
+
+
+def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask, dt: float) -> pd.Series:
+    """Standard errors of a least-squares AV-curve fit (sandwich with the AV covariance).
+
+    .. math::
+
+        \\mathrm{Cov}(\\hat\\beta) = A\\,\\Omega\\,A^T,\\quad A = (X^TW^2X)^{-1}X^TW^2,
+
+    :math:`W` the row scale (rows of ``av`` selected by ``mask``, as ``X``), :math:`\\Omega` the covariance of the AV values under the fitted model
+    (:func:`estimators.gmwm.av_covariance`; fitted coefficients with a negative :math:`\\beta` are
+    left out of the model). :math:`\\Omega` is the overlapping-AV covariance; for the non-overlapping
+    AV its diagonal is replaced by :math:`2\\,AV^2/\\mathrm{edf}` of the non-overlapping estimate
+    (the correlations kept), an approximation stated here. Delta method:
+    :math:`\\mathrm{se}(c) = \\mathrm{se}(\\beta_c)/(2\\,k_c\\,c)`, :math:`\\beta_c = k_c c^2`.
+    NaN for a coefficient without a physical estimate, and for all when the grid has more than
+    2,000 taus (the dense covariance would be too large: use an octave or decade grid).
+    """
+    from estimators.av_model import BETA_SCALE, coefficients_from_beta
+    from estimators.gmwm import av_covariance
+
+    out = pd.Series(math.nan, index=list(COEFFICIENTS), dtype=float)
+    m = np.asarray(av.m, dtype=float)[mask]
+    if m.size > 2000:
+        return out
+    coefs, _ = coefficients_from_beta(beta, terms)
+    clean = {c: (v if np.isfinite(v) else 0.0) for c, v in coefs.items()}
+    try:
+        g = gyro_from_coefficients(pd.Series(clean).reindex(list(COEFFICIENTS)), dt, av.n_samples * dt)
+    except ValueError:
+        return out
+    omega = av_covariance(g, m, av.n_samples)
+    if not av.overlapping:
+        from estimators.least_squares import _edf_nonoverlapping
+
+        sd = np.sqrt(np.diag(omega))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = omega / np.outer(sd, sd)
+        model = g.avar(np.asarray(av.tau)[mask])
+        sd_no = np.sqrt(2 * model**2 / _edf_nonoverlapping(np.asarray(av.J)[mask], np.full(m.size, "white_fm")))
+        omega = corr * np.outer(sd_no, sd_no)
+    w = np.ones(m.size) if row_scale is None else np.asarray(row_scale, dtype=float)
+    Xw = X * w[:, None]
+    try:
+        A = np.linalg.pinv(Xw) * w[None, :]
+    except np.linalg.LinAlgError:
+        return out
+    cov = A @ omega @ A.T
+    for j, c in enumerate(terms):
+        v = coefs[c]
+        if np.isfinite(v) and v > 0 and cov[j, j] >= 0:
+            out[c] = math.sqrt(cov[j, j]) / (2 * BETA_SCALE[c] * v)
+    return out
