@@ -9,9 +9,8 @@ errors come from:
 ``gmwm``               GMM sandwich :math:`(D^T\\Omega^{-1}D)^{-1}` (Guerrier et al. 2013)
 ``mle``                observed information of the exact likelihood, delta method
 LS curve fits          :func:`ls_std_err`: the sandwich of the least-squares solution with the
-                       covariance of the AV values under the fitted model (Isserlis; the same
-                       :func:`estimators.gmwm.av_covariance` GMWM weights with), delta method
-                       from :math:`\\beta` to the coefficients
+                       EDF (diagonal) covariance of the AV values under the fitted model, delta
+                       method from :math:`\\beta` to the coefficients
 every estimator        :meth:`Estimator.bootstrap` (:func:`parametric_bootstrap`): refit
                        ``n_draws`` records simulated from the fitted model with the exact
                        generators of :mod:`noise_models`; the only source for the practitioners'
@@ -134,52 +133,43 @@ def parametric_bootstrap(estimator, n_samples: int, dt: float, n_draws: int = 20
     return pd.Series(out, dtype=float)
 
 
-def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask, dt: float) -> pd.Series:
-    """Standard errors of a least-squares AV-curve fit (sandwich with the AV covariance).
+def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask) -> pd.Series:
+    """Standard errors of a least-squares AV-curve fit (sandwich with the EDF covariance of the AV).
 
     .. math::
 
-        \\mathrm{Cov}(\\hat\\beta) = A\\,\\Omega\\,A^T,\\quad A = (X^TW^2X)^{-1}X^TW^2,
+        \\mathrm{Cov}(\\hat\\beta) = A\\,\\Omega\\,A^T,\\quad A = (X^TW^2X)^{-1}X^TW^2,\\quad
+        \\Omega = \\mathrm{diag}(2\\,\\sigma^4_i/\\mathrm{edf}_i),
 
-    :math:`W` the row scale (rows of ``av`` selected by ``mask``, as ``X``), :math:`\\Omega` the covariance of the AV values under the fitted model
-    (:func:`estimators.gmwm.av_covariance`; fitted coefficients with a negative :math:`\\beta` are
-    left out of the model). :math:`\\Omega` is the overlapping-AV covariance; for the non-overlapping
-    AV its diagonal is replaced by :math:`2\\,AV^2/\\mathrm{edf}` of the non-overlapping estimate
-    (the correlations kept), an approximation stated here. Delta method:
-    :math:`\\mathrm{se}(c) = \\mathrm{se}(\\beta_c)/(2\\,k_c\\,c)`, :math:`\\beta_c = k_c c^2`.
-    NaN for a coefficient without a physical estimate, and for all when the grid has more than
-    2,000 taus (the dense covariance would be too large: use an octave or decade grid).
+    :math:`W` the row scale (``row_scale``; rows of ``X`` and ``av`` selected by ``mask``),
+    :math:`\\sigma^2_i` the fitted AV and :math:`\\mathrm{edf}_i` the equivalent degrees of freedom of
+    the noise type dominating it (:func:`estimators.least_squares.edf_of_rows`, as ``wls_edf``
+    weights). The AV values at different taus are correlated (adjacent octaves by 0.5-0.9 for
+    random-walk-like terms; :func:`estimators.gmwm.av_covariance` computes it, at a cost of seconds
+    per fit on long records): the diagonal ignores this, so these standard errors are optimistic
+    where the fit leans on the long taus (K, R) - the coverage study measures by how much.
+    Delta method: :math:`\\mathrm{se}(c) = \\mathrm{se}(\\beta_c)/(2\\,k_c\\,c)`, :math:`\\beta_c = k_c c^2`.
+    NaN for a coefficient without a physical estimate, and for all on grids denser than about
+    two taus per octave (median ratio of consecutive cluster sizes below 1.5, e.g. ``taus="all"``):
+    neighbouring AV values there are almost perfectly correlated and a diagonal covariance would
+    be wrong by orders of magnitude (use ``Estimator.bootstrap``).
     """
     from estimators.av_model import BETA_SCALE, coefficients_from_beta
-    from estimators.gmwm import av_covariance
+    from estimators.least_squares import edf_of_rows
 
     out = pd.Series(math.nan, index=list(COEFFICIENTS), dtype=float)
     m = np.asarray(av.m, dtype=float)[mask]
-    if m.size > 2000:
+    if m.size < 2 or np.median(m[1:] / m[:-1]) < 1.5:
         return out
+    level, edf = edf_of_rows(av, X, beta, terms)
+    var = (2 * level**2 / edf)[mask]
+    w = np.ones(var.size) if row_scale is None else np.asarray(row_scale, dtype=float)
+    Xm = X[mask]
+    norms = np.linalg.norm(Xm * w[:, None], axis=0)
+    norms[norms == 0] = 1.0
+    A = np.linalg.pinv(Xm * w[:, None] / norms) * w[None, :] / norms[:, None]
+    cov = (A * var[None, :]) @ A.T
     coefs, _ = coefficients_from_beta(beta, terms)
-    clean = {c: (v if np.isfinite(v) else 0.0) for c, v in coefs.items()}
-    try:
-        g = gyro_from_coefficients(pd.Series(clean).reindex(list(COEFFICIENTS)), dt, av.n_samples * dt)
-    except ValueError:
-        return out
-    omega = av_covariance(g, m, av.n_samples)
-    if not av.overlapping:
-        from estimators.least_squares import _edf_nonoverlapping
-
-        sd = np.sqrt(np.diag(omega))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            corr = omega / np.outer(sd, sd)
-        model = g.avar(np.asarray(av.tau)[mask])
-        sd_no = np.sqrt(2 * model**2 / _edf_nonoverlapping(np.asarray(av.J)[mask], np.full(m.size, "white_fm")))
-        omega = corr * np.outer(sd_no, sd_no)
-    w = np.ones(m.size) if row_scale is None else np.asarray(row_scale, dtype=float)
-    Xw = X * w[:, None]
-    try:
-        A = np.linalg.pinv(Xw) * w[None, :]
-    except np.linalg.LinAlgError:
-        return out
-    cov = A @ omega @ A.T
     for j, c in enumerate(terms):
         v = coefs[c]
         if np.isfinite(v) and v > 0 and cov[j, j] >= 0:
