@@ -312,6 +312,10 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     _atomic_text(out / "table.md", render_markdown(summary, meta))
     if len(cfg.gyros) > 1 or len(cfg.estimators) > 1:
         _atomic_text(out / "leaderboard.md", leaderboard(summary))
+    if "lower" in tidy.columns:  # coverage, RMSE/CRLB, bias/SE and tested wins (studies.scoring)
+        from studies.scoring import write_scores
+
+        write_scores(cfg, tidy, out)
     from studies.figures import study_figures
 
     study_figures(cfg, tidy, out)

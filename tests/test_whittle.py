@@ -69,11 +69,12 @@ def test_gauss_markov_bias_reports_b_equiv():
     assert abs(math.log(est.diagnostics_["tc"] / 60.0)) < 0.5
 
 
-def test_selection_finds_the_true_terms_on_a_long_record():
+@pytest.mark.parametrize("criterion", ["bic", "lr"])
+def test_selection_finds_the_true_terms_on_a_long_record(criterion):
     n = 144_000
     g = flicker_gyro(n)  # N, B, K present; Q and R absent
     x = g.simulate(n, np.random.default_rng(11))
-    est = estimators.get("whittle").fit(x, DT)
+    est = estimators.get("whittle", criterion=criterion).fit(x, DT)
     assert est.diagnostics_["terms"] == "NBK", est.diagnostics_["selection"]
     assert est.coefficients_["Q"] == 0 and est.coefficients_["R"] == 0
     ci = est.conf_int()
@@ -81,7 +82,7 @@ def test_selection_finds_the_true_terms_on_a_long_record():
 
 
 @pytest.mark.parametrize("bad", [dict(terms="X"), dict(bias="pink"), dict(select="yes"), dict(n_starts=0),
-                                 dict(terms="R")])
+                                 dict(terms="R"), dict(criterion="aic")])
 def test_bad_settings_are_clear_errors(bad):
     x = np.random.default_rng(0).standard_normal(1000)
     with pytest.raises(ValueError):
