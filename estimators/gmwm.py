@@ -98,15 +98,8 @@ def build_gyro(latents, values, dt, flicker_tau_max=None):
     """A ``noise_models.Gyro`` from latent names and parameter values (SI; Tc in s).
 
     ``flicker_tau_max``: the filter memory of a flicker latent "FL" (required with it)."""
-    from noise_models import (
-        AngleRandomWalk,
-        BiasInstability,
-        GaussMarkov,
-        Gyro,
-        Quantization,
-        RateRamp,
-        RateRandomWalk,
-    )
+    from noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp
+    from noise_models import RateRandomWalk
 
     it = iter(values)
     terms = []

@@ -1,12 +1,11 @@
 """GMWM with a flicker latent ("FL"): the exact discrete flicker AV as the latent's theoretical AV."""
 
-import math
 
 import numpy as np
 import pytest
-from scipy import stats
 
 import estimators
+from conftest import assert_mc_recovery
 from estimators.gmwm import parse_model
 from noise_models import AngleRandomWalk, BiasInstability, Gyro, RateRandomWalk
 
@@ -36,15 +35,8 @@ def _replicates(R, n, seed):
 
 
 def _check(truth, est, se):
-    R = est.shape[0]
-    spread = est.std(axis=0, ddof=1)
-    t = stats.t.ppf(1 - 5e-4, R - 1)
-    # N and B unbiased within the Monte Carlo error (the model is the true one)
-    assert np.all(np.abs(est.mean(axis=0)[:2] - truth[:2]) < t * spread[:2] / math.sqrt(R)), (est.mean(axis=0), truth)
-    # GMM standard errors of N, B match the spread (chi^2_{R-1} 99.8 % interval)
-    ratio = spread[:2] ** 2 / np.mean(se[:, :2] ** 2, axis=0)
-    lo, hi = stats.chi2.ppf([0.001, 0.999], R - 1) / (R - 1)
-    assert np.all((ratio > lo) & (ratio < hi)), (ratio, lo, hi)
+    # N and B (the model is the true one; K's information is weak at these lengths)
+    assert_mc_recovery(truth[:2], est[:, :2], se[:, :2])
 
 
 def test_flicker_latent_recovers_b_small():

@@ -4,9 +4,9 @@ import math
 
 import numpy as np
 import pytest
-from scipy import stats
 
 import estimators
+from conftest import assert_mc_recovery
 from estimators._whittle_kernels import whittle_pass, whittle_pass_py
 from estimators.crlb import crlb
 from estimators.whittle import WhittleFit
@@ -100,16 +100,7 @@ def _monte_carlo(R, n, seed):
 
 
 def _check_monte_carlo(g, est, se):
-    R = est.shape[0]
-    truth = g.coefficients[["N", "B", "K"]].to_numpy()
-    spread = est.std(axis=0, ddof=1)
-    # unbiased within the Monte Carlo standard error (t quantile at 1e-3)
-    t = stats.t.ppf(1 - 5e-4, R - 1)
-    assert np.all(np.abs(est.mean(axis=0) - truth) < t * spread / math.sqrt(R)), (est.mean(axis=0), truth, spread)
-    # the standard errors match the spread: variance ratio inside the chi^2_{R-1} 99.8 % interval
-    ratio = spread**2 / np.mean(se**2, axis=0)
-    lo, hi = stats.chi2.ppf([0.001, 0.999], R - 1) / (R - 1)
-    assert np.all((ratio > lo) & (ratio < hi)), (ratio, lo, hi)
+    assert_mc_recovery(g.coefficients[["N", "B", "K"]].to_numpy(), est, se)
 
 
 def test_monte_carlo_standard_errors_small():
