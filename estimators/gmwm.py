@@ -47,8 +47,8 @@ flicker bias instability (B itself; beyond Guerrier et al. 2013, whose latents a
 state-space processes: its theoretical AV is the exact discrete curve of the Kasdin-Walter
 generator, :class:`noise_models.BiasInstability`, with filter memory ``tau_max`` = twice the record
 as in the presets, so that the plateau holds to the longest usable tau), ``RW`` rate random walk (K),
-``DR`` deterministic drift / rate ramp (R). ``GM`` and ``FL`` are alternatives for B (not both). Parameters are optimised on their
-logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts.
+``DR`` deterministic drift / rate ramp (R). ``GM`` and ``FL`` are alternatives for B (not both).
+Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts.
 """
 
 from __future__ import annotations

@@ -37,7 +37,8 @@ error adds the random walk's own mean drift, which no method can tell from a ram
 Optimisation: the log of every variance parameter (and of a Gauss-Markov Tc) by Fisher scoring
 (Newton steps with the expected information :math:`\\sum_k w_k\\,\\nabla\\log S\\,\\nabla\\log S^T`,
 backtracking on :math:`\\ell`); a term whose variance runs to its floor (1e-6 of the level at which
-it alone would reach the binned periodogram somewhere) is absent and reported as 0. One FFT, then O(n) per iteration: O(n log n) in all.
+it alone would reach the binned periodogram somewhere) is absent and reported as 0. One FFT, then
+O(n) per iteration (compiled, :mod:`estimators._whittle_kernels`): O(n log n) in all.
 Starting values: non-negative least squares of log-binned periodogram means on the basis spectra.
 
 Standard errors are the Cramér-Rao bound of :func:`estimators.crlb.crlb` evaluated at the estimate

@@ -48,8 +48,9 @@ def selection_rates(tidy: pd.DataFrame, crlb_rel: dict | None = None, length: st
         M = len(chosen)
         exact = sum(1 for _, r in chosen.iterrows() if {c for c in chosen.columns if r[c]} == true_set)
         lo, hi = _clopper_pearson(exact, M)
-        row = {"length": length, "gyro": g, "estimator": e, "true_set": "".join(sorted(true_set, key=COEFFICIENTS.index)),
-               "replicates": M, "exact": exact / M if M else math.nan, "exact_lo": lo, "exact_hi": hi}
+        row = {"length": length, "gyro": g, "estimator": e,
+               "true_set": "".join(sorted(true_set, key=COEFFICIENTS.index)), "replicates": M,
+               "exact": exact / M if M else math.nan, "exact_lo": lo, "exact_hi": hi}
         for c in COEFFICIENTS:
             if c in chosen.columns:
                 row[f"keep_{c}" if c in true_set else f"add_{c}"] = float(chosen[c].mean())
@@ -113,7 +114,8 @@ def main(argv=None) -> int:
 def _render(t: pd.DataFrame) -> str:
     from studies.scoring import _md_table
 
-    cols = ["length", "gyro", "true_set", "replicates", "exact", "exact_lo", "exact_hi", "max_crlb_rel", "target_applies"]
+    cols = ["length", "gyro", "true_set", "replicates", "exact", "exact_lo", "exact_hi", "max_crlb_rel",
+            "target_applies"]
     cols += [c for c in t.columns if c.startswith(("keep_", "add_"))]
     lines = ["# Term selection: share of replicates choosing exactly the true term set", "",
              "exact: share with the chosen set (coefficients estimated > 0) equal to the true set, with its "

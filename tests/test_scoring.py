@@ -40,3 +40,19 @@ def test_paired_ratio_win_and_tie():
     w2 = wins(tidy[tidy["estimator"] != "good"]).iloc[0]
     assert w2["verdict"] == "tie"
     assert "Wins" in render_scores(scores(tidy), wins(tidy))
+
+
+def test_selection_rates_count_the_exact_true_set():
+    from studies.selection import selection_rates
+
+    rows = []
+    # truth: N and B present, K absent; replicate 0 exact, 1 adds K, 2 drops B
+    chosen = {0: {"N": 1.0, "B": 1.0, "K": 0.0}, 1: {"N": 1.0, "B": 1.0, "K": 0.5}, 2: {"N": 1.0, "B": 0.0, "K": 0.0}}
+    truth = {"N": 1.0, "B": 2.0, "K": float("nan")}
+    for r, est in chosen.items():
+        for c, v in est.items():
+            rows.append(dict(gyro="g", replicate=r, estimator="w", coefficient=c, true=truth[c], estimate=v,
+                             nonphysical=False, failure=""))
+    t = selection_rates(pd.DataFrame(rows), {("g", "N"): 0.01, ("g", "B"): 0.2}).iloc[0]
+    assert t["true_set"] == "NB" and t["replicates"] == 3
+    np.testing.assert_allclose([t["exact"], t["keep_B"], t["add_K"], t["max_crlb_rel"]], [1 / 3, 2 / 3, 1 / 3, 0.2])
