@@ -339,13 +339,11 @@ class LvStudy:
 
 def _time_report(out: Path, study: str) -> float:
     """Seconds to rewrite the finished study's tables and figures (studies.report.write_report)."""
-    import pandas as pd
-
     from studies.config import load_config
-    from studies.report import write_report
+    from studies.report import read_tidy, write_report
 
     cfg = load_config(ROOT / "studies" / f"{study}.toml")
-    tidy = pd.read_parquet(out / "tidy.parquet")
+    tidy = read_tidy(out)
     (out / "_bench_report").mkdir()
     t0 = time.perf_counter()
     write_report(cfg, tidy, out / "_bench_report")

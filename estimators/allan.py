@@ -112,6 +112,29 @@ class AllanResult:
         return len(self.tau)
 
 
+TAU_GRIDS = ("octave", "decade", "all")
+
+
+def check_taus(taus) -> None:
+    """A ``taus`` setting must be one of :data:`TAU_GRIDS` or a non-empty 1-D array of positive seconds."""
+    if isinstance(taus, str):
+        if taus not in TAU_GRIDS:
+            raise ValueError(f"taus: expected one of {', '.join(TAU_GRIDS)} or an array of seconds, got {taus!r}")
+        return
+    ok = isinstance(taus, list | tuple | np.ndarray) and not any(isinstance(t, bool) for t in np.ravel(taus))
+    if ok:
+        try:
+            tau = np.asarray(taus, dtype=float)
+        except (TypeError, ValueError):
+            ok = False
+        else:
+            ok = tau.ndim == 1 and tau.size > 0 and bool(np.all(np.isfinite(tau))) and bool(np.all(tau > 0))
+    if not ok:
+        raise ValueError(
+            f"taus: expected one of {', '.join(TAU_GRIDS)} or a non-empty list of positive seconds, got {taus!r}"
+        )
+
+
 def cluster_sizes(taus, n: int, dt: float, points_per_decade: int = 10) -> np.ndarray:
     """Cluster sizes m for a tau specification and a record of ``n`` samples (m <= n // 2).
 
@@ -134,7 +157,8 @@ def cluster_sizes(taus, n: int, dt: float, points_per_decade: int = 10) -> np.nd
         if taus == "all":
             return np.arange(1, mmax + 1, dtype=np.int64)
         raise ValueError(f"taus: expected 'octave', 'decade', 'all' or an array of seconds, got {taus!r}")
-    tau = np.atleast_1d(np.asarray(taus, dtype=float))
+    check_taus(taus)
+    tau = np.asarray(taus, dtype=float)
     if tau.ndim != 1 or tau.size == 0 or not np.all(np.isfinite(tau)):
         raise ValueError(f"taus: expected a non-empty 1-D array of finite seconds, got {taus!r}")
     m = np.rint(tau / dt)
@@ -186,7 +210,9 @@ def _noise_from_slope(tau, avar, J) -> np.ndarray:
     if len(good) < 2:
         return out
     g = good
-    slope = np.gradient(np.log(np.maximum(avar[g], np.finfo(float).tiny)), np.log(tau[g]))
+    with np.errstate(invalid="ignore", divide="ignore"):  # an overflowed (inf) AV: slope NaN -> white FM
+        slope = np.gradient(np.log(np.maximum(avar[g], np.finfo(float).tiny)), np.log(tau[g]))
+    slope = np.where(np.isfinite(slope), slope, -1.0)
     kinds = [names[int(v)] for v in np.clip(np.rint(slope), -2, 1)]
     out[g] = kinds
     out[g[-1] + 1 :] = kinds[-1]

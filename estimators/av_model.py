@@ -42,13 +42,15 @@ TAU_POWER = {"Q": -2, "N": -1, "B": 0, "K": 1, "R": 2}
 
 def check_terms(terms) -> tuple[str, ...]:
     """Validate a collection of coefficient names; return them in canonical Q, N, B, K, R order."""
-    if isinstance(terms, str):
-        terms = list(terms)
-    terms = list(terms)
+    if not isinstance(terms, str | list | tuple):
+        raise ValueError(
+            f"terms: expected a string such as 'QNB' (a non-empty subset of {''.join(COEFFICIENTS)}), got {terms!r}"
+        )
+    given, terms = terms, list(terms)
     bad = [t for t in terms if t not in COEFFICIENTS]
     if bad or not terms or len(set(terms)) != len(terms):
         raise ValueError(
-            f"terms: expected a non-empty subset of {', '.join(COEFFICIENTS)} without repeats, got {terms!r}"
+            f"terms: expected a non-empty subset of {', '.join(COEFFICIENTS)} without repeats, got {given!r}"
         )
     return tuple(c for c in COEFFICIENTS if c in terms)
 
@@ -85,6 +87,6 @@ def model_avar(coefs: dict, tau) -> np.ndarray:
     out = np.zeros_like(tau)
     for c in COEFFICIENTS:
         v = coefs.get(c, math.nan) if hasattr(coefs, "get") else coefs[c]
-        if v is not None and np.isfinite(v):
-            out = out + BETA_SCALE[c] * v**2 * tau ** TAU_POWER[c]
+        if v is not None and np.isfinite(v):  # float64 arithmetic: an absurd value gives inf, not OverflowError
+            out = out + BETA_SCALE[c] * np.float64(v) ** 2 * tau ** TAU_POWER[c]
     return out

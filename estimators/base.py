@@ -52,6 +52,9 @@ __all__ = [
     "IdentifiabilityWarning",
     "check_record",
     "coefficient_series",
+    "data_scale_exponent",
+    "DT_RANGE",
+    "SAFE_SPREAD",
 ]
 
 
@@ -116,7 +119,28 @@ def get(name: str, **settings) -> "Estimator":
             f"estimator {name!r}: unknown setting(s) {', '.join(unknown)}; "
             f"accepted: {', '.join(accepted) or '(none)'}"
         )
+    try:
+        check_common_settings(settings)
+    except ValueError as e:
+        raise ValueError(f"estimator {name!r}: {e}") from None
     return cls(**settings)
+
+
+def check_common_settings(params: dict) -> None:
+    """Validate the settings several estimators share, wherever they appear.
+
+    ``terms``: a non-empty subset of QNBKR; ``taus``: "octave", "decade", "all" or a list of
+    positive seconds; ``overlapping``: a bool (a string such as "maybe" is refused, not read as true).
+    """
+    from estimators.allan import check_taus
+    from estimators.av_model import check_terms
+
+    if "terms" in params:
+        check_terms(params["terms"])
+    if "taus" in params:
+        check_taus(params["taus"])
+    if "overlapping" in params and not isinstance(params["overlapping"], bool | np.bool_):
+        raise ValueError(f"overlapping: expected true or false, got {params['overlapping']!r}")
 
 
 def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill=math.nan) -> pd.Series:
@@ -128,9 +152,19 @@ def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill
     return pd.Series([values.get(c, fill) for c in COEFFICIENTS], index=list(COEFFICIENTS), dtype=dtype)
 
 
+#: sample intervals an estimator accepts (1 ns .. ~11.6 days): beyond them tau**2 and tau**-2 in the
+#: Allan-variance model leave float64's comfortable range
+DT_RANGE = (1e-9, 1e6)
+
+
 def check_record(rate, dt) -> tuple[np.ndarray, float]:
-    """Validate a gyro record: 1-D, finite, at least 16 samples; ``dt`` finite and > 0."""
+    """Validate a gyro record: 1-D, finite, at least 16 samples; ``dt`` finite and in :data:`DT_RANGE`."""
     dt = check_dt(dt)
+    if not DT_RANGE[0] <= dt <= DT_RANGE[1]:
+        raise ValueError(
+            f"dt: expected a sample interval between {DT_RANGE[0]:g} s and {DT_RANGE[1]:g} s "
+            f"(a rate between {1 / DT_RANGE[1]:g} Hz and {1 / DT_RANGE[0]:g} Hz), got {dt!r} s"
+        )
     arr = np.asarray(rate)
     if arr.dtype.kind not in "iuf":
         raise ValueError(f"rate: expected numeric samples, got dtype {arr.dtype}")
@@ -186,11 +220,38 @@ class Estimator:
 
     # -- fitting -------------------------------------------------------------------------------
     def fit(self, rate, dt) -> "Estimator":
-        """Fit the coefficients to a gyro record ``rate`` (rad/s) sampled every ``dt`` seconds."""
+        """Fit the coefficients to a gyro record ``rate`` (rad/s) sampled every ``dt`` seconds.
+
+        Records whose spread lies outside :data:`SAFE_SPREAD` (e.g. data in wrong units scaled by
+        1e300 or 1e-200) are fitted in units of a power of two near their spread, and the
+        coefficients scaled back (every coefficient is linear in the rate): the scaling is exact, so
+        the estimates scale with the data instead of overflowing or underflowing to 0.
+        ``diagnostics_["data_scale"]`` then gives the unit (rad/s) the other diagnostics are in.
+        """
+        check_common_settings(self.get_params())
         rate, dt = check_record(rate, dt)
-        coefs, nonphys, diag = self._fit(rate, dt)
+        k = data_scale_exponent(rate)
+        if k == 0:
+            coefs, nonphys, diag = self._fit(rate, dt)
+        else:
+            factor = math.ldexp(1.0, k)
+            saved = {name: getattr(self, name) for name in self._rate_settings() if getattr(self, name) is not None}
+            try:
+                for name, value in saved.items():
+                    setattr(self, name, _scale_coefficients(name, value, 1.0 / factor))
+                coefs, nonphys, diag = self._fit(np.ldexp(rate, -k), dt)
+            finally:
+                for name, value in saved.items():
+                    setattr(self, name, value)
+            coefs = {c: float(v) * factor for c, v in coefs.items()}
+            diag = {**(diag or {}), "data_scale": factor}
         self._set_results(coefs, nonphys, diag)
         return self
+
+    @classmethod
+    def _rate_settings(cls) -> list[str]:
+        """Settings holding coefficient values (a mapping coefficient -> SI value), which scale with the data."""
+        return [n for n in cls._param_names() if n == "x0"]
 
     def _fit(self, rate: np.ndarray, dt: float):  # pragma: no cover - abstract
         raise NotImplementedError
@@ -259,6 +320,31 @@ class Estimator:
                 "nonphysical": self.nonphysical_,
             }
         ).loc[list(COEFFICIENTS)]
+
+
+#: the spread (max - min) of a record that estimators handle in SI as it is; outside it the fit runs
+#: in power-of-two scaled units (squares and fourth powers of the rate then stay inside float64)
+SAFE_SPREAD = (2.0**-60, 2.0**60)
+
+
+def data_scale_exponent(rate: np.ndarray) -> int:
+    """0 for a record whose spread is inside :data:`SAFE_SPREAD`, else k with spread / 2**k in [0.5, 1)."""
+    lo, hi = float(rate.min()), float(rate.max())
+    spread = hi - lo
+    if not math.isfinite(spread):  # max - min overflowed (values near the float64 limit)
+        spread = max(abs(lo), abs(hi))
+    if spread == 0.0 or SAFE_SPREAD[0] <= spread <= SAFE_SPREAD[1]:
+        return 0
+    return math.frexp(spread)[1]
+
+
+def _scale_coefficients(name: str, value, factor: float):
+    """A coefficient mapping (SI floats or (value, unit) pairs) multiplied by ``factor``, in SI."""
+    from noise_models.units import as_si
+
+    if not isinstance(value, dict):
+        return value  # the estimator's own validation reports what is wrong with it
+    return {c: as_si(c, v) * factor for c, v in value.items()}
 
 
 def warn(category, message: str) -> None:

@@ -155,7 +155,7 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
 
 @register("gmwm")
 class GMWM(Estimator):
-    """GMWM estimator of the Allan-variance coefficients (see the module docstring).
+    """Generalized method of wavelet moments on the overlapping AV (Guerrier et al. 2013), two-step GMM.
 
     Parameters
     ----------

@@ -136,7 +136,7 @@ _COMMON_DOC = """
 
 @register("nekf")
 class Nekf(_NekfBase):
-    """NEKF estimator of Miao et al. 2015 (eqs 48-57) on the recursive AV at tau0.
+    __doc__ = """NEKF estimator of Miao et al. 2015 (eqs 48-57) on the recursive AV at tau0.
     """ + _COMMON_DOC + """
     Examples
     --------
@@ -168,7 +168,7 @@ class Nekf(_NekfBase):
 
 @register("nekf_multitau")
 class NekfMultitau(_NekfBase):
-    """Extension: NEKF with the recursive AVs at cluster sizes ``m`` as a vector measurement.
+    __doc__ = """Extension: NEKF with the recursive AVs at cluster sizes ``m`` as a vector measurement.
 
     Not in Miao et al. 2015. As :class:`estimators.shakf.ShakfMultitau`: one scalar update per
     completed cluster of each size (diagonal ``Rbar``), ``m = [1]`` is exactly :class:`Nekf`;

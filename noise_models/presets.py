@@ -73,13 +73,19 @@ _MIAO15 = (
     "100 Hz), Allan-variance column: N deg/sqrt(h), B deg/h, K deg/h^(3/2)."
 )
 _FOG_NOTE = (
-    "Q is labelled '(deg)' in Table 3. Read literally, 0.0224 deg of angle quantization at 100 Hz "
-    "gives a rate noise of ~4 deg/s, absurd beside N = 0.005 deg/sqrt(h). We read it as arcsec "
+    "Q is labelled '(deg)' in Table 3. Read literally, {q} deg of angle quantization at 100 Hz "
+    "gives a rate noise (Allan deviation at 0.01 s, sqrt(3) Q / tau) of ~{rate:.1f} deg/s, absurd beside N = {n} deg/sqrt(h). We read it as arcsec "
     "(the IEEE Std 952 unit for Q; '\u00b0' for '\u2033' is a plausible typesetting slip): then "
     "quantization dominates the AV only below tau ~ 0.02 s, and ARW above it, as a FOG's AV curve "
     "looks. R (deg/h^2) is simulated as the deterministic ramp, not the paper's second-order "
     "Gauss-Markov stand-in (eq. 8), so that R^2 tau^2 / 2 holds exactly."
 )
+
+
+def _fog_note(q: float, n: float) -> str:
+    """The unit-reading note of a Miao et al. 2015 FOG, quoting that FOG's own Q and N."""
+    return _FOG_NOTE.format(q=q, n=n, rate=3**0.5 * q / 0.01)
+
 
 _PRESETS: dict[str, Preset] = {
     p.name: p
@@ -156,7 +162,7 @@ _PRESETS: dict[str, Preset] = {
                 "R": (0.3499, "deg/h^2"),
             },
             "Miao et al. (2015), Sensors 15, Table 3, #1 FOG (3 h static at 100 Hz), Allan-variance column.",
-            _FOG_NOTE,
+            _fog_note(q=0.0224, n=0.0050),
         ),
         Preset(
             "FOG2",
@@ -170,7 +176,7 @@ _PRESETS: dict[str, Preset] = {
                 "R": (0.1382, "deg/h^2"),
             },
             "Miao et al. (2015), Sensors 15, Table 3, #2 FOG (3 h static at 100 Hz), Allan-variance column.",
-            _FOG_NOTE,
+            _fog_note(q=0.0260, n=0.0051),
         ),
     ]
 }

@@ -13,6 +13,8 @@ avbench estimate rec.csv --fs 100 --units deg/s --method wls,gmwm   # your own r
 from __future__ import annotations
 
 import argparse
+import os
+import re
 import sys
 from pathlib import Path
 
@@ -53,10 +55,45 @@ def cmd_estimators(args) -> int:
     import estimators
 
     for name in estimators.names():
-        cls = estimators.estimator_class(name)
-        doc = (cls.__doc__ or "").strip().splitlines()[0] if cls.__doc__ else ""
-        print(f"{name:16s} {doc}")
+        print(f"{name:16s} {describe(estimators.estimator_class(name))}")
     return 0
+
+
+def describe(cls) -> str:
+    """The one-line description of an estimator class: its docstring's first line, as plain text."""
+    lines = (cls.__doc__ or "").strip().splitlines()
+    return plain_text(lines[0].strip()) if lines else ""
+
+
+_REST = [
+    (re.compile(r":[a-z]+:`~?([^`<]*?)(?:\s*<[^>]*>)?`"), r"\1"),  # :func:`x`, :class:`~a.b`, :ref:`t <x>`
+    (re.compile(r"``([^`]*)``"), r"\1"),  # ``literal``
+    (re.compile(r"`([^`]*)`_?"), r"\1"),  # `text`, `link`_
+    (re.compile(r"^\.\. [a-z-]+::.*$", re.MULTILINE), ""),  # directives
+]
+
+
+def plain_text(text: str) -> str:
+    """``text`` without reST markup (double back-quotes, roles, directives): help shows plain text."""
+    for pattern, repl in _REST:
+        text = pattern.sub(repl, text)
+    return text
+
+
+def _plain_help(parser: argparse.ArgumentParser) -> None:
+    """Strip reST markup from every help text, description and epilog of a parser and its subcommands."""
+    for attr in ("description", "epilog", "usage"):
+        if getattr(parser, attr, None):
+            setattr(parser, attr, plain_text(getattr(parser, attr)))
+    for action in parser._actions:
+        if action.help and action.help is not argparse.SUPPRESS:
+            action.help = plain_text(action.help)
+        if isinstance(action, argparse._SubParsersAction):
+            for choice in action._choices_actions:
+                if choice.help:
+                    choice.help = plain_text(choice.help)
+            for sub in set(action.choices.values()):
+                _plain_help(sub)
 
 
 # -- simulate -----------------------------------------------------------------------------------
@@ -75,7 +112,34 @@ def _n_samples(args, dt: float, default_s: float) -> int:
         n = int(round(seconds / dt))
     if n < 16:
         raise ValueError(f"record length: {n} samples is too short (need at least 16)")
+    need = n * SIMULATE_BYTES_PER_SAMPLE
+    free = _available_memory()
+    if free is not None and need > free:
+        raise ValueError(
+            f"record length: {n:,} samples need about {need / 2**30:.1f} GiB of memory to simulate and analyse, "
+            f"and {free / 2**30:.1f} GiB are available; expected a shorter record"
+        )
     return n
+
+
+#: bytes of memory per simulated sample: the record (8) and the Allan-variance engine's cumulative
+#: sum (8) and temporaries, with a margin
+SIMULATE_BYTES_PER_SAMPLE = 32
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available now (MemAvailable), or None where the system does not say."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
 
 
 def cmd_simulate(args) -> int:
@@ -84,10 +148,16 @@ def cmd_simulate(args) -> int:
     from noise_models.units import rate_to_si
 
     gyro = presets.get(args.preset)
+    if args.seed < 0:
+        raise ValueError(f"--seed: expected a non-negative integer, got {args.seed}")
     n = _n_samples(args, gyro.dt, presets.record_seconds(args.preset))
     out = Path(args.out) if args.out else None
-    if out is not None and out.suffix not in (".npy", ".csv"):
-        raise ValueError(f"--out: expected a .npy or .csv file name, got {args.out!r}")
+    if out is not None:
+        from studies.outputs import prepare_out_dir
+
+        if out.suffix not in (".npy", ".csv"):
+            raise ValueError(f"--out: expected a .npy or .csv file name, got {args.out!r}")
+        prepare_out_dir(out.parent, "--out", outputs=(out.name,))
     rng = np.random.default_rng(args.seed)
     rate = gyro.simulate(n, rng)
     av = allan_variance(rate, gyro.dt, taus=args.taus, overlapping=not args.non_overlapping)
@@ -105,18 +175,26 @@ def cmd_simulate(args) -> int:
             f"{hi[i]:12.5g} {truth[i]:12.5g} {a / truth[i]:7.3f}"
         )
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(out.name + ".tmp" + out.suffix)
-        if out.suffix == ".npy":
-            np.save(tmp, rate)
-        else:
-            np.savetxt(tmp, rate, header=f"rate_rad_s (dt = {gyro.dt} s, preset {args.preset}, seed {args.seed})")
-        tmp.replace(out)
+        from studies.outputs import tmp_name
+
+        tmp = tmp_name(out).with_suffix(out.suffix)
+        try:
+            if out.suffix == ".npy":
+                np.save(tmp, rate)
+            else:
+                np.savetxt(tmp, rate, header=f"rate_rad_s (dt = {gyro.dt} s, preset {args.preset}, seed {args.seed})")
+            tmp.replace(out)
+        finally:
+            tmp.unlink(missing_ok=True)
         print(f"# wrote {n} samples (rad/s) to {out}", file=sys.stderr)
     return 0
 
 
 # -- studies ------------------------------------------------------------------------------------
+
+#: files 'avbench run' writes into its --out (figures are named per gyro)
+REPORT_FILES = ("tidy.csv", "table.csv", "table.md", "leaderboard.md", "meta.json", "timings.csv", "timings.md",
+                "scores.csv", "scores.md")
 
 
 def cmd_run(args) -> int:
@@ -128,6 +206,9 @@ def cmd_run(args) -> int:
         overrides["replicates"] = args.replicates
     cfg = load_config(args.config, overrides)
     out = Path(args.out) if args.out else Path("results") / cfg.name
+    from studies.outputs import prepare_out_dir
+
+    prepare_out_dir(out, "--out", REPORT_FILES)
     run_study(
         cfg,
         out=out,
@@ -137,24 +218,16 @@ def cmd_run(args) -> int:
         progress=not args.no_progress,
     )
     print((out / "table.md").read_text())
-    print(f"# results in {out}/ (tidy.parquet, table.md, table.csv, figures)", file=sys.stderr)
+    print(f"# results in {out}/ (tidy.csv, table.md, table.csv, leaderboard.md, figures; fit times in timings.md)", file=sys.stderr)
     return 0
 
 
 def cmd_table(args) -> int:
-    import json
+    from studies.report import read_summary, render_latex, render_markdown
 
-    import pandas as pd
-
-    from studies.report import render_latex, render_markdown
-
-    d = Path(args.dir)
-    if not (d / "table.csv").is_file():
-        raise ValueError(f"{d}: no table.csv here; expected the output folder of 'avbench run'")
-    summary = pd.read_csv(d / "table.csv")
-    meta = json.loads((d / "meta.json").read_text()) if (d / "meta.json").is_file() else {}
+    summary, meta = read_summary(args.dir)  # ValueError for a foreign, corrupt or incomplete folder
     if args.latex:
-        print(render_latex(summary))
+        print(render_latex(summary, meta))
     elif args.csv:
         print(summary.to_csv(index=False))
     else:
@@ -225,6 +298,7 @@ def build_parser() -> argparse.ArgumentParser:
         bench_main.add_parser(sub)
     except (ImportError, AttributeError):
         pass
+    _plain_help(p)
     return p
 
 
@@ -236,8 +310,18 @@ def main(argv=None) -> int:
         return 0
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as e:
-        return _fail(str(e))
+    except BrokenPipeError:  # the reader went away (e.g. '| head'): not an error of ours
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 0
+    except (ValueError, OSError) as e:  # bad input, an unreadable or unwritable path: one line, exit 2
+        return _fail(_one_line(e))
+    except MemoryError:
+        return _fail("out of memory; use a shorter record or fewer replicates per block")
+    except RecursionError:
+        return _fail("input nested too deeply to read")
     except Exception as e:
         from studies.runner import StudyError
 
@@ -247,6 +331,13 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("avbench: interrupted; finished blocks are saved, rerun the same command to resume", file=sys.stderr)
         return 130
+
+
+def _one_line(e: BaseException) -> str:
+    """An exception as the one line a user reads; OSErrors name the path and the system's reason."""
+    if isinstance(e, OSError) and e.filename is not None and e.strerror:
+        return f"{e.filename}: {e.strerror}"
+    return str(e) if str(e) else type(e).__name__
 
 
 if __name__ == "__main__":

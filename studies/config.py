@@ -11,7 +11,7 @@ Schema (every key optional unless marked required)::
     block_size = 5              # replicates per task and per saved shard
     backend = "loky"            # "loky" (local processes) or "dask"
     scheduler = "tcp://..."     # dask scheduler address (backend = "dask"; none: local cluster)
-    paper_table = "../../shared/paper_tables/lv2015_tables_2_4_6.csv"  # relative to this file
+    paper_table = "paper_tables/lv2015_tables_2_4_6.csv"  # relative to this file; must be readable
     figure_gyros = ["SRS2000"]  # gyros that get figures (default: all)
     units = { Q = "arcsec" }    # table units per coefficient (default: the papers' units)
 
@@ -305,10 +305,11 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
             ctx.fail("study.scheduler", 'a scheduler address needs backend = "dask"')
         if not _SCHEDULER_RE.match(scheduler):
             ctx.fail("study.scheduler", f"expected a dask scheduler address like tcp://host:8786, got {scheduler!r}")
-    paper_table = None
+    paper_table = paper = None
     if "paper_table" in study:
         base = path.parent if path else Path.cwd()
         paper_table = (base / study["paper_table"]).resolve()
+        paper = _read_paper_table(ctx, paper_table)
 
     if not raw["gyros"]:
         ctx.fail("gyros", "expected at least one [[gyros]] entry")
@@ -348,6 +349,14 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
     labels = [g.label for g in gyros]
     if len(set(labels)) != len(labels):
         ctx.fail("gyros", f"gyro labels must be unique, got {labels}")
+    if paper is not None:
+        known_gyros = sorted(set(paper["gyro"]))
+        for i, g in enumerate(gyros):
+            if g.paper_gyro is not None and g.paper_gyro not in known_gyros:
+                ctx.fail(f"gyros[{i}].paper_gyro", f"{g.paper_gyro!r} is not a gyro of {paper_table.name}; "
+                         f"expected one of {known_gyros}")
+    elif any(g.paper_gyro is not None for g in gyros):
+        ctx.fail("study.paper_table", "required when a gyro names its paper_gyro")
     for c, u in study.get("units", {}).items():
         try:
             from noise_models.units import from_si
@@ -374,6 +383,13 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         for k in ("label", "paper_method"):
             if k in e:
                 _check_label(ctx, f"{key}.{k}", e[k])
+        if "paper_method" in e:
+            if paper is None:
+                ctx.fail(f"{key}.paper_method", "needs study.paper_table (the paper's results to print beside ours)")
+            methods = sorted(set(paper["method"]))
+            if e["paper_method"] not in methods:
+                ctx.fail(f"{key}.paper_method", f"{e['paper_method']!r} is not a method of {paper_table.name}; "
+                         f"expected one of {methods}")
         gs = e.get("gyro_settings", {})
         for gl, v in gs.items():
             if gl not in labels:
@@ -427,6 +443,20 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         path=path,
         raw=raw,
     )
+
+
+def _read_paper_table(ctx: _Ctx, path: Path):
+    from studies.papers import load_paper_table
+
+    try:
+        return load_paper_table(path)
+    except FileNotFoundError:
+        ctx.fail("study.paper_table", f"no such file {str(path)!r}; expected a CSV of the paper's results, "
+                 "given relative to the study file (e.g. \"paper_tables/lv2015_tables_2_4_6.csv\")")
+    except (OSError, UnicodeDecodeError) as e:
+        ctx.fail("study.paper_table", f"cannot read {str(path)!r}: {e}")
+    except Exception as e:  # a parser error or a table of the wrong shape
+        ctx.fail("study.paper_table", f"{str(path)!r} is not a paper table: {str(e).splitlines()[0][:200]}")
 
 
 _SCHEDULER_RE = re.compile(r"^([a-z][a-z0-9+.-]*://[^\s/]+|[^\s:/]+:\d+)/?$")
@@ -504,8 +534,11 @@ def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | No
        study's dt, with an array ``taus`` replaced by "octave" (already checked in 2). The
        settings are rejected only if the fit raises on every trial record and also on one
        longer record (up to ``PROBE_LONG_SAMPLES``), so a data-dependent failure on one record,
-       or a setting that merely needs more data, is not mistaken for a settings error. Reported
-       failures (``diagnostics_["failure"]``) are data, never a settings error.
+       or a setting that merely needs more data, is not mistaken for a settings error; and only if
+       the estimator with its default settings fits that record, so a gyro or record length on
+       which the method cannot work (``N = 0``, 16 samples) is not blamed on settings: such
+       failures are data, recorded per replicate. Reported failures
+       (``diagnostics_["failure"]``) are data, never a settings error.
     """
     from estimators.allan import cluster_sizes
     from estimators.av_model import check_terms
@@ -536,10 +569,16 @@ def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | No
             return None
         first = first or err
     long_n = min(n, PROBE_LONG_SAMPLES)
+    rate = records[0]
     if long_n > records.n:
         rate = _quiet_call(gyro.gyro.simulate, long_n, np.random.default_rng(_PROBE_SEEDS[0]))
         if _fit_error(trial.clone(), rate, dt) is None:
             return None
+    # the settings are to blame only if the estimator's defaults fit where they fail; otherwise the
+    # failure belongs to the gyro or the record (N = 0, a 16-sample record, ...): it is data, recorded
+    # per replicate when the study runs, never a configuration error
+    if _fit_error(type(est)(), rate, dt) is not None:
+        return None
     return (
         f"a trial fit with these settings failed on every record simulated from this gyro "
         f"({records.n} and {long_n} samples at dt = {dt} s): {first}; expected settings "
@@ -549,15 +588,43 @@ def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | No
 
 def load_config(path, overrides: dict[str, Any] | None = None) -> StudyConfig:
     """Read and validate a study TOML file (``overrides`` update its [study] table)."""
+    from studies.outputs import check_input_file
+
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: no such study file")
+    try:
+        check_input_file(path, "study file")
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
     try:
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML: {e}") from None
     except UnicodeDecodeError:
         raise ConfigError(f"{path}: not a text file") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: nested too deeply to read; expected a study file (a few levels of tables)") from None
+    if _depth(raw) > MAX_NESTING:
+        raise ConfigError(f"{path}: nested {_depth(raw)} levels deep; expected at most {MAX_NESTING} "
+                          "(tables of settings inside [[estimators]])")
     if overrides:
         raw.setdefault("study", {}).update(overrides)
     return parse_config(raw, where=str(path), path=path)
+
+
+#: deepest nesting of tables/arrays a study file may have (settings of settings of ...)
+MAX_NESTING = 12
+
+
+def _depth(value) -> int:
+    """Nesting depth of TOML tables and arrays, without recursion (a hostile file cannot overflow it)."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        v, d = stack.pop()
+        deepest = max(deepest, d)
+        if deepest > MAX_NESTING:
+            break
+        if isinstance(v, dict):
+            stack.extend((x, d + 1) for x in v.values())
+        elif isinstance(v, list):
+            stack.extend((x, d + 1) for x in v)
+    return deepest

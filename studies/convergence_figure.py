@@ -1,7 +1,8 @@
 """Convergence figures of the online filters, like Miao et al. 2014 Figs 6-8 / Miao et al. 2015 Figs 9-17.
 
 One simulated record per set-up; every filter's estimate of each coefficient against the sample
-index over the first ``n_show`` samples (the papers show 20000), with the true value as a line.
+index over the whole record (log scale: the transient the papers show and the end are both
+visible), with the true value as a line.
 ``python -m studies.convergence_figure`` writes ``results/<study>/convergence_<gyro>.png`` for the
 Miao et al. set-ups.
 """
@@ -36,12 +37,13 @@ SETUPS = [
 FILTERS = ("shakf", "nekf", "shakf_multitau", "nekf_multitau")
 
 
-def convergence_figure(preset, terms, x0, out, *, n_show=20_000, n_samples=None, seed=0,
-                       filters=FILTERS, every=10):
-    """Plot estimate vs sample index for each filter; returns the path written.
+def convergence_figure(preset, terms, x0, out, *, n_samples=None, seed=0, filters=FILTERS, every=100):
+    """Plot estimate vs sample index for each filter over the whole record; returns the path written.
 
-    The filters run over the whole record (``n_samples``, default the preset's paper length) so
-    that the final value is also shown (text box); the plot shows the first ``n_show`` samples.
+    The sample index is on a log scale, so the transient (the papers show its first 20000 samples)
+    and the end of the record are both visible; the value axis is scaled to the second half of
+    the record and the truth, so a large start-up excursion does not flatten the end (values off
+    the axis are clipped at its edge).
     """
     import matplotlib
 
@@ -52,34 +54,45 @@ def convergence_figure(preset, terms, x0, out, *, n_show=20_000, n_samples=None,
     from estimators.base import IdentifiabilityWarning
     from noise_models import presets
     from noise_models.units import PAPER_UNITS, from_si
+    from studies.figures import series_style
 
     g = presets.get(preset)
     n = n_samples or presets.info(preset).n_samples
     rate = g.simulate(n, np.random.default_rng(seed))
     truth = g.coefficients
-    fig, axes = plt.subplots(len(terms), 1, figsize=(7, 2.2 * len(terms)), sharex=True, squeeze=False)
-    for name in filters:
+    fig, axes = plt.subplots(len(terms), 1, figsize=(9.5, 2.3 * len(terms)), sharex=True, squeeze=False)
+    fig.subplots_adjust(left=0.1, right=0.7, top=0.93, bottom=0.08, hspace=0.12)
+    late = {c: [] for c in terms}
+    for i, name in enumerate(filters):
         est = estimators.get(name, terms=terms, x0=x0, trajectory_every=every)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", IdentifiabilityWarning)
             est.fit(rate, g.dt)
         tr = est.diagnostics_["trajectory"]
-        tr = tr[tr.index < n_show]
+        tr = tr[tr.index > 0]
         for ax, c in zip(axes[:, 0], terms):
             unit = PAPER_UNITS[c] if c != "Q" else "arcsec"
             final = from_si(c, est.coefficients_[c], unit)
-            ax.plot(tr.index, from_si(c, tr[c].to_numpy(), unit), lw=1, label=f"{name} (end {final:.4g})")
+            y = from_si(c, tr[c].to_numpy(), unit)
+            late[c].append(y[tr.index >= n // 2])
+            ax.plot(tr.index, y, lw=1, label=f"{name} (end {final:.4g})", **{**series_style(i), "linestyle": "-"})
     for ax, c in zip(axes[:, 0], terms):
         unit = PAPER_UNITS[c] if c != "Q" else "arcsec"
-        ax.axhline(from_si(c, truth[c], unit), color="k", ls="--", lw=1, label="truth")
+        t = from_si(c, truth[c], unit)
+        ax.axhline(t, color="k", ls="--", lw=1, label="truth")
+        vals = np.concatenate([v[np.isfinite(v)] for v in late[c]] + [np.array([t])])
+        lo, hi = float(vals.min()), float(vals.max())
+        pad = 0.15 * (hi - lo) if hi > lo else 0.1 * abs(t) or 1.0
+        ax.set_ylim(lo - pad, hi + pad)
+        ax.set_xscale("log")
         ax.set_ylabel(f"{c} ({unit})")
-        ax.legend(fontsize=6, loc="best")
-    axes[-1, 0].set_xlabel("sample index")
-    fig.suptitle(f"{preset}: online estimates, first {n_show} of {n} samples", fontsize=9)
-    fig.tight_layout()
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+    axes[-1, 0].set_xlabel("sample index (log scale)")
+    fig.suptitle(f"{preset}: online estimates over {n} samples (y axis: range of the second half)", fontsize=9)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=110, metadata={"Software": None})
     plt.close(fig)
     return out
 

@@ -16,60 +16,95 @@ import pandas as pd  # noqa: E402
 from estimators.allan import allan_variance  # noqa: E402
 from estimators.av_model import model_avar  # noqa: E402
 from noise_models.units import COEFFICIENTS  # noqa: E402
+from studies.seeding import replicate_rng  # noqa: E402
 
-__all__ = ["av_figure", "spread_figure", "study_figures"]
+__all__ = ["av_figure", "spread_figure", "study_figures", "series_style"]
+
+_LINESTYLES = ("--", "-.", ":", (0, (5, 1, 1, 1, 1, 1)), (0, (8, 2)))
 
 
-def _save(fig, path: Path) -> None:
+def series_style(i: int) -> dict:
+    """Colour and line style of series ``i``: every series of a figure gets its own combination
+    (ten colours, then the same colours with the next line style)."""
+    return {"color": f"C{i % 10}", "linestyle": _LINESTYLES[(i // 10) % len(_LINESTYLES)]}
+
+
+def _save(fig, path: Path) -> Path:
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=110)
+    # no version stamp in the file: the same figure from another matplotlib release stays byte-equal
+    # where the drawing is
+    fig.savefig(tmp, dpi=110, metadata={"Software": None})
     plt.close(fig)
     os.replace(tmp, path)
+    return path
+
+
+def _finite_positive(y) -> np.ndarray:
+    y = np.asarray(y, dtype=float)
+    return np.where(np.isfinite(y) & (y > 0), y, np.nan)
 
 
 def av_figure(rate, gyro, fits: dict, title: str):
     """Empirical overlapping ADEV (octave, 68 % chi^2 bars), the exact truth, and each fit."""
     av = allan_variance(rate, gyro.dt, "octave", overlapping=True)
-    fig, ax = plt.subplots(figsize=(7, 5))
-    ax.errorbar(
-        av.tau,
-        av.adev,
-        yerr=[av.adev - np.sqrt(av.ci_low), np.sqrt(av.ci_high) - av.adev],
-        fmt="o",
-        ms=3,
-        color="k",
-        label="replicate 0 (overlapping AV)",
-    )
-    tau = np.unique(np.rint(np.logspace(0, np.log10(av.m.max()), 80)).astype(int)) * gyro.dt
-    ax.loglog(tau, np.sqrt(gyro.avar(tau)), "k-", lw=2, alpha=0.4, label="exact AV of the generator")
-    for i, (label, coefs) in enumerate(fits.items()):
-        model = model_avar(coefs, tau)
-        if np.any(model > 0):
-            ax.loglog(tau, np.sqrt(np.where(model > 0, model, np.nan)), "--", color=f"C{i}", label=label)
+    fig, ax = plt.subplots(figsize=(9.5, 5))
+    fig.subplots_adjust(left=0.09, right=0.68, bottom=0.11, top=0.92)  # the legend sits right of the axes
+    with np.errstate(all="ignore"):  # absurd magnitudes overflow to inf: drawn as gaps, never an error
+        adev = _finite_positive(av.adev)
+        lo, hi = np.sqrt(_finite_positive(av.ci_low)), np.sqrt(_finite_positive(av.ci_high))
+        yerr = np.nan_to_num(np.vstack([adev - lo, hi - adev]), nan=0.0, posinf=0.0).clip(min=0)
+        if np.isfinite(adev).any():
+            ax.errorbar(av.tau, adev, yerr=yerr, fmt="o", ms=3, color="k", label="replicate 0 (overlapping AV)")
+        tau = np.unique(np.rint(np.logspace(0, np.log10(av.m.max()), 80)).astype(int)) * gyro.dt
+        try:
+            truth = np.sqrt(_finite_positive(gyro.avar(tau)))
+        except (OverflowError, FloatingPointError):  # e.g. N = 1e200: N**2 is beyond float64
+            truth = np.full(tau.shape, np.nan)
+        if np.isfinite(truth).any():
+            ax.plot(tau, truth, "k-", lw=2, alpha=0.4, label="exact AV of the generator")
+        for i, (label, coefs) in enumerate(fits.items()):
+            model = np.sqrt(_finite_positive(model_avar(coefs, tau)))
+            if np.isfinite(model).any():
+                ax.plot(tau, model, lw=1.4, label=label, **series_style(i))
+    ax.set_xscale("log")
+    ax.set_yscale("log")
     ax.set_xlabel("τ (s)")
     ax.set_ylabel("Allan deviation (rad/s)")
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     return fig
 
 
 def spread_figure(tidy: pd.DataFrame, gyro_label: str):
-    """Estimate / truth per coefficient and estimator, over the replicates (box plots)."""
-    d = tidy[(tidy["gyro"] == gyro_label) & np.isfinite(tidy["estimate"]) & np.isfinite(tidy["true"])]
-    coefs = [c for c in COEFFICIENTS if c in set(d["coefficient"])]
-    ests = list(dict.fromkeys(tidy[tidy["gyro"] == gyro_label]["estimator"]))
-    fig, axes = plt.subplots(1, max(1, len(coefs)), figsize=(3.2 * max(1, len(coefs)), 4.2), squeeze=False)
+    """Estimate / truth per coefficient and estimator, over the replicates (box plots).
+
+    Each tick label says how many replicates gave no physical estimate (non-physical, failed or
+    non-finite) out of how many, so that a box drawn from few replicates is seen as such.
+    """
+    dg = tidy[tidy["gyro"] == gyro_label]
+    with np.errstate(all="ignore"):
+        ratio = (dg["estimate"] / dg["true"]).to_numpy(dtype=float)
+    usable = np.isfinite(ratio) & np.isfinite(dg["true"].to_numpy(dtype=float))
+    d, ratio = dg[usable], ratio[usable]
+    coefs = [c for c in COEFFICIENTS if c in set(dg[np.isfinite(dg["true"])]["coefficient"])]
+    ests = list(dict.fromkeys(dg["estimator"]))
+    fig, axes = plt.subplots(1, max(1, len(coefs)), figsize=(3.4 * max(1, len(coefs)), 4.6), squeeze=False)
     for ax, c in zip(axes[0], coefs):
-        dc = d[d["coefficient"] == c]
-        data = [(dc[dc["estimator"] == e]["estimate"] / dc[dc["estimator"] == e]["true"]).to_numpy() for e in ests]
+        sel = (d["coefficient"] == c).to_numpy()
+        data = [ratio[sel & (d["estimator"] == e).to_numpy()] for e in ests]
         pos = [i for i, x in enumerate(data) if x.size]
         if pos:
             ax.boxplot([data[i] for i in pos], positions=pos, widths=0.6, showfliers=True)
         ax.axhline(1.0, color="k", lw=1, alpha=0.5)
+        labels = []
+        for e, x in zip(ests, data):
+            n_all = int(((dg["coefficient"] == c) & (dg["estimator"] == e)).sum())
+            missing = n_all - x.size
+            labels.append(f"{e} ({missing}/{n_all} none)" if missing else e)
         ax.set_xticks(range(len(ests)))
-        ax.set_xticklabels(ests, rotation=60, ha="right", fontsize=7)
+        ax.set_xticklabels(labels, rotation=60, ha="right", fontsize=7)
         ax.set_title(f"{c}: estimate / true")
         allv = np.concatenate([x for x in data if x.size]) if pos else np.ones(1)
         allv = allv[allv > 0]
@@ -77,15 +112,15 @@ def spread_figure(tidy: pd.DataFrame, gyro_label: str):
             ax.set_yscale("log")
             ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.grid(True, axis="y", which="both", alpha=0.3)
-    fig.suptitle(gyro_label)
+    fig.suptitle(f"{gyro_label}  (tick labels: replicates without a physical estimate / all)")
     fig.tight_layout()
     return fig
 
 
-def study_figures(cfg, tidy: pd.DataFrame, out: Path) -> None:
-    from studies.runner import replicate_rng
-
+def study_figures(cfg, tidy: pd.DataFrame, out: Path) -> list[Path]:
+    """The AV and spread figures of every gyro in ``cfg.figure_gyros`` (default all); the paths written."""
     out = Path(out)
+    written = []
     wanted = cfg.figure_gyros or tuple(g.label for g in cfg.gyros)
     for gi, g in enumerate(cfg.gyros):
         if g.label not in wanted:
@@ -98,5 +133,6 @@ def study_figures(cfg, tidy: pd.DataFrame, out: Path) -> None:
             fits[e] = dict(zip(de["coefficient"], de["estimate"]))
         rate = g.gyro.simulate(g.n_samples, replicate_rng(cfg.seed, gi, 0))
         safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in g.label)
-        _save(av_figure(rate, g.gyro, fits, f"{cfg.name}: {g.label}"), out / f"av_{safe}.png")
-        _save(spread_figure(tidy, g.label), out / f"spread_{safe}.png")
+        written.append(_save(av_figure(rate, g.gyro, fits, f"{cfg.name}: {g.label}"), out / f"av_{safe}.png"))
+        written.append(_save(spread_figure(tidy, g.label), out / f"spread_{safe}.png"))
+    return written

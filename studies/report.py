@@ -19,8 +19,10 @@ import numpy as np
 import pandas as pd
 
 from noise_models.units import COEFFICIENTS, PAPER_UNITS, from_si
+from studies.outputs import atomic_write_text
 
-__all__ = ["summarize", "render_markdown", "render_latex", "write_report", "load_paper_table"]
+__all__ = ["summarize", "render_markdown", "render_latex", "write_report", "check_report", "read_summary",
+           "read_tidy", "write_tidy", "timings"]
 
 UNIT_LABEL = {
     "urad": "µrad",
@@ -34,6 +36,12 @@ UNIT_LABEL = {
 
 
 def summarize(tidy: pd.DataFrame, units: dict | None = None) -> pd.DataFrame:
+    """One row per gyro x estimator x coefficient (see the module docstring); absurd magnitudes give inf."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _summarize(tidy, units)
+
+
+def _summarize(tidy: pd.DataFrame, units: dict | None) -> pd.DataFrame:
     units = {**PAPER_UNITS, **(units or {})}
     rows = []
     order = {c: i for i, c in enumerate(COEFFICIENTS)}
@@ -46,7 +54,6 @@ def summarize(tidy: pd.DataFrame, units: dict | None = None) -> pd.DataFrame:
         std = float(est.std(ddof=1)) if est.size > 1 else math.nan
         rmse = float(np.sqrt(np.mean((est - true) ** 2))) if est.size and np.isfinite(true) else math.nan
         err = abs(mean - true) / true * 100 if np.isfinite(true) and true > 0 else math.nan
-        per_rep = d.groupby("replicate")["seconds"].first()
         rows.append(
             {
                 "gyro": g,
@@ -62,7 +69,6 @@ def summarize(tidy: pd.DataFrame, units: dict | None = None) -> pd.DataFrame:
                 "n_ok": int(est.size),
                 "n_nonphysical": int(d["nonphysical"].sum()),
                 "n_failed": int((d["failure"] != "").sum()),
-                "seconds_per_replicate": float(per_rep.mean()),
                 "_o": order[c],
             }
         )
@@ -77,60 +83,68 @@ def summarize(tidy: pd.DataFrame, units: dict | None = None) -> pd.DataFrame:
     return out
 
 
-def load_paper_table(path: Path) -> pd.DataFrame:
-    """A paper's result table as long format: gyro, method, coefficient, mean, error_pct, std.
-
-    Long tables (Lv et al. 2015) are read as they are. Wide tables (Miao et al. 2014, 2015: one row
-    per gyro and coefficient, a column per method) are melted: a column ``<method>_mean``,
-    ``<method>_indicator_pct`` or ``<method>_std`` gives that statistic of ``<method>``; any other
-    numeric column (``allan_variance``, ``online``) is the mean of the method it names. The gyro
-    is the ``gyro`` column, else ``fog`` (FOG number).
-    """
-    df = pd.read_csv(path, comment="#")
-    if "method" in df.columns:
-        need = {"gyro", "method", "coefficient", "mean"}
-        if not need <= set(df.columns):
-            raise ValueError(f"{path}: expected columns {sorted(need)} (long format), got {list(df.columns)}")
-        return df
-    gcol = next((c for c in ("gyro", "fog") if c in df.columns), None)
-    if gcol is None or "coefficient" not in df.columns:
-        raise ValueError(f"{path}: expected a 'gyro' (or 'fog') and a 'coefficient' column, got {list(df.columns)}")
-    stats = {"_mean": "mean", "_indicator_pct": "error_pct", "_std": "std"}
-    rows = []
-    for _, r in df.iterrows():
-        entries: dict = {}
-        for col in df.columns:
-            if col in (gcol, "coefficient") or not pd.api.types.is_numeric_dtype(df[col]) or col == "rate_hz":
-                continue
-            suffix = next((sfx for sfx in stats if col.endswith(sfx)), None)
-            method, stat = (col[: -len(suffix)], stats[suffix]) if suffix else (col, "mean")
-            entries.setdefault(method, {})[stat] = r[col]
-        for method, vals in entries.items():
-            rows.append({"gyro": str(r[gcol]), "method": method, "coefficient": r["coefficient"], **vals})
-    return pd.DataFrame(rows)
-
-
-def add_paper(summary: pd.DataFrame, paper: pd.DataFrame, gyro_map: dict, method_map: dict) -> pd.DataFrame:
-    s = summary.copy()
-    for col in ("paper_mean", "paper_error_pct", "paper_std"):
-        s[col] = math.nan
-    for i, r in s.iterrows():
-        pg, pm = gyro_map.get(r["gyro"], r["gyro"]), method_map.get(r["estimator"])
-        if pm is None:
-            continue
-        hit = paper[(paper["gyro"] == pg) & (paper["method"] == pm) & (paper["coefficient"] == r["coefficient"])]
-        if len(hit):
-            h = hit.iloc[0]
-            s.at[i, "paper_mean"] = h["mean"]
-            s.at[i, "paper_error_pct"] = h.get("error_pct", math.nan)
-            s.at[i, "paper_std"] = h.get("std", math.nan)
-    return s
-
-
 def _fmt(x) -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "–"
     return f"{x:.4g}" if abs(x) >= 1e-3 and abs(x) < 1e5 else f"{x:.3e}"
+
+
+_NOTE = (
+    "Mean and std over the replicates with a physical estimate; error = |mean − true| / true × 100. "
+    "'non-physical / failed' counts replicates where the fit gave no physical value (e.g. a negative "
+    "AV-model coefficient, printed '–' by Lv et al. 2015) or failed (exception, divergence, non-finite)."
+)
+
+
+def paper_layout(summary: pd.DataFrame, meta: dict | None = None):
+    """The papers' layout, one table per gyro: yields (gyro, heading, column labels, rows).
+
+    Rows are (kind, label, cells) with kind "true", "crlb", "mean", "std", "bad", "paper_mean" or
+    "paper_std"; cells are formatted strings, one per coefficient column. Markdown and LaTeX are
+    both drawn from this, so they show the same numbers.
+    """
+    meta = meta or {}
+    for g, d in summary.groupby("gyro", sort=False):
+        coefs = [c for c in COEFFICIENTS if c in set(d["coefficient"])]
+        units = {c: d[d["coefficient"] == c]["unit"].iloc[0] for c in coefs}
+        ginfo = meta.get("gyros", {}).get(g, {})
+        head = str(g)
+        if ginfo:
+            head += f" ({int(d['n'].max())} replicates of {ginfo.get('n_samples')} samples at dt = {ginfo.get('dt')} s)"
+        cols = [f"{c} ({UNIT_LABEL.get(units[c], units[c])})" for c in coefs]
+
+        def cell(e, c, key):
+            r = d[(d["estimator"] == e) & (d["coefficient"] == c)]
+            return None if r.empty or key not in r else r.iloc[0][key]
+
+        def with_error(m, err):
+            return f"{_fmt(m)} ({err:.1f} %)" if err is not None and math.isfinite(err) else _fmt(m)
+
+        rows = [("true", "True value", [_fmt(d[d["coefficient"] == c]["true"].iloc[0]) for c in coefs])]
+        if "crlb_std" in d and np.isfinite(d["crlb_std"].astype(float)).any():
+            rows.append(("crlb", "CRLB std", [_fmt(d[d["coefficient"] == c]["crlb_std"].iloc[0]) for c in coefs]))
+        for e in dict.fromkeys(d["estimator"]):
+            mean, std, bad, pmean, pstd = [], [], [], [], []
+            for c in coefs:
+                m = cell(e, c, "mean")
+                if m is None:
+                    mean.append(""), std.append(""), bad.append("")
+                else:
+                    mean.append(with_error(m, cell(e, c, "error_pct")))
+                    std.append(_fmt(cell(e, c, "std")))
+                    bad.append(f"{int(cell(e, c, 'n_nonphysical'))} / {int(cell(e, c, 'n_failed'))}")
+                pm = cell(e, c, "paper_mean")
+                if pm is not None and math.isfinite(pm):
+                    pmean.append(with_error(pm, cell(e, c, "paper_error_pct")))
+                    pstd.append(_fmt(cell(e, c, "paper_std")))
+                else:
+                    pmean.append(""), pstd.append("")
+            rows += [("mean", f"{e} mean (error)", mean), ("std", f"{e} std", std)]
+            if any(b and b != "0 / 0" for b in bad):
+                rows.append(("bad", f"{e} non-physical / failed", bad))
+            if any(pmean):
+                rows += [("paper_mean", f"paper {e} mean (error)", pmean), ("paper_std", f"paper {e} std", pstd)]
+        yield g, head, cols, rows
 
 
 def render_markdown(summary: pd.DataFrame, meta: dict | None = None) -> str:
@@ -141,72 +155,50 @@ def render_markdown(summary: pd.DataFrame, meta: dict | None = None) -> str:
         out.append(f"# {meta['title']}\n")
     if meta.get("description"):
         out.append(meta["description"].strip() + "\n")
-    for g, d in summary.groupby("gyro", sort=False):
-        coefs = [c for c in COEFFICIENTS if c in set(d["coefficient"])]
-        units = {c: d[d["coefficient"] == c]["unit"].iloc[0] for c in coefs}
-        ginfo = meta.get("gyros", {}).get(g, {})
-        head = f"## {g}"
-        if ginfo:
-            head += f" ({int(d['n'].max())} replicates of {ginfo.get('n_samples')} samples at dt = {ginfo.get('dt')} s)"
-        out.append(head + "\n")
-        cols = [f"{c} ({UNIT_LABEL.get(units[c], units[c])})" for c in coefs]
+    for _, head, cols, rows in paper_layout(summary, meta):
+        out.append(f"## {head}\n")
         out.append("| | " + " | ".join(cols) + " |")
-        out.append("|---|" + "---|" * len(coefs))
-
-        def cell(e, c, key):
-            r = d[(d["estimator"] == e) & (d["coefficient"] == c)]
-            return None if r.empty else r.iloc[0][key]
-
-        true_cells = []
-        for c in coefs:
-            r = d[d["coefficient"] == c]
-            true_cells.append(_fmt(r["true"].iloc[0]))
-        out.append("| True value | " + " | ".join(true_cells) + " |")
-        if "crlb_std" in d and np.isfinite(d["crlb_std"].astype(float)).any():
-            out.append(
-                "| CRLB std | "
-                + " | ".join(_fmt(d[d["coefficient"] == c]["crlb_std"].iloc[0]) for c in coefs)
-                + " |"
-            )
-        for e in dict.fromkeys(d["estimator"]):
-            mean_cells, std_cells, bad_cells, paper_mean, paper_std = [], [], [], [], []
-            has_paper = False
-            for c in coefs:
-                m, err, sd = cell(e, c, "mean"), cell(e, c, "error_pct"), cell(e, c, "std")
-                if m is None:
-                    mean_cells.append("")
-                    std_cells.append("")
-                    bad_cells.append("")
-                else:
-                    mean_cells.append(f"{_fmt(m)} ({err:.1f} %)" if err is not None and math.isfinite(err) else _fmt(m))
-                    std_cells.append(_fmt(sd))
-                    bad_cells.append(f"{int(cell(e, c, 'n_nonphysical'))} / {int(cell(e, c, 'n_failed'))}")
-                pm = cell(e, c, "paper_mean") if "paper_mean" in d else None
-                if pm is not None and math.isfinite(pm):
-                    has_paper = True
-                    pe = cell(e, c, "paper_error_pct")
-                    paper_mean.append(f"{_fmt(pm)} ({pe:.1f} %)" if pe is not None and math.isfinite(pe) else _fmt(pm))
-                    paper_std.append(_fmt(cell(e, c, "paper_std")))
-                else:
-                    paper_mean.append("")
-                    paper_std.append("")
-            out.append(f"| **{e}** mean (error) | " + " | ".join(mean_cells) + " |")
-            out.append(f"| {e} std | " + " | ".join(std_cells) + " |")
-            if any(b and b != "0 / 0" for b in bad_cells):
-                out.append(f"| {e} non-physical / failed | " + " | ".join(bad_cells) + " |")
-            if has_paper:
-                out.append(f"| *paper* {e} mean (error) | " + " | ".join(paper_mean) + " |")
-                out.append(f"| *paper* {e} std | " + " | ".join(paper_std) + " |")
-        times = d.groupby("estimator", sort=False)["seconds_per_replicate"].first()
+        out.append("|---|" + "---|" * len(cols))
+        for kind, label, cells in rows:
+            if kind == "mean":
+                label = "**" + label.replace(" mean (error)", "** mean (error)")
+            elif kind.startswith("paper"):
+                label = label.replace("paper ", "*paper* ", 1)
+            out.append(f"| {label} | " + " | ".join(cells) + " |")
         out.append("")
-        out.append("Fit time per replicate: " + ", ".join(f"{e} {t * 1e3:.0f} ms" for e, t in times.items()))
-        out.append("")
-    out.append(
-        "Mean and std over the replicates with a physical estimate; error = |mean − true| / true × 100. "
-        "'non-physical / failed' counts replicates where the fit gave no physical value (e.g. a negative "
-        "AV-model coefficient, printed '–' by Lv et al. 2015) or failed (exception, divergence, non-finite)."
-    )
+    out.append(_NOTE + " Fit times: `timings.md` beside this file (measured on the machine that ran the study; "
+               "not part of the compared results).")
     return "\n".join(out) + "\n"
+
+
+def _tex(text: str) -> str:
+    repl = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
+            "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\^{}", "µ": r"$\mu$", "√": r"$\surd$",
+            "²": r"$^2$", "–": "--", "−": "-"}
+    return "".join(repl.get(ch, ch) for ch in str(text))
+
+
+def render_latex(summary: pd.DataFrame, meta: dict | None = None) -> str:
+    """The tables of :func:`render_markdown` as LaTeX ``tabular``s (booktabs), paper rows in italics."""
+    out = []
+    for _, head, cols, rows in paper_layout(summary, meta):
+        out.append(f"% {_tex(head)}")
+        out.append("\\begin{tabular}{l" + "r" * len(cols) + "}")
+        out.append("\\toprule")
+        out.append(" & " + " & ".join(_tex(c) for c in cols) + r" \\")
+        out.append("\\midrule")
+        for kind, label, cells in rows:
+            if kind.startswith("paper"):
+                line = f"\\textit{{{_tex(label)}}} & " + " & ".join(f"\\textit{{{_tex(x)}}}" if x else "" for x in cells)
+            elif kind == "mean":
+                line = f"\\textbf{{{_tex(label)}}} & " + " & ".join(_tex(x) for x in cells)
+            else:
+                line = f"{_tex(label)} & " + " & ".join(_tex(x) for x in cells)
+            out.append(line + r" \\")
+        out.append("\\bottomrule")
+        out.append("\\end{tabular}")
+        out.append("")
+    return "\n".join(out)
 
 
 def leaderboard(summary: pd.DataFrame) -> str:
@@ -215,8 +207,8 @@ def leaderboard(summary: pd.DataFrame) -> str:
     Only gyros that have the coefficient count. Columns: the number of gyros on which the
     estimator has the lowest RMSE (among those with a
     physical estimate in at least half the replicates), the median over gyros of the absolute error %, of the
-    relative std (std / true), of std / CRLB, the share of replicates without a physical estimate,
-    and the median fit time per replicate.
+    relative std (std / true), of std / CRLB, and the share of replicates without a physical estimate
+    (fit times: timings.md).
     """
     s = summary[np.isfinite(summary["true"]) & (summary["true"] > 0)].copy()  # gyros that have the term
     s["rel_rmse"] = s["rmse"] / s["true"]
@@ -241,7 +233,6 @@ def leaderboard(summary: pd.DataFrame) -> str:
                 "median std %": g["rel_std_pct"].median().round(1),
                 "median std / CRLB": g["std_over_crlb"].median().round(2),
                 "no estimate %": (g["bad_share"].mean() * 100).round(0),
-                "time / replicate (s)": g["seconds_per_replicate"].median().round(3),
             }
         ).sort_values(["lowest RMSE on", "median std %"], ascending=[False, True])
         out.append(f"## {c}")
@@ -254,11 +245,6 @@ def leaderboard(summary: pd.DataFrame) -> str:
             out.append(f"| {e} | " + " | ".join(cells) + " |")
         out.append("")
     return "\n".join(out) + "\n"
-
-
-def render_latex(summary: pd.DataFrame) -> str:
-    cols = ["gyro", "estimator", "coefficient", "unit", "true", "mean", "error_pct", "std", "n_nonphysical", "n_failed"]
-    return summary[cols].to_latex(index=False, float_format=lambda x: f"{x:.4g}", na_rep="--")
 
 
 def _crlb_column(cfg, summary: pd.DataFrame) -> pd.DataFrame:
@@ -281,17 +267,73 @@ def _crlb_column(cfg, summary: pd.DataFrame) -> pd.DataFrame:
     return s
 
 
-def _atomic_text(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+#: significant digits of the committed numbers: results move by ~1e-12 (relative) between machines
+#: and library versions, so the files that regeneration compares carry no more than the arithmetic
+#: supports (tidy: estimates to 9 digits; tables: statistics to 6 digits)
+TIDY_DIGITS = 9
+TABLE_DIGITS = 6
+#: the file written last: its presence says the report is complete, and it lists every output with
+#: its SHA-256, so a folder whose report was interrupted (or edited) is recognised as such
+MARKER = "meta.json"
+TIDY_FILE = "tidy.csv"
+
+
+def write_tidy(tidy: pd.DataFrame, out: Path) -> Path:
+    """The tidy per-replicate table (no timings) as CSV at :data:`TIDY_DIGITS` significant digits."""
+    path = Path(out) / TIDY_FILE
+    cols = [c for c in tidy.columns if c != "seconds"]
+    atomic_write_text(path, tidy[cols].to_csv(index=False, float_format=f"%.{TIDY_DIGITS}g"))
+    return path
+
+
+def read_tidy(folder) -> pd.DataFrame:
+    """The tidy table of a finished study folder (``failure`` is "" on success)."""
+    nan = ["nan", "NaN", ""]
+    d = pd.read_csv(Path(folder) / TIDY_FILE, keep_default_na=False,
+                    na_values={c: nan for c in ("true", "estimate", "std_err", "lower", "upper")})
+    d["failure"] = d["failure"].astype(str)
+    d["nonphysical"] = d["nonphysical"].astype(str).str.lower().eq("true")
+    return d
+
+
+def timings(tidy: pd.DataFrame) -> pd.DataFrame:
+    """Fit time per replicate of each gyro x estimator (median, mean, max seconds)."""
+    per = tidy.groupby(["gyro", "estimator", "replicate"], sort=False)["seconds"].first().reset_index()
+    t = per.groupby(["gyro", "estimator"], sort=False)["seconds"].agg(["median", "mean", "max", "count"])
+    return t.rename(columns={"count": "replicates"}).reset_index()
+
+
+def render_timings(t: pd.DataFrame, meta: dict) -> str:
+    lines = [f"# Fit times: {meta.get('title', '')}", "",
+             "Seconds per replicate, measured on the machine that ran the study (not part of the compared "
+             "results; not committed).", "",
+             "| gyro | estimator | median s | mean s | max s | replicates |", "|---|---|---|---|---|---|"]
+    for _, r in t.iterrows():
+        lines.append(f"| {r['gyro']} | {r['estimator']} | {r['median']:.3g} | {r['mean']:.3g} | {r['max']:.3g} "
+                     f"| {int(r['replicates'])} |")
+    return "\n".join(lines) + "\n"
+
+
+def _sha256(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
-    """table.csv, table.md, meta.json and figures for a study; returns the summary."""
+    """tidy.csv, table.csv, table.md, leaderboard.md, figures and (last) meta.json; returns the summary.
+
+    The set changes as one: the marker ``meta.json`` is removed first and written last with the
+    SHA-256 of every output, so an interrupted report is recognised (:func:`check_report`) instead
+    of being read as a mix of two runs. Fit times go to ``timings.md`` / ``timings.csv``, outside
+    the compared set.
+    """
     out = Path(out)
-    summary = _crlb_column(cfg, summarize(tidy, getattr(cfg, 'units', None)))
-    if cfg.paper_table is not None and Path(cfg.paper_table).is_file():
+    (out / MARKER).unlink(missing_ok=True)  # incomplete from here until the new marker is written
+    summary = _crlb_column(cfg, summarize(tidy, getattr(cfg, "units", None)))
+    if cfg.paper_table is not None:  # validated by the config: a missing table is a ConfigError there
+        from studies.papers import add_paper, load_paper_table
+
         paper = load_paper_table(cfg.paper_table)
         gmap = {g.label: g.paper_gyro for g in cfg.gyros if g.paper_gyro}
         mmap = {e.label: e.paper_method for e in cfg.estimators if e.paper_method}
@@ -305,18 +347,68 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
         "gyros": {g.label: {"n_samples": g.n_samples, "dt": g.gyro.dt} for g in cfg.gyros},
         "paper_table": os.path.basename(str(cfg.paper_table)) if cfg.paper_table else None,
     }
-    tmp = out / ("table.csv." + str(os.getpid()) + ".tmp")
-    summary.to_csv(tmp, index=False)
-    os.replace(tmp, out / "table.csv")
-    _atomic_text(out / "meta.json", json.dumps(meta, indent=2))
-    _atomic_text(out / "table.md", render_markdown(summary, meta))
+    written = [write_tidy(tidy, out)]
+    atomic_write_text(out / "table.csv", summary.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
+    atomic_write_text(out / "table.md", render_markdown(summary, meta))
+    written += [out / "table.csv", out / "table.md"]
     if len(cfg.gyros) > 1 or len(cfg.estimators) > 1:
-        _atomic_text(out / "leaderboard.md", leaderboard(summary))
+        atomic_write_text(out / "leaderboard.md", leaderboard(summary))
+        written.append(out / "leaderboard.md")
     if "lower" in tidy.columns:  # coverage, RMSE/CRLB, bias/SE and tested wins (studies.scoring)
         from studies.scoring import write_scores
 
-        write_scores(cfg, tidy, out)
+        written += write_scores(cfg, tidy, out)
+    if "seconds" in tidy:
+        t = timings(tidy)
+        atomic_write_text(out / "timings.csv", t.to_csv(index=False, float_format="%.4g"))
+        atomic_write_text(out / "timings.md", render_timings(t, meta))
     from studies.figures import study_figures
 
-    study_figures(cfg, tidy, out)
+    written += study_figures(cfg, tidy, out)
+    meta["outputs"] = {p.name: _sha256(p) for p in sorted(written, key=lambda p: p.name)}
+    atomic_write_text(out / MARKER, json.dumps(meta, indent=2) + "\n")
     return summary
+
+
+def check_report(folder) -> dict:
+    """The ``meta.json`` of a complete study report in ``folder``; ValueError saying what is wrong."""
+    d = Path(folder)
+    if not d.is_dir():
+        raise ValueError(f"{d}: not a folder; expected the output folder of 'avbench run'")
+    marker = d / MARKER
+    if not marker.is_file():
+        if (d / "table.csv").exists() or (d / "_shards").is_dir():
+            raise ValueError(f"{d}: the report is incomplete (no {MARKER}: interrupted while it was written); "
+                             "rerun the same 'avbench run' command to finish it")
+        raise ValueError(f"{d}: no {MARKER} here; expected the output folder of 'avbench run'")
+    try:
+        meta = json.loads(marker.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ValueError(f"{marker}: unreadable or not JSON ({e}); expected the {MARKER} 'avbench run' writes") from None
+    if not isinstance(meta, dict) or not isinstance(meta.get("outputs"), dict):
+        raise ValueError(f"{marker}: no 'outputs' list; expected the {MARKER} of a complete report "
+                         "(a report from an older avbench: rerun the study)")
+    for name, digest in meta["outputs"].items():
+        p = d / str(name)
+        if not p.is_file():
+            raise ValueError(f"{d}: {name} is missing; the report is incomplete (rerun the study)")
+        if _sha256(p) != digest:
+            raise ValueError(f"{d}: {name} does not belong to this report (changed after it was written, or "
+                             "an interrupted rerun); rerun the study")
+    return meta
+
+
+def read_summary(folder) -> tuple[pd.DataFrame, dict]:
+    """(table.csv, meta) of a complete report; ValueError naming the file and what was expected."""
+    meta = check_report(folder)
+    path = Path(folder) / "table.csv"
+    try:
+        summary = pd.read_csv(path)
+    except Exception as e:
+        raise ValueError(f"{path}: unreadable ({type(e).__name__}: {str(e).splitlines()[0][:200]})") from None
+    need = {"gyro", "estimator", "coefficient", "unit", "true", "mean", "error_pct", "std", "n",
+            "n_nonphysical", "n_failed"}
+    missing = sorted(need - set(summary.columns))
+    if missing:
+        raise ValueError(f"{path}: missing column(s) {missing}; expected the table.csv 'avbench run' writes")
+    return summary, meta

@@ -34,6 +34,7 @@ import pandas as pd
 
 from estimators.allan import memoize_allan
 from studies.config import StudyConfig
+from studies.seeding import replicate_rng
 
 __all__ = [
     "run_study",
@@ -73,11 +74,6 @@ class Task:
     @property
     def shard_name(self) -> str:
         return f"g{self.gyro_index:02d}_r{self.start:06d}-{self.stop:06d}.parquet"
-
-
-def replicate_rng(seed: int, gyro_index: int, replicate: int) -> np.random.Generator:
-    """The generator of replicate ``replicate`` of gyro ``gyro_index`` (independent of scheduling)."""
-    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(gyro_index, replicate)))
 
 
 def tasks_of(cfg: StudyConfig) -> list[Task]:
@@ -348,11 +344,12 @@ def run_study(
         if bar is not None:
             bar.close()
     tidy = collect(shard_dir, tasks, cfg)
-    _atomic_write_parquet(tidy, out / "tidy.parquet")
-    if make_report:
-        from studies.report import write_report
+    from studies.report import write_report, write_tidy
 
-        write_report(cfg, tidy, out)
+    if make_report:
+        write_report(cfg, tidy, out)  # tidy.csv, tables, figures; meta.json last
+    else:
+        write_tidy(tidy, out)
     return tidy
 
 

@@ -169,16 +169,16 @@ def render_scores(sc: pd.DataFrame, w: pd.DataFrame) -> str:
     return "\n".join(out) + "\n"
 
 
-def write_scores(cfg, tidy: pd.DataFrame, out) -> pd.DataFrame:
-    """Write ``scores.csv`` and ``scores.md`` beside the study's tables (a hook of ``write_report``)."""
-    import os
+def write_scores(cfg, tidy: pd.DataFrame, out) -> list:
+    """Write ``scores.csv`` (6 significant digits) and ``scores.md`` beside the study's tables (a hook
+    of ``write_report``); returns their paths."""
     from pathlib import Path
+
+    from studies.report import TABLE_DIGITS, atomic_write_text
 
     out = Path(out)
     sc = scores(tidy, crlb_table(cfg))
     w = wins(tidy)
-    for name, text in (("scores.csv", sc.to_csv(index=False)), ("scores.md", render_scores(sc, w))):
-        tmp = out / f".{name}.{os.getpid()}.tmp"
-        tmp.write_text(text)
-        os.replace(tmp, out / name)
-    return sc
+    atomic_write_text(out / "scores.csv", sc.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
+    atomic_write_text(out / "scores.md", render_scores(sc, w))
+    return [out / "scores.csv", out / "scores.md"]

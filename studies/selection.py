@@ -13,7 +13,7 @@ Usage::
     python -m studies.selection studies/model_selection_30min.toml studies/model_selection_2h.toml \\
         studies/model_selection_8h.toml --out results/model_selection
 
-reads ``results/<study name>/tidy.parquet`` of each config (``--results`` to change the folder) and
+reads ``results/<study name>/tidy.csv`` of each config (``--results`` to change the folder) and
 writes ``selection.csv`` and ``selection.md`` in ``--out``.
 """
 
@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
 from pathlib import Path
 
@@ -91,11 +90,13 @@ def main(argv=None) -> int:
         except (ConfigError, OSError) as e:
             print(f"error: {e}", file=sys.stderr)
             return 2
-        tidy_path = Path(a.results) / cfg.name / "tidy.parquet"
-        if not tidy_path.is_file():
-            print(f"error: {tidy_path}: not found; run 'avbench run {path}' first", file=sys.stderr)
+        from studies.report import read_tidy
+
+        folder = Path(a.results) / cfg.name
+        if not (folder / "tidy.csv").is_file():
+            print(f"error: {folder / 'tidy.csv'}: not found; run 'avbench run {path}' first", file=sys.stderr)
             return 2
-        tidy = pd.read_parquet(tidy_path)
+        tidy = read_tidy(folder)
         n = {g.label: g.n_samples * g.gyro.dt for g in cfg.gyros}
         length = f"{max(n.values()) / 3600:g} h"
         frames.append(selection_rates(tidy, _crlb_rel(cfg), length))
@@ -103,10 +104,10 @@ def main(argv=None) -> int:
     table["target_applies"] = table["max_crlb_rel"] < 0.3
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    for name, text in (("selection.csv", table.to_csv(index=False)), ("selection.md", _render(table))):
-        tmp = out / f".{name}.{os.getpid()}.tmp"
-        tmp.write_text(text)
-        os.replace(tmp, out / name)
+    from studies.report import TABLE_DIGITS, atomic_write_text
+
+    atomic_write_text(out / "selection.csv", table.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
+    atomic_write_text(out / "selection.md", _render(table))
     print(f"wrote {out / 'selection.md'}")
     return 0
 

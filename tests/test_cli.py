@@ -42,7 +42,7 @@ def test_simulate_prints_table_and_writes_samples(tmp_path, capsys):
         (["simulate", "SRS2000", "--samples", "4"], "too short"),
         (["simulate", "SRS2000", "--hours", "1", "--samples", "100"], "at most one"),
         (["simulate", "SRS2000", "--hours", "0.1", "--out", "x.txt"], ".npy or .csv"),
-        (["table", "/nonexistent/folder"], "no table.csv"),
+        (["table", "/nonexistent/folder"], "not a folder"),
     ],
 )
 def test_errors_are_messages_not_tracebacks(argv, msg, capsys, tmp_path, monkeypatch):
@@ -60,3 +60,36 @@ def test_presets_and_estimators_list(capsys):
     assert main(["estimators"]) == 0
     out = capsys.readouterr().out
     assert "wls" in out and "shakf" in out
+
+
+def test_help_is_plain_text_and_every_estimator_is_described(capsys):
+    """No reST markup in any help text; 'avbench estimators' gives every estimator a description."""
+    import re
+
+    from studies.cli import build_parser
+
+    parser = build_parser()
+    texts = [parser.format_help()]
+    for action in parser._actions:
+        if hasattr(action, "choices") and isinstance(action.choices, dict):
+            texts += [sub.format_help() for sub in action.choices.values()]
+    for t in texts:
+        assert not re.search(r"``|:[a-z]+:`|^\.\. ", t, re.M), t
+    assert main(["estimators"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    import estimators
+
+    assert len(lines) == len(estimators.names())
+    for line in lines:
+        name, _, desc = line.partition(" ")
+        assert len(desc.strip()) > 20, f"{name} has no description"
+
+
+def test_preset_notes_quote_their_own_preset(capsys):
+    from noise_models import presets
+    from noise_models.units import from_si
+
+    for name in ("FOG1", "FOG2"):
+        info = presets.info(name)
+        q_deg = from_si("Q", info.gyro().coefficients["Q"], "arcsec")
+        assert f"{q_deg:g} deg" in info.units_note, (name, q_deg, info.units_note[:120])

@@ -114,8 +114,8 @@ CASES = [
     (_set(("gyros", 1, "dt"), 0.1), r"gyros\[1\]\.dt: not allowed with 'preset'"),
     (_set(("gyros", 1, "label"), "mygyro"), r"gyros: gyro labels must be unique"),
     (_set(("estimators", 0, "name"), "olss"), r"estimators\[0\]\.name: unknown estimator 'olss'; expected one of"),
-    (_set(("estimators", 0, "settings", "terms"), "QNX"), r"estimators\[0\]\.settings: \(gyro SRS2000\) ValueError: terms: expected a non-empty subset"),
-    (_set(("estimators", 0, "settings", "taus"), "weekly"), r"estimators\[0\]\.gyro_settings\.mygyro: \(gyro mygyro\) ValueError: taus: expected 'octave'"),
+    (_set(("estimators", 0, "settings", "terms"), "QNX"), r"estimators\[0\]\.settings: \(gyro SRS2000\) estimator 'ols': terms: expected a non-empty subset"),
+    (_set(("estimators", 0, "settings", "taus"), "weekly"), r"estimators\[0\]\.gyro_settings\.mygyro: \(gyro mygyro\) estimator 'ols': taus: expected one of octave, decade, all"),
     (_set(("estimators", 0, "settings", "window"), 3), r"estimators\[0\]\.gyro_settings\.mygyro: \(gyro mygyro\) estimator 'ols': unknown setting\(s\) window"),
     (_set(("estimators", 1, "settings", "taus"), [0.1, 0.2, 5000.0]), r"estimators\[1\]\.settings: \(gyro mygyro\) ValueError: taus: \[5000\.0\] s exceed half the record"),
     (_set(("estimators", 1, "settings", "max_error_pct"), -40.0), r"estimators\[1\]\.settings: \(gyro mygyro\) a trial fit .* max_error_pct: expected a positive percentage"),
@@ -155,7 +155,7 @@ def test_cli_rejects_bad_config_without_writing(tmp_path, capsys):
     assert main(["run", str(path), "--out", str(out)]) == 2
     assert "not valid TOML" in capsys.readouterr().err
     assert main(["run", str(tmp_path / "missing.toml"), "--out", str(out)]) == 2
-    assert "no such study file" in capsys.readouterr().err
+    assert "missing.toml': no such file" in capsys.readouterr().err
     assert not out.exists()
 
 

@@ -10,6 +10,7 @@ import pytest
 from scipy import stats
 
 import estimators
+import studies
 from estimators.av_model import PLATEAU, design_matrix
 from estimators.least_squares import solve_scaled
 from noise_models import presets
@@ -67,10 +68,10 @@ def _lv_protocol(gyro_name, R, seed):
 
 
 def _paper(gyro, method):
-    path = Path(__file__).parents[2] / "shared" / "paper_tables" / "lv2015_tables_2_4_6.csv"
-    if not path.is_file():
-        pytest.skip(f"paper table not found at {path}")
-    t = pd.read_csv(path, comment="#")
+    from studies.papers import load_paper_table
+
+    path = Path(studies.__file__).parent / "paper_tables" / "lv2015_tables_2_4_6.csv"  # shipped with the package
+    t = load_paper_table(path)
     t = t[(t.gyro == gyro) & (t.method == method)].set_index("coefficient")
     return {c: (t.loc[c, "error_pct"], to_si(c, t.loc[c, "std"], PAPER_UNITS[c])) for c in "QNB"}
 

@@ -180,7 +180,7 @@ def test_worker_death_every_time_is_reported_clearly(tmp_path, capsys):
         for r in range(4):
             if (cfg.gyros[g].label, r) in dying:
                 assert Task(g, r, r + 1).shard_name not in saved
-    assert not (tmp_path / "out" / "tidy.parquet").exists()
+    assert not (tmp_path / "out" / "tidy.csv").exists()
     assert not list(shard_dir.glob(".*.tmp"))
 
 
