@@ -22,6 +22,9 @@ Intervals (:func:`interval`). The coefficients are positive scale parameters; th
 closer to normal on the log scale (a variance estimate is roughly scaled chi^2), so the interval is
 :math:`c\\,\\exp(\\pm z\\,\\mathrm{se}/c)` (the delta-method interval of log c, mapped back): always
 positive, wider above than below, and identical to :math:`c \\pm z\\,\\mathrm{se}` to first order.
+Where the relative standard error exceeds 0.5 (``MAX_LOG_REL_SE``; the data then say little and the
+log-scale bound :math:`e^{z\\,\\mathrm{se}/c}` would explode) the interval is
+:math:`[\\max(0, c - z\\,\\mathrm{se}),\\ c + z\\,\\mathrm{se}]`.
 A coefficient estimated as 0 (a term dropped by model selection, or a scale run to its floor) has
 lower bound 0 and the upper bound the estimator supplies (``diagnostics_["zero_upper"]`` times
 :math:`z^{p}`, p = ``diagnostics_["zero_upper_power"]``; ``whittle`` gives the boundary bound of a
@@ -47,6 +50,11 @@ from noise_models.units import COEFFICIENTS
 __all__ = ["interval", "ls_std_err", "parametric_bootstrap", "gyro_from_coefficients"]
 
 
+#: above this relative standard error the log-scale interval is not used (exp(z se/c) explodes when
+#: the data say little): the plain c +- z se, clipped at 0, instead
+MAX_LOG_REL_SE = 0.5
+
+
 def _check_level(level) -> float:
     if isinstance(level, bool) or not isinstance(level, (int, float, np.floating)) or not 0 < level < 1:
         raise ValueError(f"level: expected a probability strictly between 0 and 1, got {level!r}")
@@ -62,8 +70,9 @@ def interval(coefs: pd.Series, se: pd.Series, level=0.95, conservative=False, up
     z = _z(level, conservative, int(ok.sum()))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         r = np.where(ok, s / c, np.nan)
-        lower = np.where(ok, c * np.exp(-z * r), np.nan)
-        upper = np.where(ok, c * np.exp(z * r), np.nan)
+        log_scale = r <= MAX_LOG_REL_SE
+        lower = np.where(ok, np.where(log_scale, c * np.exp(-z * r), np.maximum(c - z * s, 0.0)), np.nan)
+        upper = np.where(ok, np.where(log_scale, c * np.exp(z * r), c + z * s), np.nan)
     zero = np.isfinite(c) & (c == 0)
     lower = np.where(zero, 0.0, lower)
     if upper_if_zero is not None:

@@ -71,6 +71,9 @@ def test_interval_is_the_log_scale_delta_interval():
     z2 = stats.norm.ppf(1 - 0.1 / 2)
     np.testing.assert_allclose(over.loc["N"], [0.0, 2 * math.exp(z2 * 0.1)])
     assert ci.loc[["Q", "K", "R"]].isna().all().all()
+    # a relative standard error above 0.5: the plain interval, clipped at 0
+    wide = interval(pd.Series({"K": 1.0}), pd.Series({"K": 2.0}), 0.9)
+    np.testing.assert_allclose(wide.loc["K"], [0.0, 1 + z * 2.0])
 
 
 def test_bootstrap_agrees_with_the_analytic_standard_errors():
