@@ -40,5 +40,5 @@ __all__ = [
 
 # Import every estimator module so that its classes register themselves.
 for _m in _pkgutil.iter_modules(__path__):
-    if not _m.name.startswith("_") and _m.name not in {"base", "allan", "av_model"}:
+    if not _m.name.startswith("_") and _m.name not in {"base", "allan", "av_model", "contract"}:
         _importlib.import_module(f"{__name__}.{_m.name}")

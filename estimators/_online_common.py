@@ -228,6 +228,12 @@ class OnlineAVFilter(Estimator):
             [BETA_SCALE[c] * x0[c] ** 2 * tau ** TAU_POWER[c] for c in terms]
         )  # (nm, nq) SI AV contributions at c_ref
         href = contrib.sum(axis=1)
+        if not np.all(np.isfinite(href) & (href > 0)):
+            raise ValueError(
+                f"x0: the initial coefficients {dict(x0)} give a model Allan variance of {href.tolist()} at "
+                "the measured tau, not a positive float64 number (x0 far outside the scale of the data?); "
+                "expected starting values of the order of the data's coefficients"
+            )
         self._x0_si = dict(x0)
         self._c_ref = c_ref
         self._zinv = 1.0 / href
@@ -319,7 +325,7 @@ class OnlineAVFilter(Estimator):
         terms = self._cfg["terms"]
         if not self._started:
             return coefficient_series(), ""
-        s = np.abs(self._state["s_view"]())
+        s = np.abs(self._scales())
         vals = {c: float(v) for c, v in zip(terms, s * self._c_ref)}
         code = int(self._istate[2])
         if code:
@@ -347,7 +353,7 @@ class OnlineAVFilter(Estimator):
         }
         if self._started:
             if failure:
-                last = np.abs(self._state["s_view"]()) * self._c_ref
+                last = np.abs(self._scales()) * self._c_ref
                 diag["last_good"] = coefficient_series(dict(zip(self._cfg["terms"], last)))
             diag.update(self._filter_diagnostics())
         self._set_results(coefs.to_dict(), None, diag)

@@ -91,38 +91,76 @@ def _load_all() -> None:
     import estimators  # noqa: F401
 
 
+#: classes loaded from an import path or an entry point, by the name they were asked for
+_PLUGINS: dict[str, type["Estimator"]] = {}
+
+
 def names() -> list[str]:
-    """Names of all registered estimators, sorted."""
+    """Names of all registered estimators and of those installed packages declare, sorted.
+
+    Installed packages declare estimators in the entry-point group ``avbench.estimators``
+    (:mod:`noise_models.plugins`); they are listed here without being imported.
+    """
+    from noise_models.plugins import ESTIMATOR_GROUP, entry_point_names
+
     _load_all()
-    return sorted(_REGISTRY)
+    return sorted(set(_REGISTRY) | set(entry_point_names(ESTIMATOR_GROUP)))
 
 
-def estimator_class(name: str) -> type["Estimator"]:
-    """The class registered under ``name``; a clear error naming the known ones otherwise."""
+def estimator_class(name: str, search=None) -> type["Estimator"]:
+    """The estimator class called ``name``; a clear error naming the known ones otherwise.
+
+    ``name`` is a registry name (``"wls"``), the name of an entry point of the group
+    ``avbench.estimators`` declared by an installed package, or an import path
+    ``"package.module:Class"``. ``search``: a folder to look in for a plugin module that is not
+    importable otherwise (see :func:`noise_models.plugins.import_module`). A plugin that cannot
+    be imported is a :class:`noise_models.plugins.PluginError` (a ``ValueError``) naming the module.
+    """
+    from noise_models import plugins
+
+    if not isinstance(name, str):
+        raise ValueError(f"estimator name: expected a string, got {name!r}")
     _load_all()
-    try:
-        return _REGISTRY[name]
-    except KeyError:
-        raise ValueError(f"unknown estimator {name!r}: expected one of {', '.join(names())}") from None
+    cls = _REGISTRY.get(name) or _PLUGINS.get(name)
+    if cls is not None:
+        return cls
+    if plugins.is_import_path(name):
+        target = name
+    else:
+        target = plugins.entry_point_target(plugins.ESTIMATOR_GROUP, name)
+        if target is None:
+            raise ValueError(
+                f"unknown estimator {name!r}: expected one of {', '.join(names())}, "
+                "or an import path 'package.module:Class'"
+            )
+    cls = plugins.load_object(target, search)
+    if not (isinstance(cls, type) and issubclass(cls, Estimator)):
+        raise plugins.PluginError(
+            f"estimator {name!r}: {target} is {cls!r}, expected a subclass of estimators.Estimator"
+        )
+    if "name" not in cls.__dict__:  # not registered under a name of its own
+        cls.name = name
+    _PLUGINS[name] = cls
+    return cls
 
 
-def get(name: str, **settings) -> "Estimator":
-    """A new estimator registered under ``name``, configured with ``settings``.
+def get(name, **settings) -> "Estimator":
+    """A new estimator ``name`` (see :func:`estimator_class`; or a class), configured with ``settings``.
 
     Unknown settings are an error naming the accepted ones.
     """
-    cls = estimator_class(name)
+    cls = name if isinstance(name, type) and issubclass(name, Estimator) else estimator_class(name)
     accepted = cls._param_names()
     unknown = sorted(set(settings) - set(accepted))
     if unknown:
         raise ValueError(
-            f"estimator {name!r}: unknown setting(s) {', '.join(unknown)}; "
+            f"estimator {cls.name!r}: unknown setting(s) {', '.join(unknown)}; "
             f"accepted: {', '.join(accepted) or '(none)'}"
         )
     try:
         check_common_settings(settings)
     except ValueError as e:
-        raise ValueError(f"estimator {name!r}: {e}") from None
+        raise ValueError(f"estimator {cls.name!r}: {e}") from None
     return cls(**settings)
 
 

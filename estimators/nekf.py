@@ -88,8 +88,11 @@ class _NekfBase(OnlineAVFilter):
         Qbar[:nq, :nq] = cfg["Q0"]
         Qbar[nq:, nq:] = np.eye(nw) * cfg["wQ0"]
         st = dict(xa=xa, P=P, Qbar=Qbar, Rbar=np.full(nm, cfg["R0"]), nq=nq, p=p)
-        st["s_view"] = lambda: st["xa"][:nq]
         return st
+
+    def _scales(self):
+        """The state's coefficient scales (a method, not a stored lambda: a fitted filter pickles)."""
+        return self._state["xa"][: self._state["nq"]]
 
     def _run_kernel(self, chunk, traj):
         st, av, cfg = self._state, self._av, self._cfg

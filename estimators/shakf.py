@@ -87,8 +87,11 @@ class _ShakfBase(OnlineAVFilter):
             r=np.zeros(nm),
             R=np.broadcast_to(R0, (nm,)).astype(float).copy(),
         )
-        st["s_view"] = lambda: st["s"]
         return st
+
+    def _scales(self):
+        """The state's coefficient scales (a method, not a stored lambda: a fitted filter pickles)."""
+        return self._state["s"]
 
     def _run_kernel(self, chunk, traj):
         st, av, cfg = self._state, self._av, self._cfg

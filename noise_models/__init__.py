@@ -32,6 +32,7 @@ __all__ = [
     "presets",
     "units",
     "TERM_TYPES",
+    "term_class",
 ]
 
 #: term classes by name (used by study configs)
@@ -47,3 +48,33 @@ TERM_TYPES = {
         SecondOrderGaussMarkov,
     )
 }
+
+
+def term_class(name: str, search=None) -> type[NoiseTerm]:
+    """The noise-term class called ``name`` in a study config.
+
+    A built-in term (a key of :data:`TERM_TYPES`), the name of an entry point of the group
+    ``avbench.noise_terms`` declared by an installed package, or an import path
+    ``"package.module:Class"`` (see :mod:`noise_models.plugins`; ``search`` as there). The class
+    must subclass :class:`NoiseTerm`. Errors are ``ValueError`` naming what was expected.
+    """
+    from noise_models import plugins
+
+    if not isinstance(name, str):
+        raise ValueError(f"expected a term type name, got {name!r}")
+    if name in TERM_TYPES:
+        return TERM_TYPES[name]
+    if plugins.is_import_path(name):
+        target = name
+    else:
+        target = plugins.entry_point_target(plugins.NOISE_TERM_GROUP, name)
+        if target is None:
+            known = sorted(set(TERM_TYPES) | set(plugins.entry_point_names(plugins.NOISE_TERM_GROUP)))
+            raise ValueError(
+                f"unknown term type {name!r}; expected one of {', '.join(known)}, "
+                "or an import path 'package.module:Class'"
+            )
+    cls = plugins.load_object(target, search)
+    if not (isinstance(cls, type) and issubclass(cls, NoiseTerm)):
+        raise plugins.PluginError(f"term type {name!r}: {target} is {cls!r}, expected a subclass of noise_models.NoiseTerm")
+    return cls

@@ -113,8 +113,21 @@ class Gyro:
             raise ValueError(f"tau: expected positive multiples of dt = {self.dt} s, got {tau!r}")
         return m.astype(np.int64)
 
+    @property
+    def has_exact_avar(self) -> bool:
+        """True if every term knows its exact Allan variance (see ``NoiseTerm.has_exact_avar``)."""
+        return all(t.has_exact_avar for t in self.terms)
+
     def avar(self, tau) -> np.ndarray:
-        """Exact Allan variance (rad^2/s^2) of the discrete generator at ``tau`` (multiples of dt)."""
+        """Exact Allan variance (rad^2/s^2) of the discrete generator at ``tau`` (multiples of dt).
+
+        A ValueError if a term has no exact AV (``has_exact_avar = False``).
+        """
+        missing = [t for t in self.terms if not t.has_exact_avar]
+        if missing:
+            raise ValueError(
+                f"no exact Allan variance for this gyro: term {missing[0]!r} declares none (has_exact_avar = False)"
+            )
         m = self.m_of(tau)
         return np.sum([t.avar(m, self.dt) for t in self.terms], axis=0)
 

@@ -112,9 +112,13 @@ class NoiseTerm:
 
     #: the IEEE coefficient the term reports (None if it reports none)
     coefficient: ClassVar[str | None] = None
+    #: False for a term without an exact Allan variance (a user's term may declare so): then
+    #: ``Gyro.avar`` is an error and study tables and figures say the truth curve is unavailable
+    has_exact_avar: ClassVar[bool] = True
 
     def coefficients(self) -> dict[str, float]:
-        raise NotImplementedError
+        """The IEEE coefficient(s) the term stands for, in SI (none by default)."""
+        return {}
 
     def avar(self, m, dt) -> np.ndarray:
         raise NotImplementedError

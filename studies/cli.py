@@ -5,7 +5,10 @@ Examples
 avbench presets                                  # the gyros of the papers
 avbench simulate SRS2000 --hours 4 --seed 1      # simulate one, print its Allan deviation table
 avbench simulate ADIS16405_Y --hours 1 --out y.npy
-avbench run studies/lv2015.toml --jobs 2         # a Monte Carlo study -> results/lv2015/
+avbench studies                                  # the studies shipped with avbench
+avbench run lv2015 --jobs 2                      # a packaged study by name -> ./results/lv2015/
+avbench run my_study.toml --jobs 2               # your own study file
+avbench check-estimator my_estimator.py:MyEstimator   # does it keep the estimator contract?
 avbench table results/lv2015 --latex             # re-print a finished study's table
 avbench estimate rec.csv --fs 100 --units deg/s --method wls,gmwm   # your own recording
 """
@@ -55,8 +58,36 @@ def cmd_estimators(args) -> int:
     import estimators
 
     for name in estimators.names():
-        print(f"{name:16s} {describe(estimators.estimator_class(name))}")
+        try:
+            cls = estimators.estimator_class(name)
+        except ValueError as e:  # an installed plugin that does not import: say so, list the rest
+            print(f"{name:16s} (cannot be loaded: {e})")
+            continue
+        where = "" if cls.__module__.startswith("estimators.") else f" [{cls.__module__}:{cls.__qualname__}]"
+        print(f"{name:16s} {describe(cls)}{where}")
     return 0
+
+
+def cmd_check_estimator(args) -> int:
+    import json
+
+    from estimators.contract import check_estimator, load_estimators
+
+    settings = {}
+    if args.settings:
+        try:
+            settings = json.loads(args.settings)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"--settings: expected a JSON object, got {args.settings!r} ({e})") from None
+        if not isinstance(settings, dict):
+            raise ValueError(f"--settings: expected a JSON object of settings, got {args.settings!r}")
+    classes = load_estimators(args.path)
+    failed = 0
+    for cls in classes:
+        report = check_estimator(cls, raise_on_failure=False, settings=settings)
+        print(report)
+        failed += not report.ok
+    return 1 if failed else 0
 
 
 def describe(cls) -> str:
@@ -197,14 +228,23 @@ REPORT_FILES = ("tidy.csv", "table.csv", "table.md", "leaderboard.md", "meta.jso
                 "scores.csv", "scores.md")
 
 
+def cmd_studies(args) -> int:
+    from studies import packaged
+
+    for name in packaged.names():
+        print(f"{name:22s} {packaged.description(name)}")
+    return 0
+
+
 def cmd_run(args) -> int:
+    from studies import packaged
     from studies.config import load_config
     from studies.runner import run_study
 
     overrides = {}
     if args.replicates is not None:
         overrides["replicates"] = args.replicates
-    cfg = load_config(args.config, overrides)
+    cfg = load_config(packaged.resolve(args.config), overrides)
     out = Path(args.out) if args.out else Path("results") / cfg.name
     from studies.outputs import prepare_out_dir
 
@@ -269,8 +309,20 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", help="also write the samples (rad/s) to FILE.npy or FILE.csv")
     s.set_defaults(func=cmd_simulate)
 
+    s = sub.add_parser("check-estimator", help="check an estimator against the estimator contract")
+    s.add_argument(
+        "path",
+        help="a registered name (wls), an import path (my_pkg.my_module:MyEstimator), "
+        "FILE.py:Class, or FILE.py (every estimator defined in it)",
+    )
+    s.add_argument("--settings", help='settings as a JSON object, e.g. \'{"terms": "NK"}\' (default: the defaults)')
+    s.set_defaults(func=cmd_check_estimator)
+
+    s = sub.add_parser("studies", help="list the studies shipped with avbench (run one by name)")
+    s.set_defaults(func=cmd_studies)
+
     s = sub.add_parser("run", help="run a Monte Carlo study from a TOML config")
-    s.add_argument("config", help="study TOML file (e.g. studies/lv2015.toml)")
+    s.add_argument("config", help="study TOML file, or the name of a packaged study (see 'avbench studies')")
     s.add_argument("--jobs", "-j", type=int, default=1, help="parallel workers (default 1; -1 = all cores)")
     s.add_argument("--out", help="output folder (default results/<study name>)")
     s.add_argument("--backend", choices=["loky", "dask"], help="execution backend (default: the config's, else loky)")

@@ -1,33 +1,11 @@
 """Study configuration: a small TOML file, validated completely before any work starts.
 
-Schema (every key optional unless marked required)::
-
-    [study]
-    name = "lv2015"             # required: names the output folder results/<name>
-    description = "..."
-    seed = 2015                 # required: master seed
-    replicates = 30             # required
-    duration_s = 14400          # or n_samples = ...; default: each preset's paper record length
-    block_size = 5              # replicates per task and per saved shard
-    backend = "loky"            # "loky" (local processes) or "dask"
-    scheduler = "tcp://..."     # dask scheduler address (backend = "dask"; none: local cluster)
-    paper_table = "paper_tables/lv2015_tables_2_4_6.csv"  # relative to this file; must be readable
-    figure_gyros = ["SRS2000"]  # gyros that get figures (default: all)
-    units = { Q = "arcsec" }    # table units per coefficient (default: the papers' units)
-
-    [[gyros]]                   # at least one
-    preset = "SRS2000"          # a preset name, or an explicit gyro:
-    # name = "mygyro"; dt = 0.01; terms = [{type = "AngleRandomWalk", N = [2.24, "deg/sqrt(h)"]}]
-    # label = "..."; paper_gyro = "X" (the gyro's name in paper_table)
-
-    [[estimators]]              # at least one
-    name = "wls"                # required: a registry name
-    label = "WLS"               # unique display label (default: name)
-    settings = { terms = "QNB" }
-    gyro_settings = { SRS2000 = { terms = "QN" } }   # per-gyro overrides
-    x0_truth_scale = 0.5        # set settings["x0"] = truth x 0.5 for the modelled coefficients
-    bootstrap = 20              # std errors by a parametric bootstrap of 20 refits per replicate
-    paper_method = "wls"        # the method's name in paper_table
+The schema -- every key, its type, default and meaning, with an example -- is in ``docs/CONFIG.md``
+(a test holds it to the keys accepted here: ``_STUDY_KEYS``, ``_GYRO_KEYS``, ``_EST_KEYS``).
+Estimators and noise terms may be plugins: a registry name, an entry point of the groups
+``avbench.estimators`` / ``avbench.noise_terms``, or an import path ``"module:Class"`` (a module
+beside the config file is found); ``[study] plugins`` lists modules to import first, in every
+process (:mod:`noise_models.plugins`).
 
 Errors name the file, the key and what was expected (:class:`ConfigError`), and are raised before any
 work starts and before anything is written. Besides types and ranges, every gyro is simulated for a
@@ -52,7 +30,8 @@ from typing import Any
 import numpy as np
 
 import estimators
-from noise_models import TERM_TYPES, Gyro, presets
+from noise_models import TERM_TYPES, Gyro, presets, term_class
+from noise_models.plugins import PluginError, import_module, version_of
 
 __all__ = ["ConfigError", "StudyConfig", "GyroSpec", "EstimatorSpec", "load_config", "parse_config"]
 
@@ -94,12 +73,7 @@ class EstimatorSpec:
         return s
 
     def make(self, gyro: GyroSpec) -> "estimators.Estimator":
-        if self.cls is not None:
-            from estimators.base import _REGISTRY, register
-
-            if self.name not in _REGISTRY:
-                register(self.name)(self.cls)
-        return estimators.get(self.name, **self.settings_for(gyro))
+        return estimators.get(self.cls if self.cls is not None else self.name, **self.settings_for(gyro))
 
 
 @dataclass(frozen=True)
@@ -118,6 +92,15 @@ class StudyConfig:
     units: dict = field(default_factory=dict)
     path: Path | None = None
     raw: dict = field(default_factory=dict)
+    #: modules named in ``[study] plugins``, imported by every process that runs the study
+    plugins: tuple[str, ...] = ()
+    #: code the study uses from outside avbench (plugin modules, estimator and term classes) -> version
+    plugin_versions: dict = field(default_factory=dict)
+
+    def import_plugins(self) -> None:
+        """Import the ``[study] plugins`` modules (what a worker process does before its first block)."""
+        for m in self.plugins:
+            import_module(m, self.path.parent if self.path else None)
 
     def result_payload(self) -> dict:
         """Everything that determines the per-replicate results (not their count, not the backend).
@@ -128,13 +111,16 @@ class StudyConfig:
         the paper references.
         """
         study = {k: v for k, v in self.raw.get("study", {}).items() if k in ("seed", "duration_s", "n_samples")}
-        return {
+        payload = {
             "study": study,
             "gyros": [{k: v for k, v in g.items() if k != "paper_gyro"} for g in self.raw.get("gyros", [])],
             "estimators": [
                 {k: v for k, v in e.items() if k not in ("paper_method",)} for e in self.raw.get("estimators", [])
             ],
         }
+        if self.plugin_versions:  # code from outside avbench: its name and version (absent otherwise)
+            payload["plugins"] = dict(self.plugin_versions)
+        return payload
 
     def result_key(self) -> str:
         """Hash of :meth:`result_payload`: names the shard folder ``_shards/<key>/``."""
@@ -162,6 +148,7 @@ _STUDY_KEYS = {
     "paper_table": str,
     "figure_gyros": list,
     "units": dict,
+    "plugins": list,
 }
 _GYRO_KEYS = {"preset": str, "name": str, "label": str, "dt": (int, float), "terms": list, "paper_gyro": str}
 _EST_KEYS = {
@@ -219,7 +206,11 @@ def _check_label(ctx: _Ctx, key: str, v) -> str:
     return v
 
 
-def _build_gyro(ctx: _Ctx, i: int, g: dict) -> tuple[str, Gyro, float | None]:
+def _builtin(cls) -> bool:
+    return cls.__module__.split(".")[0] in ("estimators", "noise_models")
+
+
+def _build_gyro(ctx: _Ctx, i: int, g: dict, search: Path | None = None) -> tuple[str, Gyro, float | None]:
     key = f"gyros[{i}]"
     if ("preset" in g) == ("terms" in g):
         ctx.fail(key, "expected either 'preset' or an explicit gyro ('name', 'dt', 'terms'), not both or neither")
@@ -239,13 +230,15 @@ def _build_gyro(ctx: _Ctx, i: int, g: dict) -> tuple[str, Gyro, float | None]:
     for j, t in enumerate(g["terms"]):
         tkey = f"{key}.terms[{j}]"
         if not isinstance(t, dict) or "type" not in t:
-            ctx.fail(tkey, f"expected a table with 'type' (one of {', '.join(TERM_TYPES)})")
+            ctx.fail(tkey, f"expected a table with 'type' (one of {', '.join(TERM_TYPES)}, or 'package.module:Class')")
         kind = t["type"]
-        if not isinstance(kind, str) or kind not in TERM_TYPES:
-            ctx.fail(f"{tkey}.type", f"unknown term type {kind!r}; expected one of {', '.join(TERM_TYPES)}")
+        try:
+            cls = term_class(kind, search)
+        except ValueError as e:
+            ctx.fail(f"{tkey}.type", str(e))
         kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in t.items() if k != "type"}
         try:
-            terms.append(TERM_TYPES[kind](**kwargs))
+            terms.append(cls(**kwargs))
         except TypeError as e:
             ctx.fail(tkey, f"bad arguments for {kind}: {e}")
         except Exception as e:  # ValueError from the term, or anything the unit parser raises
@@ -305,6 +298,16 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
             ctx.fail("study.scheduler", 'a scheduler address needs backend = "dask"')
         if not _SCHEDULER_RE.match(scheduler):
             ctx.fail("study.scheduler", f"expected a dask scheduler address like tcp://host:8786, got {scheduler!r}")
+    search = path.parent if path else None
+    plugin_mods = study.get("plugins", [])
+    plugin_versions = {}
+    for j, m in enumerate(plugin_mods):
+        if not isinstance(m, str) or not re.fullmatch(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*", m):
+            ctx.fail(f"study.plugins[{j}]", f"expected a module name like 'my_package.my_module', got {m!r}")
+        try:
+            plugin_versions[m] = version_of(import_module(m, search))
+        except PluginError as e:
+            ctx.fail(f"study.plugins[{j}]", str(e))
     paper_table = paper = None
     if "paper_table" in study:
         base = path.parent if path else Path.cwd()
@@ -320,7 +323,10 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         for k in ("label", "name", "paper_gyro"):
             if k in g:
                 _check_label(ctx, f"gyros[{i}].{k}", g[k])
-        label, gyro, paper_duration = _build_gyro(ctx, i, _tuplify(g))
+        label, gyro, paper_duration = _build_gyro(ctx, i, _tuplify(g), search)
+        for t in gyro.terms:
+            if not _builtin(type(t)):
+                plugin_versions[f"{type(t).__module__}:{type(t).__qualname__}"] = version_of(type(t))
         if "n_samples" in study:
             n = int(study["n_samples"])
         else:
@@ -372,14 +378,17 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
     if not raw["estimators"]:
         ctx.fail("estimators", "expected at least one [[estimators]] entry")
     ests = []
-    known = estimators.names()
     for i, e in enumerate(raw["estimators"]):
         key = f"estimators[{i}]"
         ctx.check_keys(e, _EST_KEYS, key)
         if "name" not in e:
-            ctx.fail(f"{key}.name", f"required; expected one of {', '.join(known)}")
-        if e["name"] not in known:
-            ctx.fail(f"{key}.name", f"unknown estimator {e['name']!r}; expected one of {', '.join(known)}")
+            ctx.fail(f"{key}.name", f"required; expected one of {', '.join(estimators.names())}")
+        try:
+            cls = estimators.estimator_class(e["name"], search)
+        except ValueError as err:
+            ctx.fail(f"{key}.name", str(err))
+        if not _builtin(cls):
+            plugin_versions[f"{cls.__module__}:{cls.__qualname__}"] = version_of(cls)
         for k in ("label", "paper_method"):
             if k in e:
                 _check_label(ctx, f"{key}.{k}", e[k])
@@ -410,7 +419,7 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
             gyro_settings=_tuplify(gs),
             x0_truth_scale=None if scale is None else float(scale),
             paper_method=e.get("paper_method"),
-            cls=estimators.estimator_class(e["name"]),
+            cls=cls,
         )
         # build one per gyro now and probe it, so bad settings fail before any work
         for g, records in zip(gyros, probes):
@@ -442,6 +451,8 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         units=dict(study.get("units", {})),
         path=path,
         raw=raw,
+        plugins=tuple(plugin_mods),
+        plugin_versions=plugin_versions,
     )
 
 

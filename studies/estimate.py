@@ -307,10 +307,11 @@ def _check_args(args):
     methods = [m.strip() for m in str(args.method).split(",") if m.strip()]
     if not methods:
         raise ValueError("--method: expected at least one estimator name")
-    known = estimators.names()
-    unknown = [m for m in methods if m not in known]
-    if unknown:
-        raise ValueError(f"--method: unknown estimator(s) {', '.join(unknown)}; expected from {', '.join(known)}")
+    for m in methods:  # registered, installed (entry point) or "package.module:Class"
+        try:
+            estimators.estimator_class(m)
+        except ValueError as e:
+            raise ValueError(f"--method: {e}") from None
     settings: dict = {}
     for item in args.set:
         key, eq, value = str(item).partition("=")

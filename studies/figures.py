@@ -57,7 +57,11 @@ def av_figure(rate, gyro, fits: dict, title: str):
             ax.errorbar(av.tau, adev, yerr=yerr, fmt="o", ms=3, color="k", label="replicate 0 (overlapping AV)")
         tau = np.unique(np.rint(np.logspace(0, np.log10(av.m.max()), 80)).astype(int)) * gyro.dt
         try:
-            truth = np.sqrt(_finite_positive(gyro.avar(tau)))
+            if getattr(gyro, "has_exact_avar", True):
+                truth = np.sqrt(_finite_positive(gyro.avar(tau)))
+            else:  # a term declares no exact AV
+                truth = np.full(tau.shape, np.nan)
+                ax.plot([], [], " ", label="exact AV unavailable (a term declares none)")
         except (OverflowError, FloatingPointError):  # e.g. N = 1e200: N**2 is beyond float64
             truth = np.full(tau.shape, np.nan)
         if np.isfinite(truth).any():

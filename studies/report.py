@@ -155,8 +155,12 @@ def render_markdown(summary: pd.DataFrame, meta: dict | None = None) -> str:
         out.append(f"# {meta['title']}\n")
     if meta.get("description"):
         out.append(meta["description"].strip() + "\n")
-    for _, head, cols, rows in paper_layout(summary, meta):
+    for g, head, cols, rows in paper_layout(summary, meta):
         out.append(f"## {head}\n")
+        truth_curve = meta.get("gyros", {}).get(g, {}).get("truth_curve")
+        if truth_curve:
+            out.append(f"Truth curve (exact Allan variance) {truth_curve}; the true coefficients "
+                       "below are those the terms declare.\n")
         out.append("| | " + " | ".join(cols) + " |")
         out.append("|---|" + "---|" * len(cols))
         for kind, label, cells in rows:
@@ -320,6 +324,14 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def _truth_curve(gyro) -> dict:
+    """``{"truth_curve": reason}`` when the gyro has a term without an exact AV, else nothing."""
+    missing = [type(t).__name__ for t in gyro.terms if not getattr(t, "has_exact_avar", True)]
+    if not missing:
+        return {}
+    return {"truth_curve": f"unavailable: term {', '.join(missing)} has no exact Allan variance"}
+
+
 def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     """tidy.csv, table.csv, table.md, leaderboard.md, figures and (last) meta.json; returns the summary.
 
@@ -344,7 +356,7 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
         "seed": cfg.seed,
         "replicates": cfg.replicates,
         "result_key": cfg.result_key(),
-        "gyros": {g.label: {"n_samples": g.n_samples, "dt": g.gyro.dt} for g in cfg.gyros},
+        "gyros": {g.label: {"n_samples": g.n_samples, "dt": g.gyro.dt, **_truth_curve(g.gyro)} for g in cfg.gyros},
         "paper_table": os.path.basename(str(cfg.paper_table)) if cfg.paper_table else None,
     }
     written = [write_tidy(tidy, out)]

@@ -224,6 +224,7 @@ def _compute_block(cfg: StudyConfig, task: Task) -> tuple[Task, pd.DataFrame]:
     that runs the study saves each block as it arrives.
     """
     _one_numba_thread()
+    cfg.import_plugins()  # the same plugin modules as the process that loaded the config
     return task, run_block(cfg, task)
 
 

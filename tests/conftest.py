@@ -86,3 +86,42 @@ def study_toml(name="tiny", seed=7, replicates=6, block_size=2, n_samples=3000, 
         f"n_samples = {n_samples}\nblock_size = {block_size}\n{extra_study}\n"
     )
     return head + _TINY_BODY + textwrap.dedent(extra_estimators)
+
+
+PLUGIN_PKG = __import__("pathlib").Path(__file__).parent / "plugin_pkg"
+
+
+@pytest.fixture(scope="session")
+def example_plugin():
+    """The example plugin package ``tests/plugin_pkg`` installed into this test environment.
+
+    A real install (``pip install``, offline, no dependencies, its own standard-library build
+    backend), so that its entry points are seen by this process and by every worker process;
+    uninstalled at the end of the session. Nothing is written into the source tree but Python's
+    byte-code cache (git-ignored).
+    """
+    import importlib
+    import subprocess
+    import sys
+
+    from noise_models import plugins
+
+    pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
+    subprocess.run(
+        pip + ["install", "--no-deps", "--no-build-isolation", "--no-index", "--force-reinstall", str(PLUGIN_PKG)],
+        check=True,
+    )
+    importlib.invalidate_caches()
+    plugins._entry_points.cache_clear()
+    yield "avbench_example_plugin"
+    subprocess.run(pip + ["uninstall", "-y", "avbench-example-plugin"], check=False)
+    importlib.invalidate_caches()
+    plugins._entry_points.cache_clear()
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    """A real ``distributed.LocalCluster`` (2 worker processes, 1 thread each) for a test module."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
+        yield c

@@ -71,7 +71,7 @@ CASES = [
     ("--fs 0", "r.csv", _text(GOOD), ["--fs", "0"], "--fs: expected a positive sample rate in Hz, got 0.0"),
     ("--fs nan", "r.csv", _text(GOOD), ["--fs", "nan"], "--fs: expected a positive sample rate"),
     ("unknown unit", "r.csv", _text(GOOD), ["--units", "furlong/s"], "unknown rate unit 'furlong/s'"),
-    ("unknown method", "r.csv", _text(GOOD), ["--method", "olss"], "--method: unknown estimator(s) olss"),
+    ("unknown method", "r.csv", _text(GOOD), ["--method", "olss"], "--method: unknown estimator 'olss': expected one of"),
 ]
 
 

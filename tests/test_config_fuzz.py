@@ -113,7 +113,7 @@ CASES = [
     (_set(("gyros", 1, "preset"), "SRS3000"), r"gyros\[1\]\.preset: .*SRS3000"),
     (_set(("gyros", 1, "dt"), 0.1), r"gyros\[1\]\.dt: not allowed with 'preset'"),
     (_set(("gyros", 1, "label"), "mygyro"), r"gyros: gyro labels must be unique"),
-    (_set(("estimators", 0, "name"), "olss"), r"estimators\[0\]\.name: unknown estimator 'olss'; expected one of"),
+    (_set(("estimators", 0, "name"), "olss"), r"estimators\[0\]\.name: unknown estimator 'olss': expected one of"),
     (_set(("estimators", 0, "settings", "terms"), "QNX"), r"estimators\[0\]\.settings: \(gyro SRS2000\) estimator 'ols': terms: expected a non-empty subset"),
     (_set(("estimators", 0, "settings", "taus"), "weekly"), r"estimators\[0\]\.gyro_settings\.mygyro: \(gyro mygyro\) estimator 'ols': taus: expected one of octave, decade, all"),
     (_set(("estimators", 0, "settings", "window"), 3), r"estimators\[0\]\.gyro_settings\.mygyro: \(gyro mygyro\) estimator 'ols': unknown setting\(s\) window"),

@@ -1,61 +1,37 @@
-"""One contract test, parametrised over every registered estimator (scikit-learn style)."""
+"""The estimator contract (``estimators.contract.check_estimator``, ``avbench check-estimator``):
+every built-in estimator passes it, and deliberately broken estimators fail it with a clear reason."""
 
-import pickle
+import math
+import random
 
 import numpy as np
 import pandas as pd
 import pytest
 
 import estimators
-from noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
+from estimators import Estimator
+from estimators.contract import ContractError, check_estimator
+from studies.cli import main
 
-COEFS = ["Q", "N", "B", "K", "R"]
-
-
-@pytest.fixture(scope="module")
-def record():
-    g = Gyro(
-        dt=0.01,
-        terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=2e-4, tc=5.0), RateRandomWalk(K=1e-6)],
-    )
-    return g.simulate(30_000, np.random.default_rng(0)), g.dt
+#: settings that keep the default run fast; the slow run checks every estimator at its defaults
+FAST = {"mle": {"model": "WN+RW", "max_blocks": 4096}}
 
 
 @pytest.mark.parametrize("name", estimators.names())
-def test_contract(name, record):
-    x, dt = record
-    est = estimators.get(name)
-    params = est.get_params()
-    # __init__ stores its arguments unchanged; clone gives an equal, unfitted estimator
-    clone = est.clone()
-    assert type(clone) is type(est) and clone.get_params().keys() == params.keys()
-    assert not hasattr(clone, "coefficients_")
-    pickle.loads(pickle.dumps(est))
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            out = est.fit(x, dt)
-            assert out is est
-            c1 = est.coefficients_.copy()
-            est2 = estimators.get(name).fit(x, dt)
-    assert isinstance(est.coefficients_, pd.Series) and list(est.coefficients_.index) == COEFS
-    assert est.coefficients_.dtype == float
-    assert list(est.nonphysical_.index) == COEFS and est.nonphysical_.dtype == bool
-    assert isinstance(est.diagnostics_, dict)
-    # refitting on the same data gives the same answer
-    pd.testing.assert_series_equal(c1, est2.coefficients_)
-    # flagged coefficients are NaN; estimates are non-negative
-    assert np.all(np.isnan(est.coefficients_[est.nonphysical_]))
-    finite = est.coefficients_.dropna()
-    assert np.all(finite >= 0)
+def test_builtin_estimators_keep_the_contract(name):
+    if not estimators.estimator_class(name).__module__.startswith("estimators."):
+        pytest.skip(f"{name} is an installed plugin, not a built-in")
+    report = check_estimator(name, settings=FAST.get(name), raise_on_failure=False)
+    assert report.ok, str(report)
+    assert [r.check for r in report.results] == [
+        "init", "params", "pickle", "fit", "attributes", "uncertainty", "determinism", "bad input", "recovery",
+    ]
 
 
-@pytest.mark.parametrize("name", estimators.names())
-def test_unknown_setting_is_a_clear_error(name):
-    with pytest.raises(ValueError, match="unknown setting"):
-        estimators.get(name, no_such_setting=1)
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(FAST))
+def test_builtin_estimators_keep_the_contract_at_their_defaults(name):
+    check_estimator(name)
 
 
 def test_unknown_name_lists_known():
@@ -63,10 +39,161 @@ def test_unknown_name_lists_known():
         estimators.get("kalman_magic")
 
 
-@pytest.mark.parametrize("name", estimators.names())
-def test_bad_records_rejected(name):
-    est = estimators.get(name)
-    with pytest.raises(ValueError, match="non-finite"):
-        est.fit(np.r_[np.zeros(100), np.nan], 0.01)
-    with pytest.raises(ValueError, match="dt"):
-        est.fit(np.zeros(100), -1.0)
+# -- deliberately broken estimators ------------------------------------------------------------
+
+
+class _WhiteN(Estimator):
+    """A correct minimal estimator: N from the variance of the rate (white noise only)."""
+
+    def __init__(self, *, scale=1.0):
+        self.scale = scale
+
+    def _fit(self, rate, dt):
+        return {"N": float(np.sqrt(np.var(rate) * dt)) * self.scale}, {}, {}
+
+
+class ValidatesInInit(_WhiteN):
+    def __init__(self, *, scale=1.0):
+        self.scale = float(scale)
+
+
+class CopiesDefault(_WhiteN):
+    def __init__(self, *, taus=(1, 2)):
+        self.taus = list(taus)
+
+
+class FitReturnsNone(_WhiteN):
+    def fit(self, rate, dt):
+        super().fit(rate, dt)
+
+
+class DegreesPerHour(_WhiteN):
+    """N in deg/sqrt(h) where SI (rad/sqrt(s)) is expected."""
+
+    def _fit(self, rate, dt):
+        coefs, nonphys, diag = super()._fit(rate, dt)
+        return {"N": coefs["N"] * 180 / math.pi * 60}, nonphys, diag
+
+
+class WrongIndex(_WhiteN):
+    def fit(self, rate, dt):
+        super().fit(rate, dt)
+        self.coefficients_ = self.coefficients_[["N", "K"]]
+        return self
+
+
+class Unseeded(_WhiteN):
+    def _fit(self, rate, dt):
+        coefs, nonphys, diag = super()._fit(rate, dt)
+        return {"N": coefs["N"] * (1 + 1e-3 * random.random())}, nonphys, diag
+
+
+class RemembersFirstRecord(_WhiteN):
+    def _fit(self, rate, dt):
+        if not hasattr(self, "_first"):
+            self._first = float(np.var(rate))
+        return {"N": float(np.sqrt(self._first * dt))}, {}, {}
+
+
+class AcceptsAnything(_WhiteN):
+    def fit(self, rate, dt):
+        rate = np.asarray(rate, dtype=float).ravel()
+        self._set_results(*self._fit(rate, abs(float(dt)) if dt == dt else 0.1))
+        return self
+
+
+class IndexErrorOnShort(_WhiteN):
+    def fit(self, rate, dt):
+        if np.size(rate) < 16:
+            return np.asarray(rate)[99]
+        return super().fit(rate, dt)
+
+
+class Unpicklable(_WhiteN):
+    def __init__(self, *, scale=1.0):
+        self.scale = scale
+        self.hook = lambda x: x
+
+
+class BadStdErr(_WhiteN):
+    def fit(self, rate, dt):
+        super().fit(rate, dt)
+        self.std_err_ = self.coefficients_ * np.nan
+        self.std_err_["N"] = -1e-5  # a negative standard error
+        return self
+
+
+class BadConfInt(_WhiteN):
+    def conf_int(self):
+        c = self.coefficients_
+        return pd.DataFrame({"lower": 2 * c, "upper": 3 * c})
+
+
+class VarArgs(_WhiteN):
+    def __init__(self, scale=1.0, **extra):
+        self.scale = scale
+
+
+BROKEN = [
+    (ValidatesInInit, "init", "does more than store its settings"),
+    (CopiesDefault, "init", "default of 'taus' stored as [1, 2]"),
+    (VarArgs, "init", "__init__ takes *extra"),
+    (FitReturnsNone, "fit", "fit() returned None, expected self"),
+    (DegreesPerHour, "recovery", "off by"),
+    (WrongIndex, "attributes", "coefficients_ index ['N', 'K'], expected ['Q', 'N', 'B', 'K', 'R']"),
+    (Unseeded, "determinism", "a fresh copy fitted on the same record gave other coefficients"),
+    (RemembersFirstRecord, "determinism", "refitting a fitted estimator on another record differs from a fresh fit"),
+    (AcceptsAnything, "bad input", "a NaN sample: accepted, expected a ValueError"),
+    (IndexErrorOnShort, "bad input", "8 samples: raised IndexError"),
+    (Unpicklable, "pickle", "Can't pickle"),
+    (BadStdErr, "uncertainty", "std_err_ of ['N'] is negative"),
+    (BadConfInt, "uncertainty", "conf_int() does not contain the estimate for ['N']"),
+]
+
+
+def test_a_correct_minimal_estimator_passes():
+    report = check_estimator(_WhiteN)
+    assert report.ok and "N recovered" in str(report)
+
+
+@pytest.mark.parametrize("cls, check, reason", BROKEN, ids=[b[0].__name__ for b in BROKEN])
+def test_broken_estimators_fail_with_a_clear_reason(cls, check, reason):
+    report = check_estimator(cls, raise_on_failure=False)
+    failed = {r.check: r.reason for r in report.failures}
+    assert check in failed, str(report)
+    assert reason in failed[check], str(report)
+    with pytest.raises(ContractError, match="FAIL"):
+        check_estimator(cls)
+
+
+BROKEN_FILE = '''
+import numpy as np
+from estimators import Estimator
+
+
+class NoSelf(Estimator):
+    """fit forgets to return self."""
+
+    def __init__(self, *, scale=1.0):
+        self.scale = scale
+
+    def _fit(self, rate, dt):
+        return {"N": float(np.sqrt(np.var(rate) * dt))}, {}, {}
+
+    def fit(self, rate, dt):
+        super().fit(rate, dt)
+'''
+
+
+def test_cli_check_estimator(tmp_path, capsys):
+    assert main(["check-estimator", "ols"]) == 0
+    assert "all 9 checks passed" in capsys.readouterr().out
+    f = tmp_path / "my_broken_estimator.py"
+    f.write_text(BROKEN_FILE)
+    assert main(["check-estimator", f"{f}:NoSelf"]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL  fit: fit() returned None, expected self" in out and "checks failed" in out
+    assert main(["check-estimator", str(f)]) == 1  # every estimator defined in the file
+    assert main(["check-estimator", f"{tmp_path / 'missing.py'}:X"]) == 2
+    assert "no such file" in capsys.readouterr().err
+    assert main(["check-estimator", "ols", "--settings", "[1]"]) == 2

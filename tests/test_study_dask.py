@@ -23,15 +23,8 @@ def toml(extra_study=""):
     return study_toml(name="tiny_dask", seed=5, extra_study=extra_study)
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
-    ) as c:
-        yield c
-
-
-def test_dask_cluster_gives_the_local_table(tmp_path, cluster, capsys):
+def test_dask_cluster_gives_the_local_table(tmp_path, dask_cluster, capsys):
+    cluster = dask_cluster
     cfg_path = tmp_path / "s.toml"
     cfg_path.write_text(toml())
     local = run_study(load_config(cfg_path), tmp_path / "local", n_jobs=1, progress=False, make_report=False)

@@ -1,0 +1,537 @@
+"""The estimator contract as a checker: ``check_estimator`` (and ``avbench check-estimator PATH``).
+
+Every built-in estimator passes these checks (the test suite runs them on each), and a new one
+should before it enters a study (scikit-learn's ``check_estimator`` is the model):
+
+``init``
+    ``__init__`` takes keyword settings with defaults only and stores them unchanged (the same
+    objects), learning nothing (no attribute ending in ``_``);
+``params``
+    ``get_params`` returns exactly the signature's settings; ``set_params`` sets them and refuses
+    an unknown one with a ``ValueError``; ``clone`` gives an unfitted estimator of the same class
+    with equal settings;
+``pickle``
+    the configured and the fitted estimator survive ``pickle`` (workers receive them that way);
+``fit``
+    ``fit(rate, dt)`` returns ``self``;
+``attributes``
+    ``coefficients_`` is a float ``pandas.Series`` indexed exactly Q, N, B, K, R (SI units),
+    ``nonphysical_`` a bool Series with that index, ``diagnostics_`` a dict; a flagged coefficient
+    is NaN and finite coefficients are non-negative;
+``uncertainty``
+    if provided: ``std_err_`` a float Series indexed Q..R, finite only where the coefficient is,
+    non-negative; ``conf_int()`` a two-column DataFrame indexed Q..R with lower <= estimate <= upper
+    where finite;
+``determinism``
+    a fresh copy (unpickled) fitted on the same record gives identical coefficients (and standard
+    errors); refitting a fitted estimator on another record equals a fresh fit on it, and refitting
+    back gives the first answer;
+``bad input``
+    a record with NaN or inf, a record too short (8 samples), a 2-D array, and a ``dt`` that is
+    zero, negative, NaN or not a number are each refused with a ``ValueError`` with a message;
+``recovery``
+    on a simple simulated gyro (:func:`recovery_gyro`: angle random walk plus rate random walk,
+    2^14 samples at 10 Hz, a fixed seed) every coefficient of the gyro the estimator reports
+    lies within :data:`Z_RECOVERY` standard deviations of an estimator
+    :data:`EFFICIENCY_ALLOWANCE` times less efficient than the Cramér-Rao bound of that record
+    (``estimators.crlb``): :math:`|\\hat\\theta - \\theta| \\le z\\,E\\,\\sigma_{CRLB}`. With
+    z = 4 an unbiased Gaussian estimator that meets the allowance fails by chance with probability
+    below 1e-4 per coefficient. The band is ±22 % of N and ±8.4 K (K shows only in the last
+    octaves of this record): it catches unit slips (deg for rad: 57; hours for seconds: 60; a
+    missing square root) and swapped coefficients, not a factor of 2 in K. A coefficient the
+    estimator flags non-physical is reported, not judged (at least one must be recovered), and an
+    estimator that warns, with an ``IdentifiabilityWarning``, that the record cannot determine its
+    coefficients is excused (the report says so). It is a smoke test of the plumbing, not an
+    accuracy benchmark: studies do that. (On this record the built-in curve fits, filters, GMWM and
+    ARMA-EM at their default settings are within 8 CRLB standard deviations of N and K; the
+    single-tau NEKF warns and is excused.)
+
+Examples
+--------
+>>> from estimators.contract import check_estimator
+>>> report = check_estimator("ols", raise_on_failure=False)   # doctest: +SKIP
+>>> report.ok                                                  # doctest: +SKIP
+True
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib.util
+import inspect
+import math
+import pickle
+import sys
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from estimators.base import Estimator, estimator_class, get
+from noise_models.units import COEFFICIENTS
+
+__all__ = [
+    "check_estimator",
+    "ContractReport",
+    "ContractError",
+    "CheckResult",
+    "load_estimators",
+    "recovery_gyro",
+    "RECOVERY_SAMPLES",
+    "Z_RECOVERY",
+    "EFFICIENCY_ALLOWANCE",
+]
+
+#: record length of the recovery check (samples at dt = 0.1 s: about 27 minutes)
+RECOVERY_SAMPLES = 1 << 14
+#: standard deviations allowed in the recovery check
+Z_RECOVERY = 4.0
+#: how many times the CRLB standard deviation an estimator's own may be in the recovery check
+EFFICIENCY_ALLOWANCE = 10.0
+_SEED_A, _SEED_B = 20260101, 20260102
+_INDEX = list(COEFFICIENTS)
+
+
+def recovery_gyro():
+    """The gyro of the recovery check: N = 1e-3 rad/√s, K = 3e-5 rad/s^1.5, dt = 0.1 s.
+
+    On the record of 2^14 samples (27 minutes) the Cramér-Rao standard deviations are 0.55 % of N
+    and 21 % of K: the AV is white-noise dominated, the rate random walk bends its last octaves
+    (crossover 3 N^2 / K^2 = 3300 s). A curve fit of all five terms on all cluster sizes (OLS of
+    Lv et al. 2015) still recovers N here, while a strong random walk would swamp it.
+    """
+    from noise_models import AngleRandomWalk, Gyro, RateRandomWalk
+
+    return Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=3e-5)], name="recovery")
+
+
+class ContractError(AssertionError):
+    """An estimator failed the contract; the message lists every failed check and why."""
+
+
+@dataclass
+class CheckResult:
+    check: str
+    passed: bool
+    reason: str = ""
+
+    def __str__(self) -> str:
+        return f"{'PASS' if self.passed else 'FAIL'}  {self.check}" + (f": {self.reason}" if self.reason else "")
+
+
+@dataclass
+class ContractReport:
+    """What :func:`check_estimator` found: one :class:`CheckResult` per check."""
+
+    estimator: str
+    results: list[CheckResult] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return all(r.passed for r in self.results)
+
+    @property
+    def failures(self) -> list[CheckResult]:
+        return [r for r in self.results if not r.passed]
+
+    def __str__(self) -> str:
+        lines = [f"check-estimator {self.estimator}"] + [f"  {r}" for r in self.results]
+        n = len(self.failures)
+        lines.append(f"{n} of {len(self.results)} checks failed" if n else f"all {len(self.results)} checks passed")
+        return "\n".join(lines)
+
+
+def _one_line(e: BaseException) -> str:
+    return f"{type(e).__name__}: {e}".splitlines()[0][:300]
+
+
+def _same(a, b) -> bool:
+    """Equal values (NaN equals NaN; arrays elementwise), without raising."""
+    if a is b:
+        return True
+    try:
+        if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+            return True
+        if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+            return bool(np.array_equal(a, b, equal_nan=True))
+        return bool(a == b)
+    except Exception:
+        return False
+
+
+def _quiet(f, *args):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with np.errstate(all="ignore"):
+            return f(*args)
+
+
+def _series_equal(a, b) -> str | None:
+    """Why two Series are not identical (values bit for bit, NaN equal to NaN), or None."""
+    if not isinstance(a, pd.Series) or not isinstance(b, pd.Series):
+        return f"not Series ({type(a).__name__}, {type(b).__name__})"
+    if list(a.index) != list(b.index):
+        return f"indexes differ ({list(a.index)} vs {list(b.index)})"
+    x, y = a.to_numpy(), b.to_numpy()
+    if not np.array_equal(x, y, equal_nan=x.dtype.kind == "f"):
+        diff = [f"{k}: {u!r} vs {v!r}" for k, u, v in zip(a.index, x, y) if not _same(u, v)]
+        return "; ".join(diff[:5])
+    return None
+
+
+def load_estimators(path: str) -> list[type[Estimator]]:
+    """The estimator class(es) named by ``path``, as ``avbench check-estimator`` reads it.
+
+    ``path`` is a registered or installed name (``"wls"``), an import path ``"package.module:Class"``,
+    ``"file.py:Class"``, or ``"file.py"`` (every Estimator subclass defined in that file). A file is
+    imported as a module named after it (and entered in ``sys.modules``, so that its classes
+    pickle). Errors are ``ValueError`` naming what is wrong.
+    """
+    file, _, attr = path.partition(":") if ".py" in path else (None, None, None)
+    if file is not None and file.endswith(".py"):
+        f = Path(file)
+        if not f.is_file():
+            raise ValueError(f"{file}: no such file")
+        mod_name = f.stem
+        if not mod_name.isidentifier():
+            raise ValueError(f"{file}: expected a file name that is a Python identifier (my_estimator.py)")
+        loaded = sys.modules.get(mod_name)
+        if loaded is None or Path(getattr(loaded, "__file__", "") or "").resolve() != f.resolve():
+            spec = importlib.util.spec_from_file_location(mod_name, f)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[mod_name] = module
+            try:
+                spec.loader.exec_module(module)
+            except Exception as e:
+                del sys.modules[mod_name]
+                raise ValueError(f"{file}: importing it failed: {_one_line(e)}") from None
+            loaded = module
+        if attr:
+            cls = getattr(loaded, attr, None)
+            if not (isinstance(cls, type) and issubclass(cls, Estimator)):
+                raise ValueError(f"{file}: no Estimator subclass named {attr!r}")
+            return [cls]
+        found = [
+            c for c in vars(loaded).values()
+            if isinstance(c, type) and issubclass(c, Estimator) and c.__module__ == loaded.__name__
+            and not inspect.isabstract(c) and "_fit" in vars(c)
+        ]
+        if not found:
+            raise ValueError(f"{file}: defines no Estimator subclass (with a _fit method)")
+        return found
+    return [estimator_class(path)]
+
+
+def check_estimator(estimator, *, raise_on_failure: bool = True, settings: dict | None = None) -> ContractReport:
+    """Run the estimator contract (module docstring) on ``estimator``; a :class:`ContractReport`.
+
+    Parameters
+    ----------
+    estimator : str, Estimator subclass or Estimator instance
+        A name or path as :func:`load_estimators` reads it, a class (checked with its default
+        settings, or ``settings``), or a configured instance (checked with its settings).
+    raise_on_failure : bool
+        Raise :class:`ContractError` listing every failed check (for a user's test suite:
+        ``check_estimator(MyEstimator)``); otherwise return the report.
+    settings : dict, optional
+        Settings for a class or name.
+    """
+    if isinstance(estimator, Estimator):
+        cls, settings = type(estimator), estimator.get_params()
+    elif isinstance(estimator, type):
+        if not issubclass(estimator, Estimator):
+            raise ValueError(f"{estimator!r}: expected a subclass of estimators.Estimator")
+        cls = estimator
+    else:
+        classes = load_estimators(str(estimator))
+        if len(classes) != 1:
+            raise ValueError(f"{estimator}: names {len(classes)} estimators; check them one at a time")
+        cls = classes[0]
+    settings = dict(settings or {})
+    label = f"{cls.__module__}:{cls.__qualname__}"
+    report = ContractReport(label)
+    _Checker(cls, settings, report).run()
+    if raise_on_failure and not report.ok:
+        raise ContractError(str(report))
+    return report
+
+
+class _Checker:
+    def __init__(self, cls, settings, report: ContractReport):
+        self.cls, self.settings, self.report = cls, settings, report
+        self.est = None
+        self.fitted = None
+        self.first = None
+
+    def add(self, check, problems, note: str = ""):
+        problems = [p for p in problems if p]
+        self.report.results.append(CheckResult(check, not problems, "; ".join(problems) or note))
+
+    def run(self):
+        for name, method in [
+            ("init", self.check_init),
+            ("params", self.check_params),
+            ("pickle", self.check_pickle),
+            ("fit", self.check_fit),
+            ("attributes", self.check_attributes),
+            ("uncertainty", self.check_uncertainty),
+            ("determinism", self.check_determinism),
+            ("bad input", self.check_bad_input),
+            ("recovery", self.check_recovery),
+        ]:
+            try:
+                out = method()
+                if isinstance(out, tuple):
+                    problems, note = out
+                    self.add(name, problems, note)
+                else:
+                    self.add(name, out)
+            except Exception as e:  # a check that could not even run is a failure with its reason
+                self.add(name, [f"raised {_one_line(e)}"])
+
+    # -- construction ----------------------------------------------------------------------------
+    def new(self):
+        return get(self.cls, **copy.deepcopy(self.settings))
+
+    def check_init(self):
+        problems = []
+        sig = inspect.signature(self.cls.__init__)
+        for p in list(sig.parameters.values())[1:]:
+            if p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
+                problems.append(f"__init__ takes *{p.name}: expected named settings only")
+            elif p.default is p.empty:
+                problems.append(f"setting {p.name!r} has no default")
+        given = {k: object() for k in self.cls._param_names()}  # sentinels: stored, not copied or checked?
+        try:
+            est = self.cls(**given)
+        except Exception as e:
+            problems.append(f"__init__ does more than store its settings: with placeholder values it raised {_one_line(e)}")
+        else:
+            changed = [k for k, v in given.items() if getattr(est, k, None) is not v]
+            if changed:
+                problems.append(f"__init__ does not store setting(s) {changed} unchanged as attributes of the same name")
+        est = self.new()
+        defaults = {p.name: p.default for p in list(sig.parameters.values())[1:] if p.default is not p.empty}
+        for k, d in defaults.items():
+            if k not in self.settings and not _same(getattr(est, k, d), d):
+                problems.append(f"default of {k!r} stored as {getattr(est, k)!r}, expected {d!r}")
+        learned = [k for k in vars(est) if k.endswith("_") and not k.startswith("_")]
+        if learned:
+            problems.append(f"__init__ sets fitted attribute(s) {learned}: expected them only after fit")
+        self.est = est
+        return problems
+
+    def check_params(self):
+        problems = []
+        est = self.est or self.new()
+        names = self.cls._param_names()
+        params = est.get_params()
+        if sorted(params) != sorted(names):
+            problems.append(f"get_params() keys {sorted(params)}, expected the __init__ settings {sorted(names)}")
+        if est.set_params(**params) is not est:
+            problems.append("set_params() does not return self")
+        try:
+            est.set_params(no_such_setting_=1)
+            problems.append("set_params(no_such_setting_=1) was accepted: expected a ValueError")
+        except ValueError:
+            pass
+        c = est.clone()
+        if type(c) is not type(est):
+            problems.append(f"clone() gave a {type(c).__name__}")
+        elif c is est:
+            problems.append("clone() returned the same object")
+        else:
+            diff = [k for k in names if not _same(c.get_params().get(k), params.get(k))]
+            if diff:
+                problems.append(f"clone() changed setting(s) {diff}")
+            if any(k.endswith("_") and not k.startswith("_") for k in vars(c)):
+                problems.append("clone() is not unfitted (has attributes ending in '_')")
+        return problems
+
+    def check_pickle(self):
+        est = self.est or self.new()
+        back = pickle.loads(pickle.dumps(est))
+        diff = [k for k, v in est.get_params().items() if not _same(back.get_params().get(k), v)]
+        return [f"settings {diff} changed through pickle" if diff else None]
+
+    # -- fitting ---------------------------------------------------------------------------------
+    def records(self):
+        g = recovery_gyro()
+        a = g.simulate(RECOVERY_SAMPLES, np.random.default_rng(_SEED_A))
+        b = g.simulate(RECOVERY_SAMPLES // 4, np.random.default_rng(_SEED_B))
+        return g, a, b
+
+    def check_fit(self):
+        from estimators.base import IdentifiabilityWarning
+
+        self.gyro, self.a, self.b = self.records()
+        est = self.new()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with np.errstate(all="ignore"):
+                out = est.fit(self.a, self.gyro.dt)
+        self.unidentifiable = next(
+            (str(w.message) for w in caught if issubclass(w.category, IdentifiabilityWarning)), None
+        )
+        self.fitted = est
+        if out is not est:
+            return [f"fit() returned {type(out).__name__ if out is not None else 'None'}, expected self"]
+        return []
+
+    def _need_fit(self):
+        if self.fitted is None:
+            raise RuntimeError("not run: fit failed")
+        return self.fitted
+
+    def check_attributes(self):
+        est = self._need_fit()
+        problems = []
+        c = getattr(est, "coefficients_", None)
+        if not isinstance(c, pd.Series):
+            return [f"coefficients_ is {type(c).__name__}, expected a pandas Series indexed {_INDEX}"]
+        if list(c.index) != _INDEX:
+            problems.append(f"coefficients_ index {list(c.index)}, expected {_INDEX}")
+        if c.dtype != float:
+            problems.append(f"coefficients_ dtype {c.dtype}, expected float64")
+        f = getattr(est, "nonphysical_", None)
+        if not isinstance(f, pd.Series) or list(f.index) != _INDEX or f.dtype != bool:
+            problems.append(f"nonphysical_ is not a bool Series indexed {_INDEX}")
+        elif list(c.index) == _INDEX and not np.all(np.isnan(c[f].astype(float))):
+            problems.append(f"coefficients {list(c[f & c.notna()].index)} flagged non-physical but not NaN")
+        if not isinstance(getattr(est, "diagnostics_", None), dict):
+            problems.append("diagnostics_ is not a dict")
+        if not problems:
+            neg = [k for k, v in c.items() if np.isfinite(v) and v < 0]
+            if neg:
+                problems.append(f"negative coefficient(s) {neg}: expected non-negative SI values or NaN")
+            if np.isinf(c.to_numpy()).any():
+                problems.append("infinite coefficient(s): expected finite values or NaN")
+        self.first = c.copy() if isinstance(c, pd.Series) else None
+        return problems
+
+    def check_uncertainty(self):
+        est = self._need_fit()
+        problems = []
+        c = est.coefficients_
+        se = getattr(est, "std_err_", None)
+        ci_f = getattr(est, "conf_int", None)
+        if se is None and ci_f is None:
+            return [], "std_err_ and conf_int not provided (optional)"
+        if se is not None:
+            if not isinstance(se, pd.Series) or list(se.index) != _INDEX or se.dtype != float:
+                problems.append(f"std_err_ is not a float Series indexed {_INDEX}")
+            else:
+                bad = [k for k in _INDEX if np.isfinite(se[k]) and (se[k] < 0 or not np.isfinite(c[k]))]
+                if bad:
+                    problems.append(f"std_err_ of {bad} is negative or given for a NaN coefficient")
+        if ci_f is not None:
+            if not callable(ci_f):
+                problems.append("conf_int is not a method")
+            else:
+                ci = ci_f()
+                if not isinstance(ci, pd.DataFrame) or list(ci.index) != _INDEX or ci.shape[1] != 2:
+                    problems.append(f"conf_int() is not a two-column DataFrame indexed {_INDEX}")
+                else:
+                    lo, hi = ci.iloc[:, 0].astype(float), ci.iloc[:, 1].astype(float)
+                    ok = np.isfinite(lo) & np.isfinite(hi) & np.isfinite(c)
+                    bad = [k for k in _INDEX if ok[k] and not (lo[k] <= c[k] <= hi[k])]
+                    if bad:
+                        problems.append(f"conf_int() does not contain the estimate for {bad}")
+        provided = " and ".join(x for x, v in (("std_err_", se), ("conf_int", ci_f)) if v is not None)
+        return problems, f"{provided} checked"
+
+    def check_determinism(self):
+        est = self._need_fit()
+        problems = []
+        other = pickle.loads(pickle.dumps(self.new()))
+        _quiet(other.fit, self.a, self.gyro.dt)
+        why = _series_equal(est.coefficients_, other.coefficients_)
+        if why:
+            problems.append(f"a fresh copy fitted on the same record gave other coefficients ({why})")
+        if hasattr(est, "std_err_"):
+            why = _series_equal(est.std_err_, getattr(other, "std_err_", None))
+            if why:
+                problems.append(f"a fresh copy gave other std_err_ ({why})")
+        back = pickle.loads(pickle.dumps(est))  # the fitted estimator pickles with its results
+        why = _series_equal(est.coefficients_, getattr(back, "coefficients_", None))
+        if why:
+            problems.append(f"the fitted estimator does not pickle with its coefficients ({why})")
+        _quiet(est.fit, self.b, self.gyro.dt)
+        fresh = _quiet(self.new().fit, self.b, self.gyro.dt)
+        why = _series_equal(fresh.coefficients_, est.coefficients_)
+        if why:
+            problems.append(f"refitting a fitted estimator on another record differs from a fresh fit ({why})")
+        _quiet(est.fit, self.a, self.gyro.dt)
+        why = _series_equal(self.first, est.coefficients_)
+        if why:
+            problems.append(f"refitting on another record and back changed the coefficients ({why})")
+        return problems
+
+    def check_bad_input(self):
+        n = 4096
+        ok = np.random.default_rng(0).standard_normal(n) * 1e-3
+        nan, inf = ok.copy(), ok.copy()
+        nan[n // 2], inf[7] = np.nan, np.inf
+        cases = [
+            ("a NaN sample", nan, 0.01),
+            ("an inf sample", inf, 0.01),
+            ("8 samples", ok[:8], 0.01),
+            ("a 2-D array", ok.reshape(2, -1), 0.01),
+            ("dt = 0", ok, 0.0),
+            ("dt = -0.01", ok, -0.01),
+            ("dt = NaN", ok, math.nan),
+            ("dt = 'fast'", ok, "fast"),
+        ]
+        problems = []
+        for what, rate, dt in cases:
+            try:
+                _quiet(self.new().fit, rate, dt)
+            except ValueError as e:
+                if not str(e).strip():
+                    problems.append(f"{what}: ValueError without a message")
+            except Exception as e:
+                problems.append(f"{what}: raised {_one_line(e)}, expected a ValueError saying what is wrong")
+            else:
+                problems.append(f"{what}: accepted, expected a ValueError")
+        return problems
+
+    def check_recovery(self):
+        from estimators.crlb import crlb
+
+        est = self._need_fit()
+        if self.first is None:
+            raise RuntimeError("not run: coefficients_ unusable")
+        truth = self.gyro.coefficients
+        bound = crlb(self.gyro, RECOVERY_SAMPLES)
+        problems, checked, flagged = [], [], []
+        for k in _INDEX:
+            if not np.isfinite(truth[k]):
+                continue
+            v = self.first[k]
+            if bool(est.nonphysical_[k]):
+                flagged.append(k)  # the estimator says it has no physical value: data, not an error
+                continue
+            if not np.isfinite(v):
+                continue  # not modelled
+            checked.append(k)
+            tol = Z_RECOVERY * EFFICIENCY_ALLOWANCE * float(bound[k])
+            if abs(v - truth[k]) > tol:
+                problems.append(
+                    f"{k} = {v:.4g}, true {truth[k]:.4g} (SI): off by {abs(v - truth[k]) / bound[k]:.1f} CRLB std, "
+                    f"expected within {Z_RECOVERY:g} x {EFFICIENCY_ALLOWANCE:g} = {tol:.3g}"
+                )
+        if not checked and not problems:
+            problems.append(
+                f"none of the gyro's coefficients ({', '.join(k for k in _INDEX if np.isfinite(truth[k]))}) "
+                f"was estimated{' (flagged non-physical: ' + ', '.join(flagged) + ')' if flagged else ''}"
+            )
+        if problems and self.unidentifiable:
+            # the estimator said, with an IdentifiabilityWarning, that this record cannot determine
+            # its coefficients: it is excused, and the report says so
+            return [], f"not judged: the estimator warned {self.unidentifiable!r} ({'; '.join(problems)})"
+        notes = [f"{', '.join(checked)} recovered"] if checked else []
+        if flagged:
+            notes.append(f"{', '.join(flagged)} flagged non-physical on this record")
+        return problems, "; ".join(notes)

@@ -1,0 +1,1 @@
+"""Example avbench plugin: an estimator and two noise terms, registered through entry points."""
