@@ -1,6 +1,6 @@
 """Compiled evaluation of the profile Whittle log-likelihood, its score and expected information.
 
-Compiled passes over the Fourier frequencies, for :mod:`estimators.whittle`. With
+Two compiled passes over the Fourier frequencies (no temporaries), for :mod:`estimators.whittle`. With
 :math:`S_k = \\sum_j a_j B_{jk}` the model spectrum, the trend slope is profiled out by GLS,
 :math:`\\hat\\beta = \\sum_k w_k \\mathrm{Re}(\\bar G_k X_k)/S_k \\big/ \\sum_k w_k|G_k|^2/S_k`, and with
 :math:`I_k = (|X_k|^2 - 2\\hat\\beta\\,\\mathrm{Re}(\\bar G_kX_k) + \\hat\\beta^2|G_k|^2)/n`,
@@ -45,9 +45,11 @@ def whittle_pass_py(a, Bm, D, c_tc, X2, GX, G2, w, n, grad):
 
 
 @njit(cache=True)
-def _pass(a, Bm, X2, GX, G2, w, n, grad, r, W):
-    """Log-likelihood, beta, sgg; with ``grad`` fills r = w (I/S - 1)/S and W = w/S^2."""
+def _pass(a, Bm, D, c_tc, X2, GX, G2, w, n, grad, score, info):
+    """Log-likelihood, beta, sgg; with ``grad`` accumulates the score and the (lower) information."""
     p, K = Bm.shape
+    has_tc = D.size > 0
+    q = p + 1 if has_tc else p
     sgg = 0.0
     sgx = 0.0
     for k in range(K):
@@ -61,6 +63,7 @@ def _pass(a, Bm, X2, GX, G2, w, n, grad, r, W):
         sgx += wS * GX[k]
     beta = sgx / sgg
     ll = 0.0
+    gk = np.empty(q)
     for k in range(K):
         S = 0.0
         for j in range(p):
@@ -69,25 +72,26 @@ def _pass(a, Bm, X2, GX, G2, w, n, grad, r, W):
         IS = (X2[k] - 2.0 * beta * GX[k] + beta * beta * G2[k]) * (iS / n)
         ll -= w[k] * (np.log(S) + IS)
         if grad:
-            r[k] = w[k] * (IS - 1.0) * iS
-            W[k] = w[k] * iS * iS
+            r = w[k] * (IS - 1.0)
+            for j in range(p):
+                gk[j] = a[j] * Bm[j, k] * iS
+            if has_tc:
+                gk[p] = c_tc * D[k] * iS
+            for i in range(q):
+                score[i] += gk[i] * r
+                wi = w[k] * gk[i]
+                for m in range(i + 1):
+                    info[i, m] += wi * gk[m]
     return ll, beta, sgg
 
 
 def whittle_pass(a, Bm, D, c_tc, X2, GX, G2, w, n, grad):
-    r"""Compiled twin of :func:`whittle_pass_py`: one compiled pass for S, I and the likelihood, then
-    the score and information as BLAS products (:math:`s = a\odot(Br)`,
-    :math:`F = aa^T\odot(B\,\mathrm{diag}(W)B^T)`)."""
-    K = Bm.shape[1]
-    r = np.empty(K if grad else 0)
-    W = np.empty(K if grad else 0)
-    ll, beta, sgg = _pass(a, Bm, X2, GX, G2, w, n, grad, r, W)
+    """Compiled twin of :func:`whittle_pass_py`: two compiled passes over the frequencies (S and the
+    GLS slope, then the likelihood, score and information), no temporaries."""
     q = a.size + (1 if D.size else 0)
-    if not grad or not np.isfinite(ll):
-        return ll, beta, sgg, np.zeros(q), np.zeros((q, q))
-    if D.size:
-        Bm = np.vstack([Bm, D])
-        a = np.append(a, c_tc)
-    score = a * (Bm @ r)
-    info = np.outer(a, a) * ((Bm * W) @ Bm.T)
+    score = np.zeros(q)
+    info = np.zeros((q, q))
+    ll, beta, sgg = _pass(a, Bm, D, float(c_tc), X2, GX, G2, w, n, grad, score, info)
+    if grad and np.isfinite(ll):
+        info = np.tril(info) + np.tril(info, -1).T
     return ll, beta, sgg, score, info
