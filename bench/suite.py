@@ -16,6 +16,16 @@ Every speed claim is a ratio against a baseline timed in the same loop:
   references (:mod:`bench.online_filters`, :mod:`bench.arma_em`).
 * ``StreamingMemory`` -- peak memory of Gyro.stream + StreamingAllan + SHAKF partial_fit, in a child
   process, for growing n (flat in n), up to 24 h at 1 kHz (8.64e7 samples).
+* ``AllanKernel`` -- the overlapping AV against its own path before issue 14 (same kernel; check,
+  mean and buffer handling before) and against the bound of one cumulative sum + one read per tau.
+* ``OnlineDefaults`` -- shakf / nekf with default settings against the full per-sample trajectory.
+* ``MleFit`` -- ``mle`` (compiled likelihood) against the statsmodels path it replaced, 4 h at 100 Hz.
+* ``FlickerPreset`` -- the ADIS16405 preset (flicker B, tau_max = 2x the record) at 1e6 samples.
+* ``ReadRecording`` -- reading a 7-column CSV (time + 6 IMU axes) through ``avbench estimate``'s
+  reader (:mod:`studies.recordings.readers`) against a bare ``pandas.read_csv`` of the same file,
+  and the reader's peak memory over the numeric data (:mod:`bench.recordings`).
+* ``EstimateMemory`` -- peak RSS of ``avbench estimate`` (nnls_rel, gmwm) on an n-sample .npy in a
+  child process, against the record's size, up to 5e7 samples (400 MB).
 * ``LvStudy`` -- wall time of ``avbench run studies/lv2015.toml --jobs 2`` from a fresh process
   (full mode only), and where a replicate's time goes.
 """
@@ -42,6 +52,12 @@ __all__ = [
     "OnlineKernels",
     "StreamingMemory",
     "LvStudy",
+    "AllanKernel",
+    "OnlineDefaults",
+    "MleFit",
+    "FlickerPreset",
+    "ReadRecording",
+    "EstimateMemory",
     "ALL",
 ]
 
@@ -377,13 +393,267 @@ def replicate_profile(study: str = "lv2015") -> dict:
             "replicate_fits_s": float(np.median(fits[1:])), "replicates": cfg.replicates * len(cfg.gyros)}
 
 
-ALL = [Generation, AllanOverlapping, AllanEngine, EstimatorScaling, OnlineKernels, StreamingMemory, LvStudy]
+def _adis_record(n, seed=6):
+    from noise_models import presets
+
+    g = presets.get("ADIS16405_Y")
+    return g.simulate(n, np.random.default_rng(seed)), g.dt
+
+
+def mle_statsmodels_path(rate, dt, model="WN+GM+RW", max_blocks=50_000, maxiter=200):
+    """The ``mle`` fit as it was before issue 14 (the baseline of :class:`MleFit`).
+
+    Model-weighted GMWM start, the same block rule, statsmodels' ``MLEModel`` fit (L-BFGS with
+    forward-difference scores) and its finite-difference Hessian. Returns (log-parameters, llf).
+    """
+    from statsmodels.tools.sm_exceptions import PrecisionWarning
+
+    from estimators._mle_model import BlockMeanModel
+    from estimators.gmwm import GMWM, parse_model
+    from estimators.mle import _pow2_at_least, _start_values, block_means
+
+    latents = parse_model(model)
+    m = max(1, math.ceil(rate.size / max_blocks))
+    start = GMWM(model=model, min_m=_pow2_at_least(m)).fit(rate, dt)
+    sp = start.diagnostics_["params"]
+    if "GM" in latents:
+        m = max(1, min(m, int(sp["GM.tc"] / (5 * dt))))
+    y = block_means(rate, m)
+    mod = BlockMeanModel(y, latents, m, dt)
+    x0 = _start_values(latents, sp, start.diagnostics_, dt)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", PrecisionWarning)
+        res = mod.fit(start_params=x0, method="lbfgs", maxiter=maxiter, disp=False, optim_complex_step=False,
+                      cov_type="approx", cov_kwds={"approx_complex_step": False, "approx_centered": True})
+        res.cov_params()
+    return res.params, res.llf
+
+
+class MleFit:
+    """``mle`` (defaults) on 4 h at 100 Hz: compiled likelihood vs the statsmodels path of before."""
+
+    params = [[1_440_000]]
+    quick_params = [[40_000]]
+    param_names = ["n"]
+    repeats = 3
+    quick_repeats = 1
+    budget_s = 300.0
+    baselines = {"time_fit": ("baseline_statsmodels",
+                              "model-weighted GMWM start + statsmodels MLEModel fit + Hessian (mle before issue 14)")}
+
+    def setup(self, n):
+        import estimators
+
+        self.rate, self.dt = _adis_record(n)
+        self.est = estimators.get("mle")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self.est.fit(self.rate[:20_000], self.dt)  # compile / load the kernel
+
+    def time_fit(self, n):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self.est.fit(self.rate, self.dt)
+
+    def baseline_statsmodels(self, n):
+        mle_statsmodels_path(self.rate, self.dt)
+
+    def teardown(self, n):
+        self.rate = None
+
+
+class OnlineDefaults:
+    """shakf / nekf ``fit`` with DEFAULT settings (x0 from an AV fit, decimated trajectory) vs the
+    full per-sample trajectory (the default before issue 14), on an ADIS16405_Y-like record."""
+
+    params = [["shakf", "nekf"], [1_000_000]]
+    quick_params = [["shakf", "nekf"], [20_000]]
+    param_names = ["estimator", "n"]
+    repeats = 3
+    quick_repeats = 1
+    budget_s = 120.0
+    baselines = {"time_fit_default": ("baseline_full_trajectory", "same filter with trajectory_every=1")}
+
+    def setup(self, estimator, n):
+        import estimators
+
+        self.rate, self.dt = _adis_record(n, seed=7)
+        self.est = estimators.get(estimator, terms="NBK")
+        self.full = estimators.get(estimator, terms="NBK", trajectory_every=1)
+        self._fit(self.est, self.rate[:70_000])
+        self._fit(self.full, self.rate[:70_000])
+
+    def _fit(self, est, rate):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            est.fit(rate, self.dt)
+
+    def time_fit_default(self, estimator, n):
+        self._fit(self.est, self.rate)
+
+    def baseline_full_trajectory(self, estimator, n):
+        self._fit(self.full, self.rate)
+
+    def teardown(self, estimator, n):
+        self.rate = None
+
+
+def allan_variance_before(rate, dt, taus="octave"):
+    """The overlapping AV as computed before issue 14: ``check_record`` (boolean ``isfinite``
+    temporary), a NumPy mean pass, a fresh cumulative-sum array, the same per-tau kernel."""
+    from estimators import _allan_kernels as K
+    from estimators.allan import _result, cluster_sizes
+    from estimators.base import check_record
+
+    rate, dt = check_record(rate, dt)
+    n = rate.size
+    m = cluster_sizes(taus, n, dt, 10)
+    S = K.centred_cumsum(rate, float(rate.mean()), np.empty(n + 1))
+    mf = m.astype(float)
+    return _result(m, K.oavar_sums(S, m) / (2.0 * mf * mf * (n - 2 * mf + 1)), n, dt, True, "auto", 0.683)
+
+
+class AllanKernel:
+    """Overlapping octave AV: the fused path vs the path before issue 14, and the memory bound
+    (one cumulative sum + one read of S per tau), all timed in this run."""
+
+    params = [[10**6, 10**7]]
+    quick_params = [[10**5]]
+    param_names = ["n"]
+    repeats = 7
+    quick_repeats = 2
+    budget_s = 60.0
+    baselines = {"time_allan_variance": ("baseline_before", "check_record + mean + fresh cumsum + same kernel (before)")}
+
+    def setup(self, n):
+        from estimators.allan import allan_variance
+
+        self.x = np.random.default_rng(3).standard_normal(n)
+        self.x += np.cumsum(np.random.default_rng(4).standard_normal(n)) * 1e-3
+        a, b = allan_variance(self.x, 1.0), allan_variance_before(self.x, 1.0)
+        if not np.allclose(a.avar, b.avar, rtol=1e-12, atol=0):
+            raise AssertionError(f"fused AV differs from the path before at n = {n}")
+
+    def time_allan_variance(self, n):
+        from estimators.allan import allan_variance
+
+        allan_variance(self.x, 1.0, "octave", overlapping=True)
+
+    def baseline_before(self, n):
+        allan_variance_before(self.x, 1.0)
+
+    def track_bound(self, n):
+        """Seconds of the bound (best of 5): one compiled cumulative sum + n_taus reads of S."""
+        from estimators import _allan_kernels as K
+        from estimators.allan import allan_variance, cluster_sizes
+
+        m = cluster_sizes("octave", n, 1.0, 10)
+        S = np.empty(n + 1)
+        best = {"cumsum": math.inf, "read": math.inf, "ours": math.inf}
+        for _ in range(5):
+            for key, fn in (("cumsum", lambda: K.centred_cumsum(self.x, 0.0, S)), ("read", lambda: K.finite_sum(S)),
+                            ("ours", lambda: allan_variance(self.x, 1.0, "octave", overlapping=True))):
+                t0 = time.perf_counter()
+                fn()
+                best[key] = min(best[key], time.perf_counter() - t0)
+        bound = best["cumsum"] + m.size * best["read"]
+        return {"bound_s": bound, "cumsum_s": best["cumsum"], "read_s": best["read"], "n_taus": int(m.size),
+                "ours_min_s": best["ours"], "ours_over_bound": best["ours"] / bound}
+
+    def teardown(self, n):
+        self.x = None
+
+
+class FlickerPreset:
+    """The ADIS16405 preset (flicker B with tau_max = 2x its record) simulating 1e6 samples, vs
+    NumPy drawing the same number of normals as the gyro's white terms."""
+
+    params = [["ADIS16405_Y"], [10**6]]
+    quick_params = [["ADIS16405_Y"], [10**5]]
+    param_names = ["preset", "n"]
+    repeats = 5
+    quick_repeats = 1
+    budget_s = 60.0
+    baselines = {"time_simulate": ("baseline_normals", "NumPy standard_normal, 3 per sample, into a reused buffer")}
+
+    def setup(self, preset, n):
+        from noise_models import presets
+
+        self.g = presets.get(preset)
+        self.g.simulate(1000, np.random.default_rng(0))
+        self.buf = np.zeros(n)
+        self.rng = np.random.default_rng(1)
+
+    def time_simulate(self, preset, n):
+        self.g.simulate(n, np.random.default_rng(2))
+
+    def baseline_normals(self, preset, n):
+        for _ in range(3):
+            self.rng.standard_normal(out=self.buf)
+
+    def teardown(self, preset, n):
+        self.g = self.buf = None
+
+
+class ReadRecording:
+    """A 7-column CSV read by ``avbench estimate``'s reader against ``pandas.read_csv`` (same file)."""
+
+    params = [[10**5, 10**6]]
+    quick_params = [[10**4]]
+    param_names = ["n"]
+    baselines = {"time_read": ("baseline_read", "pandas.read_csv of the same file (C engine, defaults)")}
+
+    def setup(self, n):
+        from bench.recordings import write_csv
+
+        self.dir = Path(tempfile.mkdtemp(prefix="avbench_csv_"))
+        self.path = write_csv(self.dir / "r.csv", n)
+        self.n = n
+
+    def teardown(self, n):
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def time_read(self, n):
+        from studies.recordings.readers import read_recording
+
+        read_recording(self.path, gyro="gyro_x,gyro_y,gyro_z", accel="acc_x,acc_y,acc_z")
+
+    def baseline_read(self, n):
+        import pandas as pd
+
+        pd.read_csv(self.path)
+
+    def peakmem_read(self, n):
+        from bench.recordings import read_peak
+
+        return read_peak(self.path, n)
+
+
+class EstimateMemory:
+    """Peak RSS of ``avbench estimate`` on an n-sample .npy (child process), against the record's size."""
+
+    params = [[10**6, 10**7, 5 * 10**7]]
+    quick_params = [[10**5]]
+    param_names = ["n"]
+
+    def setup(self, n):
+        pass
+
+    def peakmem_estimate(self, n):
+        from bench.recordings import estimate_peak
+
+        return estimate_peak(n)
+
+
+ALL = [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, OnlineKernels, OnlineDefaults,
+       MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy]
 
 
 def classes(quick: bool) -> list:
     """The benchmark classes of a run (``quick``: the CI subset on tiny sizes)."""
     if quick:
-        return [Generation, AllanOverlapping, AllanEngine, EstimatorScaling, QuickOnlineKernels, StreamingMemory]
+        return [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, QuickOnlineKernels,
+                OnlineDefaults, MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory]
     return ALL
 
 

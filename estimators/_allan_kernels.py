@@ -25,6 +25,28 @@ BLOCK = 4096
 MAX_BLOCKED_TAUS = 128
 
 
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def finite_sum(x):
+    """Sum of ``x`` in one read-only pass (8 interleaved partial sums, SIMD).
+
+    A NaN or an infinity anywhere makes the sum non-finite, so the caller tests finiteness on the
+    result instead of building a boolean temporary (and only scans for the first bad sample when
+    the sum is not finite). No ``nnan``/``ninf`` fast-math flags: NaN and inf propagate.
+    """
+    n = x.size
+    acc = np.zeros(8)
+    k = 0
+    while k + 8 <= n:
+        for j in range(8):
+            acc[j] += x[k + j]
+        k += 8
+    tail = 0.0
+    while k < n:
+        tail += x[k]
+        k += 1
+    return ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
+
+
 @njit(cache=True)
 def centred_cumsum(x, mu, S):
     """S[0] = 0, S[k+1] = S[k] + (x[k] - mu): one pass, bit-identical to np.cumsum(x - mu)."""

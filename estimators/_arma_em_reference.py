@@ -15,6 +15,7 @@ import numpy as np
 from estimators._arma_em_kernels import (
     FAIL_FILTER,
     FAIL_SINGULAR_PRED,
+    I_CLIPPED,
     I_FAIL_INDEX,
     I_FIRST_REJECT,
     I_K,
@@ -25,7 +26,7 @@ from estimators._arma_em_kernels import (
     S_SYY,
 )
 
-__all__ = ["ek_run_reference", "m_step_reference", "evaluate_stats_reference"]
+__all__ = ["ek_run_reference", "m_step_reference", "evaluate_stats_reference", "clip_spectrum_reference"]
 
 
 def _sym(i: int, j: int, m: int) -> np.ndarray:
@@ -34,23 +35,48 @@ def _sym(i: int, j: int, m: int) -> np.ndarray:
 
 
 def evaluate_stats_reference(a, b, d, aT, bT, x, P):
-    """U^(M) (M = 0, 1, 2) and E from the filter coefficients (Miao et al. 2015, eqs 32-33)."""
+    """U^(M) (M = 0, 1, 2, 3) and E from the filter coefficients (Miao et al. 2015, eqs 32-33)."""
     m = x.shape[0]
     U = np.empty((4, m, m))
-    for M in range(4):
+    for M in (0, 1, 3):
         for i in range(m):
             for j in range(m):
                 dij = d[M, i, j]
                 U[M, i, j] = a[M, i, j] + b[M, i, j] @ x + np.trace(dij @ P) + x @ dij @ x
+    U[2] = U[0] - (P + np.outer(x, x))  # H2_k = H0_k - x_k x_k'
     E = aT + bT @ x
     return U, E
+
+
+def clip_spectrum_reference(A):
+    """Eigenvalues of A outside the closed unit disk moved onto it; returns ``(A, changed)``.
+
+    Real eigenvalues clipped to [-1, 1] by Sylvester's formula (eigenvectors kept); a complex pair
+    of modulus r > 1 scaled by 1/r.
+    """
+    lam = np.linalg.eigvals(A)
+    if np.all(np.abs(lam) <= 1.0):
+        return A, False
+    if np.any(np.iscomplex(lam)):
+        return A / np.abs(lam[0]), True
+    lam = lam.real
+    new = np.clip(lam, -1.0, 1.0)
+    m = A.shape[0]
+    if m == 1 or lam[0] == lam[1]:
+        return A + (new[0] - lam[0]) * np.eye(m), True
+    eye = np.eye(m)
+    out = A.copy()
+    for i, j in ((0, 1), (1, 0)):
+        out += (new[i] - lam[i]) * (A - lam[j] * eye) / (lam[i] - lam[j])
+    return out, True
 
 
 def m_step_reference(a, b, d, aT, bT, x, P, sc, k, exact_q=False):
     """Parameter update (Miao et al. 2015, eqs 28-31, sign of eq. 29 corrected).
 
-    Returns ``(ok, A, C, Q, R)``; ``ok`` is False when U^(0) or U^(2) is singular or the new
-    R, Q are not positive (semi-)definite.
+    Returns ``(ok, A, C, Q, R, clipped)``; ``ok`` is False when U^(0) or U^(2) is singular or
+    the new R, Q are not positive (semi-)definite; ``clipped`` when A's spectrum was moved onto
+    the unit disk (:func:`clip_spectrum_reference`) before Q was formed.
     """
     U, E = evaluate_stats_reference(a, b, d, aT, bT, x, P)
     U0 = 0.5 * (U[0] + U[0].T)
@@ -59,8 +85,11 @@ def m_step_reference(a, b, d, aT, bT, x, P, sc, k, exact_q=False):
     U2 = 0.5 * (U[2] + U[2].T)
     m = x.shape[0]
     if np.linalg.det(U2) <= 0 or np.linalg.det(U0) <= 0:
-        return False, None, None, None, None
+        return False, None, None, None, None, False
     A = U1 @ np.linalg.inv(U2)
+    if not np.all(np.isfinite(A)):
+        return False, None, None, None, None, False
+    A, clipped = clip_spectrum_reference(A)
     Q = ((U3 if exact_q else U0) - A @ U1.T - U1 @ A.T + A @ U2 @ A.T) / k
     Q = 0.5 * (Q + Q.T)
     C = np.linalg.solve(U0, E)
@@ -72,7 +101,7 @@ def m_step_reference(a, b, d, aT, bT, x, P, sc, k, exact_q=False):
             Q[:, i] = 0.0
     ok = R > 0 and np.all(np.diag(Q) >= 0) and (m == 1 or np.linalg.det(Q) >= -1e-10 * Q[0, 0] * Q[1, 1])
     ok = ok and np.all(np.isfinite(A)) and np.all(np.isfinite(Q)) and np.all(np.isfinite(C))
-    return bool(ok), A, C, Q, np.array([R])
+    return bool(ok), A, C, Q, np.array([R]), clipped
 
 
 def ek_run_reference(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic,
@@ -102,21 +131,18 @@ def ek_run_reference(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic,
                 a[0, i, j] += b[0, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
                 b[0, i, j] = O @ (b[0, i, j] + 2.0 * dd @ S)
                 d[0, i, j] = O @ dd @ O.T + Eij
-                # M = 3: as M = 0, started at 0 (sum over l >= 1)
-                dd = d[3, i, j]
-                a[3, i, j] += b[3, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
-                b[3, i, j] = O @ (b[3, i, j] + 2.0 * dd @ S)
-                d[3, i, j] = O @ dd @ O.T + Eij
+                # M = 3: as M = 0, started at 0 (sum over l >= 1); needed for the exact Q only
+                if exact_q:
+                    dd = d[3, i, j]
+                    a[3, i, j] += b[3, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
+                    b[3, i, j] = O @ (b[3, i, j] + 2.0 * dd @ S)
+                    d[3, i, j] = O @ dd @ O.T + Eij
                 # M = 1: sum of x_l[i] x_{l-1}[j]
                 dd = d[1, i, j]
                 a[1, i, j] += b[1, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
                 b[1, i, j] = O @ (b[1, i, j] + 2.0 * dd @ S) + eye[i] * S[j]
                 d[1, i, j] = O @ dd @ O.T + 0.5 * (np.outer(eye[i], O[:, j]) + np.outer(O[:, j], eye[i]))
-                # M = 2: sum of x_{l-1}[i] x_{l-1}[j]
-                dd = d[2, i, j] + Eij
-                a[2, i, j] += b[2, i, j] @ S + np.trace(dd @ Zi) + S @ dd @ S
-                b[2, i, j] = O @ (b[2, i, j] + 2.0 * dd @ S)
-                d[2, i, j] = O @ dd @ O.T
+                # M = 2 (sum of x_{l-1}[i] x_{l-1}[j]) is H0 - x_k x_k': see evaluate_stats_reference
         for i in range(m):
             aT[i] += bT[i] @ S
             bT[i] = O @ bT[i] + eye[i] * yk
@@ -136,10 +162,11 @@ def ek_run_reference(y, A, C, Q, R, x, P, a, b, d, aT, bT, sc, ic,
         ic[I_K] += 1
         k = ic[I_K]
         if recursive and k >= warmup and k % update_every == 0:
-            ok, An, Cn, Qn, Rn = m_step_reference(a, b, d, aT, bT, x, P, sc, k, exact_q)
+            ok, An, Cn, Qn, Rn, clipped = m_step_reference(a, b, d, aT, bT, x, P, sc, k, exact_q)
             if ok:
                 A[:], C[:], Q[:], R[:] = An, Cn, Qn, Rn
                 ic[I_UPDATES] += 1
+                ic[I_CLIPPED] += clipped
             else:
                 if ic[I_REJECTED] == 0:
                     ic[I_FIRST_REJECT] = k

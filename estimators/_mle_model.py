@@ -1,42 +1,20 @@
-"""The exact state-space model of block means behind :mod:`estimators.mle` (statsmodels).
+"""The block-mean state-space model of :mod:`estimators.mle` as a statsmodels ``MLEModel``.
 
-Kept apart so that ``import estimators`` does not import statsmodels (about 1 s and 40 MB per
-process); :mod:`estimators.mle` imports this module when it fits.
+The reference implementation: :mod:`estimators.mle` fits with its own compiled likelihood
+(:mod:`estimators._mle_kernels`, same system matrices); the tests hold that one to this model's
+Kalman filter and optimiser. Kept apart so that nothing outside the tests imports statsmodels'
+state space (about 1 s and 40 MB per process).
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 from statsmodels.tsa.statespace.initialization import Initialization
 from statsmodels.tsa.statespace.mlemodel import MLEModel
 
+from estimators._mle_kernels import BlockMeanSystem, _gm_block, _level_block  # noqa: F401 (re-exported)
+
 __all__ = ["BlockMeanModel"]
-
-
-def _gm_block(phi_log, sigma, m):
-    """Transition and disturbance covariance of (s, xbar) for a GM with log(phi) = phi_log."""
-    j = np.arange(1, m + 1, dtype=float)
-    phi = math.exp(phi_log)
-    c = np.expm1(j * phi_log) / math.expm1(phi_log)  # (1 - phi^j) / (1 - phi), stable as phi -> 1
-    pw = np.exp((j - 1) * phi_log)  # phi^(j-1)
-    q = sigma**2 * -math.expm1(2 * phi_log)  # sigma^2 (1 - phi^2)
-    a = float(np.exp(j * phi_log).sum()) / m
-    cov = q * np.array([[pw @ pw, pw @ c / m], [pw @ c / m, c @ c / m**2]])
-    T = np.array([[phi**m, 0.0], [a, 0.0]])
-    return T, cov
-
-
-def _level_block(K2dt, m, dt, drift):
-    j = np.arange(1, m + 1, dtype=float)
-    cov = K2dt * np.array([[m, j.sum() / m], [j.sum() / m, (j @ j) / m**2]])
-    T = np.array([[1.0, 0.0], [1.0, 0.0]])
-    if drift:
-        T = np.hstack([T, [[m * dt], [dt * (m + 1) / 2]]])
-        T = np.vstack([T, [0.0, 0.0, 1.0]])
-        cov = np.pad(cov, ((0, 1), (0, 1)))
-    return T, cov
 
 
 class BlockMeanModel(MLEModel):
@@ -58,61 +36,38 @@ class BlockMeanModel(MLEModel):
         endog = np.asarray(endog, dtype=float)
         self.scale = float(scale) if scale is not None else 1.0 / float(np.std(endog) or 1.0)
         endog = endog * self.scale
-        self.latents = tuple(latents)
-        self.m, self.dt = int(m), float(dt)
-        self.has_gm = "GM" in latents
-        self.has_q = "QN" in latents
-        self.drift = "DR" in latents
-        self._q = 2 if self.has_gm else 0  # first state of the quantization block
-        self._lev = self._q + (2 if self.has_q else 0)
-        k = self._lev + 2 + (1 if self.drift else 0)
+        self.system = BlockMeanSystem(latents, m, dt)
+        self.latents = self.system.latents
+        self.m, self.dt = self.system.m, self.system.dt
+        k = self.system.k
         super().__init__(endog, k_states=k, k_posdef=k)
-        Z = np.zeros((1, k))
-        Z[0, self._lev + 1] = 1.0
-        if self.has_gm:
-            Z[0, 1] = 1.0
-        if self.has_q:  # block mean of theta-differences telescopes: (theta_j - theta_{j-1}) / (m dt)
-            Z[0, self._q], Z[0, self._q + 1] = 1.0 / (m * dt), -1.0 / (m * dt)
-        self["design"] = Z
+        self["design"] = self.system.Z[None, :]
         self["selection"] = np.eye(k)
-        self._names = []
-        for lat in self.latents:
-            self._names += {"QN": ["log_Q"], "WN": ["log_N"], "GM": ["log_sigma", "log_tc"],
-                            "RW": ["log_K"]}.get(lat, [])
 
     @property
     def param_names(self):
-        return list(self._names)
+        return list(self.system.names)
 
     @property
     def start_params(self):
-        return np.zeros(len(self._names))
+        return np.zeros(len(self.system.names))
 
     def values(self, params) -> dict:
-        return dict(zip(self._names, np.exp(np.asarray(params, dtype=float))))
+        return self.system.values(params)
 
     def update(self, params, **kwargs):
         params = super().update(params, **kwargs)
-        v = {key: (val if key == "log_tc" else val * self.scale) for key, val in self.values(params).items()}
-        m, dt, k = self.m, self.dt, self.k_states
-        T, Qc = np.zeros((k, k)), np.zeros((k, k))
+        sysm = self.system
+        T, Qc, H, P0, _ = sysm.matrices(params, self.scale)
+        k = sysm.k
         init = Initialization(k)
-        if self.has_gm:
-            sigma, tc = v["log_sigma"], v["log_tc"]
-            Tg, Qg = _gm_block(-dt / tc, sigma, m)
-            T[:2, :2], Qc[:2, :2] = Tg, Qg
-            P0 = sigma**2 * np.outer(Tg[:, 0], Tg[:, 0]) + Qg  # (s_1, xbar_1) from a stationary s_0
-            init.set((0, 2), "known", constant=np.zeros(2), stationary_cov=P0)
-        if self.has_q:
-            q, Q2 = self._q, v["log_Q"] ** 2
-            T[q + 1, q] = 1.0
-            Qc[q, q] = Q2
-            init.set((q, q + 2), "known", constant=np.zeros(2), stationary_cov=Q2 * np.eye(2))
-        K2dt = v.get("log_K", 0.0) ** 2 * dt
-        Tl, Ql = _level_block(K2dt, m, dt, self.drift)
-        T[self._lev :, self._lev :], Qc[self._lev :, self._lev :] = Tl, Ql
-        init.set((self._lev, k), "diffuse")
+        if sysm.has_gm:
+            init.set((0, 2), "known", constant=np.zeros(2), stationary_cov=P0[:2, :2])
+        if sysm.has_q:
+            q = sysm.q0
+            init.set((q, q + 2), "known", constant=np.zeros(2), stationary_cov=P0[q : q + 2, q : q + 2])
+        init.set((sysm.lev, k), "diffuse")
         self["transition"] = T
         self["state_cov"] = Qc
-        self["obs_cov"] = np.array([[v.get("log_N", 0.0) ** 2 / (m * dt)]])
+        self["obs_cov"] = np.array([[H]])
         self.ssm.initialize(init)

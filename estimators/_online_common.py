@@ -30,7 +30,8 @@ Streaming
 ---------
 ``partial_fit(chunk, dt)`` feeds a chunk; all recursions carry their state across chunks, so
 ``fit(record)`` equals feeding the same record chunk by chunk bit for bit. Memory is constant in
-the record length except for the trajectory (``trajectory_every`` samples per row; 0 = none).
+the record length except for the trajectory (``trajectory_every`` samples per row, default 1000;
+1 = every sample, the full trajectory; 0 = none).
 
 Divergence
 ----------

@@ -260,13 +260,20 @@ def _nn_jacobian(xa, nq, p, t, G, nn):
 
 @njit(cache=True)
 def nekf_run(rate, zinv, A, m, acc, cnt, prev, kc, av,
-             xa, P, Qbar, Rbar, nq, p, istate, every, traj, pd_every):
+             xa, P, Qs, qw, Rbar, nq, p, istate, every, traj, pd_every):
     """Neural extended Kalman filter of Miao et al. 2015, eqs 48-57, over one chunk of ``rate``.
 
     Per sample (k >= 2): prediction ``s += NN(s, eta, lam)``, weights unchanged (eq 55), covariance
     ``P = F P F^T + Qbar`` with ``F = I + [dNN/dxa; 0]`` (eqs 52-53); then for each cluster size
     with a new recursive AV a scalar EKF update (eqs 54, 56-57), ``H = [dh/ds, 0]``.
     Returns the number of trajectory rows written.
+
+    The structure is used, not multiplied out: ``F - I`` has only ``nq`` non-zero rows, so
+    ``F P F^T = P + E P + P E^T + E P E^T`` touches only the first ``nq`` rows and columns (and the
+    zero entries of the Jacobian are skipped), and ``Qbar = blockdiag(Qs, qw I)`` (``Qs`` the
+    ``nq x nq`` coefficient block, ``qw`` the weights' variance) is added as ``nq^2 + n - nq``
+    terms instead of a dense ``n x n`` matrix: the same sums (the zeros of ``Qbar`` add nothing), so
+    the result is bit-identical to adding the dense matrix.
     """
     n = xa.shape[0]
     nm = m.shape[0]
@@ -310,9 +317,11 @@ def nekf_run(rate, zinv, A, m, acc, cnt, prev, kc, av,
                     P[c, a] += M[a, c]
                 for c in range(nq):
                     P[a, c] += GG[a, c]
-            for a in range(n):
-                for c in range(n):
-                    P[a, c] += Qbar[a, c]
+            for a in range(nq):
+                for c in range(nq):
+                    P[a, c] += Qs[a, c]
+            for a in range(nq, n):
+                P[a, a] += qw
             for c in range(nq):
                 xa[c] += nn[c]
         for j in range(nm):

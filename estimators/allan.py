@@ -37,6 +37,8 @@ __all__ = [
     "RecursiveAllan",
     "recursive_avar",
     "memoize_allan",
+    "allan_variance_gaps",
+    "skip_gaps",
 ]
 
 NOISE_TYPES = ("white_pm", "white_fm", "flicker_fm", "rw_fm")
@@ -285,6 +287,12 @@ def allan_variance(
     >>> bool(np.all(np.abs(r.avar * r.m - 1) < 0.05))
     True
     """
+    gaps = getattr(_GAPS, "table", None)
+    if gaps:
+        hit = gaps.get(id(rate))
+        if hit is not None and hit[0] is rate:
+            return allan_variance_gaps(rate, dt, hit[1], taus, overlapping, points_per_decade=points_per_decade,
+                                       noise=noise, confidence=confidence)
     memo = getattr(_MEMO, "table", None)
     if memo is not None:
         key = _memo_key(rate, dt, taus, overlapping, points_per_decade, noise, confidence)
@@ -335,18 +343,183 @@ def _memo_key(rate, dt, taus, overlapping, points_per_decade, noise, confidence)
         return None
 
 
-def _allan_variance(rate, dt, taus, overlapping, points_per_decade, noise, confidence) -> AllanResult:
+def _checked_record_and_mean(rate, dt):
+    """``check_record`` with the finiteness test folded into the mean's compiled pass.
+
+    For a 1-D float64 record the sum (one read-only pass) is finite exactly when every sample is
+    finite (barring overflow near 1e308, which falls back to the full check): no boolean
+    temporary and no separate mean pass. Anything else goes through :func:`check_record`.
+    """
+    arr = rate if isinstance(rate, np.ndarray) else None
+    if arr is not None and arr.dtype == np.float64 and arr.ndim == 1 and arr.size >= 16:
+        total = _kernels.finite_sum(arr)
+        if math.isfinite(total):
+            _, dt = check_record(arr[:16], dt)  # dt and the record's shape/dtype rules
+            return arr, dt, total / arr.size
     rate, dt = check_record(rate, dt)
+    return rate, dt, _kernels.finite_sum(rate) / rate.size
+
+
+_SCRATCH = threading.local()
+#: the cumulative-sum buffer of the last call is kept (per thread) for records up to this length
+#: (64 MB), so that repeated calls on same-length records (Monte Carlo) reuse it
+_SCRATCH_MAX = 1 << 23
+
+
+def _cumsum_buffer(n1: int) -> np.ndarray:
+    if n1 > _SCRATCH_MAX:
+        return np.empty(n1)
+    buf = getattr(_SCRATCH, "S", None)
+    if buf is None or buf.size < n1:
+        buf = _SCRATCH.S = np.empty(n1)
+    return buf[:n1]
+
+
+def _allan_variance(rate, dt, taus, overlapping, points_per_decade, noise, confidence) -> AllanResult:
+    rate, dt, mean = _checked_record_and_mean(rate, dt)
     n = rate.size
     m = cluster_sizes(taus, n, dt, points_per_decade)
     # removing the mean changes no AV value (second differences kill it) but keeps S small
-    S = _kernels.centred_cumsum(rate, float(rate.mean()), np.empty(n + 1))
+    S = _kernels.centred_cumsum(rate, mean, _cumsum_buffer(n + 1))
     mf = m.astype(float)
     if overlapping:
         av = _kernels.oavar_sums(S, m) / (2.0 * mf * mf * (n - 2 * mf + 1))
     else:
         av = _kernels.avar_sums(S, m) / (2.0 * mf * mf * (n // m - 1))
     return _result(m, av, n, dt, overlapping, noise, confidence)
+
+
+def _segment_starts(starts, n: int) -> np.ndarray:
+    s = np.asarray(starts)
+    if s.size == 0:
+        s = s.astype(np.int64)
+    if s.ndim != 1 or s.dtype.kind not in "iu":
+        raise ValueError(f"starts: expected a 1-D array of sample indices, got {starts!r}")
+    s = np.unique(np.concatenate(([0], s.astype(np.int64))))
+    if s[-1] >= n or s[0] < 0:
+        raise ValueError(f"starts: expected indices in 0..{n - 1}, got {starts!r}")
+    return s
+
+
+def allan_variance_gaps(
+    rate,
+    dt,
+    starts,
+    taus="octave",
+    overlapping: bool = True,
+    *,
+    points_per_decade: int = 10,
+    noise="auto",
+    confidence: float = 0.683,
+) -> AllanResult:
+    r"""Allan variance of a record with gaps: clusters that straddle a gap are left out.
+
+    The record is the concatenation of gap-free runs of uniformly sampled data; run ``i`` starts
+    at sample ``starts[i]`` (0 is implied) and ends where the next begins. Within each run the sums
+    are those of :func:`allan_variance`; they are pooled over the runs that hold at least ``2m``
+    samples, and only the differences whose clusters all lie in one run count:
+
+    .. math::
+
+        \sigma^2(\tau_m) = \frac{\sum_i \sum_{k=0}^{n_i-2m} (S^{(i)}_{k+2m} - 2S^{(i)}_{k+m}
+        + S^{(i)}_k)^2}{2 m^2 \sum_i (n_i - 2m + 1)}
+
+        (overlapping; IEEE Std 952 Annex C per run), and for the non-overlapping form the
+        sum over runs of the squared differences of adjacent cluster means in each run over
+        ``2 \sum_i (J_i - 1)`` (Lv et al. 2015, eq. 2 per run).
+
+    Uncertainty counts only the clusters used: ``J = 1 + sum_i (J_i - 1)`` with
+    ``J_i = floor(n_i/m)`` over the runs used (so ``rel_error = 1/sqrt(2(J-1))`` as in
+    Lv et al. 2015, eq. 8), and the edf is that of the pooled mean of independent runs,
+    ``1 / sum_i (w_i^2 / edf_i)`` with weights ``w_i`` = the run's share of the terms (Satterthwaite)
+    and ``edf_i`` the NIST SP 1065 Table 5 value of run ``i`` (overlapping) or ``J_i - 1``
+    (non-overlapping). With a single run this is exactly :func:`allan_variance`.
+    The tau grid is that of the longest run.
+
+    Parameters
+    ----------
+    rate : array_like
+        The gap-free runs, concatenated (rad/s).
+    dt : float
+        Sample interval within the runs (s).
+    starts : array_like of int
+        Index of the first sample of each run (0 may be omitted).
+    taus, overlapping, points_per_decade, noise, confidence
+        As for :func:`allan_variance`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).standard_normal(100_000)
+    >>> a = allan_variance_gaps(x, 1.0, [30_000, 70_000], taus=[1.0, 10.0])
+    >>> bool(np.all(np.abs(a.avar * a.m - 1) < 0.05))
+    True
+    """
+    rate, dt = check_record(rate, dt)
+    n = rate.size
+    s = _segment_starts(starts, n)
+    ends = np.append(s[1:], n)
+    lengths = ends - s
+    m = cluster_sizes(taus, int(lengths.max()), dt, points_per_decade)
+    mf = m.astype(float)
+    mu = float(rate.mean())
+    sums = np.zeros(m.size)
+    terms = np.zeros((s.size, m.size))  # number of squared differences of each run at each m
+    used = []
+    buf = np.empty(int(lengths.max()) + 1)
+    for i, (a, L) in enumerate(zip(s, lengths)):
+        ok = 2 * m <= L
+        if not ok.any():
+            continue
+        used.append(i)
+        S = _kernels.centred_cumsum(rate[a : a + L], mu, buf[: L + 1])
+        mm = m[ok]
+        if overlapping:
+            sums[ok] += _kernels.oavar_sums(S, mm)
+            terms[i, ok] = L - 2 * mm + 1
+        else:
+            sums[ok] += _kernels.avar_sums(S, mm)
+            terms[i, ok] = L // mm - 1
+    count = terms.sum(axis=0)
+    av = sums / (2.0 * mf * mf * count)
+    Ji = np.where(terms > 0, lengths[:, None] // m[None, :], 0)
+    J = 1 + np.where(terms > 0, Ji - 1, 0).sum(axis=0)
+    with np.errstate(divide="ignore"):
+        rel = 1.0 / np.sqrt(2.0 * (J - 1))
+    tau = m * dt
+    if overlapping:
+        kinds = _noise_from_slope(tau, av, J) if noise == "auto" else np.broadcast_to(np.asarray(noise, dtype=object), m.shape)
+        inv = np.zeros(m.size)
+        for i in used:
+            ok = terms[i] > 0
+            w = terms[i, ok] / count[ok]
+            inv[ok] += w * w / edf_overlapping(m[ok], int(lengths[i]), np.asarray(kinds, dtype=object)[ok])
+        edf = 1.0 / inv
+    else:
+        edf = np.maximum(J - 1, 1).astype(float)
+    return AllanResult(tau, m, av, J.astype(np.int64), rel, edf, overlapping, n, dt, confidence)
+
+
+_GAPS = threading.local()
+
+
+@contextlib.contextmanager
+def skip_gaps(rate, starts):
+    """Within this block, :func:`allan_variance` of the *same array object* ``rate`` is
+    :func:`allan_variance_gaps` with these run ``starts``.
+
+    This lets every estimator that works on the Allan variance fit a record with gaps unchanged:
+    ``with skip_gaps(x, starts): est.fit(x, dt)``. Estimators that work on the samples themselves
+    (likelihood, filters) do not see the gaps; fit them on a gap-free run instead.
+    """
+    prev = getattr(_GAPS, "table", None)
+    table = dict(prev or {})
+    table[id(rate)] = (rate, np.asarray(starts))
+    _GAPS.table = table
+    try:
+        yield
+    finally:
+        _GAPS.table = prev
 
 
 def _oavar_sums_numpy(S, m):

@@ -69,13 +69,42 @@ k: an O(1/k) bias we keep as printed.
 Choices the paper leaves open (settings): the initial A, C, Q, R are eq. 63 (corrected) at
 ``x0`` and ``tc0`` (``init_form="eq63"``), or the equivalent diagonal form (``"diagonal"``:
 :math:`A = \mathrm{diag}(1,\phi)`, :math:`C = [1, 1]`); the state prior is
-:math:`\hat x_0 = 0`, :math:`P_0 = I\,s^2/(CC^T)` with :math:`s^2` the data variance unit; the record's
+:math:`\hat x_0 = 0`, :math:`P_0 = \sum_{j<h}A^jQA^{jT}` (:func:`prior_covariance`, :math:`h` the
+length of the first chunk: the spread of the state about that chunk's mean under the current
+model; see "Numerics" for why not a diffuse prior); the record's
 first-chunk mean is removed and the data are divided by a fixed scale (the white-noise level of
 the first chunk) for conditioning; with ``recursive=True`` (the paper) parameters are updated after
 every ``update_every`` samples once ``warmup`` samples are in; an update that would be singular or
 give an indefinite Q is skipped and counted (the paper does not say). ``passes > 1`` repeats the
 pass over the record from the last estimate: with ``recursive=False`` each pass is one exact batch
 EM iteration (Shumway & Stoffer 1982; the E-K filters give the smoothed sufficient statistics).
+An M-step whose :math:`A` has an eigenvalue outside the closed unit disk has that eigenvalue moved
+onto it (real eigenvalues clipped to :math:`\pm1` with the eigenvectors kept, a complex pair
+scaled to modulus 1) before :math:`Q` is formed from it (Q's update is the maximiser for any given
+A, so this is a conditional-maximisation step); eq. 63's model has eigenvalues 1 and
+:math:`1-\beta\tau`, none explosive. The count is ``diagnostics_["n_clipped"]``.
+
+Numerics: why the filter once diverged, and what keeps it stable
+------------------------------------------------------------------
+The measurement update is the Joseph form and stays symmetric positive semi-definite; it was not
+the cause. With the former diffuse, isotropic prior :math:`P_0 = I s^2/(CC^T)` (here ~1e8 where the
+model's state variance is ~1-20), a record started 5-30x away from the truth (the chunk test of
+``tests/test_arma_em.py``) failed at sample 2791 with "A P A' + Q singular", and 7 of 50 such
+records failed. Tracing it (float64 against 80-bit long double: the two follow the same path for
+2000 samples, so rounding is not the cause): (1) eq. 29's :math:`U^{(0)}` contains
+:math:`E[x_0x_0^T|Y_k]`, which with that prior stays ~:math:`P_0` in the directions the first
+samples do not resolve, so the first M-steps put ~:math:`P_0/k` ~ 1e6 into Q; (2) the next
+M-steps give an :math:`A` with an explosive eigenvalue (1.005) whose eigenvector is almost in
+the null space of C; (3) EM cannot correct an unobservable mode (its statistics reproduce the
+model's own dynamics) and :math:`C = E^T(U^{(0)})^{-1}` shrinks along it as its variance grows, so
+P and the E-K statistics grow like :math:`\lambda^{2k}` (P ~ 3e19 at sample 2790, condition
+number ~1e13) until rounding makes P indefinite; in exact arithmetic it would overflow at
+~7e4 samples. No covariance factorisation survives that, so both links are cut at the source: the
+prior is the model's own accumulated covariance (the x_0 term of eq. 29 is then the documented
+O(1/k) bias, not 1e8), and an explosive M-step is clipped onto the unit disk (a random-walk or
+Gauss-Markov state then grows at most linearly in an unobservable direction). Rejecting such
+steps instead freezes the recursion: with a unit root the unconstrained estimate is > 1 about half
+the time. The tests run 60 short records per mode (starts up to 100x off) and long records.
 
 Examples
 --------
@@ -103,7 +132,8 @@ from estimators.base import DivergenceWarning, Estimator, register, warn
 from noise_models.terms import B_EQUIV_OVER_SIGMA, GM_PEAK_TAU_OVER_TC
 from noise_models.units import as_si
 
-__all__ = ["ArmaEM", "SUPPORTED_TERMS", "initial_model", "coefficients_from_model", "EKFilter"]
+__all__ = ["ArmaEM", "SUPPORTED_TERMS", "initial_model", "coefficients_from_model", "prior_covariance",
+           "EKFilter"]
 
 #: coefficient sets the equivalent-ARMA model can represent, and their state dimension
 SUPPORTED_TERMS = {("N", "K"): 1, ("N", "B"): 1, ("N", "B", "K"): 2}
@@ -232,6 +262,29 @@ def _set_gm(coefs, bad, extra, eps, qg, dt):
         coefs["B"], bad["B"] = B_EQUIV_OVER_SIGMA * sigma, False
 
 
+def prior_covariance(A, Q, h: int) -> np.ndarray:
+    r"""Prior covariance of the state at the start of a pass: :math:`\sum_{j=0}^{h-1} A^jQA^{jT}`.
+
+    The covariance the model accumulates over ``h`` steps from a known state: for a stable mode
+    (Gauss-Markov) the stationary covariance once ``h`` exceeds its correlation time, for the
+    random walk the spread of its level over ``h`` samples. Computed by doubling,
+    :math:`S_{2h} = S_h + A^hS_hA^{hT}`, in :math:`O(\log h)` products.
+    """
+    A = np.asarray(A, float)
+    S = np.asarray(Q, float).copy()  # S_1
+    Ah = A.copy()  # A^1
+    todo, S_out, A_out = int(h), np.zeros_like(S), np.eye(A.shape[0])
+    while todo:  # binary expansion of h: S_out = S_a, A_out = A^a for the bits done so far
+        if todo & 1:
+            S_out = S_out + A_out @ S @ A_out.T
+            A_out = A_out @ Ah
+        todo >>= 1
+        if todo:
+            S = S + Ah @ S @ Ah.T
+            Ah = Ah @ Ah
+    return 0.5 * (S_out + S_out.T)
+
+
 @dataclass
 class EKFilter:
     """State of one E-K recursive-EM pass (all arrays; constant memory in the record length).
@@ -254,7 +307,8 @@ class EKFilter:
         K = P0 @ self.C / s
         self.x = K * y0
         IKC = np.eye(m) - np.outer(K, self.C)
-        self.P = IKC @ P0 @ IKC.T + np.outer(K, K) * self.R[0]
+        P = IKC @ P0 @ IKC.T + np.outer(K, K) * self.R[0]
+        self.P = 0.5 * (P + P.T)
         self.a = np.zeros((4, m, m))
         self.b = np.zeros((4, m, m, m))
         self.d = np.zeros((4, m, m, m, m))
@@ -266,6 +320,7 @@ class EKFilter:
         self.bT = np.eye(m) * y0
         self.sc = np.array([y0 * y0, -0.5 * (math.log(2 * math.pi * s) + y0 * y0 / s)])
         self.ic = np.zeros(_k.N_IC, dtype=np.int64)
+        self.tracks_h3 = True  # the E-K filter of H^(3) ran on every sample (exact_q)
 
     @property
     def m(self) -> int:
@@ -284,6 +339,7 @@ class EKFilter:
         trace = np.empty((max(n_rows, 0), 2 + 2 * m * m + m))
         if self.status != _k.OK or len(y) == 0:
             return trace[:0]
+        self.tracks_h3 = self.tracks_h3 and bool(exact_q)
         run = _k.ek_run
         if engine == "reference":
             from estimators._arma_em_reference import ek_run_reference as run
@@ -293,16 +349,22 @@ class EKFilter:
         return trace[:ntr]
 
     def statistics(self) -> dict:
-        """E[H^(0)], E[H^(1)], E[H^(2)], E[H^(3)], E[T] given the data so far (eqs 32-33)."""
+        """E[H^(0)], E[H^(1)], E[H^(2)], E[H^(3)], E[T] given the data so far (eqs 32-33).
+
+        ``U3`` (:math:`H^{(3)}`) is NaN unless every :meth:`run` of the pass had ``exact_q``.
+        """
         m = self.m
         U = np.empty((4, m, m))
         E = np.empty(m)
         _k.evaluate_stats(self.a, self.b, self.d, self.aT, self.bT, self.x, self.P, U, E)
-        return {"U0": U[0], "U1": U[1], "U2": U[2], "U3": U[3], "T": E, "syy": self.sc[_k.S_SYY],
+        U3 = U[3] if self.tracks_h3 else np.full((m, m), np.nan)
+        return {"U0": U[0], "U1": U[1], "U2": U[2], "U3": U3, "T": E, "syy": self.sc[_k.S_SYY],
                 "k": int(self.ic[_k.I_K])}
 
     def m_step(self, exact_q=False) -> bool:
         """Batch M-step from the statistics of the pass; False (parameters kept) if invalid."""
+        if exact_q and not self.tracks_h3:
+            raise ValueError("exact_q: the pass did not track H^(3); run it with exact_q=True")
         k = int(self.ic[_k.I_K])
         return bool(k > 0 and _k.m_step(self.a, self.b, self.d, self.aT, self.bT, self.x, self.P,
                                         self.sc, k, self.A, self.C, self.Q, self.R, bool(exact_q)))
@@ -362,7 +424,8 @@ class ArmaEM(Estimator):
     coefficients_, nonphysical_, diagnostics_
         See :class:`estimators.base.Estimator`. ``diagnostics_`` holds ``A, C, Q, R`` (scaled
         units, see ``scale``), ``scale``, ``offset``, ``tc``, ``lambda_rrw``, ``loglik`` (per pass),
-        ``n_updates``, ``n_rejected``, ``failure`` (None or a message with the sample index) and
+        ``n_updates``, ``n_rejected``, ``n_clipped``, ``failure`` (None or a message with the
+        sample index) and
         ``trajectory`` (DataFrame: sample, N, B, K in SI).
     """
 
@@ -461,6 +524,7 @@ class ArmaEM(Estimator):
             scale = max(abs(offset), 1.0)
         self._cfg = cfg
         self._dt = dt
+        self._n_first = len(y)
         self._offset, self._scale = offset, scale
         self._x0_si, self._tc0 = x0, tc0
         self._filter = EKFilter(A=A.copy(), C=C / scale, Q=Q.copy(), R=R / scale**2)
@@ -472,7 +536,7 @@ class ArmaEM(Estimator):
 
     def _begin_pass(self, y0_scaled: float) -> None:
         f = self._filter
-        f.start(y0_scaled, np.eye(f.m) / float(f.C @ f.C))
+        f.start(y0_scaled, prior_covariance(f.A, f.Q, self._n_first))
         self._pass += 1
 
     # -- fitting -------------------------------------------------------------------------------
@@ -482,8 +546,8 @@ class ArmaEM(Estimator):
         rows = self._filter.run(ys, recursive=self.recursive, warmup=cfg["warmup"],
                                 update_every=cfg["update_every"], trace_every=cfg["trace_every"],
                                 exact_q=self.exact_q, engine=self.engine)
-        if len(rows) and self._pass == 1:
-            self._trace.append(rows)
+        if len(rows) and self._pass == 1:  # converted once, as they arrive
+            self._trace.append(self._trace_coefficients(rows))
 
     def partial_fit(self, chunk, dt) -> "ArmaEM":
         """Feed the next chunk of a record (on-line, one pass, constant memory).
@@ -550,28 +614,34 @@ class ArmaEM(Estimator):
             "loglik": list(self._loglik) or [f.loglik],
             "n_samples": int(f.ic[_k.I_K]) + 1,
             "n_updates": int(f.ic[_k.I_UPDATES]), "n_rejected": int(f.ic[_k.I_REJECTED]),
+            "n_clipped": int(f.ic[_k.I_CLIPPED]),
             "first_rejected": int(f.ic[_k.I_FIRST_REJECT]) if f.ic[_k.I_REJECTED] else None,
             **extra,
             "trajectory": self._trajectory(),
         }
         return coefs, bad, diag
 
-    def _trajectory(self) -> pd.DataFrame:
-        """Coefficient estimates (SI) along the first pass, from the traced matrices."""
+    def _trace_coefficients(self, rows: np.ndarray) -> np.ndarray:
+        """Rows [sample, coefficients (SI)...] from traced kernel rows [k, A, C, Q, R]."""
         terms = self._cfg["terms"]
-        cols = ["sample", *terms]
-        if not self._trace:
-            return pd.DataFrame(columns=cols)
-        rows = np.concatenate(self._trace)
         m, s, dt = self._filter.m, self._scale, self._dt
-        out = []
-        for r in rows:
+        out = np.empty((len(rows), 1 + len(terms)))
+        for i, r in enumerate(rows):
             A = r[1 : 1 + m * m].reshape(m, m)
             C = r[1 + m * m : 1 + m * m + m] * s
             Q = r[1 + m * m + m : 1 + 2 * m * m + m].reshape(m, m)
             c, _, _ = coefficients_from_model(A, C, Q, r[-1] * s**2, dt, terms)
-            out.append([int(r[0]) + 1, *(c[t] for t in terms)])
-        return pd.DataFrame(out, columns=cols)
+            out[i] = [r[0] + 1, *(c[t] for t in terms)]
+        return out
+
+    def _trajectory(self) -> pd.DataFrame:
+        """Coefficient estimates (SI) along the first pass, every ``trace_every`` samples."""
+        cols = ["sample", *self._cfg["terms"]]
+        if not self._trace:
+            return pd.DataFrame(columns=cols)
+        df = pd.DataFrame(np.concatenate(self._trace), columns=cols)
+        df["sample"] = df["sample"].astype(np.int64)
+        return df
 
 
 def _check_record(chunk, dt, minimum):

@@ -26,6 +26,7 @@ import numpy as np
 from estimators.allan import allan_variance, edf_overlapping
 from estimators.av_model import check_terms, coefficients_from_beta, design_matrix
 from estimators.base import Estimator, register
+from estimators.fit_check import assess_five_term
 
 __all__ = ["OLS", "TrimmedOLS", "WLS", "EDFWeightedLS", "solve_scaled"]
 
@@ -83,6 +84,7 @@ class _AVCurveFit(Estimator):
             "residuals": av.avar - fitted,
             **extra,
         }
+        diag.update(assess_five_term(rate, dt, coefs, len(terms), (av.tau[mask].min(), av.tau[mask].max())))
         return coefs, nonphys, diag
 
 

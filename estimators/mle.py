@@ -3,8 +3,10 @@
 The rate is modelled as white noise (N) + first-order Gauss-Markov (sigma, Tc) + rate random walk (K)
 (+ deterministic drift R), the model of Nikolic et al. (IEEE Sensors J. 2016) and of the
 GMWM literature; the likelihood is evaluated exactly by the Kalman filter of a linear Gaussian
-state-space model (statsmodels ``MLEModel``; Durbin & Koopman 2012, Ch. 7 for the prediction error
-decomposition and Ch. 5 for the exact diffuse initialisation of the level and drift).
+state-space model (Durbin & Koopman 2012, Ch. 7 for the prediction error decomposition and Ch. 5 for
+the exact diffuse initialisation of the level and drift), compiled (:mod:`estimators._mle_kernels`).
+The same model as a statsmodels ``MLEModel`` (:mod:`estimators._mle_model`) is the reference the
+tests hold the compiled likelihood and the fit to.
 
 Block averaging (setting ``block``)
 -----------------------------------
@@ -41,30 +43,31 @@ block j, i.e. two more states :math:`(\\theta_j, \\theta_{j-1})` with
 
 The default ``block="auto"`` takes the smallest m giving at most ``max_blocks`` (50,000) block means,
 but never more than a fifth of the Gauss-Markov correlation time found by the GMWM starting fit (so
-that the GM stays resolved). For 1e6 samples at 100 Hz this is m = 20 (0.2 s blocks) and a fit
-of WN+GM+RW takes 10-25 s on a shared 2-core machine (GMWM start included; measured on the ADIS16405
-records and on simulated records). The price is paid by N: the white-noise information sits
+that the GM stays resolved). For 1e6 samples at 100 Hz this is m = 20 (0.2 s blocks); the time of
+a fit is in ``results/bench`` (``MleFit``, against the statsmodels reference path). The price is paid by N: the white-noise information sits
 at the shortest time scales, so its relative standard error becomes :math:`1/\\sqrt{2n/m}` instead
 of the CRLB :math:`1/\\sqrt{2n}`; B, K and R, whose information lies at long time scales, lose
 almost nothing. Use ``block=1`` for the full sample-level likelihood.
 
-Starting values come from :class:`estimators.gmwm.GMWM` with the same latent model, fitted on the
-octaves the block means resolve (cluster sizes >= m). Standard errors
+Starting values come from :class:`estimators.gmwm.GMWM` with the same latent model, diagonal
+weights and three trial correlation times, fitted on the octaves the block means resolve (cluster sizes >= m). The likelihood is
+maximised by L-BFGS-B over the log-parameters with a central-difference gradient, to a tighter
+tolerance than statsmodels' default (each evaluation costs milliseconds). Standard errors
 are from the observed information (numerical Hessian of the log-likelihood in the log-parameters,
-statsmodels ``cov_type="approx"``) by the delta method; the drift, a diffuse state, gets the filtered
+central differences as statsmodels ``cov_type="approx"``) by the delta method; the drift, a diffuse state, gets the filtered
 GLS estimate and its filtered standard deviation.
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 import pandas as pd
 
 from estimators.base import Estimator, register
-from estimators.gmwm import GMWM, parse_model
+from estimators.fit_check import assess_fit
+from estimators.gmwm import GMWM, build_gyro, parse_model
 
 __all__ = ["MLE", "block_means"]
 
@@ -72,11 +75,15 @@ _ALLOWED = ("QN", "WN", "GM", "RW", "DR")
 
 
 def __getattr__(name):
-    # the statsmodels-based model lives in estimators._mle_model, imported on first use
-    if name in ("BlockMeanModel", "_gm_block", "_level_block"):
+    # the statsmodels reference model lives in estimators._mle_model, imported on first use
+    if name == "BlockMeanModel":
         from estimators import _mle_model
 
         return getattr(_mle_model, name)
+    if name in ("BlockMeanSystem", "_gm_block", "_level_block"):
+        from estimators import _mle_kernels
+
+        return getattr(_mle_kernels, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -148,56 +155,63 @@ class MLE(Estimator):
         if n // m < 16:
             raise ValueError(f"block: {m} samples per block leave {n // m} block means; expected at least 16")
         # the start is fitted on the scales the block means resolve (tau >= m dt)
-        start = GMWM(model="+".join(latents), min_m=_pow2_at_least(m)).fit(rate, dt)
+        # (diagonal weights: a start, not an estimate; the model-weighted GMWM costs seconds more)
+        start = GMWM(model="+".join(latents), min_m=_pow2_at_least(m), weighting="diagonal",
+                     n_starts=_START_TRIES).fit(rate, dt)
         sp = start.diagnostics_["params"]
         if self.block == "auto" and "GM" in latents:
             m = max(1, min(m, int(sp["GM.tc"] / (5 * dt))))
         y = block_means(rate, m)
         if y.size < 16:
             raise ValueError(f"block: {m} samples per block leave {y.size} block means; expected at least 16")
-        from estimators._mle_model import BlockMeanModel
+        from estimators._mle_kernels import BlockMeanSystem
 
-        mod = BlockMeanModel(y, latents, m, dt)
+        system = BlockMeanSystem(latents, m, dt)
+        scale = 1.0 / float(np.std(y) or 1.0)  # the filter runs on y * scale (see _mle_kernels)
         x0 = _start_values(latents, sp, start.diagnostics_, dt)
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            # statsmodels warns that finite-difference Hessians are approximate (we know; see docs)
-            from statsmodels.tools.sm_exceptions import PrecisionWarning
-
-            warnings.simplefilter("ignore", PrecisionWarning)
-            # the matrices are built with real arithmetic: finite differences, not complex steps
-            res = mod.fit(start_params=x0, method="lbfgs", maxiter=self.maxiter, disp=False,
-                          optim_complex_step=False, cov_type="approx",
-                          cov_kwds={"approx_complex_step": False, "approx_centered": True})
-            cov = np.asarray(res.cov_params())
-        vals = mod.values(res.params)
+        fit = maximize_loglike(system, y, scale, x0, self.maxiter)
+        vals = system.values(fit["params"])
+        cov = fit["cov"]
         # a non-positive variance (flat or non-concave likelihood, e.g. a term at zero) has no
         # standard error: NaN, not 0
         var = np.diag(cov) if np.all(np.isfinite(cov)) else np.full(len(vals), np.nan)
-        se_log = dict(zip(mod.param_names, np.sqrt(np.where(var > 0, var, np.nan))))
+        se_log = dict(zip(system.names, np.sqrt(np.where(var > 0, var, np.nan))))
         from noise_models.terms import B_EQUIV_OVER_SIGMA
 
         coefs, std = {}, {}
-        for name, coef, scale in (("log_Q", "Q", 1.0), ("log_N", "N", 1.0), ("log_sigma", "B", B_EQUIV_OVER_SIGMA), ("log_K", "K", 1.0)):
+        for name, coef, cscale in (("log_Q", "Q", 1.0), ("log_N", "N", 1.0), ("log_sigma", "B", B_EQUIV_OVER_SIGMA), ("log_K", "K", 1.0)):
             if name in vals:
-                coefs[coef] = scale * vals[name]
+                coefs[coef] = cscale * vals[name]
                 std[coef] = coefs[coef] * se_log[name]
         if "DR" in latents:
             # the filter runs on scaled data: the slope state is in scaled units
-            r = float(res.filtered_state[-1, -1]) / mod.scale
-            coefs["R"] = abs(r)
-            std["R"] = float(math.sqrt(max(res.filtered_state_cov[-1, -1, -1], 0.0))) / mod.scale
-        converged = bool(res.mle_retvals.get("converged", False)) if res.mle_retvals else False
+            a, P = fit["final_state"], fit["final_cov"]
+            coefs["R"] = abs(float(a[-1]) / scale)
+            std["R"] = float(math.sqrt(max(P[-1, -1], 0.0))) / scale
+        llf = fit["loglike"]
         diag = {
             "std_err": pd.Series(std, dtype=float).reindex(["Q", "N", "B", "K", "R"]),
             "params": {k[4:]: v for k, v in vals.items()},
             "block": m,
-            "loglike": float(res.llf) + y.size * math.log(mod.scale),
-            "converged": converged,
+            "loglike": llf + y.size * math.log(scale),
+            "converged": fit["converged"],
             "start": start.coefficients_,
         }
-        if not np.isfinite(res.llf):
+        if not np.isfinite(llf):
             diag["failure"] = "non-finite log-likelihood at the optimum"
+        else:
+            p = diag["params"]
+            names = {"QN": ("Q",), "WN": ("N",), "GM": ("sigma", "tc"), "RW": ("K",)}
+            values = [p[k] for lat in latents if lat in names for k in names[lat]]
+            if "DR" in latents:
+                values.append(coefs["R"])
+            gyro = build_gyro(latents, values, dt)
+            diag.update(assess_fit(rate, dt, gyro.avar, gyro, len(values), (m * dt, math.inf)))
         return coefs, {}, diag
+
+
+#: GM correlation times the GMWM start tries (GMWM's default is 6; the likelihood refines the start)
+_START_TRIES = 3
 
 
 def _pow2_at_least(m: int) -> int:
@@ -218,3 +232,70 @@ def _start_values(latents, sp, gdiag, dt):
         top = math.sqrt(np.max(3 * avar / tau))
         out.append(max(sp["RW.K"], 0.01 * top))
     return np.log(np.maximum(np.array(out, dtype=float), 1e-300))
+
+
+#: relative step of the central-difference score of the Hessian (statsmodels' ``_get_epsilon(x, 3)``)
+_EPS_GRAD = np.finfo(float).eps ** (1 / 3)
+#: relative step of the Hessian's outer differences (statsmodels ``approx_centered``: eps^(1/4)/2)
+_EPS_HESS = np.finfo(float).eps ** (1 / 4) / 2
+
+
+def maximize_loglike(system, y, scale, x0, maxiter) -> dict:
+    """Maximise the exact block-mean log-likelihood over the log-parameters (L-BFGS-B).
+
+    The objective is ``-loglike / nobs`` (as statsmodels' ``MLEModel.fit``) with a
+    central-difference gradient of the compiled likelihood and a tight tolerance (forward
+    differences, statsmodels' choice, leave ~sqrt(eps) of gradient noise that the likelihood's flat
+    directions turn into ~1e-4 relative parameter noise); the covariance of the
+    log-parameters is the inverse of the observed information, the Hessian by central
+    differences of the central-difference score (statsmodels ``cov_type="approx"``,
+    ``approx_centered=True``). Returns ``params``, ``cov``, ``loglike`` (scaled units),
+    ``converged``, ``final_state`` and ``final_cov`` (last filtered state and covariance).
+    """
+    from scipy.optimize import minimize
+
+    nobs = y.size
+    y = np.ascontiguousarray(y, dtype=float)
+
+    def loglike(p):
+        with np.errstate(all="ignore"):
+            return system.loglike(y, p, scale)
+
+    def objective(p):
+        v = -loglike(p) / nobs
+        return v if np.isfinite(v) else 1e300
+
+    def score(p, f=loglike, rel=_EPS_GRAD):
+        h = rel * np.maximum(np.abs(p), 0.1)
+        g = np.empty(p.size)
+        for i in range(p.size):
+            e = np.zeros(p.size)
+            e[i] = h[i]
+            g[i] = (f(p + e) - f(p - e)) / (2 * h[i])
+        return g
+
+    def gradient(p):
+        g = -score(p) / nobs
+        return np.where(np.isfinite(g), g, 0.0)
+
+    res = minimize(objective, np.asarray(x0, dtype=float), jac=gradient, method="L-BFGS-B",
+                   options={"maxiter": int(maxiter), "gtol": 1e-8, "ftol": 1e-14})
+    # at this tolerance the line search may stop on the likelihood's own round-off (~1e-12
+    # relative): converged when the gradient per observation is small, as statsmodels' pgtol 1e-5
+    converged = bool(res.success or np.max(np.abs(res.jac)) < 1e-5)
+    p = res.x
+    h = _EPS_HESS * np.maximum(np.abs(p), 0.1)
+    hess = np.empty((p.size, p.size))
+    for i in range(p.size):
+        e = np.zeros(p.size)
+        e[i] = h[i]
+        hess[i] = (score(p + e) - score(p - e)) / (2 * h[i])
+    hess = (hess + hess.T) / 2
+    try:
+        cov = -np.linalg.pinv(hess) if np.all(np.isfinite(hess)) else np.full(hess.shape, np.nan)
+    except np.linalg.LinAlgError:
+        cov = np.full(hess.shape, np.nan)
+    a, P = np.empty(system.k), np.empty((system.k, system.k))
+    llf = system.loglike(y, p, scale, (a, P))
+    return {"params": p, "cov": cov, "loglike": float(llf), "converged": converged,
+            "final_state": a, "final_cov": P}

@@ -87,7 +87,9 @@ class _NekfBase(OnlineAVFilter):
         Qbar = np.zeros((n, n))
         Qbar[:nq, :nq] = cfg["Q0"]
         Qbar[nq:, nq:] = np.eye(nw) * cfg["wQ0"]
-        st = dict(xa=xa, P=P, Qbar=Qbar, Rbar=np.full(nm, cfg["R0"]), nq=nq, p=p)
+        # the kernel adds Qbar by blocks (Qs, qw on the weights' diagonal); Qbar is kept for reference
+        st = dict(xa=xa, P=P, Qbar=Qbar, Qs=np.ascontiguousarray(cfg["Q0"]), qw=float(cfg["wQ0"]),
+                  Rbar=np.full(nm, cfg["R0"]), nq=nq, p=p)
         return st
 
     def _scales(self):
@@ -98,7 +100,7 @@ class _NekfBase(OnlineAVFilter):
         st, av, cfg = self._state, self._av, self._cfg
         return nekf_run(
             chunk, self._zinv, self._A, av["m"], av["acc"], av["cnt"], av["prev"], av["kc"], av["av"],
-            st["xa"], st["P"], st["Qbar"], st["Rbar"], st["nq"], st["p"],
+            st["xa"], st["P"], st["Qs"], st["qw"], st["Rbar"], st["nq"], st["p"],
             self._istate, cfg["every"], traj, cfg["pd_every"],
         )
 
@@ -152,7 +154,7 @@ class Nekf(_NekfBase):
 
     def __init__(self, *, terms="QNBKR", x0=None, p=5, P0=0.25, Q0=1e-8, R0=1.0, weights_P0=0.01,
                  weights_Q0=1e-10, eta_scale=1.0, lambda_scale=0.0, seed=0, x0_samples=65536,
-                 trajectory_every=1, pd_check_every=1024):
+                 trajectory_every=1000, pd_check_every=1024):
         self.terms = terms
         self.x0 = x0
         self.p = p
@@ -182,7 +184,7 @@ class NekfMultitau(_NekfBase):
 
     def __init__(self, *, terms="QNBKR", x0=None, m=17, p=5, P0=0.25, Q0=1e-8, R0=1.0, weights_P0=0.01,
                  weights_Q0=1e-10, eta_scale=1.0, lambda_scale=0.0, seed=0, x0_samples=65536,
-                 trajectory_every=1, pd_check_every=1024):
+                 trajectory_every=1000, pd_check_every=1024):
         self.terms = terms
         self.x0 = x0
         self.m = m

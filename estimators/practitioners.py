@@ -32,6 +32,7 @@ from estimators.av_model import (
     design_matrix,
 )
 from estimators.base import Estimator, register
+from estimators.fit_check import assess_five_term
 
 __all__ = [
     "SlopeLines",
@@ -50,15 +51,18 @@ READ_TAU = {"Q": math.sqrt(3.0), "N": 1.0, "B": 1.0, "K": 3.0, "R": math.sqrt(2.
 _SLOPE = {c: TAU_POWER[c] / 2.0 for c in TAU_POWER}  # log-log slope of the ADEV
 
 
-def _av(rate, dt, taus, overlapping):
+def _av(rate, dt, taus, overlapping, min_clusters=2):
     res = allan_variance(rate, dt, taus=taus, overlapping=overlapping)
-    ok = np.isfinite(res.avar) & (res.avar > 0)
+    ok = np.isfinite(res.avar) & (res.avar > 0) & (res.J >= min_clusters)
     if ok.sum() < 2:
-        raise ValueError("rate: fewer than two positive Allan-variance values; the record is too short")
+        raise ValueError(
+            f"rate: fewer than two positive Allan-variance values with >= {min_clusters} clusters; "
+            "the record is too short"
+        )
     return np.asarray(res.tau)[ok], np.asarray(res.avar)[ok]
 
 
-def slope_line_coefficients(tau, adev, terms="NBK") -> tuple[dict, dict]:
+def slope_line_coefficients(tau, adev, terms="NBK", ordered=False) -> tuple[dict, dict]:
     """Read coefficients off an ADEV curve with slope lines (IEEE Std 952 Annex C).
 
     For each term with ADEV slope :math:`s` (Q: -1, N: -1/2, B: 0, K: +1/2, R: +1), take the
@@ -74,6 +78,11 @@ def slope_line_coefficients(tau, adev, terms="NBK") -> tuple[dict, dict]:
     :math:`a_B = \\sqrt{2\\ln 2/\\pi} = 0.6643`. This is the MathWorks example's procedure for N
     (tau = 1 s), K (tau = 3 s) and B, extended to Q and R with IEEE Std 952's read-off points.
 
+    With ``ordered=True`` the points are chosen jointly, minimising the summed slope mismatch
+    :math:`\\sum_c |s_{i_c} - s_c|` subject to :math:`i_Q \\le i_N \\le i_B \\le i_K \\le i_R`: the
+    terms dominate the curve in this order of tau (IEEE Std 952 Annex C, Fig. C.2), so a line for
+    B is not read before the N region (dynamic programming over the points).
+
     Returns ``(coefficients, info)`` where ``info[c]`` is the index of the point used.
 
     Examples
@@ -88,10 +97,14 @@ def slope_line_coefficients(tau, adev, terms="NBK") -> tuple[dict, dict]:
     adev = np.asarray(adev, dtype=float)
     lt, la = np.log10(tau), np.log10(adev)
     slopes = np.diff(la) / np.diff(lt)
+    cost = np.array([np.abs(slopes - _SLOPE[c]) for c in terms])
+    if ordered:
+        idx = _ordered_argmin(cost)
+    else:
+        idx = [int(np.argmin(row)) for row in cost]
     coefs, used = {}, {}
-    for c in terms:
+    for c, i in zip(terms, idx):
         s = _SLOPE[c]
-        i = int(np.argmin(np.abs(slopes - s)))
         b = la[i] - s * lt[i]
         scale = math.sqrt(PLATEAU) if c == "B" else 1.0
         coefs[c] = float(10.0 ** (s * math.log10(READ_TAU[c]) + b) / scale)
@@ -99,14 +112,45 @@ def slope_line_coefficients(tau, adev, terms="NBK") -> tuple[dict, dict]:
     return coefs, used
 
 
+def _ordered_argmin(cost: np.ndarray) -> list[int]:
+    """Indices i_0 <= i_1 <= ... minimising sum_k cost[k, i_k] (dynamic programming)."""
+    n_terms, n_pts = cost.shape
+    total = cost[0].copy()
+    back = []
+    for k in range(1, n_terms):
+        # best over j <= i of the previous total: a running minimum and its position
+        pos = np.zeros(n_pts, dtype=int)
+        run = total.copy()
+        for i in range(1, n_pts):
+            if run[i - 1] <= total[i]:
+                run[i], pos[i] = run[i - 1], pos[i - 1]
+            else:
+                pos[i] = i
+        back.append(pos)
+        total = run + cost[k]
+    idx = [int(np.argmin(total))]
+    for pos in reversed(back):
+        idx.append(int(pos[idx[-1]]))
+    return idx[::-1]
+
+
 class _AVBaseline(Estimator):
-    """Shared settings and AV computation of the three baselines."""
+    """Shared settings and AV computation of the three baselines.
+
+    ``min_clusters`` (default 2: every AV value): AV values from fewer clusters floor(n/m) are not
+    used. (Raising it to 8 was tried on the ADIS16405 records: it does not remove the spurious
+    rate ramps of ``log_fit``/``nnls_rel`` on Y and Z -- fewer long-tau points leave the rise to
+    be explained by R -- so the default keeps every value.)
+    """
 
     def _prepare(self, rate, dt):
         terms = check_terms(self.terms)
         if not isinstance(self.overlapping, bool):
             raise ValueError(f"overlapping: expected True or False, got {self.overlapping!r}")
-        tau, avar = _av(rate, dt, self.taus, self.overlapping)
+        mc = self.min_clusters
+        if isinstance(mc, bool) or not isinstance(mc, (int, np.integer)) or mc < 2:
+            raise ValueError(f"min_clusters: expected an integer >= 2, got {mc!r}")
+        tau, avar = _av(rate, dt, self.taus, self.overlapping, int(mc))
         return terms, tau, avar
 
 
@@ -127,6 +171,14 @@ class SlopeLines(_AVBaseline):
         ``allanvar`` default).
     overlapping : bool
         Fully overlapping AV (default True).
+    min_clusters : int
+        AV values from fewer clusters are not used (default 2: all; see ``_AVBaseline``).
+    ordered : bool
+        Read the lines in the order the terms appear along tau (default True; see
+        :func:`slope_line_coefficients`). ``False`` is the MathWorks example literally: each slope
+        is matched anywhere on the curve. On real MEMS records whose shortest taus are flattened by
+        the sensor's own low-pass filter, the literal reading takes that flat first segment for the
+        bias-instability plateau (B = 2086 deg/h on ADIS16405 run 1, Z; 46 deg/h ordered).
 
     Examples
     --------
@@ -138,15 +190,20 @@ class SlopeLines(_AVBaseline):
     True
     """
 
-    def __init__(self, *, terms="NBK", taus="octave", overlapping=True):
+    def __init__(self, *, terms="NBK", taus="octave", overlapping=True, ordered=True, min_clusters=2):
         self.terms = terms
         self.taus = taus
         self.overlapping = overlapping
+        self.ordered = ordered
+        self.min_clusters = min_clusters
 
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
-        coefs, used = slope_line_coefficients(tau, np.sqrt(avar), terms)
+        if not isinstance(self.ordered, bool):
+            raise ValueError(f"ordered: expected True or False, got {self.ordered!r}")
+        coefs, used = slope_line_coefficients(tau, np.sqrt(avar), terms, ordered=self.ordered)
         diag = {"tau": tau, "avar": avar, "tau_used": {c: float(tau[i]) for c, i in used.items()}}
+        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1])))
         return coefs, {}, diag
 
 
@@ -170,14 +227,15 @@ class LogFit(_AVBaseline):
     ----------
     terms : str
         Modelled coefficients (default "QNBKR").
-    taus, overlapping
+    taus, overlapping, min_clusters
         As :class:`SlopeLines`.
     """
 
-    def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True):
+    def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True, min_clusters=2):
         self.terms = terms
         self.taus = taus
         self.overlapping = overlapping
+        self.min_clusters = min_clusters
 
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
@@ -187,6 +245,7 @@ class LogFit(_AVBaseline):
                 "cost": float(sol.cost), "success": bool(sol.success)}
         if not sol.success:
             diag["failure"] = f"least_squares: {sol.message}"
+        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1])))
         return coefs, nonphys, diag
 
 
@@ -239,18 +298,21 @@ class NNLSRel(_AVBaseline):
     ----------
     terms : str
         Modelled coefficients (default "QNBKR").
-    taus, overlapping
+    taus, overlapping, min_clusters
         As :class:`SlopeLines`.
     """
 
-    def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True):
+    def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True, min_clusters=2):
         self.terms = terms
         self.taus = taus
         self.overlapping = overlapping
+        self.min_clusters = min_clusters
 
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
         beta = nnls_rel_beta(tau, avar, terms)
         coefs, nonphys = coefficients_from_beta(beta, terms)
         fitted = design_matrix(tau, terms) @ beta
-        return coefs, nonphys, {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": fitted}
+        diag = {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": fitted}
+        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1])))
+        return coefs, nonphys, diag

@@ -135,7 +135,9 @@ class Shakf(_ShakfBase):
     x0_samples : int
         Window of the default initial AV analysis.
     trajectory_every : int
-        Keep the estimate every this many samples in ``diagnostics_["trajectory"]`` (0: none).
+        Keep the estimate every this many samples in ``diagnostics_["trajectory"]`` (default 1000:
+        a decimated trajectory, so that the default run goes at the kernel's speed; 1: every
+        sample, the full trajectory; 0: none).
     pd_check_every : int
         Cholesky test of ``P`` every this many samples (0: diagonal test only).
 
@@ -149,7 +151,7 @@ class Shakf(_ShakfBase):
     """
 
     def __init__(self, *, terms="QNBKR", x0=None, b=0.99, P0=0.25, Q0=1e-8, R0=1.0, adapt="qQrR",
-                 x0_samples=65536, trajectory_every=1, pd_check_every=1024):
+                 x0_samples=65536, trajectory_every=1000, pd_check_every=1024):
         self.terms = terms
         self.x0 = x0
         self.b = b
@@ -180,7 +182,7 @@ class ShakfMultitau(_ShakfBase):
     _multitau = True
 
     def __init__(self, *, terms="QNBKR", x0=None, m=17, b=0.99, P0=0.25, Q0=1e-8, R0=1.0, adapt="qQR",
-                 x0_samples=65536, trajectory_every=1, pd_check_every=1024):
+                 x0_samples=65536, trajectory_every=1000, pd_check_every=1024):
         self.terms = terms
         self.x0 = x0
         self.m = m

@@ -1,310 +1,89 @@
-"""``avbench estimate``: fit the coefficients of a real static gyro recording with several methods.
+"""``avbench estimate``: noise coefficients of a static IMU recording -- every axis, every method.
 
 Examples
 --------
-avbench estimate rec.csv --fs 100 --units deg/s --method wls,gmwm
-avbench estimate imu.npz --fs 100 --column 0 --units deg/s --method nnls_rel,gmwm,mle --out results/x
-avbench estimate rec.npy --fs 200 --method gmwm --json > coefs.json
+avbench estimate imu.bag --topic /imu --kalibr imu.yaml           # ROS 1 or ROS 2 bag: all 6 axes
+avbench estimate rec.csv --units deg/s --method wls,gmwm          # one gyro column, time column 't'
+avbench estimate log.csv --time t --gyro gx,gy,gz --accel ax,ay,az --units deg/s --accel-units g
+avbench estimate rec.npy --fs 200 --units rad/s --json > coefs.json
+avbench estimate run1.npz run2.npz --combine --fs 100 --units rad/s   # several runs, one fit
 
-Input files: ``.npy`` (1-D, or 2-D with ``--column INDEX``), ``.npz`` (the array ``data``, or the
-only array; column names from an array ``columns`` if present), text (``.csv``, ``.txt``,
-``.dat``: comma, semicolon, tab or blank separated; a first row that is not numeric is a header).
-The record is converted from ``--units`` to rad/s (``noise_models.units.rate_to_si``).
+The pipeline (``studies/recordings/``): read the file (CSV/text, NPY/NPZ, ROS 1/2 bag, PX4 ULog) ->
+time stamps, jitter and gaps (``--fs`` only when the file has no time stamps, else a check) -> SI
+units (from the format, or ``--units``/``--accel-units``: never guessed) -> every method on every
+axis (gap-aware Allan variance) -> outputs.
 
-Outputs (in ``--out DIR``, default the current directory, file names prefixed with the input's
-stem): ``<stem>_av.png`` (overlapping octave Allan deviation with 68 % chi^2 bars and each method's
-fitted curve), ``<stem>_av.csv`` (the AV table), ``<stem>_coefficients.csv`` and ``.json`` (in the
-papers' units, ``noise_models.units.PAPER_UNITS``, and in SI). Standard output gets the
-coefficient table, or with ``--json`` only the JSON object ``{method: {coef: {"value", "unit",
-"si"}}}``. Any problem with the file (unreadable, empty, wrong shape, non-numeric or unknown
-column, NaN/inf) is a ``ValueError`` with a message naming it; nothing is written then.
+Outputs (in ``--out DIR``, default the current directory, names prefixed with the input's stem):
+``<stem>_<sensor>_av.png`` (ADEV of each axis, each method's curve, the first method's terms),
+``<stem>_av.csv`` (the AV tables), ``<stem>_coefficients.csv`` and ``.json`` (per sensor, axis and
+method: values in display and SI units, standard errors/intervals where the method has them, and a
+flag per coefficient: ok / not modelled / non-physical / failed, plus poor fit), and with
+``--kalibr FILE`` / ``--format allan_variance_ros`` a filter's ``imu.yaml``. Standard output gets
+one table per sensor, or with ``--json`` only the JSON object. Any problem with the input or an
+option ends with a one-line error (exit code 2) and nothing written.
 """
 
 from __future__ import annotations
 
 import json
-import math
-import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from studies import data_files
-
-__all__ = ["add_parser", "run", "load_record", "fit_methods", "fitted_avar"]
-
-_TEXT = {".csv", ".txt", ".dat", ".tsv"}
+__all__ = ["add_parser", "run"]
 
 
-# -- reading ------------------------------------------------------------------------------------
-def _select(arr: np.ndarray, names: list[str] | None, column, path) -> np.ndarray:
-    """One column of a 1-D or 2-D array, by index or name."""
-    if arr.ndim == 1:
-        if column not in (None, 0, "0") and not (names and column in names):
-            raise ValueError(f"{path}: --column {column!r} given, but the file holds a single column")
-        return arr
-    if arr.ndim != 2:
-        raise ValueError(f"{path}: expected a 1-D record or a 2-D (samples x columns) table, got shape {arr.shape}")
-    n_rows, n_cols = arr.shape
-    if n_cols == 1 and column in (None, 0, "0"):
-        return arr[:, 0]
-    if column is None:
-        shown = f" ({', '.join(names)})" if names else ""
-        raise ValueError(f"{path}: {n_cols} columns{shown}; choose one with --column NAME|INDEX")
-    if names and str(column) in names:
-        return arr[:, names.index(str(column))]
-    try:
-        idx = int(column)
-    except (TypeError, ValueError):
-        known = ", ".join(names) if names else f"indices 0..{n_cols - 1}"
-        raise ValueError(f"{path}: unknown column {column!r}; expected one of {known}") from None
-    if not 0 <= idx < n_cols:
-        raise ValueError(f"{path}: column index {idx} out of range; expected 0..{n_cols - 1}")
-    return arr[:, idx]
-
-
-def _numeric(arr, path, what="data"):
-    arr = np.asarray(arr)
-    if arr.dtype.kind not in "iuf":
-        raise ValueError(f"{path}: {what} is not numeric (dtype {arr.dtype}); expected rate samples")
-    return arr.astype(float)
-
-
-def _delimiter(path: Path) -> str:
-    """The separator of a text table, from its first data line: comma, semicolon, tab or blanks."""
-    try:
-        with open(path, encoding="utf-8", errors="strict") as fh:
-            for line in fh:
-                line = line.strip()
-                if line and not line.startswith("#"):
-                    break
-            else:
-                raise ValueError(f"{path}: the file is empty")
-    except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a text file (cannot decode as UTF-8)") from None
-    for sep in (",", ";", "\t"):
-        if sep in line:
-            return sep
-    return r"\s+"
-
-
-def _read_text(path: Path, column):
-    try:
-        df = pd.read_csv(path, sep=_delimiter(path), engine="python", header=None, comment="#",
-                         skip_blank_lines=True, dtype=str)
-    except pd.errors.EmptyDataError:
-        raise ValueError(f"{path}: the file is empty") from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as e:
-        raise ValueError(f"{path}: cannot parse as a text table ({e})") from None
-    if df.empty:
-        raise ValueError(f"{path}: the file is empty")
-    names = None
-    if data_files.is_header_row(df.iloc[0].tolist()):  # a header row ("nan"/"inf" are numbers)
-        names = [str(v).strip() for v in df.iloc[0]]
-        df = df.iloc[1:].reset_index(drop=True)
-        df.columns = names
-        if df.empty:
-            raise ValueError(f"{path}: a header but no samples")
-    if df.shape[1] == 1:
-        col = df.iloc[:, 0]
-        label = names[0] if names else "column 0"
-        if column not in (None, 0, "0") and not (names and column in names):
-            raise ValueError(f"{path}: --column {column!r} given, but the file holds a single column")
-    else:
-        if column is None:
-            shown = f" ({', '.join(names)})" if names else ""
-            raise ValueError(f"{path}: {df.shape[1]} columns{shown}; choose one with --column NAME|INDEX")
-        if names and str(column) in names:
-            col, label = df[str(column)], str(column)
-        else:
-            try:
-                idx = int(column)
-            except (TypeError, ValueError):
-                known = ", ".join(names) if names else f"indices 0..{df.shape[1] - 1}"
-                raise ValueError(f"{path}: unknown column {column!r}; expected one of {known}") from None
-            if not 0 <= idx < df.shape[1]:
-                raise ValueError(f"{path}: column index {idx} out of range; expected 0..{df.shape[1] - 1}")
-            col, label = df.iloc[:, idx], (names[idx] if names else f"column {idx}")
-    values = pd.to_numeric(col, errors="coerce")
-    bad = values.isna() & col.notna() & (col.astype(str).str.strip().str.lower() != "nan")
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise ValueError(f"{path}: {label} is not numeric (row {i}: {col.iloc[i]!r}); expected rate samples")
-    return values.to_numpy(dtype=float)
-
-
-def load_record(path, column=None) -> np.ndarray:
-    """The rate samples of one column of a ``.npy``, ``.npz`` or text file (see module docstring)."""
-    path = data_files.check_file(path)
-    suffix = path.suffix.lower()
-    if suffix == ".npy":
-        x = _select(_numeric(data_files.load_npy(path), path), None, column, path)
-    elif suffix == ".npz":
-        z = data_files.load_npz(path)
-        keys = list(z)
-        if "data" in keys:
-            arr = z["data"]
-        else:
-            arrays = [k for k in keys if k not in ("columns", "fs")]
-            if len(arrays) != 1:
-                raise ValueError(f"{path}: expected an array 'data' or a single array, found {keys}")
-            arr = z[arrays[0]]
-        names = [str(c) for c in z["columns"]] if "columns" in keys else None
-        x = _select(_numeric(arr, path), names, column, path)
-    elif suffix in _TEXT:
-        x = _read_text(path, column)
-    else:
-        raise ValueError(f"{path}: unknown file type {suffix!r}; expected .npy, .npz, .csv, .txt, .dat or .tsv")
-    if x.size == 0:
-        raise ValueError(f"{path}: the record is empty")
-    bad = ~np.isfinite(x)
-    if bad.any():
-        raise ValueError(
-            f"{path}: {int(bad.sum())} non-finite sample(s) (NaN/inf), the first at index {int(np.flatnonzero(bad)[0])}; "
-            "expected a gap-free record"
-        )
-    if x.size < 16:
-        raise ValueError(f"{path}: {x.size} samples; expected at least 16")
-    return x
-
-
-# -- fitting ------------------------------------------------------------------------------------
-def fit_methods(rate, dt, methods, settings=None) -> dict:
-    """Fit each registered estimator in ``methods`` to ``rate`` (rad/s); returns name -> estimator.
-
-    ``settings`` maps a method name to its settings (``estimators.get(name, **settings)``).
-    """
-    import estimators
-
-    settings = settings or {}
-    out = {}
-    for name in methods:
-        t0 = time.perf_counter()
-        est = estimators.get(name, **settings.get(name, {})).fit(rate, dt)
-        est.seconds_ = time.perf_counter() - t0
-        out[name] = est
-    return out
-
-
-def fitted_avar(est, tau, dt) -> np.ndarray:
-    """The AV curve a fitted estimator stands for: the exact AV of its latent model for ``gmwm`` and
-    ``mle`` (Gauss-Markov bump, not a plateau), the five-term model curve otherwise."""
-    from estimators.av_model import model_avar
-    from estimators.gmwm import build_gyro
-
-    p = est.diagnostics_.get("params")
-    if est.name in ("gmwm", "mle") and isinstance(p, dict):
-        lat, vals = [], []
-        pick = {"QN": ["Q"], "WN": ["N"], "GM": ["sigma", "tc"], "RW": ["K"]}
-        for latent, keys in pick.items():
-            full = [f"{latent}.{k}" if est.name == "gmwm" else k for k in keys]
-            if all(k in p for k in full) and all(p[k] > 0 for k in full):
-                lat.append(latent)
-                vals += [p[k] for k in full]
-        if np.isfinite(est.coefficients_["R"]) and est.coefficients_["R"] > 0:
-            lat.append("DR")
-            vals.append(est.coefficients_["R"])
-        if lat:
-            return build_gyro(tuple(lat), vals, dt).avar(tau)
-    c = est.coefficients_
-    return model_avar({k: v for k, v in c.items() if np.isfinite(v)}, tau)
-
-
-# -- output -------------------------------------------------------------------------------------
-def _table(fits) -> pd.DataFrame:
-    from noise_models.units import COEFFICIENTS, PAPER_UNITS, from_si
-
-    rows = {}
-    for name, est in fits.items():
-        rows[name] = {f"{c} ({PAPER_UNITS[c]})": from_si(c, est.coefficients_[c], PAPER_UNITS[c]) for c in COEFFICIENTS}
-    return pd.DataFrame.from_dict(rows, orient="index")
-
-
-def _json(fits) -> dict:
-    from noise_models.units import COEFFICIENTS, PAPER_UNITS, SI_UNITS, from_si
-
-    def num(v):
-        return None if not np.isfinite(v) else float(v)
-
-    out = {}
-    for name, est in fits.items():
-        se = est.diagnostics_.get("std_err")
-        out[name] = {}
-        for c in COEFFICIENTS:
-            v = est.coefficients_[c]
-            entry = {"value": num(from_si(c, v, PAPER_UNITS[c])), "unit": PAPER_UNITS[c], "si": num(v),
-                     "si_unit": SI_UNITS[c]}
-            if isinstance(se, pd.Series) and np.isfinite(se.get(c, np.nan)):
-                entry["std_err_si"] = float(se[c])
-            out[name][c] = entry
-    return out
-
-
-def _figure(rate, dt, fits, units, title):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from estimators.allan import allan_variance
-    from noise_models.units import rate_to_si
-
-    k = 1.0 / rate_to_si(1.0, units)
-    av = allan_variance(rate, dt, "octave", overlapping=True)
-    fig, ax = plt.subplots(figsize=(7.5, 5.2))
-    ax.errorbar(av.tau, av.adev * k, yerr=[(av.adev - np.sqrt(av.ci_low)) * k, (np.sqrt(av.ci_high) - av.adev) * k],
-                fmt="o", ms=3, color="k", label="overlapping ADEV (68 % χ²)")
-    tau = np.unique(np.rint(np.logspace(0, np.log10(av.m.max()), 80)).astype(int)) * dt
-    for i, (name, est) in enumerate(fits.items()):
-        curve = fitted_avar(est, tau, dt)
-        if np.any(curve > 0):
-            ax.loglog(tau, np.sqrt(np.where(curve > 0, curve, np.nan)) * k, "--", color=f"C{i}", label=name)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("τ (s)")
-    ax.set_ylabel(f"Allan deviation ({units})")
-    ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    return fig, av
-
-
-def _write_atomic(path: Path, write) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp{path.suffix}")
-    write(tmp)
-    os.replace(tmp, path)
-
-
-# -- command --------------------------------------------------------------------------------------
 def add_parser(subparsers):
     """Add the ``estimate`` sub-command to an ``argparse`` sub-parsers object."""
-    s = subparsers.add_parser("estimate", help="fit the coefficients of a real static gyro recording",
-                              description=__doc__.split("\n\n")[0])
-    s.add_argument("file", help="recording: .npy, .npz, .csv, .txt, .dat, .tsv")
-    s.add_argument("--fs", type=float, required=True, help="sample rate in Hz")
-    s.add_argument("--column", default=None, help="column name or 0-based index (for tables)")
-    s.add_argument("--units", default="rad/s", help="rate units of the file (rad/s, deg/s, deg/h, mrad/s)")
-    s.add_argument("--method", default="nnls_rel,gmwm", help="comma-separated estimator names (avbench estimators)")
+    import argparse
+
+    s = subparsers.add_parser("estimate", help="fit the noise coefficients of a static IMU recording",
+                              description=__doc__.split("\n\n")[0],
+                              epilog=__doc__.split("Examples\n--------\n", 1)[1].split("\n\n")[0],
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("file", nargs="+", help="recording(s): .npy .npz .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
+    s.add_argument("--fs", type=float, default=None,
+                   help="sample rate in Hz (needed when the file has no time stamps; else only checked)")
+    s.add_argument("--units", default=None, help="gyro sample units when the format does not say: rad/s, deg/s, deg/h, mrad/s")
+    s.add_argument("--accel-units", default=None, help="accelerometer sample units when the format does not say: m/s^2, g, mg, ug")
+    s.add_argument("--column", default=None, help="one gyro column of a table: name or 0-based index")
+    s.add_argument("--gyro", default=None, help="gyro columns of a table, comma-separated names or indices")
+    s.add_argument("--accel", default=None, help="accelerometer columns of a table, comma-separated")
+    s.add_argument("--time", default=None, help="time column of a table (default: one named t/time/timestamp; 'none' to ignore it)")
+    s.add_argument("--time-units", default="s", choices=["s", "ms", "us", "ns"], help="units of the time column (default s)")
+    s.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
+    s.add_argument("--method", default=None,
+                   help="comma-separated estimator names (avbench estimators; default: the methods safe on real records, "
+                        "estimators.base.DEFAULT_METHODS)")
     s.add_argument("--set", action="append", default=[], metavar="METHOD.KEY=VALUE",
                    help="an estimator setting, e.g. gmwm.model=QN+WN+GM+RW (VALUE read as JSON if it parses)")
-    s.add_argument("--json", action="store_true", help="print only a JSON object of the coefficients on stdout")
-    s.add_argument("--out", default=".", help="output folder for the plot and tables (default: .)")
+    s.add_argument("--combine", action="store_true", help="pool several recordings of one sensor in one fit (and test that they agree)")
+    s.add_argument("--kalibr", default=None, metavar="FILE", help="also write a Kalibr imu.yaml to FILE")
+    s.add_argument("--format", default=None, choices=["kalibr", "allan_variance_ros"],
+                   help="also write <stem>_imu.yaml in --out in this style")
+    s.add_argument("--filter-method", default=None, help="method whose N and K go into the yaml (default: the first of --method)")
+    s.add_argument("--inflate", default=None, metavar="F|F_NOISE,F_WALK",
+                   help="multiply the yaml's noise densities / random walks (default: no inflation)")
+    s.add_argument("--json", action="store_true", help="print only the JSON object on stdout")
+    s.add_argument("--out", default=".", help="output folder for the plots and tables (default: .)")
     s.add_argument("--title", default=None, help="plot title (default: the file name)")
+    s.add_argument("--no-progress", action="store_true", help="no progress bars")
     s.set_defaults(func=run)
     return s
 
 
 def _check_args(args):
     import estimators
-    from noise_models.units import rate_to_si
+    from studies.recordings.filter_yaml import parse_inflate
+    from studies.recordings.timing import check_fs
 
-    if not (math.isfinite(args.fs) and args.fs > 0):
-        raise ValueError(f"--fs: expected a positive sample rate in Hz, got {args.fs!r}")
-    rate_to_si(1.0, args.units)  # raises for an unknown unit
-    methods = [m.strip() for m in str(args.method).split(",") if m.strip()]
+    check_fs(args.fs)
+    from estimators.base import DEFAULT_METHODS
+
+    spec = ",".join(DEFAULT_METHODS) if args.method is None else str(args.method)
+    methods = [m.strip() for m in spec.split(",") if m.strip()]
     if not methods:
         raise ValueError("--method: expected at least one estimator name")
     for m in methods:  # registered, installed (entry point) or "package.module:Class"
@@ -327,45 +106,194 @@ def _check_args(args):
         settings.setdefault(method, {})[setting] = parsed
     for method, kw in settings.items():
         estimators.get(method, **kw)  # unknown settings raise here, before any work
-    return methods, settings
+    if args.column is not None and args.gyro is not None:
+        raise ValueError("--column: give either --column or --gyro, not both")
+    if len(args.file) > 1 and not args.combine:
+        raise ValueError(f"{len(args.file)} files given; expected one recording, or --combine to pool recordings of one sensor")
+    fm = args.filter_method or methods[0]
+    if fm not in methods:
+        raise ValueError(f"--filter-method {fm!r}: not among --method {', '.join(methods)}")
+    if args.kalibr is not None:
+        k = Path(args.kalibr)
+        if k.is_dir():
+            raise ValueError(f"--kalibr {args.kalibr!r}: is a folder; expected a file name for the imu.yaml")
+        parent = k.parent
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
+        if parent.exists() and not parent.is_dir():
+            raise ValueError(f"--kalibr {args.kalibr!r}: {str(parent)!r} is not a folder; expected a file path")
+    return methods, settings, fm, parse_inflate(args.inflate)
+
+
+def _load(args, progress):
+    """Read every file: [(Recording, Timing, [SensorRecord])]."""
+    from studies.recordings.readers import read_recording
+    from studies.recordings.sensors import to_si
+    from studies.recordings.timing import timing_of
+
+    loaded = []
+    gyro = args.gyro if args.gyro is not None else args.column
+    for f in args.file:
+        rec = read_recording(f, gyro=gyro, accel=args.accel, time_column=args.time, time_units=args.time_units,
+                             topic=args.topic, progress=progress)
+        timing = timing_of(rec.time, args.fs, rec.n_samples, rec.path)
+        loaded.append((rec, timing, to_si(rec, args.units, args.accel_units)))
+    return loaded
+
+
+def _combine(loaded):
+    """One (timing, sensors) from several recordings: concatenated, file boundaries are gaps."""
+    from studies.recordings.sensors import SensorRecord
+    from studies.recordings.timing import FS_TOLERANCE, Timing
+
+    rec0, t0, s0 = loaded[0]
+    layout = [(s.sensor, tuple(s.axes)) for s in s0]
+    for rec, t, s in loaded[1:]:
+        if [(x.sensor, tuple(x.axes)) for x in s] != layout:
+            raise ValueError(f"--combine: {rec.path} has other sensors/axes than {rec0.path}; expected recordings of one sensor")
+        if abs(t.dt / t0.dt - 1) > FS_TOLERANCE:
+            raise ValueError(f"--combine: {rec.path} is sampled at {t.fs:.6g} Hz, {rec0.path} at {t0.fs:.6g} Hz; "
+                             "expected one sample rate")
+    offsets = np.cumsum([0] + [t.n_samples for _, t, _ in loaded[:-1]])
+    starts = np.concatenate([np.concatenate(([o] if o else [], t.starts + o)) for o, (_, t, _) in zip(offsets, loaded)])
+    gaps = np.concatenate([np.concatenate(([np.nan] if o else [], t.gap_seconds)) for o, (_, t, _) in zip(offsets, loaded)])
+    n = int(sum(t.n_samples for _, t, _ in loaded))
+    timing = Timing(t0.dt, t0.source + f" ({len(loaded)} recordings pooled; file boundaries are gaps)", n,
+                    starts.astype(np.int64), gaps, t0.jitter, t0.max_deviation)
+    sensors = []
+    for k, s in enumerate(s0):
+        axes = {a: np.concatenate([np.asarray(sl[k].axes[a]) for _, _, sl in loaded]) for a in s.axes}
+        sensors.append(SensorRecord(s.sensor, s.unit_in, axes, s.names))
+    return timing, sensors
+
+
+def _outputs(stem, sensors, args):
+    names = [f"{stem}_{s.sensor}_av.png" for s in sensors] + [f"{stem}_av.csv", f"{stem}_coefficients.csv",
+                                                             f"{stem}_coefficients.json"]
+    if args.format:
+        names.append(f"{stem}_imu.yaml")
+    return names
 
 
 def run(args) -> int:
     """Run ``avbench estimate`` (see the module docstring); returns the exit code."""
-    from noise_models.units import rate_to_si
+    from tqdm import tqdm
 
-    methods, settings = _check_args(args)
-    path = Path(args.file)
-    rate = rate_to_si(load_record(path, args.column), args.units)
-    dt = 1.0 / args.fs
-    fits = fit_methods(rate, dt, methods, settings)
-    label = f"{path.name}" + (f" [{args.column}]" if args.column is not None else "")
-    fig, av = _figure(rate, dt, fits, args.units, args.title or label)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    stem = path.stem + (f"_{args.column}" if args.column is not None else "")
-    table = _table(fits)
-    payload = _json(fits)
-    k = 1.0 / rate_to_si(1.0, args.units)
-    avt = av.to_frame().assign(adev_units=av.adev * k)
-    _write_atomic(out / f"{stem}_av.png", lambda p: fig.savefig(p, dpi=110, bbox_inches="tight"))
+    from studies.outputs import atomic_write_bytes, atomic_write_text, prepare_out_dir
+    from studies.recordings import figure, filter_yaml, report
+    from studies.recordings.fit import agreement, fit_axis, scaled_allan
+
+    methods, settings, filter_method, inflate = _check_args(args)
+    progress = not args.no_progress and sys.stderr.isatty()
+    loaded = _load(args, progress)
+    rec = loaded[0][0]
+    if len(loaded) > 1:
+        timing, sensors = _combine(loaded)
+    else:
+        timing, sensors = loaded[0][1], loaded[0][2]
+    column = args.column if args.column is not None else None
+    stem = (rec.path.stem or rec.path.name) + (f"_{column}" if column is not None else "") + \
+        ("_combined" if len(loaded) > 1 else "")
+    out = prepare_out_dir(args.out, "--out", _outputs(stem, sensors, args))
+    dt = timing.dt
+
+    n_fits = sum(len(s.axes) for s in sensors) * len(methods)
+    fits: dict = {}
+    with tqdm(total=n_fits, desc="fitting", unit="fit", disable=not progress, leave=False) as bar:
+        for s in sensors:
+            fits[s.sensor] = {a: fit_axis(x, dt, timing.starts, methods, settings, bar) for a, x in s.axes.items()}
+    extra = {"format": rec.format, "topic": rec.topic, "time_source": rec.time_source, "notes": rec.notes}
+    if len(loaded) > 1:
+        extra["combine"] = {}
+        for s_i, s in enumerate(sensors):
+            extra["combine"][s.sensor] = {
+                a: agreement([(np.asarray(sl[s_i].axes[a]), t.starts) for _, t, sl in loaded], dt) for a in s.axes}
+    data = report.payload([r.path for r, _, _ in loaded], timing, sensors, fits, extra)
+
+    # everything that can refuse is checked before anything is written
+    yaml_text = None
+    if args.kalibr is not None or args.format:
+        values = filter_yaml.filter_values(data, filter_method, "--kalibr" if args.kalibr else "--format")
+        style = args.format or "kalibr"
+        yaml_text = filter_yaml.kalibr_yaml(values, timing.fs, rec.topic, filter_method,
+                                            [r.path for r, _, _ in loaded], inflate, style)
+        data["filter_yaml"] = {"method": filter_method, "inflate": list(inflate),
+                               "values_si": {k: v for k, (v, _) in values.items()}}
+    tables = report.tables(data)
+    av_rows, figs = [], []
+    for s in sensors:
+        avs = {}
+        for a, x in s.axes.items():
+            av, scale = scaled_allan(x, dt, timing.starts)
+            avs[a] = (av, scale)
+            frame = av.to_frame()
+            with np.errstate(over="ignore", under="ignore"):
+                for col in ("avar", "ci_low", "ci_high"):
+                    frame[col] = frame[col] / scale / scale  # may overflow to inf for a record of 1e300: adev does not
+                frame["adev"] = frame["adev"] / scale
+            av_rows.append(frame.assign(sensor=s.sensor, axis=a, unit=f"avar ({s.si_unit})^2, adev {s.si_unit}"))
+        flags = {a: {m: data["sensors"][s.sensor]["axes"][a]["methods"][m]["poor_fit"] for m in methods} for a in s.axes}
+        figs.append((s.sensor, figure.figure(s, fits[s.sensor], avs, dt, args.title or rec.path.name, flags)))
+
+    import io
+
     import matplotlib.pyplot as plt
 
-    plt.close(fig)
-    _write_atomic(out / f"{stem}_av.csv", lambda p: avt.to_csv(p, index=False))
-    _write_atomic(out / f"{stem}_coefficients.csv", lambda p: table.to_csv(p, index_label="method"))
-    _write_atomic(out / f"{stem}_coefficients.json",
-                  lambda p: p.write_text(json.dumps(payload, indent=2) + "\n"))
+    for sensor, fig in figs:
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        atomic_write_bytes(out / f"{stem}_{sensor}_av.png", buf.getvalue())
+    atomic_write_text(out / f"{stem}_av.csv", pd.concat(av_rows, ignore_index=True).to_csv(index=False))
+    long = pd.concat({k: v for k, v in tables.items()}, names=["sensor"])
+    atomic_write_text(out / f"{stem}_coefficients.csv", long.to_csv())
+    atomic_write_text(out / f"{stem}_coefficients.json", json.dumps(data, indent=2) + "\n")
+    written = [f"{stem}_{s}_av.png" for s, _ in figs] + [f"{stem}_av.csv", f"{stem}_coefficients.csv/.json"]
+    if args.format:
+        atomic_write_text(out / f"{stem}_imu.yaml", yaml_text)
+        written.append(f"{stem}_imu.yaml")
+    if args.kalibr is not None:
+        k = Path(args.kalibr)
+        k.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(k, yaml_text)
+
     if args.json:
-        print(json.dumps(payload))
+        print(json.dumps(data))
     else:
-        print(f"# {label}: {rate.size} samples at {args.fs:g} Hz ({rate.size / args.fs / 3600:.2f} h), "
-              f"rate units {args.units}")
-        with pd.option_context("display.float_format", "{:.4g}".format, "display.width", 160):
-            print(table.to_string())
-        for name, est in fits.items():
-            fail = est.diagnostics_.get("failure")
-            extra = f"; {fail}" if fail else ""
-            print(f"# {name}: {est.seconds_:.1f} s{extra}")
-    print(f"avbench estimate: wrote {stem}_av.png, _av.csv, _coefficients.csv/.json in {out}", file=sys.stderr)
+        _print_summary(data, tables, timing, fits, rec)
+    print(f"avbench estimate: wrote {', '.join(written)} in {out}" + (f"; {args.kalibr}" if args.kalibr else ""),
+          file=sys.stderr)
     return 0
+
+
+def _print_summary(data, tables, timing, fits, rec):
+    src = ", ".join(data["sources"])
+    joins = int(np.isnan(timing.gap_seconds).sum())  # --combine: file boundaries
+    gaps = (f", {timing.n_gaps - joins} gap(s) ({np.nansum(timing.gap_seconds):.3g} s missing)" if timing.n_gaps - joins else "") + \
+        (f", {joins} file boundary(ies) treated as gaps" if joins else "")
+    jit = f", jitter {timing.jitter:.2%} of dt" if timing.jitter is not None else ""
+    print(f"# {src}: {timing.n_samples} samples at {timing.fs:.6g} Hz ({timing.n_samples * timing.dt / 3600:.2f} h) "
+          f"from {timing.source}{jit}{gaps}" + (f"; topic {rec.topic}" if rec.topic else ""))
+    for note in rec.notes:
+        print(f"# note: {note}")
+    for sensor, table in tables.items():
+        sd = data["sensors"][sensor]
+        print(f"\n## {sensor} (samples in {sd['units_in']}): {', '.join(f'{c} = {n}' for c, n in sd['terms'].items())}")
+        with pd.option_context("display.float_format", "{:.4g}".format, "display.width", 200,
+                               "display.max_columns", 20):
+            print(table.to_string())
+    for sensor, per_axis in fits.items():
+        for axis, per_method in per_axis.items():
+            for name, f in per_method.items():
+                md = data["sensors"][sensor]["axes"][axis]["methods"][name]
+                extra = [f"failed: {md['failure']}"] if md["failure"] else []
+                if md["poor_fit"]:
+                    extra.append("POOR FIT: the model misses the AV curve beyond its intervals")
+                extra += md["warnings"][:2]
+                print(f"# {sensor} {axis} {name}: {f.seconds:.1f} s" + (f"; {'; '.join(extra)}" if extra else ""))
+    if "combine" in data:
+        for sensor, per_axis in data["combine"].items():
+            for axis, a in per_axis.items():
+                verdict = "agree" if a["agree"] else ("DISAGREE" if a["agree"] is not None else "not testable")
+                p = f"p = {a['p_value']:.3g}" if a["p_value"] is not None else a["note"]
+                print(f"# recordings {verdict} on {sensor} {axis} ({p})")

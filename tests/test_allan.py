@@ -158,3 +158,22 @@ def test_confidence_interval_contains_truth_at_nominal_rate():
     # binomial 1e-4 two-sided band around the nominal 68.3 %
     lo, hi = stats.binom.ppf([5e-5, 1 - 5e-5], 300, 0.683) / 300
     assert np.all((rate >= lo) & (rate <= hi)), rate
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_fused_finiteness_check_names_the_first_bad_sample(bad):
+    # the finiteness test rides on the mean's compiled sum: one bad sample anywhere is still caught
+    x = np.random.default_rng(0).standard_normal(1000)
+    x[[321, 700]] = bad
+    with pytest.raises(ValueError, match="2 non-finite sample.*index 321"):
+        allan_variance(x, 0.1)
+
+
+def test_reused_cumsum_buffer_leaves_earlier_results_intact():
+    rng = np.random.default_rng(1)
+    a, b = rng.standard_normal(5000), rng.standard_normal(5000)
+    ra = allan_variance(a, 1.0)
+    first = ra.avar.copy()
+    allan_variance(b, 1.0)
+    np.testing.assert_array_equal(ra.avar, first)
+    np.testing.assert_array_equal(allan_variance(a, 1.0).avar, first)

@@ -49,7 +49,7 @@ def test_ek_statistics_equal_kalman_smoother(terms, form):
     P0 = np.eye(m) / (C @ C)
     f = EKFilter(A.copy(), C.copy(), Q.copy(), R.copy())
     f.start(y[0], P0)
-    f.run(y[1:], recursive=False, warmup=1, update_every=1, trace_every=0)
+    f.run(y[1:], recursive=False, warmup=1, update_every=1, trace_every=0, exact_q=True)
     st = f.statistics()
 
     ks = KalmanSmoother(k_endog=1, k_states=m, design=C[None, :], obs_cov=R[None, :], transition=A,
@@ -163,6 +163,110 @@ def test_partial_fit_chunks_equal_one_call():
     a = ArmaEM(**kw).fit(y, 0.01)
     b = ArmaEM(**kw).partial_fit(y[:100], 0.01).reset().partial_fit(y, 0.01)
     np.testing.assert_array_equal(a.coefficients_.to_numpy(), b.coefficients_.to_numpy())
+
+
+# --- numerical robustness (issue: divergence at sample 2791 of the test above) ----------------------
+_GYRO_NBK = dict(N=1e-3, sigma=3e-4 / 0.9294, tc=5.0, K=1e-5)
+
+
+def _gyro_nbk(dt=0.01):
+    p = _GYRO_NBK
+    return Gyro(dt=dt, terms=[AngleRandomWalk(N=p["N"]), GaussMarkov(sigma=p["sigma"], tc=p["tc"]),
+                              RateRandomWalk(K=p["K"])])
+
+
+def _fit_quietly(est, y, dt, chunks=None):
+    """Fit (or feed in ``chunks``) with DivergenceWarning as an error; returns the estimator."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DivergenceWarning)
+        if chunks is None:
+            return est.fit(y, dt)
+        for lo, hi in zip(chunks[:-1], chunks[1:]):
+            est.partial_fit(y[lo:hi], dt)
+        return est
+
+
+@pytest.mark.parametrize("mode", ["recursive", "online", "batch"])
+def test_no_divergence_over_seeds_short_records(mode):
+    """60 short records (3000 samples) of a valid N + GM + K model, starts up to 100x off.
+
+    Before the fix 7 of 50 such records (the start of the test above) diverged: the isotropic
+    prior I/CC' made eq. 29's x_0 x_0'/k term inflate Q by ~1e8, and the M-step then produced an
+    explosive, nearly unobservable mode whose covariance grew like lambda^2k until rounding made
+    A P A' + Q indefinite (see the module docstring of ``estimators.arma_em``).
+    """
+    g = _gyro_nbk()
+    truth = {"N": 1e-3, "B": 3e-4, "K": 1e-5}
+    settings = {"recursive": {}, "online": {}, "batch": dict(recursive=False, passes=3)}[mode]
+    for seed in range(60):
+        rng = np.random.default_rng(3000 + seed)
+        y = g.simulate(3000, rng)
+        if seed % 3 == 0:  # the start of test_partial_fit_chunks_equal_one_call, 5-30x off here
+            y = y * 10.0
+            x0, tc0 = {"N": 2e-3, "B": 1e-4, "K": 3e-5}, 5.0
+        elif seed % 3 == 1:  # log-uniform within two decades of the truth
+            x0 = {c: v * 10 ** rng.uniform(-2, 2) for c, v in truth.items()}
+            tc0 = 5.0 * 10 ** rng.uniform(-1, 1)
+        else:  # the default start (Allan-variance fit of the record)
+            x0, tc0 = None, None
+        est = ArmaEM(x0=x0, tc0=tc0, trace_every=0, **settings)
+        chunks = [0, 500, 1700, 3000] if mode == "online" else None
+        est = _fit_quietly(est, y, g.dt, chunks)
+        d = est.diagnostics_
+        assert d["failure"] is None and d["n_samples"] == 3000, (seed, d["failure"])
+        # no explosive mode (eigenvalues of a nearly defective 2x2 A are known to ~eps/gap ~ 1e-11)
+        assert np.max(np.abs(np.linalg.eigvals(d["A"]))) <= 1.0 + 1e-8, seed
+        assert np.all(np.linalg.eigvalsh(est._filter.P) > 0), seed
+
+
+@pytest.mark.parametrize("n", [200_000, pytest.param(2_000_000, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("start", ["paper", "default", "test"])
+def test_no_divergence_long_records(n, start):
+    """Long records (small default, 2e6 samples slow) with the paper's start, the default start and
+    the start of the chunk test: no divergence, covariance positive definite at the end."""
+    from noise_models import presets
+
+    if start == "test":
+        g, kw = _gyro_nbk(), dict(x0={"N": 2e-3, "B": 1e-4, "K": 3e-5}, tc0=5.0)
+    else:
+        g = presets.get("ADIS16405_Y")
+        kw = {} if start == "default" else dict(x0={"N": [1.5, "deg/sqrt(h)"], "B": [20, "deg/h"],
+                                                     "K": [50, "deg/h^1.5"]})
+    y = g.simulate(n, np.random.default_rng(n % 97 + len(start)))
+    est = _fit_quietly(ArmaEM(trace_every=0, **kw), y, g.dt)
+    assert est.diagnostics_["failure"] is None
+    assert np.all(np.linalg.eigvalsh(est._filter.P) > 0)
+    assert np.isfinite(est.coefficients_["N"]) and abs(est.coefficients_["N"] / g.coefficients["N"] - 1) < 0.05
+
+
+def test_prior_covariance_is_the_accumulated_model_covariance():
+    from estimators.arma_em import prior_covariance
+
+    A, _, Q, _ = initial_model(TRUTH, 5.0, 0.01, "NBK", "eq63")
+    for h in (1, 2, 3, 16, 777):
+        S, Ak = np.zeros((2, 2)), np.eye(2)
+        for _ in range(h):
+            S, Ak = S + Ak @ Q @ Ak.T, A @ Ak
+        np.testing.assert_allclose(prior_covariance(A, Q, h), S, rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("A", [[[1.02, 0.3], [0.0, 0.9]], [[0.5, 2.0], [-1.0, 0.9]], [[1.001, 0.0], [0.0, 1.002]],
+                               [[-1.3, 0.1], [0.2, 0.4]], [[0.99, 0.01], [0.0, 0.98]], [[1.5]], [[0.7]]])
+def test_clip_spectrum_kernel_equals_reference(A):
+    from estimators._arma_em_reference import clip_spectrum_reference
+
+    A = np.array(A, float)
+    lam = np.linalg.eigvals(A)
+    ref, changed = clip_spectrum_reference(A)
+    out = A.copy()
+    assert K._clip_spectrum(out) == changed == bool(np.any(np.abs(lam) > 1))
+    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-15)
+    new = np.linalg.eigvals(out)
+    assert np.all(np.abs(new) <= 1 + 1e-12)
+    if changed and np.all(np.isreal(lam)):  # real eigenvalues: clipped, eigenvectors kept
+        np.testing.assert_allclose(np.sort(new.real), np.sort(np.clip(lam.real, -1, 1)), atol=1e-12)
 
 
 # --- recovery --------------------------------------------------------------------------------

@@ -20,6 +20,8 @@ def test_quick_run_writes_outputs(tmp_path, monkeypatch):
     monkeypatch.setattr(suite.AllanOverlapping, "quick_params", [[10_000]])
     monkeypatch.setattr(suite.AllanEngine, "quick_params", [[10_000]])
     monkeypatch.setattr(suite.StreamingMemory, "quick_params", [[20_000, 40_000]])
+    monkeypatch.setattr(suite.ReadRecording, "quick_params", [[2_000]])
+    monkeypatch.setattr(suite.EstimateMemory, "quick_params", [[20_000]])
     assert main(["--quick", "--out", str(tmp_path)]) == 0
     for name in ("README.md", "results.json", "results.csv", "scaling.png"):
         assert (tmp_path / name).stat().st_size > 0
@@ -36,8 +38,12 @@ def test_quick_run_writes_outputs(tmp_path, monkeypatch):
     assert {c["benchmark"] for c in with_baseline} >= {"Generation", "AllanOverlapping"}
     for c in with_baseline:
         assert np.isclose(c["ratio"], c["baseline_median_s"] / c["median_s"])
-    mem = [c for c in cases if c["kind"] == "peakmem"]
+    mem = [c for c in cases if c["kind"] == "peakmem" and c["benchmark"] == "StreamingMemory"]
     assert len(mem) == 2 and all(c["peak_rss_mb"] > 0 and c["traced_peak_mb"] > 0 for c in mem)
+    est = [c for c in cases if c["benchmark"] == "EstimateMemory"]
+    assert len(est) == 1 and est[0]["peak_rss_mb"] > 0 and est[0]["record_mb"] > 0
+    read = {c["method"]: c for c in cases if c["benchmark"] == "ReadRecording"}
+    assert read["time_read"]["baseline_median_s"] > 0 and read["peakmem_read"]["peak_over_data"] > 0
     readme = (tmp_path / "README.md").read_text()
     assert "## Targets" in readme and "allantools" in readme
 

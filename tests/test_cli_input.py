@@ -46,9 +46,9 @@ CASES = [
     ("nan in npy", "r.npy", _npy(np.where(np.arange(400) == 3, np.nan, X)), [], "the first at index 3"),
     ("inf in npz", "r.npz", lambda p: np.savez(p, data=np.where(np.arange(400) == 5, np.inf, X)), [], "the first at index 5"),
     ("3-D npy", "r.npy", _npy(X.reshape(10, 8, 5)), [], "expected a 1-D record or a 2-D (samples x columns) table, got shape (10, 8, 5)"),
-    ("2 columns, no --column", "r.npy", _npy(X.reshape(200, 2)), [], "2 columns; choose one with --column"),
-    ("column out of range", "r.npy", _npy(X.reshape(200, 2)), ["--column", "2"], "column index 2 out of range; expected 0..1"),
-    ("unknown column name", "r.csv", _text("gx,gy\n" + "\n".join(f"{v},{v}" for v in X)), ["--column", "gz"], "unknown column 'gz'; expected one of gx, gy"),
+    ("2 columns, no --column", "r.npy", _npy(X.reshape(200, 2)), [], "2 columns (column 0, column 1); choose them with --gyro"),
+    ("column out of range", "r.npy", _npy(X.reshape(200, 2)), ["--column", "2"], "column index 2 out of range (--gyro/--column); expected 0..1"),
+    ("unknown column name", "r.csv", _text("gx,gy\n" + "\n".join(f"{v},{v}" for v in X)), ["--column", "gz"], "unknown column 'gz' (--gyro/--column); expected one of gx, gy"),
     ("empty npy", "r.npy", _npy(np.array([])), [], "the record is empty"),
     ("empty file", "r.csv", _text(""), [], "the file is empty"),
     ("blank lines only", "r.csv", _text("\n \n\n"), [], "empty"),
@@ -80,7 +80,7 @@ def _run(tmp_path, name, writer, extra, capsys):
     if writer is not None:
         writer(path)
     out = tmp_path / "out"
-    rc = main(["estimate", str(path), "--fs", "10", "--method", "ols", "--out", str(out), *extra])
+    rc = main(["estimate", str(path), "--fs", "10", "--units", "rad/s", "--method", "ols", "--out", str(out), *extra])
     captured = capsys.readouterr()
     return rc, captured, path, out
 

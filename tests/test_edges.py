@@ -196,7 +196,7 @@ def record():
 #: relative agreement between fits of x and of x * 1e300 (or 1e-200): the rounding of x * scale
 #: (1e-16) carried through a closed-form fit, or amplified to the tolerance of an iterative optimizer
 #: (objective to ~1e-10, so parameters to ~sqrt(1e-10) relative on flat directions)
-ITERATIVE = {"gmwm", "mle", "log_fit"}
+ITERATIVE = {"mle", "log_fit", "whittle"}  # and every gmwm variant (numerical optimisers)
 
 
 @pytest.mark.parametrize("name", estimators.names())
@@ -219,7 +219,7 @@ def test_estimates_scale_with_the_data(name, record):
         b, bflags, data_scale = fits[scale]
         assert data_scale != 1.0
         assert (bflags == flags).all() and (b.isna() == a.isna()).all(), (scale, a, b)
-        if name in ITERATIVE:  # a coefficient at its bound (1e-10 vs 0.0) is noise: compare fitted curves
+        if name in ITERATIVE or name.startswith("gmwm"):  # a coefficient at its bound (1e-10 vs 0.0) is noise: compare fitted curves
             tau = dt * 2.0 ** np.arange(12)
             np.testing.assert_allclose(model_avar(b, tau), model_avar(a, tau), rtol=1e-4)
         else:

@@ -8,7 +8,7 @@ import pytest
 from noise_models import AngleRandomWalk, Gyro, RateRandomWalk
 from noise_models.units import from_si, rate_to_si
 from studies.cli import main
-from studies.estimate import load_record
+from studies.recordings.readers import read_recording
 
 FS = 100.0
 N_TRUE = 2e-3  # rad/sqrt(s)
@@ -20,21 +20,29 @@ def record():
     return g.simulate(60_000, np.random.default_rng(42))
 
 
+def _coef(payload, method, coef="N", sensor="gyro", axis=None):
+    axes = payload["sensors"][sensor]["axes"]
+    axis = axis if axis is not None else next(iter(axes))
+    return axes[axis]["methods"][method]["coefficients"][coef]
+
+
 def _deg(x):
     return x / rate_to_si(1.0, "deg/s")
 
 
 def test_csv_with_header_json_only(tmp_path, record, capsys):
     f = tmp_path / "rec.csv"
-    np.savetxt(f, np.column_stack([np.arange(record.size), _deg(record)]), delimiter=",",
+    np.savetxt(f, np.column_stack([np.arange(record.size) / FS, _deg(record)]), delimiter=",",
                header="t,gyro_x", comments="")
     out = tmp_path / "out"
     code = main(["estimate", str(f), "--fs", "100", "--column", "gyro_x", "--units", "deg/s",
                  "--method", "nnls_rel,slope_lines", "--json", "--out", str(out)])
     assert code == 0
     payload = json.loads(capsys.readouterr().out)  # stdout holds the JSON object and nothing else
-    assert set(payload) == {"nnls_rel", "slope_lines"}
-    n = payload["nnls_rel"]["N"]
+    methods = payload["sensors"]["gyro"]["axes"]["x"]["methods"]
+    assert set(methods) == {"nnls_rel", "slope_lines"}
+    assert payload["timing"]["from"] == "time stamps" and payload["timing"]["rate_hz"] == pytest.approx(FS)
+    n = _coef(payload, "nnls_rel")
     assert n["unit"] == "deg/sqrt(h)"
     assert n["value"] == pytest.approx(from_si("N", n["si"], "deg/sqrt(h)"))
     # the CLI reports what the estimator gives on the converted record, in both units
@@ -42,8 +50,9 @@ def test_csv_with_header_json_only(tmp_path, record, capsys):
 
     direct = estimators.get("nnls_rel").fit(rate_to_si(_deg(record), "deg/s"), 1 / FS).coefficients_
     assert n["si"] == pytest.approx(direct["N"], rel=1e-9)
-    assert payload["nnls_rel"]["B"]["value"] is None or payload["nnls_rel"]["B"]["value"] >= 0
-    for suffix in ("_av.png", "_av.csv", "_coefficients.csv", "_coefficients.json"):
+    b = _coef(payload, "nnls_rel", "B")
+    assert (b["value"] is None) == (b["flag"] != "ok") and (b["value"] is None or b["value"] >= 0)
+    for suffix in ("_gyro_av.png", "_av.csv", "_coefficients.csv", "_coefficients.json"):
         assert (out / f"rec_gyro_x{suffix}").is_file()
 
 
@@ -57,19 +66,19 @@ def test_formats_agree(tmp_path, record, kind, capsys):
     else:
         np.savetxt(f, record)
     col = ["--column", "a"] if kind == "npz" else []
-    assert main(["estimate", str(f), "--fs", "100", *col, "--method", "nnls_rel", "--json",
+    assert main(["estimate", str(f), "--fs", "100", *col, "--units", "rad/s", "--method", "nnls_rel", "--json",
                  "--out", str(tmp_path)]) == 0
-    si = json.loads(capsys.readouterr().out)["nnls_rel"]["N"]["si"]
+    si = _coef(json.loads(capsys.readouterr().out), "nnls_rel")["si"]
     np.save(tmp_path / "ref.npy", record)
-    assert main(["estimate", str(tmp_path / "ref.npy"), "--fs", "100", "--method", "nnls_rel", "--json",
-                 "--out", str(tmp_path)]) == 0
-    assert si == pytest.approx(json.loads(capsys.readouterr().out)["nnls_rel"]["N"]["si"], rel=1e-12)
+    assert main(["estimate", str(tmp_path / "ref.npy"), "--fs", "100", "--units", "rad/s", "--method", "nnls_rel",
+                 "--json", "--out", str(tmp_path)]) == 0
+    assert si == pytest.approx(_coef(json.loads(capsys.readouterr().out), "nnls_rel")["si"], rel=1e-12)
 
 
 def test_table_output_and_settings(tmp_path, record, capsys):
     f = tmp_path / "r.npy"
     np.save(f, record)
-    assert main(["estimate", str(f), "--fs", "100", "--method", "gmwm", "--set", "gmwm.model=WN+RW",
+    assert main(["estimate", str(f), "--fs", "100", "--units", "rad/s", "--method", "gmwm", "--set", "gmwm.model=WN+RW",
                  "--out", str(tmp_path)]) == 0
     text = capsys.readouterr().out
     assert "N (deg/sqrt(h))" in text and "gmwm" in text
@@ -97,7 +106,7 @@ def _bad_files(tmp_path):
     p = tmp_path / "two.csv"
     p.write_text("a,b\n" + "1,2\n" * 40)
     cases["unknown column"] = ([str(p), "--column", "c"], "unknown column")
-    cases["no column"] = ([str(p)], "choose one with --column")
+    cases["no column"] = ([str(p)], "(or one with --column NAME|INDEX)")
     p = tmp_path / "short.npy"
     np.save(p, np.ones(5))
     cases["short"] = ([str(p)], "at least 16")
@@ -113,7 +122,7 @@ def _bad_files(tmp_path):
 def test_bad_files_fail_clearly_and_write_nothing(tmp_path, case, capsys):
     argv, message = _bad_files(tmp_path)[case]
     out = tmp_path / "out"
-    code = main(["estimate", *argv, "--fs", "100", "--method", "nnls_rel", "--json", "--out", str(out)])
+    code = main(["estimate", *argv, "--fs", "100", "--units", "rad/s", "--method", "nnls_rel", "--json", "--out", str(out)])
     err = capsys.readouterr()
     assert code != 0
     assert message in err.err
@@ -130,7 +139,7 @@ def test_bad_files_fail_clearly_and_write_nothing(tmp_path, case, capsys):
 def test_bad_arguments(tmp_path, record, extra, message, capsys):
     f = tmp_path / "r.npy"
     np.save(f, record)
-    args = ["estimate", str(f), "--fs", "100", "--method", "nnls_rel", "--out", str(tmp_path / "o")]
+    args = ["estimate", str(f), "--fs", "100", "--units", "rad/s", "--method", "nnls_rel", "--out", str(tmp_path / "o")]
     # later occurrences of an option override the earlier ones
     code = main(args + extra)
     assert code != 0 and message in capsys.readouterr().err
@@ -140,4 +149,23 @@ def test_bad_arguments(tmp_path, record, extra, message, capsys):
 def test_load_record_npz_without_data_key(tmp_path, record):
     f = tmp_path / "one.npz"
     np.savez(f, rate=record)
-    assert np.array_equal(load_record(f), record)
+    rec = read_recording(f)
+    assert [c.sensor for c in rec.channels] == ["gyro"] and np.array_equal(rec.channels[0].values, record)
+
+
+def test_combine_pools_recordings_and_tests_agreement(tmp_path, capsys):
+    """Two runs of one white-noise gyro agree; a third with three times the noise does not. The pooled
+    fit sees the file boundary as a gap."""
+    rng = np.random.default_rng(5)
+    for name, s in (("a", 1e-3), ("b", 1e-3), ("c", 3e-3)):
+        np.savez(tmp_path / f"{name}.npz", data=s * rng.standard_normal(20_000))
+    common = ["--combine", "--fs", "100", "--units", "rad/s", "--method", "nnls_rel", "--json", "--out", str(tmp_path / "o")]
+    assert main(["estimate", str(tmp_path / "a.npz"), str(tmp_path / "b.npz"), *common]) == 0
+    same = json.loads(capsys.readouterr().out)
+    assert same["combine"]["gyro"]["x"]["agree"] is True
+    assert [g["before_sample"] for g in same["timing"]["gaps"]] == [20_000]
+    assert (tmp_path / "o" / "a_combined_coefficients.json").is_file()
+    assert main(["estimate", str(tmp_path / "a.npz"), str(tmp_path / "c.npz"), *common]) == 0
+    assert json.loads(capsys.readouterr().out)["combine"]["gyro"]["x"]["agree"] is False
+    assert main(["estimate", str(tmp_path / "a.npz"), str(tmp_path / "b.npz"), "--fs", "100", "--units", "rad/s"]) == 2
+    assert "expected one recording, or --combine" in capsys.readouterr().err

@@ -108,3 +108,47 @@ def test_too_short_record():
     x = np.random.default_rng(0).standard_normal(100)
     with pytest.raises(ValueError, match="usable octave taus"):
         estimators.get("gmwm", model="QN+WN+GM+RW+DR").fit(x, 0.01)
+
+
+def _filtered(x, taps=2):
+    """The record through a moving average of ``taps`` samples (a sensor's averaging filter)."""
+    return np.convolve(x, np.ones(taps) / taps, mode="valid")
+
+
+def test_auto_scales_drop_the_octaves_a_sensor_filter_bends():
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=7e-4), GaussMarkov(sigma=2e-4, tc=100.0), RateRandomWalk(K=2e-6)])
+    x = _filtered(g.simulate(200_000, np.random.default_rng(22)))
+    all_oct = estimators.get("gmwm", min_m=1).fit(x, 0.01)
+    auto = estimators.get("gmwm").fit(x, 0.01)
+    d = auto.diagnostics_
+    assert d["min_m"] >= 4  # the 2-tap average halves AV(m=1); its 1/m bend is seen up to m ~ 8
+    assert all_oct.diagnostics_["poor_fit"]
+    # each cut-off tried is recorded with its J, which falls as bent octaves are dropped
+    tried = d["scale_choice"]
+    assert [s["min_m"] for s in tried][:2] == [1, 2] and tried[0]["J_stat"] > 10 * tried[-1]["J_stat"]
+
+
+@pytest.mark.slow
+def test_auto_scales_recover_n_and_b_through_a_sensor_filter():
+    # an ADIS16405-like record (2.8 h at 100 Hz, B ~ 40 deg/h) through a 2-tap average
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=7e-4), GaussMarkov(sigma=2e-4, tc=100.0), RateRandomWalk(K=2e-6)])
+    x = _filtered(g.simulate(1_000_000, np.random.default_rng(22)))
+    auto = estimators.get("gmwm").fit(x, 0.01)
+    truth = g.coefficients
+    for c in ("N", "B"):
+        assert abs(auto.coefficients_[c] - truth[c]) < 3 * auto.diagnostics_["std_err"][c], c
+
+
+def test_auto_scales_keep_every_octave_of_an_unfiltered_record_and_flag_a_wrong_model():
+    g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=20.0), RateRandomWalk(K=3e-6)])
+    x = g.simulate(200_000, np.random.default_rng(11))
+    right = estimators.get("gmwm").fit(x, 0.1).diagnostics_
+    wrong = estimators.get("gmwm", model="WN+RW").fit(x, 0.1).diagnostics_
+    assert right["min_m"] == 1 and not right["poor_fit"]
+    # a model that misses the middle of the curve is not rescued by dropping short scales
+    assert wrong["min_m"] <= 2 and wrong["poor_fit"]
+
+
+def test_min_m_setting_is_validated():
+    with pytest.raises(ValueError, match="min_m"):
+        estimators.get("gmwm", min_m="all").fit(np.random.default_rng(0).standard_normal(50_000), 0.1)

@@ -47,7 +47,7 @@ def test_shakf_kernel_matches_reference(m, adapt):
     g, rate = adis(1500, 1)
     x0 = {c: 0.7 * g.coefficients[c] for c in "NBK"}
     name, extra = ("shakf", {}) if m is None else ("shakf_multitau", {"m": m})
-    est = fit_quiet(name, rate, g.dt, terms="NBK", x0=x0, adapt=adapt, Q0=1e-6, **extra)
+    est = fit_quiet(name, rate, g.dt, terms="NBK", x0=x0, adapt=adapt, Q0=1e-6, trajectory_every=1, **extra)
     cfg = est._cfg
     traj, code, _, _ = shakf_reference(
         rate, est._zinv, est._A, cfg["m"], np.ones(3), cfg["P0"], cfg["Q0"],
@@ -63,7 +63,8 @@ def test_nekf_kernel_matches_reference(m):
     g, rate = adis(400, 2)
     x0 = {c: 1.3 * g.coefficients[c] for c in "NBK"}
     name, extra = ("nekf", {}) if m is None else ("nekf_multitau", {"m": m})
-    est = fit_quiet(name, rate, g.dt, terms="NBK", x0=x0, p=4, lambda_scale=0.1, seed=3, **extra)
+    est = fit_quiet(name, rate, g.dt, terms="NBK", x0=x0, p=4, lambda_scale=0.1, seed=3,
+                    trajectory_every=1, **extra)
     st = est._state
     nq, p = 3, 4
     rng = np.random.default_rng(3)
@@ -113,6 +114,8 @@ def test_trajectory_off_and_decimated():
     rate = white(1000, 6)
     off = estimators.get("nekf", terms="N", x0={"N": N_TRUE}, trajectory_every=0).fit(rate, DT)
     assert off.diagnostics_["trajectory"] is None
+    default = estimators.get("shakf", terms="N", x0={"N": N_TRUE}).fit(white(2500, 8), DT)
+    assert list(default.diagnostics_["trajectory"].index) == [999, 1999]  # decimated by default
     dec = estimators.get("nekf", terms="N", x0={"N": N_TRUE}, trajectory_every=100).fit(rate, DT)
     assert list(dec.diagnostics_["trajectory"].index) == list(range(99, 1000, 100))
     assert dec.diagnostics_["trajectory"]["N"].iloc[-1] == dec.coefficients_["N"]

@@ -91,3 +91,29 @@ def test_slope_lines_on_white_noise_record():
     tau_i = est.diagnostics_["tau_used"]["N"]
     rel_se = 1 / math.sqrt(n * 0.01 / tau_i)
     assert abs(est.coefficients_["N"] / N - 1) < 4 * rel_se
+
+
+def test_ordered_slope_lines_read_b_on_the_plateau_not_on_a_flat_first_segment():
+    # a real-sensor-like curve: the sensor's own filter flattens the first octave (ADEV(1) ~
+    # ADEV(2)), then N, a B plateau and K. The MathWorks reading (ordered=False) takes the flat
+    # first segment for the plateau; the ordered reading finds the plateau after the N region.
+    true = {"N": 1e-3, "B": 5e-5, "K": 2e-6}
+    avar = model_avar(true, TAU)
+    avar[0] = avar[1]  # flat first segment
+    adev = np.sqrt(avar)
+    literal, used_l = slope_line_coefficients(TAU, adev, "NBK", ordered=False)
+    ordered, used_o = slope_line_coefficients(TAU, adev, "NBK", ordered=True)
+    assert used_l["B"] == 0 and literal["B"] > 10 * true["B"]
+    assert used_o["N"] <= used_o["B"] <= used_o["K"] and used_o["B"] > 0
+    # B is read where it is read on the same curve without the filter (the curve's minimum region)
+    clean, _ = slope_line_coefficients(TAU, np.sqrt(model_avar(true, TAU)), "NBK", ordered=False)
+    assert ordered["B"] == pytest.approx(clean["B"], rel=1e-12)
+    assert ordered["N"] == literal["N"] and ordered["K"] == literal["K"]
+
+
+def test_ordered_reading_equals_independent_one_when_already_ordered():
+    adev = np.sqrt(model_avar(TRUE, TAU))
+    a, ua = slope_line_coefficients(TAU, adev, "QNBKR", ordered=False)
+    b, ub = slope_line_coefficients(TAU, adev, "QNBKR", ordered=True)
+    if all(ua[x] <= ua[y] for x, y in zip("QNBK", "NBKR")):
+        assert a == b

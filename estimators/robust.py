@@ -1,0 +1,296 @@
+"""Robust GMWM: the GMWM matched to an M-estimate of the wavelet (Allan) variance.
+
+Guerrier, Molinari & Victoria-Feser (Austrian J. Statistics 2014, "Estimation of time series models
+via robust wavelet variance") and Guerrier, Molinari, Victoria-Feser & Xu (JASA 2022, "Robust
+two-step wavelet-based inference for time series models", the RGMWM) replace the classical
+estimate of the Haar wavelet variance at each scale by a bounded-influence M-estimate of scale of
+the wavelet coefficients (after Mondal & Percival, Ann. Inst. Stat. Math. 2012, "M-estimation of
+wavelet variance"), then match it to the model exactly as the GMWM does
+(:class:`estimators.gmwm.GMWM`). Registered as ``gmwm_robust``.
+
+The robust Allan variance
+-------------------------
+At cluster size m the overlapping AV is half the mean square of the differences of adjacent
+cluster means, :math:`d_t = \\bar\\omega_{t+m..t+2m} - \\bar\\omega_{t..t+m}` (the Haar MODWT
+coefficient times 2; the factor cancels). For a Gaussian process the :math:`d_t` are
+:math:`N(0, 2\\sigma^2_{AV})`. Instead of their mean square we take the M-estimate of scale
+:math:`s` solving (Huber 1981, Sec. 5.4; Maronna, Martin & Yohai 2006, eq. 2.49)
+
+.. math::
+
+    \\frac1M\\sum_t \\rho\\!\\left(\\frac{d_t}{s}\\right) = \\delta,\\qquad
+    \\delta = E_\\Phi[\\rho(Z)],\\qquad \\hat\\sigma^2_{AV,rob} = s^2/2 ,
+
+which is Fisher-consistent at the Gaussian (:math:`\\delta` makes :math:`s^2 = E d_t^2` when the
+:math:`d_t` are Gaussian). Two bounded :math:`\\rho` (setting ``psi``):
+
+``"huber"`` (default): :math:`\\rho(r) = \\min(r^2, c^2)`, Huber's Proposal 2 scale (the square of
+Huber's :math:`\\psi`); breakdown point :math:`\\min(\\delta/c^2, 1-\\delta/c^2)`;
+
+``"biweight"``: Tukey's bisquare :math:`\\rho(r) = 1-(1-(r/c)^2)^3` for :math:`|r| \\le c`, 1 beyond
+(redescending: a far outlier gets no weight at all).
+
+The tuning constant c is set by the asymptotic efficiency ``eff`` relative to the mean square at
+the Gaussian, :math:`\\mathrm{eff} = (E[Z\\rho'(Z)])^2 / (2\\,\\mathrm{Var}\\,\\rho(Z))`, computed by
+quadrature and solved for c (``eff = 0.6`` default, the value the authors' software uses).
+
+Covariance. For Gaussian coefficients with correlation :math:`\\rho_{st}` the Hermite expansion of
+:math:`\\rho(\\cdot)` gives :math:`\\mathrm{Cov}` of the robust terms :math:`= 2\\rho_{st}^2 +
+O(\\rho_{st}^4)` after normalisation, with the lag-0 value :math:`2/\\mathrm{eff}`; term by term it
+is at most :math:`(2/\\mathrm{eff})\\rho_{st}^2`. So the robust AV's variance is at most
+1/eff times the classical one, with equality for independent coefficients. We use the classical
+model covariance (:func:`estimators.gmwm.av_covariance`) times 1/eff as its covariance: the point
+estimate is unchanged by this constant, standard errors and the J statistic are conservative.
+
+Reading of the papers
+---------------------
+* Which :math:`\\psi`. The 2014 paper and the authors' R packages (``gmwm``, ``wv``) use Tukey's
+  biweight, solving :math:`\\overline{\\psi_c(r)^2} = E_\\Phi\\psi_c^2` (a Proposal-2 form with
+  the biweight :math:`\\psi`, whose square is not monotone); the brief for this project asked for
+  "Huber-type M-estimation". We give both as bounded, monotone :math:`\\rho` functions of
+  standard M-scale theory (so the estimating equation has exactly one root): Huber's Proposal 2 as
+  default and the bisquare :math:`\\rho` as ``psi="biweight"``. The two agree within their
+  standard errors on clean data (tests).
+* Which weights. The JASA paper computes the GMWM weighting matrix non-parametrically, once, from
+  the robust estimator's own influence function; we use the parametric two-step weights of our
+  :class:`~estimators.gmwm.GMWM` (its module docstring says why) with the conservative 1/eff
+  factor above.
+* Mean. The coefficients are not centred: :math:`d_t` has mean 0 under every latent model except a
+  deterministic ramp, where Fisher consistency fails (the robust estimate then targets
+  :math:`d^2/\\delta`-type values); the default model has no ramp.
+* Scales. All octaves with at least 8 clusters (``min_m=1``), as the papers; not the automatic
+  choice of :class:`~estimators.gmwm.GMWM` (see ``min_m`` below).
+
+What it protects against, honestly. A spike in the rate touches 2m coefficients at scale m. With a
+fraction :math:`\\varepsilon` of spiky samples, the fraction of contaminated coefficients is about
+:math:`1-(1-\\varepsilon)^{2m}`: at small m the spikes are few and far out and are discounted; at
+large m nearly every coefficient holds some spike, each diluted by 1/m, and no estimator can tell
+them from the process. The fit is still protected where it matters for N (the short scales) and,
+for B and K, wherever the process' own AV exceeds the diluted spike energy there.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from scipy import integrate, optimize, stats
+
+from estimators import _allan_kernels as _kernels
+from estimators.allan import cluster_sizes
+from estimators.base import register
+from estimators.gmwm import GMWM
+
+__all__ = ["GMWMRobust", "GMWMDespiked", "hampel_clean", "robust_allan_variance", "tuning", "m_scale", "PSI"]
+
+PSI = ("huber", "biweight")
+
+
+def _rho(kind, r, c):
+    if kind == "huber":
+        return np.minimum(r * r, c * c)
+    u = np.minimum((r / c) ** 2, 1.0)
+    return 1.0 - (1.0 - u) ** 3
+
+
+def _gauss_moments(kind, c):
+    """(delta, efficiency) of the M-scale with rho ``kind`` and constant c at the Gaussian."""
+    pdf = stats.norm.pdf
+    tail = 2 * stats.norm.sf(c)
+    rho_max = c * c if kind == "huber" else 1.0
+    e1 = 2 * integrate.quad(lambda z: _rho(kind, z, c) * pdf(z), 0, c, limit=200)[0] + rho_max * tail
+    e2 = 2 * integrate.quad(lambda z: _rho(kind, z, c) ** 2 * pdf(z), 0, c, limit=200)[0] + rho_max**2 * tail
+    if kind == "huber":
+        zdrho = lambda z: 2 * z * z  # noqa: E731
+    else:
+        zdrho = lambda z: 6 * (z / c) ** 2 * (1 - (z / c) ** 2) ** 2  # noqa: E731
+    b = 2 * integrate.quad(lambda z: zdrho(z) * pdf(z), 0, c, limit=200)[0]
+    return e1, b * b / (2 * (e2 - e1 * e1))
+
+
+@functools.lru_cache(maxsize=32)
+def tuning(psi: str = "huber", eff: float = 0.6) -> tuple[float, float]:
+    """(c, delta) of the M-scale with Gaussian efficiency ``eff`` (module docstring).
+
+    Examples
+    --------
+    >>> c, delta = tuning("huber", 0.6)
+    >>> round(c, 3), round(delta, 3)
+    (1.225, 0.649)
+    """
+    if psi not in PSI:
+        raise ValueError(f"psi: expected one of {', '.join(PSI)}, got {psi!r}")
+    eff = float(eff)
+    if not 0.05 <= eff <= 0.99:
+        raise ValueError(f"eff: expected an efficiency between 0.05 and 0.99, got {eff!r}")
+    lo, hi = (0.05, 6.0) if psi == "huber" else (0.3, 30.0)
+    c = optimize.brentq(lambda c: _gauss_moments(psi, c)[1] - eff, lo, hi, xtol=1e-12)
+    return float(c), float(_gauss_moments(psi, c)[0])
+
+
+def m_scale(x, psi="huber", eff=0.6) -> float:
+    """Fisher-consistent M-estimate of the root mean square of ``x`` (not centred).
+
+    Solves mean(rho(x/s)) = delta for s (a decreasing function of s, one root), by Brent's method
+    on log s bracketed around the normalised median absolute value.
+    """
+    c, delta = tuning(psi, eff)
+    x = np.abs(np.asarray(x, dtype=float))
+    s0 = float(np.median(x)) / 0.6744897501960817
+    if not s0 > 0:
+        s0 = math.sqrt(float(np.mean(x * x)))
+        if not s0 > 0:
+            return 0.0
+
+    def g(log_s):
+        return float(np.mean(_rho(psi, x / math.exp(log_s), c))) - delta
+
+    a, b = math.log(s0) - 1.0, math.log(s0) + 1.0
+    for _ in range(40):
+        if g(a) >= 0:
+            break
+        a -= 2.0
+    else:  # more than 1 - delta/max(rho) of the values are exactly 0
+        return 0.0
+    while g(b) > 0:
+        b += 2.0
+    return math.exp(optimize.brentq(g, a, b, xtol=1e-12, rtol=1e-12))
+
+
+def robust_allan_variance(rate, dt, taus="octave", *, psi="huber", eff=0.6):
+    """Robust overlapping Allan variance (module docstring) at the cluster sizes of ``taus``.
+
+    Returns ``(tau, m, avar)``.
+
+    Examples
+    --------
+    >>> x = np.random.default_rng(0).standard_normal(100_000)
+    >>> x[::500] += 30.0  # 0.2 % spikes: the classical AV is 2.8 times too high
+    >>> tau, m, av = robust_allan_variance(x, 1.0, taus=[1.0, 2.0])
+    >>> bool(np.all(np.abs(av * m - 1) < 0.02))  # white: AV = 1/m
+    True
+    """
+    x = np.asarray(rate, dtype=np.float64)
+    n = x.size
+    m = cluster_sizes(taus, n, dt)
+    S = _kernels.centred_cumsum(x, float(x.mean()), np.empty(n + 1))
+    av = np.empty(m.size)
+    for i, mi in enumerate(m):
+        mi = int(mi)
+        d = (S[2 * mi :] - 2 * S[mi:-mi] + S[: -2 * mi]) / mi
+        av[i] = 0.5 * m_scale(d, psi, eff) ** 2
+    return m * dt, m, av
+
+
+@register("gmwm_robust")
+class GMWMRobust(GMWM):
+    """Robust GMWM (Guerrier et al. 2014, 2022; module docstring): GMWM on the M-estimated AV.
+
+    Parameters
+    ----------
+    model, min_clusters, weighting, n_starts
+        As :class:`estimators.gmwm.GMWM`.
+    min_m : int or "auto"
+        As :class:`estimators.gmwm.GMWM`, but the default is 1 (all octaves, as the papers): on a
+        contaminated record the robust AV is trustworthy at the short scales and inflated by
+        diluted spikes at the long ones, and the automatic choice would drop exactly the short ones.
+    psi : {"huber", "biweight"}
+        The bounded rho of the M-scale (default Huber's Proposal 2).
+    eff : float
+        Gaussian efficiency of the robust AV relative to the classical one (default 0.6).
+
+    Examples
+    --------
+    >>> from noise_models import Gyro, AngleRandomWalk
+    >>> rate = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3)]).simulate(100_000, np.random.default_rng(3))
+    >>> rate[::500] += 0.1  # 0.2 % spikes of 30 sigma
+    >>> robust = GMWMRobust(model="WN").fit(rate, 0.1).coefficients_["N"]
+    >>> classical = GMWM(model="WN").fit(rate, 0.1).coefficients_["N"]
+    >>> round(float(robust / 1e-3), 2), round(float(classical / 1e-3), 2)
+    (1.03, 1.73)
+    """
+
+    def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m=1, weighting="model", n_starts=6,
+                 psi="huber", eff=0.6):
+        super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting,
+                         n_starts=n_starts)
+        self.psi = psi
+        self.eff = eff
+
+    def _wavelet_variance(self, rate, dt):
+        from estimators.allan import _result
+
+        tuning(self.psi, self.eff)  # validates psi and eff
+        tau, m, av = robust_allan_variance(rate, dt, "octave", psi=self.psi, eff=self.eff)
+        # first-step weights: the engine's edf for the noise type of the local slope
+        edf = _result(m, av, rate.size, dt, True, "auto", 0.683).edf
+        return tau, av, m, edf, 1.0 / float(self.eff)
+
+    def _check_reference(self, tau, avar, m, n):
+        return (tau, avar, m, n)
+
+
+def hampel_clean(rate, half_window: int = 5, threshold: float = 5.0):
+    """Replace additive outliers by the local median (Hampel filter; Pearson 2002, IEEE TCST).
+
+    A sample is an outlier when it differs from the median of the ``2 half_window + 1`` samples
+    around it by more than ``threshold`` robust standard deviations of those differences
+    (1.4826 MAD). Returns ``(cleaned copy, boolean mask of replaced samples)``.
+    """
+    from scipy.ndimage import median_filter
+
+    x = np.asarray(rate, dtype=np.float64)
+    med = median_filter(x, size=2 * int(half_window) + 1, mode="nearest")
+    r = x - med
+    s = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    out = np.abs(r) > threshold * s if s > 0 else np.zeros(x.size, dtype=bool)
+    y = x.copy()
+    y[out] = med[out]
+    return y, out
+
+
+@register("gmwm_despiked")
+class GMWMDespiked(GMWM):
+    """GMWM on the record after a Hampel filter has replaced its spikes (beyond Guerrier et al.).
+
+    Why beside ``gmwm_robust``: with isolated spikes in a few % of the samples, a spike reaches
+    2m wavelet coefficients at scale m, so from m of a few samples on nearly every coefficient is
+    contaminated and no M-estimate of scale can separate them (the robust AV of
+    :func:`robust_allan_variance` is as high as the classical one there, and B is lost). Spikes
+    are outliers of the *samples*; they are best found there, where each stands alone
+    (:func:`hampel_clean`), and replaced by the local median before the classical GMWM.
+
+    Cost of the replacement: a replaced sample keeps the local level but loses its white-noise
+    deviation, so with a fraction f of replaced samples the white (ARW) part of the AV is lowered
+    by about f (N by f/2): 2.5 % at f = 5 %, reported in ``diagnostics_["replaced_fraction"]``.
+    On clean Gaussian data with the default threshold (5 robust sigma) about 6e-7 of the samples
+    are replaced.
+
+    Parameters
+    ----------
+    model, min_clusters, min_m, weighting, n_starts
+        As :class:`estimators.gmwm.GMWM`.
+    half_window : int
+        Half width of the running median (default 5 samples: 11 in all).
+    threshold : float
+        Outlier threshold in robust standard deviations (default 5).
+    """
+
+    def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6,
+                 half_window=5, threshold=5.0):
+        super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting,
+                         n_starts=n_starts)
+        self.half_window = half_window
+        self.threshold = threshold
+
+    def _fit(self, rate, dt):
+        if isinstance(self.half_window, bool) or not isinstance(self.half_window, (int, np.integer)) \
+                or self.half_window < 1:
+            raise ValueError(f"half_window: expected a positive integer, got {self.half_window!r}")
+        if not (isinstance(self.threshold, (int, float)) and math.isfinite(self.threshold) and self.threshold > 0):
+            raise ValueError(f"threshold: expected a positive number of robust sigmas, got {self.threshold!r}")
+        cleaned, out = hampel_clean(rate, self.half_window, self.threshold)
+        coefs, nonphys, diag = super()._fit(cleaned, dt)
+        diag["replaced_fraction"] = float(out.mean())
+        return coefs, nonphys, diag
