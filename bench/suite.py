@@ -225,6 +225,7 @@ ESTIMATOR_SETTINGS = {
     "shakf_multitau": {"x0": "truth", "trajectory_every": 0},
     "nekf_multitau": {"x0": "truth", "trajectory_every": 0},
     "arma_em": {},
+    "whittle": {},
 }
 
 

@@ -15,7 +15,11 @@ Every estimator, batch or online, follows the scikit-learn contract:
       ``pandas.Series`` of bools, same index: True where the fit produced a value without physical
       meaning (e.g. a negative element of beta in Lv et al. 2015, eq. 7); the coefficient is NaN there;
   ``diagnostics_``
-      ``dict`` of method-specific details (AV used, residuals, trajectories, divergence reports...).
+      ``dict`` of method-specific details (AV used, residuals, trajectories, divergence reports...);
+  ``std_err_``
+      ``pandas.Series`` like ``coefficients_``: standard errors (SI) where the method gives them
+      (``diagnostics_["std_err"]``), NaN elsewhere; ``bootstrap(...)`` fills them for any method.
+      ``conf_int(level=0.95, conservative=False)`` gives intervals (:mod:`estimators.uncertainty`).
 
 Subclasses implement ``_fit(rate, dt)`` returning ``(coefficients: dict, nonphysical: dict,
 diagnostics: dict)``; the base class does the input checks and packs the results.
@@ -331,6 +335,46 @@ class Estimator:
         self.coefficients_ = c
         self.nonphysical_ = flags
         self.diagnostics_ = dict(diag or {})
+        se = self.diagnostics_.get("std_err")
+        se = coefficient_series({} if se is None else {k: float(v) for k, v in dict(se).items()})
+        se[~np.isfinite(c)] = math.nan
+        self.std_err_ = se
+
+    # -- uncertainty (estimators.uncertainty) ------------------------------------------------------
+    def _check_fitted(self):
+        if not hasattr(self, "coefficients_"):
+            raise ValueError(f"{type(self).__name__}: not fitted yet; call fit(rate, dt) first")
+
+    def conf_int(self, level=0.95, conservative=False) -> pd.DataFrame:
+        """Intervals for the coefficients (SI): DataFrame indexed Q..R, columns ``lower``, ``upper``.
+
+        Log-scale normal intervals from ``std_err_`` (NaN where there is none); with
+        ``conservative=True`` one-sided upper bounds holding jointly with probability ``level``
+        (an overbound; lower = 0). See :mod:`estimators.uncertainty`.
+        """
+        from estimators.uncertainty import interval, zero_quantile
+
+        self._check_fitted()
+        upper0 = None
+        zu = self.diagnostics_.get("zero_upper")
+        if zu is not None and len(zu):  # e.g. whittle: the bound of a term estimated as 0
+            z = zero_quantile(level, conservative, self.std_err_, self.coefficients_)
+            upper0 = zu * z ** self.diagnostics_["zero_upper_power"]
+        return interval(self.coefficients_, self.std_err_, level, conservative, upper_if_zero=upper0)
+
+    def bootstrap(self, n_samples: int, dt, n_draws: int = 20, seed=0) -> "Estimator":
+        """Replace ``std_err_`` by a parametric bootstrap: ``n_draws`` records of ``n_samples``
+        samples simulated from the fitted coefficients with the exact generators, refitted by
+        clones of this estimator (:func:`estimators.uncertainty.parametric_bootstrap`). Costs
+        ``n_draws`` fits. Returns ``self``."""
+        from estimators.uncertainty import parametric_bootstrap
+
+        self._check_fitted()
+        se = parametric_bootstrap(self, int(n_samples), check_dt(dt), n_draws, seed)
+        se[~np.isfinite(self.coefficients_)] = math.nan
+        self.std_err_ = se
+        self.diagnostics_["std_err_method"] = f"parametric bootstrap, {n_draws} draws"
+        return self
 
     # -- presentation --------------------------------------------------------------------------
     def summary(self, units: dict[str, str] | None = None) -> pd.DataFrame:

@@ -42,9 +42,13 @@ chi^2/edf approximation ignores. The first step uses the diagonal weights
 :math:`\\mathrm{edf}_j/(2\\hat\\sigma_j^4)` of the AV engine.
 
 Latent models (setting ``model``): ``WN`` white rate (N), ``QN`` quantization (Q), ``GM`` first-order
-Gauss-Markov (sigma, Tc; reported as B through SPEC's :math:`B_{equiv} = 0.9294\\sigma`), ``RW`` rate
-random walk (K), ``DR`` deterministic drift / rate ramp (R). Parameters are optimised on their
-logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts.
+Gauss-Markov (sigma, Tc; reported as B through SPEC's :math:`B_{equiv} = 0.9294\\sigma`), ``FL``
+flicker bias instability (B itself; beyond Guerrier et al. 2013, whose latents are all
+state-space processes: its theoretical AV is the exact discrete curve of the Kasdin-Walter
+generator, :class:`noise_models.BiasInstability`, with filter memory ``tau_max`` = twice the record
+as in the presets, so that the plateau holds to the longest usable tau), ``RW`` rate random walk (K),
+``DR`` deterministic drift / rate ramp (R). ``GM`` and ``FL`` are alternatives for B (not both).
+Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts.
 """
 
 from __future__ import annotations
@@ -56,6 +60,7 @@ from scipy.linalg import cho_factor, solve_triangular
 from scipy.optimize import least_squares
 
 from estimators.allan import allan_variance
+from estimators.av_model import PLATEAU
 from estimators.base import Estimator, register
 from estimators.fit_check import assess_fit
 
@@ -69,10 +74,11 @@ LATENTS = {
     "QN": (("Q",), "Q"),
     "WN": (("N",), "N"),
     "GM": (("sigma", "tc"), "B"),
+    "FL": (("B",), "B"),
     "RW": (("K",), "K"),
     "DR": (("R",), "R"),
 }
-_ORDER = ("QN", "WN", "GM", "RW", "DR")
+_ORDER = ("QN", "WN", "GM", "FL", "RW", "DR")
 
 
 def parse_model(model) -> tuple[str, ...]:
@@ -83,17 +89,21 @@ def parse_model(model) -> tuple[str, ...]:
         parts = [str(p).strip().upper() for p in model]
     else:
         parts = None
-    if not parts or any(p not in LATENTS for p in parts) or len(set(parts)) != len(parts):
+    if (not parts or any(p not in LATENTS for p in parts) or len(set(parts)) != len(parts)
+            or {"GM", "FL"} <= set(parts)):
         raise ValueError(
             f"model: expected latent names from {', '.join(_ORDER)} joined by '+' (e.g. 'WN+GM+RW') "
-            f"or a list of them, without repeats; got {model!r}"
+            f"or a list of them, without repeats and not both GM and FL (two models of B); got {model!r}"
         )
     return tuple(p for p in _ORDER if p in parts)
 
 
-def build_gyro(latents, values, dt):
-    """A ``noise_models.Gyro`` from latent names and parameter values (SI; Tc in s)."""
-    from noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
+def build_gyro(latents, values, dt, flicker_tau_max=None):
+    """A ``noise_models.Gyro`` from latent names and parameter values (SI; Tc in s).
+
+    ``flicker_tau_max``: the filter memory of a flicker latent "FL" (required with it)."""
+    from noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp
+    from noise_models import RateRandomWalk
 
     it = iter(values)
     terms = []
@@ -105,6 +115,8 @@ def build_gyro(latents, values, dt):
         elif lat == "GM":
             sigma, tc = next(it), next(it)
             terms.append(GaussMarkov(sigma=sigma, tc=tc))
+        elif lat == "FL":
+            terms.append(BiasInstability(B=next(it), tau_max=flicker_tau_max))
         elif lat == "RW":
             terms.append(RateRandomWalk(K=next(it)))
         elif lat == "DR":
@@ -272,7 +284,7 @@ class GMWM(Estimator):
         diag["min_m"] = int(diag["m"][0])
         if self.min_m == "auto":
             diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
-        gyro = build_gyro(latents, diag["values"], dt)
+        gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
         diag.update(assess_fit(rate, dt, gyro.avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
                                reference=self._check_reference(tau_all, avar_all, m_all, n),
                                cov_scale=cov_scale))
@@ -288,8 +300,21 @@ class GMWM(Estimator):
         T = n * dt
         lo, hi = _bounds(latents, tau, avar, dt, T)
 
-        def model_av(u):
-            return build_gyro(latents, np.exp(u), dt).avar(tau)
+        tau_fl = 2.0 * T  # flicker latent: filter memory twice the record, as the presets
+        if "FL" in latents:
+            # AV is linear in B^2: the exact discrete flicker curve is computed once
+            j_fl = _param_index(latents, "FL")
+            unit_fl = build_gyro(("FL",), [1.0], dt, tau_fl).avar(tau)
+            rest = tuple(lat for lat in latents if lat != "FL")
+
+            def model_av(u):
+                v = np.exp(u)
+                others = build_gyro(rest, np.delete(v, j_fl), dt).avar(tau) if rest else 0.0
+                return others + v[j_fl] ** 2 * unit_fl
+        else:
+
+            def model_av(u):
+                return build_gyro(latents, np.exp(u), dt).avar(tau)
 
         # step 1: diagonal weights from the engine's edf, several starts
         L1 = np.sqrt(2.0 * avar**2 / edf * cov_scale)
@@ -300,7 +325,7 @@ class GMWM(Estimator):
                 best = sol
         steps = [best]
         if self.weighting == "model":
-            omega = av_covariance(build_gyro(latents, np.exp(best.x), dt), m, n) * cov_scale
+            omega = av_covariance(build_gyro(latents, np.exp(best.x), dt, tau_fl), m, n) * cov_scale
             Lc = np.tril(cho_factor(omega, lower=True)[0])
 
             def resid2(u):
@@ -330,6 +355,16 @@ class GMWM(Estimator):
         return {"coefs": coefs, "J_stat": diag["J_stat"], "diag": diag}
 
 
+def _param_index(latents, name):
+    """Index of the first parameter of latent ``name`` in the flat parameter vector."""
+    i = 0
+    for lat in latents:
+        if lat == name:
+            return i
+        i += len(LATENTS[lat][0])
+    raise ValueError(name)
+
+
 def _solve(fun, u0, lo, hi):
     return least_squares(fun, np.clip(u0, lo + 1e-9, hi - 1e-9), bounds=(lo, hi), method="trf",
                          x_scale=1.0, xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=2000)
@@ -348,6 +383,8 @@ def _bounds(latents, tau, avar, dt, T):
             top = math.sqrt(np.max(avar * tau))
         elif lat == "GM":
             top = math.sqrt(np.max(avar) / 0.38)
+        elif lat == "FL":
+            top = math.sqrt(np.max(avar) / PLATEAU)
         elif lat == "RW":
             top = math.sqrt(np.max(3 * avar / tau))
         else:
@@ -370,6 +407,8 @@ def _starts(latents, tau, avar, n_starts, lo, hi):
             base.append([math.sqrt(avar[0] * tau[0]) / 2])
         elif lat == "GM":
             base.append([None, None])
+        elif lat == "FL":
+            base.append([math.sqrt(np.min(avar) / PLATEAU) / 2])
         elif lat == "RW":
             base.append([math.sqrt(3 * avar[-1] / tau[-1]) / 2])
         else:

@@ -72,7 +72,11 @@ class _AVCurveFit(Estimator):
         beta = solve_scaled(X[mask], av.avar[mask], None if scale is None else scale[mask])
         coefs, nonphys = coefficients_from_beta(beta, terms)
         fitted = X @ beta
+        from estimators.uncertainty import ls_std_err
+
+        rs = None if scale is None else scale[mask]
         diag = {
+            "std_err": ls_std_err(beta, terms, X, rs, av, mask),
             "allan": av,
             "used": mask,
             "beta": dict(zip(terms, beta)),
@@ -164,19 +168,25 @@ class EDFWeightedLS(_AVCurveFit):
         if not isinstance(self.n_iter, int) or self.n_iter < 1:
             raise ValueError(f"n_iter: expected a positive integer, got {self.n_iter!r}")
         beta = solve_scaled(X, av.avar, av.J.astype(float))
-        noise_of_column = np.array([_NOISE_OF_TERM[t] for t in terms], dtype=object)
         scale = None
         for _ in range(self.n_iter):
-            contrib = X * np.maximum(beta, 0)[None, :]
-            model = contrib.sum(axis=1)
-            level = np.where(model > 0, model, av.avar)
-            dominant = noise_of_column[contrib.argmax(axis=1)]
-            if av.overlapping:
-                edf = edf_overlapping(av.m, av.n_samples, dominant)
-            else:
-                edf = _edf_nonoverlapping(av.J, dominant)
+            level, edf = edf_of_rows(av, X, beta, terms)
             scale = np.sqrt(edf / 2.0) / level
             beta = solve_scaled(X, av.avar, scale)
         return np.ones(len(av), dtype=bool), scale, {"row_scale": scale, "edf": edf}
 
 
+def edf_of_rows(av, X, beta, terms):
+    """(model AV level, edf) of every AV value under the fit ``beta``: the level is the fitted AV
+    (the empirical one where the fit is not positive), the edf that of the noise type whose term
+    dominates the fitted AV there (overlapping: NIST SP 1065 Table 5; else ``_edf_nonoverlapping``)."""
+    noise_of_column = np.array([_NOISE_OF_TERM[t] for t in terms], dtype=object)
+    contrib = X * np.maximum(beta, 0)[None, :]
+    model = contrib.sum(axis=1)
+    level = np.where(model > 0, model, av.avar)
+    dominant = noise_of_column[contrib.argmax(axis=1)]
+    if av.overlapping:
+        edf = edf_overlapping(av.m, av.n_samples, dominant)
+    else:
+        edf = _edf_nonoverlapping(av.J, dominant)
+    return level, edf

@@ -231,7 +231,8 @@ def cmd_simulate(args) -> int:
 # -- studies ------------------------------------------------------------------------------------
 
 #: files 'avbench run' writes into its --out (figures are named per gyro)
-REPORT_FILES = ("tidy.csv", "table.csv", "table.md", "leaderboard.md", "meta.json", "timings.csv", "timings.md")
+REPORT_FILES = ("tidy.csv", "table.csv", "table.md", "leaderboard.md", "meta.json", "timings.csv", "timings.md",
+                "scores.csv", "scores.md")
 
 
 def cmd_studies(args) -> int:

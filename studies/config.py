@@ -57,6 +57,8 @@ class EstimatorSpec:
     gyro_settings: dict
     x0_truth_scale: float | None = None
     paper_method: str | None = None
+    #: parametric-bootstrap draws for the standard errors (0: the estimator's own, if any)
+    bootstrap: int = 0
     #: the registered class; pickled with the spec, so a worker process that has not imported the
     #: module registering it (e.g. an estimator defined in a script or a test) can still build it
     cls: type | None = field(default=None, compare=False, repr=False)
@@ -155,6 +157,7 @@ _EST_KEYS = {
     "settings": dict,
     "gyro_settings": dict,
     "x0_truth_scale": (int, float),
+    "bootstrap": int,
     "paper_method": str,
 }
 _TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", list: "an array", dict: "a table"}
@@ -405,7 +408,11 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         scale = e.get("x0_truth_scale")
         if scale is not None and not (math.isfinite(scale) and scale > 0):
             ctx.fail(f"{key}.x0_truth_scale", f"expected a positive factor, got {scale!r}")
+        boot = e.get("bootstrap", 0)
+        if isinstance(boot, bool) or not isinstance(boot, int) or not (boot == 0 or boot >= 3):
+            ctx.fail(f"{key}.bootstrap", f"expected 0 or an integer >= 3 (bootstrap draws), got {boot!r}")
         spec = EstimatorSpec(
+            bootstrap=boot,
             label=e.get("label", e["name"]),
             name=e["name"],
             settings=_tuplify(e.get("settings", {})),

@@ -292,8 +292,9 @@ def write_tidy(tidy: pd.DataFrame, out: Path) -> Path:
 
 def read_tidy(folder) -> pd.DataFrame:
     """The tidy table of a finished study folder (``failure`` is "" on success)."""
-    d = pd.read_csv(Path(folder) / TIDY_FILE, keep_default_na=False, na_values={"true": ["nan", "NaN", ""],
-                    "estimate": ["nan", "NaN", ""]})
+    nan = ["nan", "NaN", ""]
+    d = pd.read_csv(Path(folder) / TIDY_FILE, keep_default_na=False,
+                    na_values={c: nan for c in ("true", "estimate", "std_err", "lower", "upper")})
     d["failure"] = d["failure"].astype(str)
     d["nonphysical"] = d["nonphysical"].astype(str).str.lower().eq("true")
     return d
@@ -365,6 +366,10 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     if len(cfg.gyros) > 1 or len(cfg.estimators) > 1:
         atomic_write_text(out / "leaderboard.md", leaderboard(summary))
         written.append(out / "leaderboard.md")
+    if "lower" in tidy.columns:  # coverage, RMSE/CRLB, bias/SE and tested wins (studies.scoring)
+        from studies.scoring import write_scores
+
+        written += write_scores(cfg, tidy, out)
     if "seconds" in tidy:
         t = timings(tidy)
         atomic_write_text(out / "timings.csv", t.to_csv(index=False, float_format="%.4g"))

@@ -58,6 +58,9 @@ TIDY_COLUMNS = [
     "nonphysical",
     "failure",
     "seconds",
+    "std_err",
+    "lower",
+    "upper",
 ]
 COEFS = ["Q", "N", "B", "K", "R"]
 
@@ -97,8 +100,9 @@ def _modelled(est, coefs, nonphys) -> list[str]:
     return [c for c in COEFS if np.isfinite(coefs[c]) or bool(nonphys[c])]
 
 
-def _fit_one(spec_est, gspec, rate, dt):
-    """Fit one estimator; return (modelled, coefficients or None, nonphysical, failure, seconds)."""
+def _fit_one(spec_est, gspec, rate, dt, boot_seed=None):
+    """Fit one estimator; return (modelled, coefficients or None, nonphysical, failure, seconds,
+    95 % intervals or None)."""
     est = spec_est.make(gspec)
     t0 = time.perf_counter()
     try:
@@ -108,11 +112,27 @@ def _fit_one(spec_est, gspec, rate, dt):
                 est.fit(rate, dt)
     except Exception as e:  # failures are data
         msg = f"{type(e).__name__}: {e}".splitlines()[0][:300]
-        return _modelled(est, None, None), None, None, msg, time.perf_counter() - t0
+        return _modelled(est, None, None), None, None, msg, time.perf_counter() - t0, None
     secs = time.perf_counter() - t0
     failure = str(est.diagnostics_.get("failure") or "")
     coefs, nonphys = est.coefficients_, est.nonphysical_
-    return _modelled(est, coefs, nonphys), coefs, nonphys, failure, secs
+    ci = _intervals(est, spec_est, rate.size, dt, boot_seed)
+    return _modelled(est, coefs, nonphys), coefs, nonphys, failure, secs, ci
+
+
+def _intervals(est, spec_est, n, dt, boot_seed):
+    """std_err_ and 95 % conf_int (after a parametric bootstrap if the spec asks for one)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with np.errstate(all="ignore"):
+                if getattr(spec_est, "bootstrap", 0):
+                    est.bootstrap(n, dt, n_draws=spec_est.bootstrap, seed=boot_seed)
+                ci = est.conf_int(0.95)
+        ci["std_err"] = est.std_err_
+        return ci
+    except Exception:  # an interval that cannot be computed is missing, not a failed fit
+        return None
 
 
 def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
@@ -127,8 +147,9 @@ def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
     for r in range(task.start, task.stop):
         rate = gspec.gyro.simulate(gspec.n_samples, replicate_rng(cfg.seed, task.gyro_index, r))
         with memoize_allan():  # estimators asking for the same AV curve of this record share it
-            fits = [(e, _fit_one(e, gspec, rate, gspec.gyro.dt)) for e in cfg.estimators]
-        for e, (modelled, coefs, nonphys, failure, secs) in fits:
+            fits = [(e, _fit_one(e, gspec, rate, gspec.gyro.dt, [cfg.seed, task.gyro_index, r, k]))
+                    for k, e in enumerate(cfg.estimators)]
+        for e, (modelled, coefs, nonphys, failure, secs, ci) in fits:
             if not modelled:  # failed before saying what it models: one row per true coefficient
                 modelled = [c for c in COEFS if np.isfinite(truth[c])]
             for c in modelled:
@@ -137,7 +158,8 @@ def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
                 fail = failure
                 if not fail and not flag and not np.isfinite(est):
                     fail = "non-finite estimate"
-                rows.append((gspec.label, r, e.label, c, float(truth[c]), est, flag, fail, secs))
+                unc = (np.nan,) * 3 if ci is None else tuple(float(ci.loc[c, k]) for k in ("std_err", "lower", "upper"))
+                rows.append((gspec.label, r, e.label, c, float(truth[c]), est, flag, fail, secs, *unc))
     return pd.DataFrame(rows, columns=TIDY_COLUMNS)
 
 

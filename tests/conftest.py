@@ -37,9 +37,16 @@ def check_monte_carlo_recovery(name: str, seed: int, R: int, n: int = 1_000_000,
         est.append(e.coefficients_[coefs].values)
         se.append(e.diagnostics_["std_err"][coefs].values)
     est, se = np.array(est), np.array(se)
-    truth = g.coefficients[coefs].values
+    assert_mc_recovery(g.coefficients[coefs].values, est, se)
+
+
+def assert_mc_recovery(truth, est, se) -> None:
+    """Replicates ``est`` (R x p) are unbiased for ``truth`` within 3 Monte Carlo standard errors, and
+    the estimator's standard errors ``se`` (R x p) match their spread (variance ratio inside the
+    chi^2_{R-1} 99.8 % interval)."""
+    R = est.shape[0]
     sd = est.std(axis=0, ddof=1)
-    assert np.all(np.abs(est.mean(axis=0) - truth) < 3 * sd / np.sqrt(R))
+    assert np.all(np.abs(est.mean(axis=0) - truth) < 3 * sd / np.sqrt(R)), (est.mean(axis=0), truth, sd)
     lo, hi = stats.chi2.ppf([0.001, 0.999], R - 1) / (R - 1)
     ratio = sd**2 / np.mean(se**2, axis=0)
     assert np.all((ratio > lo) & (ratio < hi)), ratio

@@ -1,0 +1,186 @@
+"""Standard errors and confidence intervals of the coefficients, common to every estimator.
+
+After ``fit`` every estimator has ``std_err_`` (``pandas.Series`` indexed Q, N, B, K, R; SI; NaN
+where the method gives none) and ``conf_int(level=0.95, conservative=False)``. Where the standard
+errors come from:
+
+=====================  ==========================================================================
+``whittle``            inverse Whittle information at the estimate (:func:`estimators.crlb.crlb`)
+``gmwm``               GMM sandwich :math:`(D^T\\Omega^{-1}D)^{-1}` (Guerrier et al. 2013)
+``mle``                observed information of the exact likelihood, delta method
+LS curve fits          :func:`ls_std_err`: the sandwich of the least-squares solution with the
+                       EDF (diagonal) covariance of the AV values under the fitted model, delta
+                       method from :math:`\\beta` to the coefficients
+every estimator        :meth:`Estimator.bootstrap` (:func:`parametric_bootstrap`): refit
+                       ``n_draws`` records simulated from the fitted model with the exact
+                       generators of :mod:`noise_models`; the only source for the practitioners'
+                       baselines and the online filters (their cost is n_draws fits, so it is a
+                       call, never automatic)
+=====================  ==========================================================================
+
+Intervals (:func:`interval`). The coefficients are positive scale parameters; their estimators are
+closer to normal on the log scale (a variance estimate is roughly scaled chi^2), so the interval is
+:math:`c\\,\\exp(\\pm z\\,\\mathrm{se}/c)` (the delta-method interval of log c, mapped back): always
+positive, wider above than below, and identical to :math:`c \\pm z\\,\\mathrm{se}` to first order.
+Where the relative standard error exceeds 0.5 (``MAX_LOG_REL_SE``; the data then say little and the
+log-scale bound :math:`e^{z\\,\\mathrm{se}/c}` would explode) the interval is
+:math:`[\\max(0, c - z\\,\\mathrm{se}),\\ c + z\\,\\mathrm{se}]`.
+A coefficient estimated as 0 (a term dropped by model selection, or a scale run to its floor) has
+lower bound 0 and the upper bound the estimator supplies (``diagnostics_["zero_upper"]`` times
+:math:`z^{p}`, p = ``diagnostics_["zero_upper_power"]``; ``whittle`` gives the boundary bound of a
+variance, :math:`c^2 \\le z\\,\\mathrm{se}(c^2)`), else NaN. Intervals ignore any bias of the estimator: coverage is
+what the coverage study measures.
+
+``conservative=True`` gives an *overbound* in the sense of Lethander & Taylor (NAVIGATION 2023):
+one-sided upper bounds that hold for all modelled coefficients at once with probability at least
+``level`` (Bonferroni over the p coefficients with a finite bound: each at one-sided level
+1 - (1 - level)/p); the lower column is then 0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from noise_models.units import COEFFICIENTS
+
+__all__ = ["interval", "ls_std_err", "parametric_bootstrap", "gyro_from_coefficients"]
+
+
+#: above this relative standard error the log-scale interval is not used (exp(z se/c) explodes when
+#: the data say little): the plain c +- z se, clipped at 0, instead
+MAX_LOG_REL_SE = 0.5
+
+
+def _check_level(level) -> float:
+    if isinstance(level, bool) or not isinstance(level, (int, float, np.floating)) or not 0 < level < 1:
+        raise ValueError(f"level: expected a probability strictly between 0 and 1, got {level!r}")
+    return float(level)
+
+
+def interval(coefs: pd.Series, se: pd.Series, level=0.95, conservative=False, upper_if_zero=None) -> pd.DataFrame:
+    """Log-scale intervals for positive coefficients (module docstring); DataFrame lower, upper (SI)."""
+    level = _check_level(level)
+    c = coefs.reindex(list(COEFFICIENTS)).astype(float)
+    s = se.reindex(list(COEFFICIENTS)).astype(float)
+    ok = np.isfinite(c) & np.isfinite(s) & (c > 0)
+    z = _z(level, conservative, int(ok.sum()))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        r = np.where(ok, s / c, np.nan)
+        log_scale = r <= MAX_LOG_REL_SE
+        lower = np.where(ok, np.where(log_scale, c * np.exp(-z * r), np.maximum(c - z * s, 0.0)), np.nan)
+        upper = np.where(ok, np.where(log_scale, c * np.exp(z * r), c + z * s), np.nan)
+    zero = np.isfinite(c) & (c == 0)
+    lower = np.where(zero, 0.0, lower)
+    if upper_if_zero is not None:
+        u0 = upper_if_zero.reindex(list(COEFFICIENTS)).astype(float).to_numpy()
+        upper = np.where(zero, u0, upper)
+    if conservative:
+        lower = np.where(np.isfinite(upper), 0.0, lower)
+    return pd.DataFrame({"lower": lower, "upper": upper}, index=list(COEFFICIENTS))
+
+
+def _z(level, conservative, n_bounds):
+    if conservative:
+        return stats.norm.ppf(1 - (1 - level) / max(int(n_bounds), 1))
+    return stats.norm.ppf(0.5 + level / 2)
+
+
+def zero_quantile(level, conservative, se, coefs) -> float:
+    """The normal quantile :func:`interval` uses, for the bounds of terms estimated as 0."""
+    level = _check_level(level)
+    c = coefs.reindex(list(COEFFICIENTS)).astype(float)
+    s = se.reindex(list(COEFFICIENTS)).astype(float)
+    return float(_z(level, conservative, int((np.isfinite(c) & np.isfinite(s) & (c > 0)).sum())))
+
+
+def gyro_from_coefficients(coefs, dt: float, duration_s: float):
+    """The model a coefficient set stands for, with the exact generators: Q quantization, N white,
+    B flicker (Kasdin-Walter, ``tau_max`` = 2 x the record, as the presets), K random walk, R ramp.
+    NaN and zero coefficients are left out."""
+    from noise_models import AngleRandomWalk, BiasInstability, Gyro, Quantization, RateRamp, RateRandomWalk
+
+    make = {
+        "Q": lambda v: Quantization(Q=v),
+        "N": lambda v: AngleRandomWalk(N=v),
+        "B": lambda v: BiasInstability(B=v, tau_max=2 * duration_s),
+        "K": lambda v: RateRandomWalk(K=v),
+        "R": lambda v: RateRamp(R=v),
+    }
+    terms = [make[c](float(coefs[c])) for c in COEFFICIENTS if np.isfinite(coefs[c]) and coefs[c] > 0]
+    if not terms:
+        raise ValueError("bootstrap: the fit gave no positive coefficient to simulate from")
+    return Gyro(dt=dt, terms=terms)
+
+
+def parametric_bootstrap(estimator, n_samples: int, dt: float, n_draws: int = 20, seed=0) -> pd.Series:
+    """Standard errors (SI) by refitting ``n_draws`` records simulated from the fitted model.
+
+    ``estimator`` is fitted; each draw uses an independent stream
+    ``SeedSequence(seed).spawn(n_draws)`` and a clone of the estimator. The standard error is the
+    standard deviation of the physical refits (NaN with fewer than 3).
+    """
+    if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 3:
+        raise ValueError(f"n_draws: expected an integer >= 3, got {n_draws!r}")
+    g = gyro_from_coefficients(estimator.coefficients_, dt, n_samples * dt)
+    draws = []
+    for ss in np.random.SeedSequence(seed).spawn(int(n_draws)):
+        e = estimator.clone()
+        try:
+            e.fit(g.simulate(n_samples, np.random.default_rng(ss)), dt)
+        except Exception:  # a failed refit is a missing draw, as in the studies
+            continue
+        draws.append(e.coefficients_.to_numpy(dtype=float))
+    arr = np.array(draws) if draws else np.full((0, len(COEFFICIENTS)), np.nan)
+    out = {}
+    for j, c in enumerate(COEFFICIENTS):
+        v = arr[:, j][np.isfinite(arr[:, j])] if arr.size else np.array([])
+        out[c] = float(np.std(v, ddof=1)) if v.size >= 3 else math.nan
+    return pd.Series(out, dtype=float)
+
+
+def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask) -> pd.Series:
+    """Standard errors of a least-squares AV-curve fit (sandwich with the EDF covariance of the AV).
+
+    .. math::
+
+        \\mathrm{Cov}(\\hat\\beta) = A\\,\\Omega\\,A^T,\\quad A = (X^TW^2X)^{-1}X^TW^2,\\quad
+        \\Omega = \\mathrm{diag}(2\\,\\sigma^4_i/\\mathrm{edf}_i),
+
+    :math:`W` the row scale (``row_scale``; rows of ``X`` and ``av`` selected by ``mask``),
+    :math:`\\sigma^2_i` the fitted AV and :math:`\\mathrm{edf}_i` the equivalent degrees of freedom of
+    the noise type dominating it (:func:`estimators.least_squares.edf_of_rows`, as ``wls_edf``
+    weights). The AV values at different taus are correlated (adjacent octaves by 0.5-0.9 for
+    random-walk-like terms; :func:`estimators.gmwm.av_covariance` computes it, at a cost of seconds
+    per fit on long records): the diagonal ignores this, so these standard errors are optimistic
+    where the fit leans on the long taus (K, R) - the coverage study measures by how much.
+    Delta method: :math:`\\mathrm{se}(c) = \\mathrm{se}(\\beta_c)/(2\\,k_c\\,c)`, :math:`\\beta_c = k_c c^2`.
+    NaN for a coefficient without a physical estimate, and for all on grids denser than about
+    two taus per octave (median ratio of consecutive cluster sizes below 1.5, e.g. ``taus="all"``):
+    neighbouring AV values there are almost perfectly correlated and a diagonal covariance would
+    be wrong by orders of magnitude (use ``Estimator.bootstrap``).
+    """
+    from estimators.av_model import BETA_SCALE, coefficients_from_beta
+    from estimators.least_squares import edf_of_rows
+
+    out = pd.Series(math.nan, index=list(COEFFICIENTS), dtype=float)
+    m = np.asarray(av.m, dtype=float)[mask]
+    if m.size < 2 or np.median(m[1:] / m[:-1]) < 1.5:
+        return out
+    level, edf = edf_of_rows(av, X, beta, terms)
+    var = (2 * level**2 / edf)[mask]
+    w = np.ones(var.size) if row_scale is None else np.asarray(row_scale, dtype=float)
+    Xm = X[mask]
+    norms = np.linalg.norm(Xm * w[:, None], axis=0)
+    norms[norms == 0] = 1.0
+    A = np.linalg.pinv(Xm * w[:, None] / norms) * w[None, :] / norms[:, None]
+    cov = (A * var[None, :]) @ A.T
+    coefs, _ = coefficients_from_beta(beta, terms)
+    for j, c in enumerate(terms):
+        v = coefs[c]
+        if np.isfinite(v) and v > 0 and cov[j, j] >= 0:
+            out[c] = math.sqrt(cov[j, j]) / (2 * BETA_SCALE[c] * v)
+    return out

@@ -1,0 +1,499 @@
+"""Frequency-domain (Whittle) maximum likelihood of the composite gyro model, with term selection.
+
+The likelihood
+--------------
+For a Gaussian record :math:`x_0..x_{n-1}` with discrete-time spectral density
+:math:`S(\\omega;\\theta) = \\sum_j S_j(\\omega;\\theta_j)`, the Whittle approximation of the
+log-likelihood (Whittle 1953; Percival & Walden 1993, Sec. 6.6; Brockwell & Davis 1991, Sec. 10.8) is
+
+.. math::
+
+    \\ell(\\theta) = -\\sum_{k=1}^{\\lfloor n/2\\rfloor} w_k\\left[\\log S(\\omega_k;\\theta)
+        + \\frac{I_k}{S(\\omega_k;\\theta)}\\right],\\qquad
+    I_k = \\frac1n\\Big|\\sum_t x_t e^{-i\\omega_k t} - \\beta\\,G_k\\Big|^2,
+    \\quad \\omega_k = 2\\pi k/n,
+
+with :math:`w_k = 1` except :math:`w_{n/2} = 1/2` (the Nyquist ordinate is real). The spectra are
+the **exact discrete-time spectra of the generators** in :mod:`noise_models`
+(``term.psd(f, dt) / (2 dt)``, the same ones :func:`estimators.crlb.crlb` uses): quantization
+:math:`(Q/\\Delta t)^2 4\\sin^2(\\omega/2)`, white rate :math:`N^2/\\Delta t`, flicker bias
+instability :math:`B^2/|2\\sin(\\omega/2)|` (Kasdin & Walter 1992, alpha = 1), first-order
+Gauss-Markov :math:`\\sigma^2(1-\\phi^2)/|1-\\phi e^{-i\\omega}|^2` (Miao et al. 2015, eq. 6), rate
+random walk :math:`K^2\\Delta t/(4\\sin^2(\\omega/2))` (pseudo-spectrum).
+
+Trend regression (ramp and random-walk end point). :math:`G_k = \\sum_t t\\,e^{-i\\omega_k t} =
+-n/(1-e^{-i\\omega_k})` is the DFT of a linear trend. For a random walk
+:math:`x_t = x_{t-1} + v_t` (:math:`x_{-1} = 0`) the DFT at a Fourier frequency is exactly
+:math:`(V_k - V_0)/(1-e^{-i\\omega_k})`: the pseudo-spectrum holds for :math:`V_k`, and the extra
+:math:`V_0` (the sum of all increments) enters exactly like a linear trend of slope :math:`V_0/n`.
+The slope :math:`\\beta` of the trend is therefore estimated by frequency-domain generalised least
+squares (Hannan 1963) inside the likelihood (profiled out at every step):
+:math:`\\hat\\beta = \\sum w_k\\mathrm{Re}(\\bar G_kX_k)/S_k \\big/ \\sum w_k|G_k|^2/S_k`. This one
+regression both removes the deterministic ramp (SPEC: :math:`\\omega = Rt`) and makes the random-walk
+periodogram exact; the ramp estimate is :math:`\\hat R = |\\hat\\beta|/\\Delta t`, and its standard
+error adds the random walk's own mean drift, which no method can tell from a ramp:
+:math:`\\mathrm{Var}(\\hat R) = \\frac{n/2}{\\Delta t^2\\sum w_k|G_k|^2/S_k} + K^2/T`.
+
+Optimisation: the log of every variance parameter (and of a Gauss-Markov Tc) by Fisher scoring
+(Newton steps with the expected information :math:`\\sum_k w_k\\,\\nabla\\log S\\,\\nabla\\log S^T`,
+backtracking on :math:`\\ell`); a term whose variance runs to its floor (1e-6 of the level at which
+it alone would reach the binned periodogram somewhere) is absent and reported as 0. One FFT, then
+O(n) per iteration (compiled, :mod:`estimators._whittle_kernels`): O(n log n) in all.
+Starting values: non-negative least squares of log-binned periodogram means on the basis spectra.
+
+Standard errors are the Cramér-Rao bound of :func:`estimators.crlb.crlb` evaluated at the estimate
+(the inverse Whittle information, computed by the same code), for the terms kept; R as above.
+
+Term selection (settings ``select``, ``criterion``)
+---------------------------------------------------
+With ``select=True`` the terms in ``terms`` are candidates: backward elimination on a penalised
+likelihood :math:`-2\\ell + c\\,p`: from the full model, drop the term whose removal lowers it most,
+until none does. ``criterion="bic"`` (default): :math:`c = \\log n`, the Bayesian information
+criterion (Schwarz 1978), consistent for the true set as n grows. ``criterion="lr"``: a
+likelihood-ratio test at level 5 % of each term's variance being 0, whose null distribution sits on
+the boundary of the parameter space and is the chi-bar-squared mixture
+:math:`\\tfrac12\\chi^2_0 + \\tfrac12\\chi^2_1` (Self & Liang 1987): :math:`c = 2.706`, the
+:math:`\\chi^2_1` 90 % point. A Gauss-Markov term counts two parameters (its Tc is not identified
+under the null; the penalty is a plain approximation there). The ramp is kept when
+:math:`\\hat\\beta^2 / \\mathrm{Var}_0 > c` with :math:`\\mathrm{Var}_0` the variance of
+:math:`\\hat\\beta` without a ramp (GLS part plus the drift of the full model's random walk, even
+when K itself is dropped): the same penalty for its one parameter. Dropped terms are reported as 0;
+``conf_int`` gives them the boundary upper bound (:func:`_zero_bounds`).
+
+What selection can do: a term whose variance has Wald statistic
+:math:`z = c^2/\\mathrm{se}(c^2) \\approx 1/(2\\,\\mathrm{rel.std}(c))` is kept with probability
+about :math:`\\Phi(z - \\sqrt{c})`: with BIC at n = 1e6 (:math:`\\sqrt{c} = 3.7`) a term needs a
+relative CRLB std below ~0.1 to be kept 90 % of the time; with the 5 % LR test below ~0.17.
+
+Reading / where it is not exact
+-------------------------------
+* The Whittle likelihood replaces the Toeplitz covariance by a circulant one: ordinates at distinct
+  Fourier frequencies are treated as independent with mean :math:`S(\\omega_k)`. For a spectrum of
+  large dynamic range the raw periodogram leaks power from high to low frequencies (Percival &
+  Walden 1993, Ch. 6); no taper is applied here (a taper would cut the leakage and cost efficiency;
+  for the spectra of this model - white noise with 1/f and 1/f^2 rises at low frequency - the
+  untapered periodogram is consistent (Velasco & Robinson 2000 for fractional exponents d < 3/4;
+  flicker is d = 1/2, random walk d = 1 is exact here through the trend regression above).
+* Flicker: the generator is a finite impulse response (``tau_max``); below f ~ 1/tau_max its spectrum
+  flattens, while the likelihood uses the ideal 1/f. With ``tau_max`` >= the record length (every
+  preset) only the first few Fourier frequencies are affected. A finite record of 1/f noise also
+  has no stationary start: the periodogram of the lowest few frequencies is where this shows.
+* Quantization: its spectrum vanishes like :math:`\\omega^2` at low frequency; harmless beside any
+  white noise, but Q alone (no N) would make the low-frequency ordinates leakage-dominated.
+* The ramp: handled as a deterministic trend regressor; its coefficient is not a spectral parameter,
+  its standard error is the GLS one plus the random-walk drift term above (exact under the model).
+* Gauss-Markov (setting ``bias="gauss_markov"``): B is then SPEC's :math:`B_{equiv} = 0.9294\\sigma`.
+* Selection: BIC is consistent for the true set as n grows; intervals after selection ignore the
+  selection step (post-selection inference), which is why dropped terms keep the full model's upper
+  bound.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from estimators.av_model import check_terms
+from estimators.base import Estimator, register
+from noise_models.units import COEFFICIENTS
+
+__all__ = ["Whittle", "WhittleFit", "whittle_fit"]
+
+#: a term whose variance is below this fraction of the smallest "alone" level (the variance at which
+#: the term alone reaches the binned periodogram somewhere) is absent: it contributes < 1e-6 everywhere
+_FLOOR = 1e-6
+
+
+def _basis(coef: str, f: np.ndarray, dt: float, tc: float | None = None) -> np.ndarray:
+    """Spectrum S_j(omega) / c^2 of one term with unit coefficient (sigma = 1 for Gauss-Markov)."""
+    from noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Quantization, RateRandomWalk
+
+    if coef == "GM":
+        term = GaussMarkov(sigma=1.0, tc=tc)
+    else:
+        term = {"Q": Quantization, "N": AngleRandomWalk, "K": RateRandomWalk}.get(coef)
+        term = term(**{coef: 1.0}) if term else BiasInstability(B=1.0)
+    return term.psd(f, dt) / (2.0 * dt)
+
+
+class WhittleFit:
+    """The record's periodogram and the model fitted to it (one set of terms)."""
+
+    def __init__(self, x: np.ndarray, dt: float):
+        n = x.size
+        self.n, self.dt = n, dt
+        self.scale = float(np.std(np.diff(x))) or 1.0
+        X = np.fft.rfft(x / self.scale)[1:]
+        k = np.arange(1, n // 2 + 1, dtype=float)
+        self.f = k / (n * dt)
+        z = np.exp(-2j * np.pi * k / n)
+        self.G = -n / (1.0 - z)  # DFT of the trend t = 0..n-1
+        self.X = X
+        self.w = np.ones(k.size)
+        if n % 2 == 0:
+            self.w[-1] = 0.5
+        self.G2 = np.ascontiguousarray(np.abs(self.G) ** 2)
+        self.GX = np.ascontiguousarray((np.conj(self.G) * X).real)
+        self.X2 = np.ascontiguousarray(np.abs(X) ** 2)
+        self._basis = {}
+
+    def basis(self, c, tc=None):
+        key = (c, tc)
+        if key not in self._basis:
+            if len(self._basis) > 12:  # Gauss-Markov bases of earlier Tc values
+                self._basis = {k: v for k, v in self._basis.items() if k[0] != "GM"}
+            self._basis[key] = _basis(c, self.f, self.dt, tc)
+        return self._basis[key]
+
+    # -- likelihood ------------------------------------------------------------------------------
+    def _matrix(self, comps, tc):
+        rows = [self.basis(c, tc if c == "GM" else None) for c in comps]
+        return np.ascontiguousarray(np.vstack(rows))
+
+    def evaluate(self, comps, a, tc=None, grad=False, Bm=None):
+        """``(loglik, beta, sgg, score, info)`` at variances ``a`` (normalised units), compiled."""
+        from estimators._whittle_kernels import whittle_pass
+
+        Bm = self._matrix(comps, tc) if Bm is None else Bm
+        D = np.zeros(0)
+        c_tc = 0.0
+        if "GM" in comps and grad:
+            h = 1e-4
+            D = (self.basis("GM", tc * math.exp(h)) - self.basis("GM", tc * math.exp(-h))) / (2 * h)
+            c_tc = float(a[list(comps).index("GM")])
+        return whittle_pass(np.asarray(a, dtype=float), Bm, D, c_tc, self.X2, self.GX, self.G2, self.w,
+                            float(self.n), grad)
+
+    def loglik(self, comps, a, tc=None):
+        """Profile Whittle log-likelihood at variances ``a`` (normalised units) for ``comps``."""
+        return self.evaluate(comps, a, tc)[0]
+
+    def fit(self, comps, a0, tc0=None, lo=None, max_iter=200):
+        """Fisher scoring in u = log a (and log Tc); returns (a, tc, loglik, n_iter, converged, detail)."""
+        comps = list(comps)
+        has_gm = "GM" in comps
+        u = np.log(np.asarray(a0, dtype=float))
+        if has_gm:
+            u = np.append(u, math.log(tc0))
+        lo = np.full(u.size, -np.inf) if lo is None else np.asarray(lo, dtype=float)
+        p = len(comps)
+
+        def unpack(uu):
+            return np.exp(uu[:p]), (math.exp(uu[p]) if has_gm else None)
+
+        a, tc = unpack(u)
+        Bm = self._matrix(comps, tc)
+        ll, beta, sgg, score, info = self.evaluate(comps, a, tc, grad=True, Bm=Bm)
+        converged = False
+        it = 0
+        for it in range(1, max_iter + 1):
+            free = (u > lo + 1e-9) | (score > 0)  # at the floor, only a step upwards frees it
+            idx = np.flatnonzero(free)
+            if idx.size == 0:
+                converged = True
+                break
+            sub = info[np.ix_(idx, idx)]
+            try:
+                step_f = np.linalg.solve(sub + 1e-12 * np.trace(sub) * np.eye(idx.size), score[idx])
+            except np.linalg.LinAlgError:
+                break
+            decrement = float(score[idx] @ step_f)  # Newton decrement: twice the expected gain
+            if not np.isfinite(decrement):
+                break
+            if decrement < 1e-6:
+                converged = True
+                break
+            step = np.zeros_like(u)
+            step[idx] = step_f
+            big = np.max(np.abs(step))
+            if big > 3.0:
+                step *= 3.0 / big
+            t = 1.0
+            for _ in range(40):
+                un = np.maximum(u + t * step, lo)
+                an, tcn = unpack(un)
+                Bn = self._matrix(comps, tcn) if has_gm else Bm
+                # the full step is usually taken: evaluate the score with it
+                trial = self.evaluate(comps, an, tcn, grad=(t == 1.0), Bm=Bn)
+                if np.isfinite(trial[0]) and trial[0] > ll:
+                    break
+                t *= 0.5
+            else:
+                converged = decrement < 1e-4  # no ascent left at machine precision
+                break
+            u, Bm = un, Bn
+            a, tc = unpack(u)
+            if t != 1.0:
+                trial = self.evaluate(comps, a, tc, grad=True, Bm=Bm)
+            ll, beta, sgg, score, info = trial
+        a, tc = unpack(u)
+        return a, tc, ll, it, converged, {"beta": beta, "sgg": sgg, "info": info}
+
+    # -- starting values -------------------------------------------------------------------------
+    def start(self, comps, tc=None):
+        """Start variances from NNLS of log-binned periodogram means (relative residuals), and the
+        'alone' level of each term (largest variance that alone stays under the binned periodogram)."""
+        from scipy.optimize import nnls
+
+        nb = 64
+        edges = np.unique(np.geomspace(1, self.f.size + 1, nb + 1).astype(int)) - 1
+        # a rough trend removal for the start: least squares with a white spectrum
+        beta = float(np.sum(self.GX)) / float(np.sum(self.G2))
+        I = (self.X2 - 2 * beta * self.GX + beta**2 * self.G2) / self.n
+        Ib = np.add.reduceat(I, edges[:-1]) / np.diff(edges)
+        B = np.array([np.add.reduceat(self.basis(c, tc if c == "GM" else None), edges[:-1]) / np.diff(edges)
+                      for c in comps]).T
+        top = np.array([np.max(Ib / B[:, j]) for j in range(B.shape[1])])
+        under = np.array([np.min(Ib / B[:, j]) for j in range(B.shape[1])])
+        wts = 1.0 / Ib
+        a, _ = nnls(B * wts[:, None], Ib * wts)
+        a = np.maximum(a, 1e-2 * under)
+        return a, under
+
+
+def _gm_starts(T, dt, n_starts):
+    return np.geomspace(max(20 * dt, T / 2000), T / 4, n_starts)
+
+
+def whittle_fit(wf: WhittleFit, comps, n_starts=4, warm=None):
+    """Best fit of the spectral terms ``comps`` (names from Q, N, B, K, GM); dict of results."""
+    comps = [c for c in ("Q", "N", "B", "GM", "K") if c in comps]
+    T = wf.n * wf.dt
+    tcs = _gm_starts(T, wf.dt, n_starts) if "GM" in comps else [None]
+    best = None
+    for tc in tcs:
+        a0, top = wf.start(comps, tc)
+        if warm is not None:
+            a0 = np.array([max(warm.get(c, a0[i]), 1e-3 * top[i]) for i, c in enumerate(comps)])
+            if "GM" in comps and warm.get("tc"):
+                tc = warm["tc"]
+        lo = np.log(_FLOOR * top)
+        if "GM" in comps:
+            lo = np.append(lo, math.log(wf.dt))
+        a, tc_hat, ll, it, conv, d = wf.fit(comps, a0, tc, lo)
+        if best is None or ll > best["loglik"]:
+            best = dict(comps=comps, a=a, tc=tc_hat, loglik=ll, n_iter=it, converged=conv, detail=d,
+                        absent=[c for i, c in enumerate(comps) if a[i] <= _FLOOR * top[i] * 1.0001])
+        if warm is not None:
+            break
+    return best
+
+
+def _zero_bounds(wf, fit, kept, terms, coefs, se):
+    """Upper bounds of the terms estimated as 0 (dropped or at their floor), for ``conf_int``.
+
+    A variance at the boundary 0 has the one-sided bound :math:`c^2 \\le z\\,\\mathrm{se}(c^2)`,
+    se from the Whittle information in the variances (which stays finite at 0) of the kept terms plus
+    the absent one; the ramp: :math:`|R| \\le z\\,\\mathrm{se}(R)`. Stored as the bound at z = 1
+    and the power of z (``zero_upper``, ``zero_upper_power``). None for a Gauss-Markov term (its Tc is
+    undefined at 0)."""
+    up, power = {}, {}
+    a = {c: fit["a"][fit["comps"].index(c)] for c in kept}
+    tc = fit["tc"]
+    for c in terms:
+        if coefs.get(c, 1.0) != 0.0:
+            continue
+        if c == "R":
+            up[c], power[c] = float(se["R"]), 1.0
+            continue
+        if c == "B" and "GM" in fit["comps"]:
+            continue
+        comps = list(kept) + [c]
+        Bm = wf._matrix(comps, tc)
+        S = np.array([a[x] for x in kept]) @ Bm[:-1]
+        W = wf.w / S**2
+        F = (Bm * W) @ Bm.T
+        try:
+            var = np.linalg.inv(F)[-1, -1]
+        except np.linalg.LinAlgError:
+            continue
+        if var > 0:
+            up[c], power[c] = math.sqrt(math.sqrt(var)) * wf.scale, 0.5
+    return {"zero_upper": pd.Series(up, dtype=float), "zero_upper_power": pd.Series(power, dtype=float)}
+
+
+#: penalty per parameter of each selection criterion, as a function of n
+_PENALTY = {"bic": math.log, "lr": lambda n: 2.705543454095404}  # chi2_1 90 % point (chi-bar^2, 5 %)
+
+
+def _drop_candidates(fit, pen):
+    """Terms worth trying to drop: those whose log-variance Wald statistic 1/se(log a)^2 is below
+    4 x the penalty (a term far above the threshold would never be dropped: skip the refit)."""
+    info = fit["detail"]["info"]
+    p = len(fit["comps"])
+    try:
+        cov = np.linalg.inv(info)
+        var = np.diag(cov)[:p]
+    except np.linalg.LinAlgError:
+        var = np.full(p, np.inf)
+    out = []
+    for i, c in enumerate(fit["comps"]):
+        v = var[i] if np.isfinite(var[i]) and var[i] > 0 else np.inf
+        if c in fit["absent"] or 1.0 / v < 4 * max(pen, 1.0):
+            out.append(c)
+    return out
+
+
+@register("whittle")
+class Whittle(Estimator):
+    """Whittle maximum likelihood of Q, N, B, K, R (see the module docstring).
+
+    Parameters
+    ----------
+    terms : str
+        Terms modelled (subset of "QNBKR"); with ``select=True``, the candidates.
+    bias : {"flicker", "gauss_markov"}
+        Spectrum of the bias-instability term: flicker (Kasdin & Walter, the presets' truth) or a
+        first-order Gauss-Markov process (B reported as :math:`B_{equiv} = 0.9294\\sigma`).
+    select : bool
+        Choose the terms present among ``terms`` (module docstring). Default True.
+    criterion : {"bic", "lr"}
+        Selection rule: BIC (default) or the 5 % likelihood-ratio test with the chi-bar-squared null.
+    n_starts : int
+        Starting values of Tc tried for a Gauss-Markov term.
+
+    Attributes
+    ----------
+    std_err_ : pandas.Series
+        Standard errors (SI) from the Whittle information at the estimate (``estimators.crlb``).
+    diagnostics_ : dict
+        ``terms`` (the terms kept), ``loglik``, ``bic``, ``n_iter``, ``converged``, ``beta`` (trend
+        slope, rad/s per sample), ``tc`` (Gauss-Markov), ``full_std_err`` (the full model's),
+        ``selection`` (BIC of each model visited).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from noise_models import Gyro, AngleRandomWalk, RateRandomWalk
+    >>> g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5)])
+    >>> est = Whittle(terms="NK", select=False).fit(g.simulate(100_000, np.random.default_rng(3)), 0.1)
+    >>> bool(abs(est.coefficients_["N"] / 1e-3 - 1) < 4 * est.std_err_["N"] / 1e-3)
+    True
+    """
+
+    def __init__(self, *, terms="QNBKR", bias="flicker", select=True, criterion="bic", n_starts=4):
+        self.terms = terms
+        self.bias = bias
+        self.select = select
+        self.criterion = criterion
+        self.n_starts = n_starts
+
+    def _check(self):
+        terms = check_terms(self.terms)
+        if self.bias not in ("flicker", "gauss_markov"):
+            raise ValueError(f"bias: expected 'flicker' or 'gauss_markov', got {self.bias!r}")
+        if not isinstance(self.select, (bool, np.bool_)):
+            raise ValueError(f"select: expected True or False, got {self.select!r}")
+        if self.criterion not in _PENALTY:
+            raise ValueError(f"criterion: expected 'bic' or 'lr', got {self.criterion!r}")
+        if isinstance(self.n_starts, bool) or not isinstance(self.n_starts, (int, np.integer)) or self.n_starts < 1:
+            raise ValueError(f"n_starts: expected a positive integer, got {self.n_starts!r}")
+        if not set(terms) - {"R"}:
+            raise ValueError("terms: expected at least one stochastic term (Q, N, B or K) besides R")
+        return terms
+
+    def _fit(self, rate, dt):
+        terms = self._check()
+        wf = WhittleFit(rate, dt)
+        bname = "GM" if self.bias == "gauss_markov" else "B"
+        comps = [bname if c == "B" else c for c in terms if c != "R"]
+        n = rate.size
+        full = whittle_fit(wf, comps, self.n_starts)
+        fits = {tuple(full["comps"]): full}
+        chosen = full
+        pen = _PENALTY[self.criterion](n)
+
+        def n_par(f):
+            return sum(2 if c == "GM" else 1 for c in f["comps"])
+
+        def bic(f):
+            return -2 * f["loglik"] + n_par(f) * pen
+
+        if self.select:
+            cur = full
+            while len(cur["comps"]) > 1:
+                cands = []
+                for c in _drop_candidates(cur, pen):
+                    sub = [x for x in cur["comps"] if x != c]
+                    if not any(x in sub for x in ("N", "Q", "K", "B", "GM")):
+                        continue
+                    key = tuple(sub)
+                    if key not in fits:
+                        warm = {x: cur["a"][cur["comps"].index(x)] for x in sub}
+                        warm["tc"] = cur["tc"]
+                        fits[key] = whittle_fit(wf, sub, self.n_starts, warm=warm)
+                    cands.append(fits[key])
+                if not cands:
+                    break
+                best = min(cands, key=bic)
+                if bic(best) < bic(cur):
+                    cur = best
+                else:
+                    break
+            chosen = cur
+        # terms at their floor are absent
+        kept = [c for c in chosen["comps"] if c not in chosen["absent"]]
+        full_kept = [c for c in full["comps"] if c not in full["absent"]]
+        k_full = math.sqrt(full["a"][full["comps"].index("K")]) * wf.scale if "K" in full_kept else 0.0
+        coefs, se, tr = self._report(wf, chosen, kept, terms, select=self.select, k_drift=k_full, pen=pen)
+        if chosen is full:
+            full_coefs, full_se = coefs, se
+        else:
+            full_coefs, full_se, _ = self._report(wf, full, full_kept, terms, select=False, k_drift=k_full)
+        diag = {
+            "terms": "".join(("B" if c == "GM" else c) for c in kept) + ("R" if tr else ""),
+            "loglik": float(chosen["loglik"]),
+            "bic": float(bic(chosen)),
+            "n_iter": int(chosen["n_iter"]),
+            "converged": bool(chosen["converged"]),
+            "beta": float(chosen["detail"]["beta"] * wf.scale),
+            "tc": chosen["tc"],
+            "std_err": se,
+            "full_std_err": full_se,
+            "full_coefficients": pd.Series(full_coefs, dtype=float).reindex(list(COEFFICIENTS)),
+            **_zero_bounds(wf, chosen, kept, terms, coefs, se),
+            "selection": {"".join(k): float(bic(v)) for k, v in fits.items()},
+        }
+        if not chosen["converged"]:
+            diag["failure"] = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
+        return coefs, {}, diag
+
+    def _report(self, wf, fit, kept, terms, select, k_drift=0.0, pen=None):
+        """Coefficients (SI) and standard errors (crlb at the estimate; R by GLS + drift).
+
+        The ramp test uses the random-walk drift of the *full* model (``k_drift``): a random walk
+        too weak to be kept still drifts, and that drift must not be read as a ramp."""
+        from estimators.crlb import crlb
+        from noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRandomWalk
+        from noise_models.terms import B_EQUIV_OVER_SIGMA
+
+        s, dt, n = wf.scale, wf.dt, wf.n
+        val = {c: math.sqrt(fit["a"][fit["comps"].index(c)]) * s for c in kept}
+        coefs = {c: 0.0 for c in terms}
+        built = []
+        for c, v in val.items():
+            if c == "GM":
+                coefs["B"] = B_EQUIV_OVER_SIGMA * v
+                built.append(GaussMarkov(sigma=v, tc=fit["tc"]))
+            else:
+                coefs[c] = v
+                built.append({"Q": Quantization, "N": AngleRandomWalk, "K": RateRandomWalk}[c](**{c: v})
+                             if c != "B" else BiasInstability(B=v, tau_max=max(10 * n * dt, 1.0)))
+        se = pd.Series(math.nan, index=list(COEFFICIENTS), dtype=float)
+        if built:
+            bound = crlb(Gyro(dt=dt, terms=built), n)
+            for c in bound.index:
+                if c in coefs and c != "R" and np.isfinite(bound[c]):
+                    se[c] = bound[c]
+        keep_r = False
+        if "R" in terms:
+            d = fit["detail"]
+            var_gls = (n / 2) / d["sgg"] * s**2 / dt**2  # of beta/dt (SI)
+            var_drift = max(val.get("K", 0.0), k_drift) ** 2 / (n * dt)
+            r_hat = abs(d["beta"]) * s / dt
+            keep_r = (not select) or r_hat**2 / (var_gls + var_drift) > (math.log(n) if pen is None else pen)
+            coefs["R"] = r_hat if keep_r else 0.0
+            se["R"] = math.sqrt(var_gls + var_drift)
+        return coefs, se, keep_r

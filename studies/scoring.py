@@ -1,0 +1,184 @@
+"""Scores with uncertainty: interval coverage, RMSE/CRLB and bias/SE, and wins that survive a test.
+
+From a study's tidy table (one row per gyro x replicate x estimator x coefficient, with the 95 %
+``lower`` / ``upper`` bounds the runner records from each estimator's ``conf_int``):
+
+``scores(tidy, crlb)``
+    one row per gyro x estimator x coefficient (SI): ``rmse``, ``bias``, ``std``, ``crlb`` (the
+    Cramér-Rao std bound), ``rmse_over_crlb``, ``bias_over_se`` (the bias over its own Monte Carlo
+    standard error std/sqrt(M): |value| > 2 says the bias is real), ``bias_over_crlb``,
+    ``coverage`` (share of replicates whose 95 % interval holds the truth, among those with an
+    interval), ``coverage_lo``/``coverage_hi`` (Clopper-Pearson 95 % interval of that share),
+    ``n_intervals``. std/CRLB alone is no score: a biased estimator can sit below the bound.
+``paired_rmse_ratio(tidy, gyro, coefficient, a, b)``
+    RMSE_a / RMSE_b on the replicates both have, with a bootstrap 95 % interval that resamples
+    replicates (pairs kept together, Efron & Tibshirani 1993, Ch. 13).
+``wins(tidy)``
+    per gyro x coefficient, the estimator with the lowest RMSE *wins* only when the paired interval
+    of its RMSE ratio against the runner-up lies below 1; otherwise it is a tie.
+``render_scores(...)``
+    ``scores.md``: the coverage table and the tested leaderboard.
+
+Bootstrap resamples use ``numpy.random.default_rng(seed)`` with a fixed seed: the report is a pure
+function of the tidy table.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from noise_models.units import COEFFICIENTS
+
+__all__ = ["scores", "paired_rmse_ratio", "wins", "render_scores", "crlb_table", "write_scores"]
+
+N_BOOT = 2000
+
+
+def _ok(d: pd.DataFrame) -> pd.DataFrame:
+    return d[(d["failure"] == "") & ~d["nonphysical"] & np.isfinite(d["estimate"])]
+
+
+def crlb_table(cfg) -> dict:
+    """{(gyro label, coefficient): CRLB std (SI)} for the study's gyros (NaN where not covered)."""
+    from estimators import crlb
+
+    out = {}
+    for g in cfg.gyros:
+        try:
+            b = crlb(g.gyro, g.n_samples)
+        except Exception:  # a model the bound does not cover
+            continue
+        for c in COEFFICIENTS:
+            out[(g.label, c)] = float(b[c])
+    return out
+
+
+def _clopper_pearson(k: int, n: int, level=0.95):
+    if n == 0:
+        return math.nan, math.nan
+    a = (1 - level) / 2
+    lo = 0.0 if k == 0 else stats.beta.ppf(a, k, n - k + 1)
+    hi = 1.0 if k == n else stats.beta.ppf(1 - a, k + 1, n - k)
+    return float(lo), float(hi)
+
+
+def scores(tidy: pd.DataFrame, crlb: dict | None = None) -> pd.DataFrame:
+    """Per gyro x estimator x coefficient scores in SI (module docstring)."""
+    crlb = crlb or {}
+    rows = []
+    for (g, e, c), d in tidy.groupby(["gyro", "estimator", "coefficient"], sort=False):
+        true = float(d["true"].iloc[0])
+        ok = _ok(d)
+        x = ok["estimate"].to_numpy()
+        M = x.size
+        bias = float(x.mean() - true) if M and np.isfinite(true) else math.nan
+        std = float(x.std(ddof=1)) if M > 1 else math.nan
+        rmse = float(np.sqrt(np.mean((x - true) ** 2))) if M and np.isfinite(true) else math.nan
+        bound = crlb.get((g, c), math.nan)
+        cov_k = cov_n = 0
+        if {"lower", "upper"} <= set(d.columns) and np.isfinite(true):
+            iv = d[np.isfinite(d["lower"]) & np.isfinite(d["upper"])]
+            cov_n = len(iv)
+            cov_k = int(((iv["lower"] <= true) & (true <= iv["upper"])).sum())
+        lo, hi = _clopper_pearson(cov_k, cov_n)
+        rows.append({
+            "gyro": g, "estimator": e, "coefficient": c, "true": true, "n": int(d["replicate"].nunique()),
+            "n_ok": M, "bias": bias, "std": std, "rmse": rmse, "crlb": bound,
+            "rmse_over_crlb": rmse / bound if bound > 0 else math.nan,
+            "bias_over_se": bias / (std / math.sqrt(M)) if M > 1 and std > 0 else math.nan,
+            "bias_over_crlb": bias / bound if bound > 0 else math.nan,
+            "coverage": cov_k / cov_n if cov_n else math.nan, "coverage_lo": lo, "coverage_hi": hi,
+            "n_intervals": cov_n,
+        })
+    return pd.DataFrame(rows)
+
+
+def paired_rmse_ratio(tidy, gyro, coefficient, a, b, n_boot=N_BOOT, seed=0, level=0.95):
+    """(ratio, lower, upper): RMSE of ``a`` over RMSE of ``b`` on their common physical replicates,
+    with a paired bootstrap interval (replicates resampled with replacement)."""
+    d = tidy[(tidy["gyro"] == gyro) & (tidy["coefficient"] == coefficient)]
+    ea = _ok(d[d["estimator"] == a]).set_index("replicate")
+    eb = _ok(d[d["estimator"] == b]).set_index("replicate")
+    common = ea.index.intersection(eb.index)
+    if len(common) < 3:
+        return math.nan, math.nan, math.nan
+    sa = ((ea.loc[common, "estimate"] - ea.loc[common, "true"]) ** 2).to_numpy()
+    sb = ((eb.loc[common, "estimate"] - eb.loc[common, "true"]) ** 2).to_numpy()
+    ratio = math.sqrt(sa.mean() / sb.mean()) if sb.mean() > 0 else math.nan
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(common), size=(n_boot, len(common)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.sqrt(sa[idx].mean(axis=1) / sb[idx].mean(axis=1))
+    r = r[np.isfinite(r)]
+    if r.size < n_boot // 2:
+        return ratio, math.nan, math.nan
+    lo, hi = np.quantile(r, [(1 - level) / 2, (1 + level) / 2])
+    return ratio, float(lo), float(hi)
+
+
+def wins(tidy: pd.DataFrame, n_boot=N_BOOT, seed=0) -> pd.DataFrame:
+    """Per gyro x coefficient: best and runner-up by RMSE (estimators with a physical estimate in at
+    least half the replicates), the paired RMSE ratio and its interval, and ``verdict`` "win" when
+    the interval is below 1, else "tie"."""
+    sc = scores(tidy)
+    sc = sc[np.isfinite(sc["true"]) & (sc["true"] > 0) & (sc["n_ok"] >= np.ceil(sc["n"] / 2)) & np.isfinite(sc["rmse"])]
+    rows = []
+    for (g, c), d in sc.groupby(["gyro", "coefficient"], sort=False):
+        d = d.sort_values("rmse")
+        best = d.iloc[0]["estimator"]
+        if len(d) < 2:
+            rows.append({"gyro": g, "coefficient": c, "best": best, "runner_up": None, "ratio": math.nan,
+                         "lower": math.nan, "upper": math.nan, "verdict": "alone"})
+            continue
+        second = d.iloc[1]["estimator"]
+        ratio, lo, hi = paired_rmse_ratio(tidy, g, c, best, second, n_boot, seed)
+        rows.append({"gyro": g, "coefficient": c, "best": best, "runner_up": second, "ratio": ratio,
+                     "lower": lo, "upper": hi, "verdict": "win" if hi < 1 else "tie"})
+    return pd.DataFrame(rows)
+
+
+def _md_table(df: pd.DataFrame) -> list[str]:
+    out = ["| " + " | ".join(df.columns) + " |", "|" + "---|" * len(df.columns)]
+    for _, r in df.iterrows():
+        out.append("| " + " | ".join("–" if (isinstance(v, float) and not np.isfinite(v)) else
+                                      (f"{v:.3g}" if isinstance(v, float) else str(v)) for v in r) + " |")
+    return out
+
+
+def render_scores(sc: pd.DataFrame, w: pd.DataFrame) -> str:
+    """Markdown: coverage and efficiency per gyro x estimator x coefficient, and tested wins."""
+    out = ["# Scores with uncertainty", "",
+           "RMSE/CRLB and bias/SE (bias over its Monte Carlo standard error; |bias/SE| > 2: a real bias); "
+           "coverage = share of replicates whose 95 % interval (the estimator's `conf_int`) holds the truth, "
+           "with its Clopper-Pearson 95 % interval; '–' where the estimator gives no interval.", ""]
+    s = sc[np.isfinite(sc["true"]) & (sc["true"] > 0)]
+    cols = ["gyro", "estimator", "coefficient", "rmse_over_crlb", "bias_over_se", "bias_over_crlb",
+            "coverage", "coverage_lo", "coverage_hi", "n_intervals"]
+    out += _md_table(s[cols])
+    out += ["", "## Wins (paired bootstrap of the RMSE ratio on the same replicates)", "",
+            "A win is counted only when the 95 % interval of RMSE(best)/RMSE(runner-up) lies below 1.", ""]
+    if len(w):
+        out += _md_table(w)
+        counts = w[w["verdict"] == "win"].groupby(["coefficient", "best"]).size().rename("wins").reset_index()
+        out += ["", "### Tested wins per coefficient", ""]
+        out += _md_table(counts) if len(counts) else ["(no win survives the paired test)"]
+    return "\n".join(out) + "\n"
+
+
+def write_scores(cfg, tidy: pd.DataFrame, out) -> list:
+    """Write ``scores.csv`` (6 significant digits) and ``scores.md`` beside the study's tables (a hook
+    of ``write_report``); returns their paths."""
+    from pathlib import Path
+
+    from studies.report import TABLE_DIGITS, atomic_write_text
+
+    out = Path(out)
+    sc = scores(tidy, crlb_table(cfg))
+    w = wins(tidy)
+    atomic_write_text(out / "scores.csv", sc.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
+    atomic_write_text(out / "scores.md", render_scores(sc, w))
+    return [out / "scores.csv", out / "scores.md"]

@@ -1,0 +1,58 @@
+"""studies.scoring: coverage, RMSE/CRLB, bias/SE, paired RMSE-ratio test."""
+
+import numpy as np
+import pandas as pd
+
+from studies.scoring import paired_rmse_ratio, render_scores, scores, wins
+
+
+def _tidy(errors: dict, true=1.0, half_width=0.1):
+    rows = []
+    for est, err in errors.items():
+        for r, e in enumerate(err):
+            x = true + e
+            rows.append(dict(gyro="g", replicate=r, estimator=est, coefficient="N", true=true, estimate=x,
+                             nonphysical=False, failure="", seconds=0.0, std_err=half_width / 2,
+                             lower=x - half_width, upper=x + half_width))
+    return pd.DataFrame(rows)
+
+
+def test_scores_coverage_bias_and_crlb():
+    err = np.array([0.05, -0.05, 0.2, -0.01, 0.0, 0.3, 0.02, -0.02])
+    sc = scores(_tidy({"a": err}), {("g", "N"): 0.1}).iloc[0]
+    assert sc["coverage"] == 6 / 8 and sc["n_intervals"] == 8  # |err| <= 0.1 in 6 of 8
+    assert sc["coverage_lo"] < 0.75 < sc["coverage_hi"]
+    np.testing.assert_allclose(sc["rmse"], np.sqrt(np.mean(err**2)))
+    np.testing.assert_allclose(sc["rmse_over_crlb"], np.sqrt(np.mean(err**2)) / 0.1)
+    np.testing.assert_allclose(sc["bias_over_se"], err.mean() / (err.std(ddof=1) / np.sqrt(8)))
+
+
+def test_paired_ratio_win_and_tie():
+    rng = np.random.default_rng(0)
+    e = rng.standard_normal(40)
+    good = 0.5 * rng.standard_normal(40)
+    tidy = _tidy({"good": good, "bad": e, "same": e * (1 + 0.01 * rng.standard_normal(40))})
+    ratio, lo, hi = paired_rmse_ratio(tidy, "g", "N", "good", "bad")
+    np.testing.assert_allclose(ratio, np.sqrt(np.mean(good**2) / np.mean(e**2)))
+    assert lo < ratio < hi and hi < 1
+    w = wins(tidy).iloc[0]
+    assert w["best"] == "good" and w["verdict"] == "win"
+    w2 = wins(tidy[tidy["estimator"] != "good"]).iloc[0]
+    assert w2["verdict"] == "tie"
+    assert "Wins" in render_scores(scores(tidy), wins(tidy))
+
+
+def test_selection_rates_count_the_exact_true_set():
+    from studies.selection import selection_rates
+
+    rows = []
+    # truth: N and B present, K absent; replicate 0 exact, 1 adds K, 2 drops B
+    chosen = {0: {"N": 1.0, "B": 1.0, "K": 0.0}, 1: {"N": 1.0, "B": 1.0, "K": 0.5}, 2: {"N": 1.0, "B": 0.0, "K": 0.0}}
+    truth = {"N": 1.0, "B": 2.0, "K": float("nan")}
+    for r, est in chosen.items():
+        for c, v in est.items():
+            rows.append(dict(gyro="g", replicate=r, estimator="w", coefficient=c, true=truth[c], estimate=v,
+                             nonphysical=False, failure=""))
+    t = selection_rates(pd.DataFrame(rows), {("g", "N"): 0.01, ("g", "B"): 0.2}).iloc[0]
+    assert t["true_set"] == "NB" and t["replicates"] == 3
+    np.testing.assert_allclose([t["exact"], t["keep_B"], t["add_K"], t["max_crlb_rel"]], [1 / 3, 2 / 3, 1 / 3, 0.2])

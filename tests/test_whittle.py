@@ -1,0 +1,112 @@
+"""Whittle maximum likelihood: compiled kernel vs reference, recovery, standard errors, selection."""
+
+import math
+
+import numpy as np
+import pytest
+
+import estimators
+from conftest import assert_mc_recovery
+from estimators._whittle_kernels import whittle_pass, whittle_pass_py
+from estimators.crlb import crlb
+from estimators.whittle import WhittleFit
+from noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
+
+DT = 0.1
+
+
+def flicker_gyro(n, ramp=False, K=3e-5):
+    terms = [AngleRandomWalk(N=1e-3), BiasInstability(B=2e-4, tau_max=2 * n * DT), RateRandomWalk(K=K)]
+    if ramp:
+        terms.append(RateRamp(R=1e-6))
+    return Gyro(dt=DT, terms=terms)
+
+
+def test_kernel_matches_reference():
+    g = Gyro(dt=DT, terms=[Quantization(Q=2e-5), AngleRandomWalk(N=1e-3), GaussMarkov(sigma=1e-4, tc=30.0),
+                           RateRandomWalk(K=1e-5)])
+    x = g.simulate(5001, np.random.default_rng(1))
+    wf = WhittleFit(x, DT)
+    comps = ["Q", "N", "GM", "K"]
+    a = np.array([0.3, 1.2, 0.5, 0.01])
+    Bm = wf._matrix(comps, 30.0)
+    D = wf.basis("GM", 31.0) - wf.basis("GM", 29.0)
+    args = (a, Bm, D, 0.5, wf.X2, wf.GX, wf.G2, wf.w, float(wf.n))
+    for grad in (False, True):
+        ref, got = whittle_pass_py(*args, grad), whittle_pass(*args, grad)
+        for r, o in zip(ref, got):
+            np.testing.assert_allclose(o, r, rtol=1e-10, atol=0)
+
+
+def test_trend_regressor_is_the_dft_of_a_line():
+    n = 1000
+    wf = WhittleFit(np.arange(n, dtype=float) ** 1.5 + 1.0, DT)
+    t = np.arange(n, dtype=float)
+    np.testing.assert_allclose(wf.G, np.fft.rfft(t)[1:], rtol=1e-9, atol=1e-6)
+
+
+def test_recovery_within_standard_errors_long_record():
+    """4 h at 10 Hz of white + flicker + random walk + ramp, full model: every coefficient within
+    4 standard errors (a 1e-4 two-sided normal quantile is 3.9)."""
+    n = 144_000
+    g = flicker_gyro(n, ramp=True)
+    x = g.simulate(n, np.random.default_rng(7))
+    est = estimators.get("whittle", terms="NBKR", select=False).fit(x, DT)
+    z = (est.coefficients_ - g.coefficients) / est.std_err_
+    assert np.all(np.abs(z[["N", "B", "K", "R"]]) < 4), z.to_dict()
+    # standard errors are the Cramér-Rao bound at the estimate: close to the bound at the truth
+    ratio = est.std_err_[["N", "B", "K"]] / crlb(Gyro(dt=DT, terms=g.terms[:3]), n)[["N", "B", "K"]]
+    assert np.all((ratio > 0.7) & (ratio < 1.4)), ratio.to_dict()
+
+
+def test_gauss_markov_bias_reports_b_equiv():
+    n = 100_000
+    g = Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=60.0)])
+    x = g.simulate(n, np.random.default_rng(3))
+    est = estimators.get("whittle", terms="NB", bias="gauss_markov", select=False).fit(x, DT)
+    z = (est.coefficients_ - g.coefficients) / est.std_err_
+    assert abs(z["B"]) < 4 and abs(z["N"]) < 4, z.to_dict()
+    assert abs(math.log(est.diagnostics_["tc"] / 60.0)) < 0.5
+
+
+@pytest.mark.parametrize("criterion", ["bic", "lr"])
+def test_selection_finds_the_true_terms_on_a_long_record(criterion):
+    n = 144_000
+    g = flicker_gyro(n)  # N, B, K present; Q and R absent
+    x = g.simulate(n, np.random.default_rng(11))
+    est = estimators.get("whittle", criterion=criterion).fit(x, DT)
+    assert est.diagnostics_["terms"] == "NBK", est.diagnostics_["selection"]
+    assert est.coefficients_["Q"] == 0 and est.coefficients_["R"] == 0
+    ci = est.conf_int()
+    assert ci.loc["Q", "lower"] == 0 and np.isfinite(ci.loc["Q", "upper"])
+
+
+@pytest.mark.parametrize("bad", [dict(terms="X"), dict(bias="pink"), dict(select="yes"), dict(n_starts=0),
+                                 dict(terms="R"), dict(criterion="aic")])
+def test_bad_settings_are_clear_errors(bad):
+    x = np.random.default_rng(0).standard_normal(1000)
+    with pytest.raises(ValueError):
+        estimators.get("whittle", **bad).fit(x, DT)
+
+
+def _monte_carlo(R, n, seed):
+    g = flicker_gyro(n)
+    est, se = [], []
+    for s in np.random.SeedSequence(seed).spawn(R):
+        e = estimators.get("whittle", terms="NBK", select=False).fit(g.simulate(n, np.random.default_rng(s)), DT)
+        est.append(e.coefficients_[["N", "B", "K"]].to_numpy())
+        se.append(e.std_err_[["N", "B", "K"]].to_numpy())
+    return g, np.array(est), np.array(se)
+
+
+def _check_monte_carlo(g, est, se):
+    assert_mc_recovery(g.coefficients[["N", "B", "K"]].to_numpy(), est, se)
+
+
+def test_monte_carlo_standard_errors_small():
+    _check_monte_carlo(*_monte_carlo(R=16, n=72_000, seed=2024))
+
+
+@pytest.mark.slow
+def test_monte_carlo_standard_errors_slow():
+    _check_monte_carlo(*_monte_carlo(R=200, n=144_000, seed=2025))
