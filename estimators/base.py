@@ -92,6 +92,7 @@ BUILTIN: dict[str, str] = {
     "slope_lines": "estimators.practitioners:SlopeLines",
     "wls": "estimators.least_squares:WLS",
     "wls_edf": "estimators.least_squares:EDFWeightedLS",
+    "whittle": "estimators.whittle:Whittle",
 }
 
 #: The methods to run on a user's recording when none are named (``avbench estimate``): methods
