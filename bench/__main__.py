@@ -95,7 +95,9 @@ def run(args) -> int:
 
 
 def main(argv=None) -> int:
-    p = _arguments(argparse.ArgumentParser(prog="python -m bench", description=__doc__,
+    from studies.cli import plain_text
+
+    p = _arguments(argparse.ArgumentParser(prog="python -m bench", description=plain_text(__doc__),
                                            formatter_class=argparse.RawDescriptionHelpFormatter))
     return run(p.parse_args(argv))
 
