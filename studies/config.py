@@ -599,11 +599,11 @@ def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | No
 
 def load_config(path, overrides: dict[str, Any] | None = None) -> StudyConfig:
     """Read and validate a study TOML file (``overrides`` update its [study] table)."""
-    from studies.outputs import check_input_file
+    from studies.data_files import check_path_kind
 
     path = Path(path)
     try:
-        check_input_file(path, "study file")
+        check_path_kind(path, expected="expected a study file (TOML)")
     except ValueError as e:
         raise ConfigError(str(e)) from None
     try:

@@ -30,7 +30,7 @@ _NONFINITE_WORDS = {"nan", "+nan", "-nan", "inf", "+inf", "-inf", "infinity", "+
 _EXPECTED = "expected a recording file (.npy, .npz, .csv, .txt, .dat, .tsv, .bag, .ulg) or a ROS 2 bag folder"
 
 
-def check_path_kind(path, allow_dir: bool = False) -> Path:
+def check_path_kind(path, allow_dir: bool = False, expected: str = _EXPECTED) -> Path:
     """``path`` as a Path if it is a readable regular file (or, with ``allow_dir``, a readable
     folder); else a ValueError saying what it is (missing, a broken link, a FIFO, a socket, a device,
     a folder, unreadable)."""
@@ -39,7 +39,7 @@ def check_path_kind(path, allow_dir: bool = False) -> Path:
         st = path.stat()
     except FileNotFoundError:
         if path.is_symlink():
-            raise ValueError(f"{path}: a broken symbolic link (its target does not exist); {_EXPECTED}") from None
+            raise ValueError(f"{path}: a broken symbolic link (its target does not exist); {expected}") from None
         raise ValueError(f"{path}: no such file") from None
     except NotADirectoryError:
         raise ValueError(f"{path}: no such file (a parent of it is a file, not a folder)") from None
@@ -50,10 +50,10 @@ def check_path_kind(path, allow_dir: bool = False) -> Path:
         from studies.outputs import _kind  # the one naming of file kinds ("a FIFO", "a socket", ...)
 
         kind = _kind(mode)
-        raise ValueError(f"{path}: is {kind}{' (named pipe)' if kind == 'a FIFO' else ''}; {_EXPECTED}")
+        raise ValueError(f"{path}: is {kind}{' (named pipe)' if kind == 'a FIFO' else ''}; {expected}")
     if stat.S_ISDIR(mode):
         if not allow_dir:
-            raise ValueError(f"{path}: is a folder; {_EXPECTED}")
+            raise ValueError(f"{path}: is a folder; {expected}")
         try:
             os.listdir(path)
         except OSError as e:

@@ -1,7 +1,7 @@
-"""Paths of every command: inputs checked before reading, outputs before any work, written whole.
+"""Output paths of every command: checked before any work, written whole.
 
-One way for all commands (``avbench run``, ``estimate``, ``simulate``, ``table``, ``bench``) to check
-a file they read (:func:`check_input_file`), to validate an ``--out`` and to write into it:
+One way for all commands (``avbench run``, ``estimate``, ``simulate``, ``bench``) to validate an
+``--out`` and to write into it (inputs are checked by :func:`studies.data_files.check_path_kind`):
 
 * :func:`prepare_out_dir` refuses, with one line naming the option, the path and what was expected,
   an ``--out`` that is an existing file, lies under a file, cannot be created or written (a read-only
@@ -20,7 +20,7 @@ import uuid
 from collections.abc import Iterable
 from pathlib import Path
 
-__all__ = ["OutputError", "check_input_file", "prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "tmp_name"]
+__all__ = ["OutputError", "prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "tmp_name"]
 
 
 class OutputError(ValueError):
@@ -43,29 +43,6 @@ def _kind(st_mode: int) -> str:
 
 def _reason(e: OSError) -> str:
     return os.strerror(e.errno) if e.errno else str(e)
-
-
-def check_input_file(path, what: str = "input") -> Path:
-    """``path`` as a Path if it is a readable regular file; else ValueError saying what it is.
-
-    A folder, a FIFO, a socket or a device is named as such (reading a FIFO would block), a
-    missing file as missing, an unreadable one with the system's reason.
-    """
-    p = Path(path)
-    try:
-        st = p.stat()
-    except FileNotFoundError:
-        raise ValueError(f"{what} {str(path)!r}: no such file") from None
-    except OSError as e:
-        raise ValueError(f"{what} {str(path)!r}: cannot access it: {_reason(e)}") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise ValueError(f"{what} {str(path)!r}: is {_kind(st.st_mode)}; expected a regular file")
-    try:
-        with open(p, "rb") as f:
-            f.read(1)
-    except OSError as e:
-        raise ValueError(f"{what} {str(path)!r}: cannot read it: {_reason(e)}") from None
-    return p
 
 
 def prepare_out_dir(path, option: str = "--out", outputs: Iterable[str] = ()) -> Path:

@@ -155,7 +155,7 @@ def test_cli_rejects_bad_config_without_writing(tmp_path, capsys):
     assert main(["run", str(path), "--out", str(out)]) == 2
     assert "not valid TOML" in capsys.readouterr().err
     assert main(["run", str(tmp_path / "missing.toml"), "--out", str(out)]) == 2
-    assert "missing.toml': no such file" in capsys.readouterr().err
+    assert "missing.toml: no such file" in capsys.readouterr().err
     assert not out.exists()
 
 

@@ -109,7 +109,7 @@ def test_deeply_nested_toml(tmp_path):
 def test_fifo_is_named_as_a_fifo(tmp_path):
     fifo = tmp_path / "study.toml"
     os.mkfifo(fifo)
-    refused(avbench("run", fifo, "--out", tmp_path / "out"), "is a FIFO", "expected a regular file")
+    refused(avbench("run", fifo, "--out", tmp_path / "out"), "is a FIFO", "expected a study file")
 
 
 def test_table_on_foreign_corrupt_and_incomplete_folders(tiny, tmp_path):
