@@ -25,8 +25,11 @@ from studies.runner import run_study
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ["lv2015"]
 SLOW = ["lv2015_grids", "online_sensitivity", "miao2014_adis16405", "miao2015_adis16405", "miao2015_fog",
-        "miao2015_existing", "grand_comparison", "coverage", "model_selection_30min", "model_selection_2h",
-        "model_selection_8h", "grand_comparison_2h", "grand_comparison_24h"]
+        "miao2015_existing", "grand_comparison"]
+#: configured studies whose full runs (CPU-hours on 2 cores) are not committed yet: each is skipped,
+#: saying so, until results/<study>/meta.json exists; then it joins SLOW
+PENDING = ["coverage", "model_selection_30min", "model_selection_2h", "model_selection_8h", "grand_comparison_2h",
+           "grand_comparison_24h"]
 
 
 def _numeric_equal(a: pd.DataFrame, b: pd.DataFrame, rtol: float, what: str) -> None:
@@ -67,11 +70,13 @@ def test_committed_study_regenerates(study, tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("study", SLOW)
+@pytest.mark.parametrize("study", SLOW + PENDING)
 def test_committed_study_regenerates_slow(study, tmp_path):
+    if study in PENDING and not (ROOT / "results" / study / "meta.json").is_file():
+        pytest.skip(f"results/{study} not computed yet (CPU-hours): avbench run studies/{study}.toml --jobs 2")
     _check(study, tmp_path)
 
 
 def test_every_committed_study_is_covered():
     studies = {p.stem for p in (ROOT / "studies").glob("*.toml")}
-    assert studies == set(FAST) | set(SLOW), "a study config without a regeneration test (or the reverse)"
+    assert studies == set(FAST) | set(SLOW) | set(PENDING), "a study config without a regeneration test (or the reverse)"
