@@ -163,7 +163,7 @@ def targets(df: pd.DataFrame, quick: bool) -> list[dict]:
                                  f"per process; per replicate: simulate {1e3 * r['replicate_simulate_s']:.0f} ms + 4 fits "
                                  f"{1e3 * r['replicate_fits_s']:.0f} ms; report and figures {r.get('report_s', math.nan):.1f} s)",
                      "met": bool(r["wall_s"] < 15), "limit": LIMITS["study"] + _study_budget(r)})
-    d = _pick(df, "ReadRecording", "time_read").dropna(subset=["ratio"]) if len(df) and "ratio" in df else df.iloc[0:0]
+    d = _with_ratio(_pick(df, "ReadRecording", "time_read")) if len(df) and "ratio" in df else df.iloc[0:0]
     if len(d):
         last = d.sort_values("param_n").iloc[-1]
         mem = _pick(df, "ReadRecording", "peakmem_read", n=last["param_n"])
@@ -193,7 +193,7 @@ def _kernel_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
     rows = []
     if not len(df):
         return rows
-    d = _pick(df, "MleFit", "time_fit").dropna(subset=["ratio"])
+    d = _with_ratio(_pick(df, "MleFit", "time_fit"))
     if len(d):
         r = d.sort_values("param_n").iloc[-1]
         rows.append({"target": "mle (defaults) >= 10x faster than the statsmodels path, 4 h at 100 Hz",
@@ -216,7 +216,7 @@ def _kernel_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
                      "measured": f"{r['median_s']:.2f} s at n = {int(r['param_n']):.0e}",
                      "met": bool(r["median_s"] <= 0.3) if int(r["param_n"]) >= 10**6 else None,
                      "limit": LIMITS["gen_flicker"]})
-    d = _pick(df, "AllanKernel", "time_allan_variance").dropna(subset=["ratio"])
+    d = _with_ratio(_pick(df, "AllanKernel", "time_allan_variance"))
     if len(d):
         r = d.sort_values("param_n").iloc[-1]
         b = _pick(df, "AllanKernel", "track_bound", n=r["param_n"])

@@ -455,14 +455,13 @@ def allan_variance_gaps(
     >>> bool(np.all(np.abs(a.avar * a.m - 1) < 0.05))
     True
     """
-    rate, dt = check_record(rate, dt)
+    rate, dt, mu = _checked_record_and_mean(rate, dt)  # the same centring as allan_variance
     n = rate.size
     s = _segment_starts(starts, n)
     ends = np.append(s[1:], n)
     lengths = ends - s
     m = cluster_sizes(taus, int(lengths.max()), dt, points_per_decade)
     mf = m.astype(float)
-    mu = float(rate.mean())
     sums = np.zeros(m.size)
     terms = np.zeros((s.size, m.size))  # number of squared differences of each run at each m
     used = []
