@@ -1,20 +1,26 @@
-"""Real static recordings: every method on every gyro axis, and the run-to-run consistency table.
+"""Real static recordings: every method on every gyro and accelerometer axis, and the run-to-run
+consistency table.
 
 ``python -m studies.real_runs --data ../shared/data/real --out results/real``
 
 Reads (only if present; nothing here needs them) the six ADIS16405 runs
-``adis16405-calgary/adis_16405_imu{1..6}.npz`` (gyro columns 0-2 in deg/s, 100 Hz) and the MTi-G
-``mtig-cont-imu1/cont_imu1.npz`` (one axis, taken as rad/s, 100 Hz). The recordings are read in
-place, never copied. Writes to ``--out``:
+``adis16405-calgary/adis_16405_imu{1..6}.npz`` (gyro x, y, z in deg/s and accelerometer x, y, z in g,
+100 Hz) and the MTi-G ``mtig-cont-imu1/cont_imu1.npz`` (one gyro axis, units not stated, taken as
+rad/s, 100 Hz). The recordings are read in place, never copied, through the recordings pipeline of
+``avbench estimate`` (:mod:`studies.recordings`: reader, timing, SI units through
+:mod:`noise_models.units`, gap-aware fits), so sensor and axis names and units come from the same
+code. Writes to ``--out``:
 
-``coefficients.csv``  one row per record x axis x method x coefficient: value and standard error
-                      in the papers' units, ``nonphysical``, and the fit's ``poor_fit`` flag with
-                      its statistic, dof and p-value (5 significant digits);
-``consistency.csv`` / ``consistency.md``  per ADIS axis, method and coefficient: mean over the six
-                      runs, run-to-run standard deviation, the method's own median standard error,
-                      their ratio, the number of runs with a value, and of poor fits;
-``adis16405_<axis>.png``  the six runs' Allan deviations with each default method's fitted curves;
-``mtig_cont_imu1.png``    the MTi-G curve (classical and robust AV) with the fits.
+``coefficients.csv``  one row per record x sensor x axis x method x coefficient: value and standard
+                      error in the display units of :data:`noise_models.units.DISPLAY_UNITS` (gyro:
+                      the papers' units; accelerometer: m/s/sqrt(h), ug, ...), the coefficient's
+                      ``flag`` (ok / not modelled / non-physical / failed), and the fit's ``poor_fit``
+                      flag with its statistic, dof and p-value (5 significant digits);
+``consistency.csv`` / ``consistency.md``  per ADIS sensor, axis, method and coefficient: mean over the
+                      six runs, run-to-run standard deviation, the method's own median standard
+                      error, their ratio, the number of runs with a value, and of poor fits;
+``adis16405_<sensor>_<axis>.png``  the six runs' Allan deviations with the median ``nnls_rel`` curve;
+``mtig_cont_imu1_gyro_x.png``      the MTi-G curve with its ``nnls_rel`` fit.
 
 Same sensor, same conditions: the runs share their true coefficients (to the extent the sensor is
 stationary between runs), so the spread of a method's estimates across runs, against the standard
@@ -31,25 +37,33 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-ADIS = [f"adis16405-calgary/adis_16405_imu{i}.npz" for i in range(1, 7)]
-MTIG = "mtig-cont-imu1/cont_imu1.npz"
+#: (record, group, file under --data, gyro sample units, accelerometer sample units, rate in Hz):
+#: the units and rates the recordings' own READMEs state (the MTi-G's are not stated: rad/s assumed)
+RECORDS = [(f"adis_16405_imu{i}", "adis16405", f"adis16405-calgary/adis_16405_imu{i}.npz", "deg/s", "g", 100.0)
+           for i in range(1, 7)] + [("mtig_cont_imu1", "mtig_cont_imu1", "mtig-cont-imu1/cont_imu1.npz", "rad/s", None, 100.0)]
 METHODS = ["ols", "ols_trimmed", "wls", "wls_edf", "slope_lines", "log_fit", "nnls_rel", "gmwm", "gmwm_robust",
            "gmwm_despiked", "mle"]
-DT = 0.01
 SIG = 5  # significant digits of the committed numbers
+_GROUP = {r[0]: r[1] for r in RECORDS}
 
 
 def _records(data: Path):
-    """(record, axis, rate in rad/s) for every recording found under ``data``."""
-    for rel in ADIS:
+    """(record, sensor, axis, samples in SI, Timing) for every axis of every recording under ``data``,
+    read by the recordings pipeline (:func:`studies.recordings.readers.read_recording`,
+    :func:`~studies.recordings.timing.timing_of`, :func:`~studies.recordings.sensors.to_si`)."""
+    from studies.recordings.readers import read_recording
+    from studies.recordings.sensors import to_si
+    from studies.recordings.timing import timing_of
+
+    for name, _, rel, units, accel_units, fs in RECORDS:
         p = data / rel
-        if p.exists():
-            x = np.load(p)["data"]
-            for k, axis in enumerate("XYZ"):
-                yield p.stem, axis, np.deg2rad(x[:, k])
-    p = data / MTIG
-    if p.exists():
-        yield "mtig_cont_imu1", "X", np.asarray(np.load(p)["data"], dtype=float).ravel()
+        if not p.exists():
+            continue
+        rec = read_recording(p)
+        timing = timing_of(rec.time, fs, rec.n_samples, rec.path)
+        for s in to_si(rec, units, accel_units):
+            for axis, x in s.axes.items():
+                yield name, s.sensor, axis, x, timing
 
 
 def _round(v):
@@ -59,47 +73,48 @@ def _round(v):
 
 
 def fit_all(data: Path, methods) -> pd.DataFrame:
-    import estimators
-    from noise_models.units import COEFFICIENTS, PAPER_UNITS, from_si
+    """Every method on every axis (:func:`studies.recordings.fit.fit_axis`), one row per coefficient."""
+    from noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si
+    from studies.recordings.fit import fit_axis
+    from studies.recordings.report import coefficient_flags
 
     rows = []
-    for rec, axis, rate in _records(data):
-        for name in methods:
-            est = estimators.get(name).fit(rate, DT)
-            d = est.diagnostics_
-            se = d.get("std_err")
+    for rec, sensor, axis, x, timing in _records(data):
+        units = DISPLAY_UNITS[sensor]
+        for name, fit in fit_axis(x, timing.dt, timing.starts, methods).items():
+            d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
+            coefs, se, flags = fit.coefficients(), fit.std_errors() or {}, coefficient_flags(fit)
             for c in COEFFICIENTS:
-                v = est.coefficients_[c]
-                s = se.get(c, math.nan) if isinstance(se, pd.Series) else math.nan
+                s = se.get(c, math.nan)
                 rows.append({
-                    "record": rec, "axis": axis, "method": name, "coefficient": c, "unit": PAPER_UNITS[c],
-                    "value": _round(from_si(c, v, PAPER_UNITS[c])),
-                    "std_err": _round(from_si(c, s, PAPER_UNITS[c])) if np.isfinite(s) else math.nan,
-                    "nonphysical": bool(est.nonphysical_[c]),
+                    "record": rec, "sensor": sensor, "axis": axis, "method": name, "coefficient": c,
+                    "unit": units[c], "value": _round(from_si(c, coefs[c], units[c], sensor)),
+                    "std_err": _round(from_si(c, s, units[c], sensor)) if np.isfinite(s) else math.nan,
+                    "flag": flags[c],
                     "poor_fit": bool(d.get("poor_fit", False)),
                     "fit_stat": _round(d.get("fit_stat", math.nan)),
                     "fit_dof": d.get("fit_dof", 0),
                     "fit_pvalue": _round(d.get("fit_pvalue", math.nan)),
                     "min_m": d.get("min_m", math.nan),
                 })
-            print(f"{rec} {axis} {name}: " + " ".join(
-                f"{c}={from_si(c, est.coefficients_[c], PAPER_UNITS[c]):.4g}" for c in COEFFICIENTS)
-                + f" poor_fit={d.get('poor_fit')}", flush=True)
+            print(f"{rec} {sensor} {axis} {name}: " + (" ".join(
+                f"{c}={from_si(c, coefs[c], units[c], sensor):.4g}" for c in COEFFICIENTS)
+                + f" poor_fit={d.get('poor_fit')}" if fit.error is None else f"failed ({fit.error})"), flush=True)
     return pd.DataFrame(rows)
 
 
 def consistency(df: pd.DataFrame) -> pd.DataFrame:
     """Run-to-run spread of each method's estimates on the six ADIS runs (module docstring)."""
-    adis = df[df.record.str.startswith("adis")]
+    adis = df[df.record.map(_GROUP) == "adis16405"]
     out = []
-    for (axis, method, coef), g in adis.groupby(["axis", "method", "coefficient"], sort=False):
+    for (sensor, axis, method, coef), g in adis.groupby(["sensor", "axis", "method", "coefficient"], sort=False):
         v = g["value"].to_numpy(dtype=float)
         ok = np.isfinite(v)
         if not ok.any():
             continue
         se = np.nanmedian(g["std_err"].to_numpy(dtype=float)) if np.isfinite(g["std_err"]).any() else math.nan
         sd = float(np.std(v[ok], ddof=1)) if ok.sum() > 1 else math.nan
-        out.append({"axis": axis, "method": method, "coefficient": coef, "unit": g["unit"].iloc[0],
+        out.append({"sensor": sensor, "axis": axis, "method": method, "coefficient": coef, "unit": g["unit"].iloc[0],
                     "n_runs": int(ok.sum()), "mean": _round(float(np.mean(v[ok]))), "run_sd": _round(sd),
                     "cv_pct": _round(100 * sd / abs(np.mean(v[ok]))) if np.mean(v[ok]) != 0 else math.nan,
                     "median_se": _round(se), "sd_over_se": _round(sd / se) if se and np.isfinite(se) else math.nan,
@@ -117,43 +132,49 @@ def _markdown(df: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _figures(data: Path, df: pd.DataFrame, out: Path) -> None:
+def _figures(data: Path, df: pd.DataFrame, out: Path) -> list[str]:
+    """One figure per group (ADIS16405, MTi-G), sensor and axis: every run's overlapping ADEV (in the
+    display unit of B) with the ``nnls_rel`` model of the runs' median coefficients."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from estimators.allan import allan_variance
     from estimators.av_model import model_avar
-    from noise_models.units import COEFFICIENTS, PAPER_UNITS, as_si
+    from noise_models.units import COEFFICIENTS, DISPLAY_UNITS, SI_SAMPLE_UNIT, from_si, to_si
+    from studies.recordings.fit import scaled_allan
 
-    k = 180 / math.pi * 3600  # rad/s -> deg/h
     curves: dict = {}
-    for rec, axis, rate in _records(data):
-        curves[(rec, axis)] = allan_variance(rate, DT, "octave", overlapping=True)
-    for axis in "XYZ":
-        keys = [key for key in curves if key[0].startswith("adis") and key[1] == axis]
-        if not keys:
-            continue
+    for rec, sensor, axis, x, timing in _records(data):
+        av, scale = scaled_allan(x, timing.dt, timing.starts)
+        curves.setdefault((_GROUP[rec], sensor, axis), []).append((rec, av.tau, av.adev / scale))
+    written = []
+    for (group, sensor, axis), runs in curves.items():
+        unit = DISPLAY_UNITS[sensor]["B"]  # ADEV shown in the unit of the bias instability
+        k = from_si("B", 1.0, unit, sensor)
         fig, ax = plt.subplots(figsize=(7.5, 5.2))
-        for i, key in enumerate(sorted(keys)):
-            av = curves[key]
-            ax.loglog(av.tau, av.adev * k, "o-", ms=3, lw=0.8, color=f"C{i}", label=key[0].replace("adis_16405_", ""))
+        for i, (rec, tau, adev) in enumerate(sorted(runs, key=lambda r: r[0])):
+            ax.loglog(tau, adev * k, "o-", ms=3, lw=0.8, color=f"C{i}", label=rec.replace("adis_16405_", ""))
         tau = np.logspace(-2, 3.5, 60)
-        sub = df[(df.axis == axis) & (df.method == "nnls_rel") & df.record.str.startswith("adis")]
+        recs = [r[0] for r in runs]
+        sub = df[(df.sensor == sensor) & (df.axis == axis) & (df.method == "nnls_rel") & df.record.isin(recs)]
         if len(sub):
             med = sub.groupby("coefficient")["value"].median()
-            coefs = {c: as_si(c, [float(med[c]), PAPER_UNITS[c]]) for c in COEFFICIENTS
+            coefs = {c: to_si(c, float(med[c]), DISPLAY_UNITS[sensor][c], sensor) for c in COEFFICIENTS
                      if c in med and np.isfinite(med[c])}
             ax.loglog(tau, np.sqrt(model_avar(coefs, tau)) * k, "--k", lw=1.2,
-                      label="nnls_rel, median coefficients of the six runs")
+                      label="nnls_rel" + (f", median coefficients of the {len(recs)} runs" if len(recs) > 1 else ""))
         ax.set_xlabel("τ (s)")
-        ax.set_ylabel("Allan deviation (°/h)")
-        ax.set_title(f"ADIS16405 gyro {axis}: six static runs of 2.8 h")
+        ax.set_ylabel(f"Allan deviation ({unit}; samples in {SI_SAMPLE_UNIT[sensor]})")
+        what = "six static runs of 2.8 h" if len(recs) == 6 else f"{len(recs)} static run(s)"
+        ax.set_title(f"{'ADIS16405' if group == 'adis16405' else 'XSens MTi-G'} {sensor} {axis}: {what}")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-        fig.savefig(out / f"adis16405_{axis}.png", dpi=100, bbox_inches="tight")
+        name = f"{group}_{sensor}_{axis}.png"
+        fig.savefig(out / name, dpi=100, bbox_inches="tight")
         plt.close(fig)
+        written.append(name)
+    return written
 
 
 def main(argv=None) -> int:
@@ -167,8 +188,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     data, out = Path(args.data), Path(args.out)
     methods = [m for m in args.methods.split(",") if m and not (args.skip_slow and m == "mle")]
-    if not any(True for _ in _records(data)):
-        raise SystemExit(f"real_runs: no recordings found under {data} (expected {ADIS[0]} ... or {MTIG})")
+    if not any((data / r[2]).exists() for r in RECORDS):
+        raise SystemExit(f"real_runs: no recordings found under {data} (expected {RECORDS[0][2]} ... or {RECORDS[-1][2]})")
     out.mkdir(parents=True, exist_ok=True)
     if args.tables_only:
         df = pd.read_csv(out / "coefficients.csv")

@@ -40,8 +40,13 @@ __all__ = ["Channel", "Recording", "read_recording", "TEXT_SUFFIXES", "KNOWN_SUF
 TEXT_SUFFIXES = (".csv", ".txt", ".dat", ".tsv")
 KNOWN_SUFFIXES = (".npy", ".npz", *TEXT_SUFFIXES, ".bag", ".db3", ".mcap", ".ulg")
 _TIME_NAMES = {"t", "time", "timestamp", "time_s", "times", "t_s"}
-_GYRO_RE = re.compile(r"^(gyro|gyr|g|w|omega|wx|wy|wz|angular_velocity)[_ .\-\[]?([xyz012])\]?$|gyro.*[_ .\-]?([xyz])$", re.I)
-_ACCEL_RE = re.compile(r"^(accel|acc|a|linear_acceleration|accelerometer)[_ .\-\[]?([xyz012])\]?$|acc.*[_ .\-]?([xyz])$", re.I)
+#: a unit written after the axis in a column name (``gyro_x_dps``, ``acc_x_g``): recognised for the axis
+#: label only -- the units still come from the format or the user, never from a name
+_UNIT_SUFFIX = r"(?:[_ .\-](?:dps|degs|deg_s|rps|rads|rad_s|g|mg|ug|mps2|ms2|m_s2))?"
+_GYRO_RE = re.compile(r"^(gyro|gyr|g|w|omega|wx|wy|wz|angular_velocity)[_ .\-\[]?([xyz012])\]?" + _UNIT_SUFFIX
+                      + r"$|gyro.*[_ .\-]?([xyz])$", re.I)
+_ACCEL_RE = re.compile(r"^(accel|acc|a|linear_acceleration|accelerometer)[_ .\-\[]?([xyz012])\]?" + _UNIT_SUFFIX
+                       + r"$|acc.*[_ .\-]?([xyz])$", re.I)
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
 
