@@ -46,15 +46,21 @@ no variance).
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
-__all__ = ["ALPHA", "MIN_CLUSTERS", "assess_fit", "assess_five_term", "five_term_gyro", "fit_statistic"]
+__all__ = ["ALPHA", "MIN_CLUSTERS", "assess_fit", "assess_five_term", "five_term_gyro", "fit_statistic",
+           "refit_weights", "weighted_chi2_sf"]
 
 #: significance level of the poor-fit flag
 ALPHA = 0.01
 #: octave cluster sizes with fewer clusters floor(n/m) are not used by the check
 MIN_CLUSTERS = 8
+#: below this the Imhof integral is at the level of its error: the two-moment tail is used
+IMHOF_FLOOR = 1e-7
+#: finite-difference step of :func:`refit_weights`, in standard deviations of each AV value
+REL_STEP = 0.01
 
 
 def five_term_gyro(coefs, dt):
@@ -93,8 +99,101 @@ def fit_statistic(avar, model, cov, n_params):
     return T, dof, p, z
 
 
+def weighted_chi2_sf(x, weights) -> float:
+    """P(sum_i w_i Z_i^2 > x) for independent standard normal Z_i and weights w_i >= 0.
+
+    Imhof (1961, eq. 3.2) with h_i = 1 and no non-centrality:
+
+    .. math:: P(Q > x) = \frac12 + \frac1\pi\int_0^\infty
+        \frac{\sin\theta(u)}{u\,\rho(u)}\,du,\quad
+        \theta(u) = \tfrac12\sum_i \arctan(w_i u) - \tfrac12 x u,\quad
+        \rho(u) = \prod_i (1 + w_i^2 u^2)^{1/4},
+
+    integrated numerically (absolute error ~1e-9). Below :data:`IMHOF_FLOOR` the integral is at the
+    level of its own error, and the tail is taken from the two-moment (Satterthwaite 1946 /
+    Welch) approximation :math:`a\chi^2_\nu`, :math:`a = \sum w^2/\sum w`,
+    :math:`\nu = (\sum w)^2/\sum w^2` (capped at the floor, so the flag never depends on it).
+    """
+    from scipy import integrate, stats
+
+    w = np.asarray(weights, dtype=float)
+    w = w[w > 1e-12 * max(float(w.max(initial=0.0)), 1e-300)]
+    if w.size == 0:
+        return 0.0 if x > 0 else 1.0
+    if not np.isfinite(x):
+        return 0.0
+    if x <= 0:
+        return 1.0
+
+    def integrand(u):
+        theta = 0.5 * np.sum(np.arctan(w * u)) - 0.5 * x * u
+        log_rho = 0.25 * np.sum(np.log1p((w * u) ** 2))
+        return math.sin(theta) / (u * math.exp(log_rho))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", integrate.IntegrationWarning)
+        val, _ = integrate.quad(integrand, 0.0, np.inf, limit=1000, epsabs=1e-11)
+    p = 0.5 + val / math.pi
+    if p < IMHOF_FLOOR:
+        a, nu = float(np.sum(w**2) / np.sum(w)), float(np.sum(w) ** 2 / np.sum(w**2))
+        p = min(IMHOF_FLOOR, float(stats.chi2.sf(x / a, nu)))
+    return float(min(max(p, 0.0), 1.0))
+
+
+def refit_weights(refit, m_check, cov_gyro, n_samples, cov_scale=1.0, rel_step=REL_STEP):
+    """Weights of the null distribution of T for an estimator that is a function of the AV curve.
+
+    ``refit = (m_fit, avar_fit, fn)``: the cluster sizes and values of the (overlapping) AV the
+    estimator fitted, and ``fn(avar, tau) -> model AV at tau`` re-running its fit on another AV
+    vector. Linearised at ``avar_fit`` by central differences (steps ``rel_step`` times each
+    value's standard deviation, or times the value itself where that is smaller, so the perturbed
+    AV stays positive), the model at the check taus moves by :math:`J\,\delta e_f`, so the
+    residual at the check taus is :math:`r = D\,e` with :math:`D = S_c - J S_f` (selectors of the
+    check and fit sizes in their union) and
+
+    .. math:: \Sigma_r = D\,\Omega_u D^T,\qquad
+        T = r^T\Omega_c^{-1} r \approx \sum_i \lambda_i\,\chi^2_{1,i},\quad
+        \lambda = \mathrm{eig}(L^{-1}\Sigma_r L^{-T}),\ \Omega_c = LL^T,
+
+    :math:`\Omega_u` the model covariance of the AV at the union of sizes
+    (:func:`estimators.gmwm.av_covariance`). Returns ``(weights, J)``. For an efficient fit the
+    weights are k - p ones and p zeros (the chi^2_{k-p} of GMM); an inefficient one has some above
+    1 and more than p below: that is where the plain chi^2 reference gave false alarms.
+    """
+    from estimators.gmwm import av_covariance
+
+    m_fit, avar_fit, fn = refit
+    m_fit = np.asarray(m_fit, dtype=np.int64)
+    avar_fit = np.asarray(avar_fit, dtype=float)
+    m_check = np.asarray(m_check, dtype=np.int64)
+    u = np.union1d(m_fit, m_check)
+    omega = av_covariance(cov_gyro, u, n_samples) * cov_scale
+    i_f, i_c = np.searchsorted(u, m_fit), np.searchsorted(u, m_check)
+    sd = np.sqrt(np.clip(np.diag(omega)[i_f], 0, None))
+    tau_c = m_check * cov_gyro.dt
+    J = np.zeros((m_check.size, m_fit.size))
+    for j in range(m_fit.size):
+        h = rel_step * min(sd[j], abs(avar_fit[j])) if sd[j] > 0 else rel_step * abs(avar_fit[j])
+        if not h > 0:
+            continue
+        up, dn = avar_fit.copy(), avar_fit.copy()
+        up[j] += h
+        dn[j] -= h
+        J[:, j] = (np.asarray(fn(up, tau_c), float) - np.asarray(fn(dn, tau_c), float)) / (2 * h)
+    D = -J @ np.eye(u.size)[i_f]
+    D[np.arange(m_check.size), i_c] += 1.0
+    sigma_r = D @ omega @ D.T
+    oc = omega[np.ix_(i_c, i_c)]
+    from scipy.linalg import cholesky, solve_triangular
+
+    L = cholesky(oc, lower=True)
+    A = solve_triangular(L, solve_triangular(L, sigma_r, lower=True).T, lower=True)
+    lam = np.linalg.eigvalsh(0.5 * (A + A.T))
+    return np.clip(lam, 0.0, None), J
+
+
 def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alpha=ALPHA, reference=None,
-               cov_scale=1.0) -> dict:
+               cov_scale=1.0, refit=None) -> dict:
     """The poor-fit diagnostics of one fitted model on one record (module docstring).
 
     Parameters
@@ -117,10 +216,15 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
     cov_scale : float
         Factor applied to the model covariance of the reference values (the robust AV's variance
         bound, 1/efficiency; 1 for the classical AV).
+    refit : (m_fit, avar_fit, fn) or None
+        For an estimator that is a function of the overlapping AV at cluster sizes ``m_fit``
+        (values ``avar_fit``): ``fn(avar, tau)`` re-runs its fit and returns its model AV at
+        ``tau``. The p-value then comes from the weighted chi^2 of :func:`refit_weights` (the
+        estimator's own inefficiency taken into account) instead of chi^2 with k - p dof.
 
     Returns
     -------
-    dict with ``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``, ``fit_check``.
+    dict with ``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``, ``fit_reference``, ``fit_check``.
     """
     from estimators.allan import allan_variance
     from estimators.gmwm import av_covariance
@@ -140,7 +244,7 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
                          "alpha": float(alpha)}}
     if tau.size <= n_params:
         # nothing left to test the model against
-        out.update(poor_fit=False, fit_stat=math.nan, fit_dof=0, fit_pvalue=math.nan)
+        out.update(poor_fit=False, fit_stat=math.nan, fit_dof=0, fit_pvalue=math.nan, fit_reference="none")
         return out
     if cov_gyro is None or not np.all(np.isfinite(model)):
         cov = np.zeros((tau.size, tau.size))
@@ -148,14 +252,36 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
         cov = av_covariance(cov_gyro, m, n) * cov_scale
     T, dof, p, z = fit_statistic(avar, model, cov, n_params)
     out["fit_check"]["z"] = z
-    out.update(poor_fit=bool(p < alpha), fit_stat=T, fit_dof=dof, fit_pvalue=p)
+    reference_name = "chi2"
+    if refit is not None and cov_gyro is not None and np.isfinite(T):
+        try:
+            lam, _ = refit_weights(refit, m, cov_gyro, n, cov_scale)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+            lam = None  # keep the chi^2_{k-p} reference
+        if lam is not None and np.all(np.isfinite(lam)) and lam.sum() > 0:
+            p = weighted_chi2_sf(T, lam)
+            reference_name = "weighted chi2"
+            out["fit_check"]["weights"] = lam
+    out.update(poor_fit=bool(p < alpha), fit_stat=T, fit_dof=dof, fit_pvalue=p, fit_reference=reference_name)
     return out
 
 
-def assess_five_term(rate, dt, coefs, n_params, tau_range=None, *, alpha=ALPHA) -> dict:
-    """:func:`assess_fit` for coefficients of the five-term model (NaN / missing terms omitted)."""
+def assess_five_term(rate, dt, coefs, n_params, tau_range=None, *, alpha=ALPHA, refit=None) -> dict:
+    """:func:`assess_fit` for coefficients of the five-term model (NaN / missing terms omitted).
+
+    ``refit = (tau_fit, avar_fit, coefs_fn)``: the overlapping AV the estimator fitted and
+    ``coefs_fn(avar) -> coefficients`` re-running its fit (see :func:`assess_fit`)."""
     from estimators.av_model import model_avar
 
     finite = {c: v for c, v in coefs.items() if v is not None and np.isfinite(v)}
+    ref = None
+    if refit is not None:
+        tau_f, avar_f, coefs_fn = refit
+
+        def fn(a, tau):
+            c = coefs_fn(a)
+            return model_avar({k: v for k, v in c.items() if v is not None and np.isfinite(v)}, tau)
+
+        ref = (np.rint(np.asarray(tau_f, float) / dt).astype(np.int64), avar_f, fn)
     return assess_fit(rate, dt, lambda tau: model_avar(finite, tau), five_term_gyro(finite, dt), n_params,
-                      tau_range, alpha=alpha)
+                      tau_range, alpha=alpha, refit=ref)

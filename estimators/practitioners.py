@@ -153,6 +153,13 @@ class _AVBaseline(Estimator):
         tau, avar = _av(rate, dt, self.taus, self.overlapping, int(mc))
         return terms, tau, avar
 
+    def _refit(self, tau, avar, coefs_fn):
+        """The poor-fit check's handle on this fit (:func:`estimators.fit_check.assess_five_term`):
+        the fitted AV and the fit as a function of it, so that the check's reference distribution
+        holds this estimator's own sampling error; None (plain chi^2) for a non-overlapping AV,
+        whose covariance the check does not model."""
+        return (tau, avar, coefs_fn) if self.overlapping else None
+
 
 @register("slope_lines")
 class SlopeLines(_AVBaseline):
@@ -203,7 +210,8 @@ class SlopeLines(_AVBaseline):
             raise ValueError(f"ordered: expected True or False, got {self.ordered!r}")
         coefs, used = slope_line_coefficients(tau, np.sqrt(avar), terms, ordered=self.ordered)
         diag = {"tau": tau, "avar": avar, "tau_used": {c: float(tau[i]) for c, i in used.items()}}
-        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1])))
+        refit = self._refit(tau, avar, lambda a: slope_line_coefficients(tau, np.sqrt(a), terms, ordered=self.ordered)[0])
+        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit))
         return coefs, {}, diag
 
 
@@ -245,7 +253,8 @@ class LogFit(_AVBaseline):
                 "cost": float(sol.cost), "success": bool(sol.success)}
         if not sol.success:
             diag["failure"] = f"least_squares: {sol.message}"
-        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1])))
+        refit = self._refit(tau, avar, lambda a: coefficients_from_beta(log_fit_beta(tau, a, terms)[0], terms)[0])
+        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit))
         return coefs, nonphys, diag
 
 
@@ -314,5 +323,6 @@ class NNLSRel(_AVBaseline):
         coefs, nonphys = coefficients_from_beta(beta, terms)
         fitted = design_matrix(tau, terms) @ beta
         diag = {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": fitted}
-        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1])))
+        refit = self._refit(tau, avar, lambda a: coefficients_from_beta(nnls_rel_beta(tau, a, terms), terms)[0])
+        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit))
         return coefs, nonphys, diag
