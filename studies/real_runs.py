@@ -141,7 +141,7 @@ def _figures(data: Path, df: pd.DataFrame, out: Path) -> list[str]:
     import matplotlib.pyplot as plt
 
     from estimators.av_model import model_avar
-    from noise_models.units import COEFFICIENTS, DISPLAY_UNITS, SI_SAMPLE_UNIT, from_si, to_si
+    from noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si, to_si
     from studies.recordings.fit import scaled_allan
 
     curves: dict = {}
@@ -165,7 +165,7 @@ def _figures(data: Path, df: pd.DataFrame, out: Path) -> list[str]:
             ax.loglog(tau, np.sqrt(model_avar(coefs, tau)) * k, "--k", lw=1.2,
                       label="nnls_rel" + (f", median coefficients of the {len(recs)} runs" if len(recs) > 1 else ""))
         ax.set_xlabel("τ (s)")
-        ax.set_ylabel(f"Allan deviation ({unit}; samples in {SI_SAMPLE_UNIT[sensor]})")
+        ax.set_ylabel(f"Allan deviation ({unit})")
         what = "six static runs of 2.8 h" if len(recs) == 6 else f"{len(recs)} static run(s)"
         ax.set_title(f"{'ADIS16405' if group == 'adis16405' else 'XSens MTi-G'} {sensor} {axis}: {what}")
         ax.grid(True, which="both", alpha=0.3)

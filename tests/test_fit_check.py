@@ -1,6 +1,8 @@
 """The poor-fit check (estimators.fit_check): calibration under the model, power against a missing
 term, and its presence in every curve-fitting estimator's diagnostics."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -60,3 +62,81 @@ def test_nonphysical_coefficient_leaves_its_term_out_and_is_flagged():
     x = G.simulate(20_000, np.random.default_rng(5))
     d = assess_five_term(x, 0.1, {"N": np.nan}, 1)
     assert d["poor_fit"] and d["fit_pvalue"] == 0.0
+
+
+# -- the reference distribution per estimator ----------------------------------------------------
+def test_weighted_chi2_tail_against_its_special_cases_and_simulation():
+    from scipy import stats
+
+    from estimators.fit_check import weighted_chi2_sf
+
+    for k, x in ((1, 0.5), (3, 7.8), (10, 25.0), (12, 40.0)):
+        assert weighted_chi2_sf(x, np.ones(k)) == pytest.approx(stats.chi2.sf(x, k), abs=1e-8)
+        assert weighted_chi2_sf(2.5 * x, np.r_[2.5 * np.ones(k), 0.0, 0.0]) == pytest.approx(stats.chi2.sf(x, k), abs=1e-8)
+    # unequal weights: against 400,000 draws of the sum (binomial standard error <= 8e-4)
+    w = np.array([4.0, 1.5, 1.0, 0.6, 0.2, 0.05])
+    draws = (np.random.default_rng(1).standard_normal((400_000, w.size)) ** 2) @ w
+    for x in (2.0, 8.0, 20.0, 35.0):
+        p_mc = float(np.mean(draws > x))
+        assert abs(weighted_chi2_sf(x, w) - p_mc) < 4 * math.sqrt(p_mc * (1 - p_mc) / draws.size) + 1e-6
+    assert weighted_chi2_sf(1e4, w) <= 1e-7  # far tail: tiny, never above the Imhof floor
+
+
+def test_refit_weights_of_an_efficient_linear_fit_are_zeros_and_ones():
+    # GLS with the AV covariance as weight is the efficient fit: k - p weights 1, p weights 0
+    from estimators.av_model import design_matrix
+    from estimators.fit_check import refit_weights
+    from estimators.gmwm import av_covariance
+
+    n = 100_000
+    m = 2 ** np.arange(0, 13)
+    tau = m * G.dt
+    omega = av_covariance(G, m, n)
+    X = design_matrix(tau, "NBK")
+    Wi = np.linalg.inv(omega)
+
+    def gls(a, t):
+        beta = np.linalg.solve(X.T @ Wi @ X, X.T @ Wi @ a)
+        return design_matrix(t, "NBK") @ beta
+
+    lam, _ = refit_weights((m, G.avar(tau), gls), m, G, n)
+    assert np.allclose(np.sort(lam), np.r_[np.zeros(3), np.ones(m.size - 3)], atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["nnls_rel", "log_fit", "slope_lines"])
+def test_correct_model_not_flagged_small_sample(name):
+    # white noise fitted with the right term set (N): with the plain chi^2 reference nnls_rel was
+    # flagged in ~80 % of such records; with its own reference the flag should fire with
+    # probability 1 %: at most 2 of 12 (binomial 1 %: P(>= 3 of 12) = 2e-4)
+    from studies.fit_check_calibration import flag_rates
+
+    r = flag_rates("white", name, 12, n_samples=20_000, seed=99)
+    assert r["reference"] == "weighted chi2"
+    assert r["flagged"] <= 2, r
+
+
+def test_wrong_model_still_flagged_small_sample():
+    # a Gauss-Markov bump fitted with white noise only: flagged (power)
+    from studies.fit_check_calibration import flag_rates
+
+    for name in ("nnls_rel", "log_fit"):
+        r = flag_rates("white+GM, fitted N only", name, 4, n_samples=20_000, seed=5)
+        assert r["flagged"] == 4, r
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["nnls_rel", "log_fit", "slope_lines"])
+@pytest.mark.parametrize("case", ["white", "CRG20"])
+def test_false_alarm_rate_is_nominal(case, name):
+    # 200 replicates, nominal 1 %: the count is binomial(200, 0.01); 99.9 % interval 0..7
+    from scipy import stats
+
+    from studies.fit_check_calibration import flag_rates
+
+    r = flag_rates(case, name, 200)
+    hi = stats.binom.ppf(0.999, 200, 0.01)
+    assert r["flagged"] <= hi, r
+    # and the p-values are uniform: the fraction below 0.1 within its binomial 99.9 % interval
+    k = int(np.sum(r["p_values"] < 0.1))
+    lo, hi10 = stats.binom.ppf([0.0005, 0.9995], 200, 0.1)
+    assert lo <= k <= hi10, (k, r["rate"])
