@@ -15,7 +15,8 @@ code. Writes to ``--out``:
                       error in the display units of :data:`noise_models.units.DISPLAY_UNITS` (gyro:
                       the papers' units; accelerometer: m/s/sqrt(h), ug, ...), the coefficient's
                       ``flag`` (ok / not modelled / non-physical / failed), and the fit's ``poor_fit``
-                      flag with its statistic, dof and p-value (5 significant digits);
+                      flag with its statistic, dof, p-value and the reference distribution the
+                      p-value comes from (:mod:`estimators.fit_check`) (5 significant digits);
 ``consistency.csv`` / ``consistency.md``  per ADIS sensor, axis, method and coefficient: mean over the
                       six runs, run-to-run standard deviation, the method's own median standard
                       error, their ratio, the number of runs with a value, and of poor fits;
@@ -95,6 +96,7 @@ def fit_all(data: Path, methods) -> pd.DataFrame:
                     "fit_stat": _round(d.get("fit_stat", math.nan)),
                     "fit_dof": d.get("fit_dof", 0),
                     "fit_pvalue": _round(d.get("fit_pvalue", math.nan)),
+                    "fit_reference": d.get("fit_reference", ""),
                     "min_m": d.get("min_m", math.nan),
                 })
             print(f"{rec} {sensor} {axis} {name}: " + (" ".join(

@@ -113,7 +113,7 @@ def _method_entry(fit, sensor, n_samples):
     if detail is not None:
         out["poor_fit_detail"] = detail
     if fit.estimator is not None:  # the chi^2-type check behind poor_fit, where the estimator reports it
-        for key in ("fit_stat", "fit_dof", "fit_pvalue"):
+        for key in ("fit_stat", "fit_dof", "fit_pvalue", "fit_reference"):
             if key in fit.estimator.diagnostics_:
                 out[key] = _jsonable(fit.estimator.diagnostics_[key])
     return out
