@@ -20,7 +20,7 @@ CASES = {
     "white": (lambda: _gyro("white"), "N", "WN", 50_000, True),
     "ADIS16405_X": (lambda: _gyro("ADIS16405_X"), "NBK", None, 180_000, True),
     "CRG20": (lambda: _gyro("CRG20"), "QNB", None, 36_000, True),
-    "white+GM, fitted N only": (lambda: _gyro("gm"), "N", "WN", 50_000, False),
+    "white+GM (fitted: N only)": (lambda: _gyro("gm"), "N", "WN", 50_000, False),
 }
 METHODS = ("slope_lines", "log_fit", "nnls_rel", "ols", "wls", "wls_edf", "gmwm")
 

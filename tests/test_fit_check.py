@@ -120,23 +120,45 @@ def test_wrong_model_still_flagged_small_sample():
     from studies.fit_check_calibration import flag_rates
 
     for name in ("nnls_rel", "log_fit"):
-        r = flag_rates("white+GM, fitted N only", name, 4, n_samples=20_000, seed=5)
+        r = flag_rates("white+GM (fitted: N only)", name, 4, n_samples=20_000, seed=5)
         assert r["flagged"] == 4, r
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["nnls_rel", "log_fit", "slope_lines"])
-@pytest.mark.parametrize("case", ["white", "CRG20"])
+@pytest.mark.parametrize("case,name", [("white", "nnls_rel"), ("white", "log_fit"), ("white", "slope_lines"),
+                                       ("CRG20", "log_fit")])
 def test_false_alarm_rate_is_nominal(case, name):
     # 200 replicates, nominal 1 %: the count is binomial(200, 0.01); 99.9 % interval 0..7
+    # (not here: slope_lines on a composite model is biased, nnls_rel's zeroed terms on CRG20 --
+    # both real misses of the fitted curve, see estimators/fit_check.py)
     from scipy import stats
 
     from studies.fit_check_calibration import flag_rates
 
     r = flag_rates(case, name, 200)
-    hi = stats.binom.ppf(0.999, 200, 0.01)
-    assert r["flagged"] <= hi, r
+    assert r["flagged"] <= stats.binom.ppf(0.999, 200, 0.01), r
     # and the p-values are uniform: the fraction below 0.1 within its binomial 99.9 % interval
     k = int(np.sum(r["p_values"] < 0.1))
-    lo, hi10 = stats.binom.ppf([0.0005, 0.9995], 200, 0.1)
-    assert lo <= k <= hi10, (k, r["rate"])
+    lo, hi = stats.binom.ppf([0.0005, 0.9995], 200, 0.1)
+    assert lo <= k <= hi, (k, r["rate"])
+
+
+@pytest.mark.slow
+def test_bootstrap_reference_calibrates_an_inefficient_least_squares_fit():
+    # wls_edf on white noise with the right term set: flagged in ~80 % of records with the plain
+    # chi^2 reference. With the parametric-bootstrap reference (39 draws: p-values in steps of 1/40)
+    # p < 0.1 should happen in 10 % of records: binomial(20, 0.1) 99.9 % bound 7
+    from scipy import stats
+
+    from estimators.fit_check import bootstrap_fit_check
+    from studies.fit_check_calibration import _gyro
+
+    g = _gyro("white")
+    low = plain = 0
+    for i, ss in enumerate(np.random.SeedSequence(31).spawn(20)):
+        e = estimators.get("wls_edf", terms="N").fit(g.simulate(20_000, np.random.default_rng(ss)), g.dt)
+        plain += e.diagnostics_["poor_fit"]
+        bootstrap_fit_check(e, 20_000, g.dt, n_draws=39, seed=i)
+        assert e.diagnostics_["fit_reference"] == "parametric bootstrap, 39 draws"
+        low += e.diagnostics_["fit_pvalue"] < 0.1
+    assert low <= stats.binom.ppf(0.999, 20, 0.1) and plain >= 5, (low, plain)
