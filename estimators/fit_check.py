@@ -39,7 +39,7 @@ the residual vector :math:`r \\approx (S_c - J S_f)\\,e` has covariance
 :math:`\\Sigma_r = D\\Omega_u D^T`; then T is a weighted sum of independent chi^2_1 variables with
 weights the eigenvalues of :math:`\\Omega_c^{-1/2}\\Sigma_r\\Omega_c^{-1/2}`, and its tail is computed
 by Imhof's (1961) integral (:func:`weighted_chi2_sf`; the two-moment Satterthwaite tail below
-1e-7). ``fit_reference`` says which reference gave the p-value ("chi2" or "weighted chi2"); the
+1e-12). ``fit_reference`` says which reference gave the p-value ("chi2" or "weighted chi2"); the
 weights are in ``fit_check["weights"]``; ``fit_dof`` stays k - p. The approximation: the AV
 values are Gaussian with the model covariance (poor for the last few octaves the fits use, which
 the check itself leaves out) and the fit is linear within their spread.
@@ -176,9 +176,10 @@ def weighted_chi2_sf(x, weights) -> float:
         \\rho(u) = \\prod_i (1 + w_i^2 u^2)^{1/4},
 
     integrated numerically: directly up to two periods of the x u / 2 oscillation, as Fourier
-    integrals beyond (absolute error ~1e-14, checked against chi^2 and simulation in the tests). Below :data:`IMHOF_FLOOR` the integral is at the
-    level of its own error, and the tail is taken from the two-moment (Satterthwaite 1946 /
-    Welch) approximation :math:`a\\chi^2_\\nu`, :math:`a = \\sum w^2/\\sum w`,
+    integrals beyond (absolute error ~1e-14, checked against chi^2 and simulation in the tests).
+    Below :data:`IMHOF_FLOOR` the integral is at the level of its own error, and the tail is taken
+    from the two-moment (Satterthwaite 1946) approximation :math:`a\\chi^2_\\nu`,
+    :math:`a = \\sum w^2/\\sum w`,
     :math:`\\nu = (\\sum w)^2/\\sum w^2` (capped at the floor, so the flag never depends on it).
     """
     from scipy import integrate, stats
