@@ -374,7 +374,8 @@ def bootstrap_fit_check(estimator, n_samples: int, dt: float, n_draws: int = 199
     flicker for B) and refitted by clones of ``estimator``; the p-value is
     :math:`(1 + \\#\\{T^*_b \\ge T\\})/(n_\\mathrm{draws} + 1)` with T the estimator's ``fit_stat``
     and :math:`T^*_b` the clones' (the smallest p-value is 1/(n_draws + 1): the flag at level
-    alpha needs n_draws >= 1/alpha, 199 by default for alpha = 0.01). This is the reference for fits the analytic one cannot follow
+    alpha needs n_draws >= 1/alpha, 199 by default for alpha = 0.01). This is the reference for
+    fits the analytic one cannot follow
     (the least-squares family on the non-overlapping AV at every cluster size, whose covariance
     with the check's octave AV is not modelled). The five-term model is what is simulated, so it
     suits the five-term fits, not GMWM or the MLE (whose chi^2 reference is their own). Updates

@@ -210,7 +210,8 @@ class SlopeLines(_AVBaseline):
             raise ValueError(f"ordered: expected True or False, got {self.ordered!r}")
         coefs, used = slope_line_coefficients(tau, np.sqrt(avar), terms, ordered=self.ordered)
         diag = {"tau": tau, "avar": avar, "tau_used": {c: float(tau[i]) for c, i in used.items()}}
-        refit = self._refit(tau, avar, lambda a: slope_line_coefficients(tau, np.sqrt(a), terms, ordered=self.ordered)[0])
+        refit = self._refit(tau, avar,
+                            lambda a: slope_line_coefficients(tau, np.sqrt(a), terms, ordered=self.ordered)[0])
         diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit))
         return coefs, {}, diag
 

@@ -41,7 +41,8 @@ import pandas as pd
 #: (record, group, file under --data, gyro sample units, accelerometer sample units, rate in Hz):
 #: the units and rates the recordings' own READMEs state (the MTi-G's are not stated: rad/s assumed)
 RECORDS = [(f"adis_16405_imu{i}", "adis16405", f"adis16405-calgary/adis_16405_imu{i}.npz", "deg/s", "g", 100.0)
-           for i in range(1, 7)] + [("mtig_cont_imu1", "mtig_cont_imu1", "mtig-cont-imu1/cont_imu1.npz", "rad/s", None, 100.0)]
+           for i in range(1, 7)]
+RECORDS += [("mtig_cont_imu1", "mtig_cont_imu1", "mtig-cont-imu1/cont_imu1.npz", "rad/s", None, 100.0)]
 METHODS = ["ols", "ols_trimmed", "wls", "wls_edf", "slope_lines", "log_fit", "nnls_rel", "gmwm", "gmwm_robust",
            "gmwm_despiked", "mle"]
 SIG = 5  # significant digits of the committed numbers
@@ -191,7 +192,8 @@ def main(argv=None) -> int:
     data, out = Path(args.data), Path(args.out)
     methods = [m for m in args.methods.split(",") if m and not (args.skip_slow and m == "mle")]
     if not any((data / r[2]).exists() for r in RECORDS):
-        raise SystemExit(f"real_runs: no recordings found under {data} (expected {RECORDS[0][2]} ... or {RECORDS[-1][2]})")
+        raise SystemExit(f"real_runs: no recordings found under {data} "
+                         f"(expected {RECORDS[0][2]} ... or {RECORDS[-1][2]})")
     out.mkdir(parents=True, exist_ok=True)
     if args.tables_only:
         df = pd.read_csv(out / "coefficients.csv")

@@ -15,7 +15,8 @@ from estimators.base import DEFAULT_METHODS
 from noise_models.units import DISPLAY_UNITS, from_si
 
 # next to the repository (../shared/data/real), or where AVBENCH_REAL_DATA says (e.g. from a worktree)
-DATA = Path(os.environ.get("AVBENCH_REAL_DATA", Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"))
+DATA = Path(os.environ.get("AVBENCH_REAL_DATA",
+                          Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"))
 ADIS = DATA / "adis16405-calgary" / "adis_16405_imu1.npz"
 MTIG = DATA / "mtig-cont-imu1" / "cont_imu1.npz"
 needs = pytest.mark.skipif(not (ADIS.exists() and MTIG.exists()),
@@ -36,8 +37,8 @@ def _axes(path, units, accel_units=None):
 @needs
 @pytest.mark.parametrize("name", DEFAULT_METHODS)
 def test_defaults_are_physically_plausible_on_real_gyros(name):
-    # plausibility bounds (DEFAULT_METHODS gave N 1.4-2.8, B 8-58 on all 19 axes; results/real): N within a factor 1.5 of the 2-3 deg/sqrt(h) every method and the
-    # datasheet's noise density agree on (MTi-G: 1.3-2.2), B between a fifth and twice the ADEV
+    # plausibility bounds (DEFAULT_METHODS gave N 1.4-2.8, B 8-58 on all 19 gyro axes; results/real):
+    # N within a factor 1.5 of the 2-3 deg/sqrt(h) every method and the datasheet's noise density agree on (MTi-G: 1.3-2.2), B between a fifth and twice the ADEV
     # minimum read as a plateau (B = min ADEV / 0.664: 38-46 deg/h on ADIS, 7-60 on the MTi-G)
     records = [(f"ADIS {a}", x) for s, a, x in _axes(ADIS, "deg/s", "g") if s == "gyro"]
     records += [("MTi-G", x) for _, _, x in _axes(MTIG, "rad/s")]
