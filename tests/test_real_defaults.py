@@ -38,8 +38,9 @@ def _axes(path, units, accel_units=None):
 @pytest.mark.parametrize("name", DEFAULT_METHODS)
 def test_defaults_are_physically_plausible_on_real_gyros(name):
     # plausibility bounds (DEFAULT_METHODS gave N 1.4-2.8, B 8-58 on all 19 gyro axes; results/real):
-    # N within a factor 1.5 of the 2-3 deg/sqrt(h) every method and the datasheet's noise density agree on (MTi-G: 1.3-2.2), B between a fifth and twice the ADEV
-    # minimum read as a plateau (B = min ADEV / 0.664: 38-46 deg/h on ADIS, 7-60 on the MTi-G)
+    # N within a factor 1.5 of the 2-3 deg/sqrt(h) every method and the datasheet's noise density
+    # agree on (MTi-G: 1.3-2.2), B between a fifth and twice the ADEV minimum read as a plateau
+    # (B = min ADEV / 0.664: 38-46 deg/h on ADIS, 7-60 on the MTi-G)
     records = [(f"ADIS {a}", x) for s, a, x in _axes(ADIS, "deg/s", "g") if s == "gyro"]
     records += [("MTi-G", x) for _, _, x in _axes(MTIG, "rad/s")]
     assert len(records) == 4
