@@ -54,6 +54,11 @@ def test_csv_with_header_json_only(tmp_path, record, capsys):
     assert (b["value"] is None) == (b["flag"] != "ok") and (b["value"] is None or b["value"] >= 0)
     for suffix in ("_gyro_av.png", "_av.csv", "_coefficients.csv", "_coefficients.json"):
         assert (out / f"rec_gyro_x{suffix}").is_file()
+    # the poor-fit check as the estimator made it, with the reference its p-value comes from
+    for m in ("nnls_rel", "slope_lines"):
+        entry = methods[m]
+        assert isinstance(entry["poor_fit"], bool) and 0.0 <= entry["fit_pvalue"] <= 1.0
+        assert entry["fit_reference"] == "weighted chi2"
 
 
 @pytest.mark.parametrize("kind", ["npy", "npz", "txt"])
