@@ -126,6 +126,10 @@ class MLE(Estimator):
     True
     """
 
+    #: Kalman filter of the likelihood (:meth:`estimators._mle_kernels.BlockMeanSystem.loglike`);
+    #: not a setting: the benchmark sets "exact_initial" on an instance to time the path of before
+    _loglike_method = "auto"
+
     def __init__(self, *, model="WN+GM+RW", block="auto", max_blocks=50_000, maxiter=200):
         self.model = model
         self.block = block
@@ -169,7 +173,7 @@ class MLE(Estimator):
         system = BlockMeanSystem(latents, m, dt)
         scale = 1.0 / float(np.std(y) or 1.0)  # the filter runs on y * scale (see _mle_kernels)
         x0 = _start_values(latents, sp, start.diagnostics_, dt)
-        fit = maximize_loglike(system, y, scale, x0, self.maxiter)
+        fit = maximize_loglike(system, y, scale, x0, self.maxiter, self._loglike_method)
         vals = system.values(fit["params"])
         cov = fit["cov"]
         # a non-positive variance (flat or non-concave likelihood, e.g. a term at zero) has no
@@ -240,7 +244,7 @@ _EPS_GRAD = np.finfo(float).eps ** (1 / 3)
 _EPS_HESS = np.finfo(float).eps ** (1 / 4) / 2
 
 
-def maximize_loglike(system, y, scale, x0, maxiter) -> dict:
+def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
     """Maximise the exact block-mean log-likelihood over the log-parameters (L-BFGS-B).
 
     The objective is ``-loglike / nobs`` (as statsmodels' ``MLEModel.fit``) with a
@@ -251,6 +255,9 @@ def maximize_loglike(system, y, scale, x0, maxiter) -> dict:
     differences of the central-difference score (statsmodels ``cov_type="approx"``,
     ``approx_centered=True``). Returns ``params``, ``cov``, ``loglike`` (scaled units),
     ``converged``, ``final_state`` and ``final_cov`` (last filtered state and covariance).
+    ``method`` selects the Kalman filter (:meth:`BlockMeanSystem.loglike`; the filters give the same
+    likelihood to ~1e-14 relative, "exact_initial" is the slower path of before, kept for the tests
+    and the benchmark).
     """
     from scipy.optimize import minimize
 
@@ -259,7 +266,7 @@ def maximize_loglike(system, y, scale, x0, maxiter) -> dict:
 
     def loglike(p):
         with np.errstate(all="ignore"):
-            return system.loglike(y, p, scale)
+            return system.loglike(y, p, scale, method=method)
 
     def objective(p):
         v = -loglike(p) / nobs
@@ -296,6 +303,6 @@ def maximize_loglike(system, y, scale, x0, maxiter) -> dict:
     except np.linalg.LinAlgError:
         cov = np.full(hess.shape, np.nan)
     a, P = np.empty(system.k), np.empty((system.k, system.k))
-    llf = system.loglike(y, p, scale, (a, P))
+    llf = system.loglike(y, p, scale, (a, P), method=method)
     return {"params": p, "cov": cov, "loglike": float(llf), "converged": converged,
             "final_state": a, "final_cov": P}
