@@ -139,6 +139,40 @@ class BlockMeanSystem:
 
 
 @njit(cache=True)
+def _sparse_rows(T):
+    """T's non-zero entries row by row (CSR): row pointers, rows, columns, values."""
+    k = T.shape[0]
+    tp = np.zeros(k + 1, dtype=np.int64)
+    for i in range(k):
+        tp[i + 1] = tp[i] + _nonzeros(T[i])[0]
+    ti = np.empty(tp[k], dtype=np.int64)
+    tl = np.empty(tp[k], dtype=np.int64)
+    tv = np.empty(tp[k])
+    for i in range(k):
+        _, cols, vals = _nonzeros(T[i])
+        for e in range(cols.shape[0]):
+            ti[tp[i] + e], tl[tp[i] + e], tv[tp[i] + e] = i, cols[e], vals[e]
+    return tp, ti, tl, tv
+
+
+@njit(cache=True)
+def _nonzeros(z):
+    """Count, positions and values of the non-zero entries of the vector ``z``."""
+    nnz = 0
+    for i in range(z.shape[0]):
+        if z[i] != 0.0:
+            nnz += 1
+    idx = np.empty(nnz, dtype=np.int64)
+    val = np.empty(nnz)
+    e = 0
+    for i in range(z.shape[0]):
+        if z[i] != 0.0:
+            idx[e], val[e] = i, z[i]
+            e += 1
+    return nnz, idx, val
+
+
+@njit(cache=True)
 def _predict(tp, ti, tl, tv, Pf, Qc, P, tmp):
     """P = T Pf T' + Qc, then forced symmetric (statsmodels' STABILITY_FORCE_SYMMETRY).
 
@@ -164,6 +198,32 @@ def _predict(tp, ti, tl, tv, Pf, Qc, P, tmp):
             s = 0.5 * (P[i, j] + P[j, i])
             P[i, j] = s
             P[j, i] = s
+
+
+@njit(cache=True)
+def _sq_change(P, Pprev):
+    """Squared Frobenius norm of P - Pprev (the steady-state test)."""
+    k = P.shape[0]
+    ss = 0.0
+    for i in range(k):
+        for j in range(k):
+            d = P[i, j] - Pprev[i, j]
+            ss += d * d
+    return ss
+
+
+@njit(cache=True)
+def _steady_gain(P, Z, H, M, K, Pf):
+    """Freeze the filter at the predicted covariance P: returns F, fills the gain K = P Z / F and the
+    filtered covariance Pf = P - P Z K'."""
+    k = P.shape[0]
+    F = _forecast(P, Z, H, M)
+    for i in range(k):
+        K[i] = M[i] / F
+    for i in range(k):
+        for j in range(k):
+            Pf[i, j] = P[i, j] - M[i] * K[j]
+    return F
 
 
 @njit(cache=True)
@@ -201,23 +261,7 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
     Mi = np.empty(k)
     K0 = np.empty(k)
     K1 = np.empty(k)
-    # T's non-zero entries by rows (CSR), for the covariance prediction
-    tp = np.zeros(k + 1, dtype=np.int64)
-    nnz = 0
-    for i in range(k):
-        for j in range(k):
-            if T[i, j] != 0.0:
-                nnz += 1
-        tp[i + 1] = nnz
-    ti = np.empty(nnz, dtype=np.int64)
-    tl = np.empty(nnz, dtype=np.int64)
-    tv = np.empty(nnz)
-    e = 0
-    for i in range(k):
-        for j in range(k):
-            if T[i, j] != 0.0:
-                ti[e], tl[e], tv[e] = i, j, T[i, j]
-                e += 1
+    tp, ti, tl, tv = _sparse_rows(T)  # T's non-zero entries by rows, for the covariance prediction
     zero = np.zeros((k, k))
     log2pi = math.log(2.0 * math.pi)
     ll = 0.0
@@ -297,21 +341,11 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
         if diffuse or t < nobs_diffuse + 1:
             _predict(tp, ti, tl, tv, Pif, zero, Pi, tmp)
         elif t + 1 < n:
-            ss = 0.0
-            for i in range(k):
-                for j in range(k):
-                    d = P[i, j] - Pprev[i, j]
-                    ss += d * d
-            if ss < TOL_CONVERGED:
+            if _sq_change(P, Pprev) < TOL_CONVERGED:
                 # the next forecast's F and gain are those of this step's covariance
                 converged = True
                 t_conv = t + 1
-                Fc = _forecast(P, Z, H, M)
-                for i in range(k):
-                    K0[i] = M[i] / Fc
-                for i in range(k):
-                    for j in range(k):
-                        Pf[i, j] = P[i, j] - M[i] * K0[j]
+                Fc = _steady_gain(P, Z, H, M, K0, Pf)
     if converged:
         ll -= 0.5 * ((n - t_conv) * (log2pi + math.log(Fc)) + ssq / Fc)
     for i in range(k):
@@ -393,33 +427,9 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
     w = np.empty(c)
     G = np.zeros((c, c))
     Gss = np.zeros((c, c))  # sum of w w' over the steady-state steps (divided by Fc at the end)
-    tp = np.zeros(k + 1, dtype=np.int64)
-    nnz = 0
-    for i in range(k):
-        for j in range(k):
-            if T[i, j] != 0.0:
-                nnz += 1
-        tp[i + 1] = nnz
-    ti = np.empty(nnz, dtype=np.int64)
-    tl = np.empty(nnz, dtype=np.int64)
-    tv = np.empty(nnz)
-    e = 0
-    for i in range(k):
-        for j in range(k):
-            if T[i, j] != 0.0:
-                ti[e], tl[e], tv[e] = i, j, T[i, j]
-                e += 1
-    zn = 0
-    for i in range(k):
-        if Z[i] != 0.0:
-            zn += 1
-    zi = np.empty(zn, dtype=np.int64)
-    zv = np.empty(zn)
-    e = 0
-    for i in range(k):
-        if Z[i] != 0.0:
-            zi[e], zv[e] = i, Z[i]
-            e += 1
+    tp, ti, tl, tv = _sparse_rows(T)
+    _, zi, zv = _nonzeros(Z)
+    zn = zi.shape[0]
     logdet = 0.0
     converged = False
     Fc = 1.0
@@ -444,21 +454,11 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
         _predict(tp, ti, tl, tv, Pf, Qc, P, tmp)
         t += 1
         if t < n:
-            ss = 0.0
-            for i in range(k):
-                for j in range(k):
-                    dd = P[i, j] - Pprev[i, j]
-                    ss += dd * dd
-            if ss < TOL_CONVERGED_AUGMENTED:
+            if _sq_change(P, Pprev) < TOL_CONVERGED_AUGMENTED:
                 # steady state: the next forecast's F and gain are those of this covariance
                 converged = True
                 t_conv = t
-                Fc = _forecast(P, Z, H, M)
-                for i in range(k):
-                    Kf[i] = M[i] / Fc
-                for i in range(k):
-                    for j in range(k):
-                        Pf[i, j] = P[i, j] - M[i] * Kf[j]
+                Fc = _steady_gain(P, Z, H, M, Kf, Pf)
     Aprev = np.empty((k, c))
     fixed = False
     while t < n and not fixed:

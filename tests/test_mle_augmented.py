@@ -7,6 +7,7 @@ import pytest
 import estimators
 from estimators._mle_kernels import BlockMeanSystem, augmented_loglike, augmented_loglike_py
 from estimators.mle import block_means
+from test_mle import _log_truth as _stochastic_log_truth
 from noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk, presets
 
 _DRIFT_CASES = [  # latents, block size, dt, terms (the stochastic ones in log-parameter order, then the ramp)
@@ -20,12 +21,7 @@ _DRIFT_CASES = [  # latents, block size, dt, terms (the stochastic ones in log-p
 
 
 def _log_truth(terms):
-    out = []
-    for t in terms:
-        if isinstance(t, RateRamp):
-            continue
-        out += [t.sigma, t.tc] if isinstance(t, GaussMarkov) else list(t.coefficients().values())
-    return np.log(out)
+    return _stochastic_log_truth([t for t in terms if not isinstance(t, RateRamp)])
 
 
 @pytest.mark.parametrize("latents, m, dt, terms", _DRIFT_CASES)
