@@ -60,7 +60,7 @@ a drift ("DR") that filter's covariance never settles (the slope's variance keep
 (de Jong 1991, "The diffuse Kalman filter", Ann. Statist. 19; Durbin & Koopman 2012, Sec. 5.7):
 the diffuse initial values (level, block-mean level, slope) become d extra columns of the state
 mean, the covariance is that of a proper initial state and settles as without a drift, and the
-likelihood is :math:`-\tfrac12[n\log2\pi + \sum\log F_t + q - s'S^{-1}s + \log|S|]` from the
+likelihood is :math:`-\\tfrac12[n\\log2\\pi + \\sum\\log F_t + q - s'S^{-1}s + \\log|S|]` from the
 accumulated cross-products of the innovation columns (:func:`estimators._mle_kernels.augmented_loglike`).
 On 2 h of the ADIS16405_X preset with "QN+WN+GM+RW+DR" this makes a likelihood evaluation ~8x
 cheaper and the whole fit several times faster (``results/bench``, ``MleFitDrift``).
