@@ -216,6 +216,10 @@ class GMWM(Estimator):
     True
     """
 
+    #: run the poor-fit check (:func:`estimators.fit_check.assess_fit`); not a setting: an estimator
+    #: that uses the GMWM fit only as its start sets it False on its instance
+    _assess = True
+
     def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6):
         self.model = model
         self.min_clusters = min_clusters
@@ -284,6 +288,8 @@ class GMWM(Estimator):
         diag["min_m"] = int(diag["m"][0])
         if self.min_m == "auto":
             diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
+        if not self._assess:  # a starting fit (estimators.mle): no poor-fit check
+            return best["coefs"], {}, diag
         gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
         diag.update(assess_fit(rate, dt, gyro.avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
                                reference=self._check_reference(tau_all, avar_all, m_all, n),
