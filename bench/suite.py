@@ -20,6 +20,7 @@ Every speed claim is a ratio against a baseline timed in the same loop:
   mean and buffer handling before) and against the bound of one cumulative sum + one read per tau.
 * ``OnlineDefaults`` -- shakf / nekf with default settings against the full per-sample trajectory.
 * ``MleFit`` -- ``mle`` (compiled likelihood) against the statsmodels path it replaced, 4 h at 100 Hz.
+* ``WhittleFit`` -- ``whittle`` (with and without term selection) on 4 h at 100 Hz against one FFT.
 * ``FlickerPreset`` -- the ADIS16405 preset (flicker B, tau_max = 2x the record) at 1e6 samples.
 * ``ReadRecording`` -- reading a 7-column CSV (time + 6 IMU axes) through ``avbench estimate``'s
   reader (:mod:`studies.recordings.readers`) against a bare ``pandas.read_csv`` of the same file,
@@ -57,6 +58,7 @@ __all__ = [
     "AllanKernel",
     "OnlineDefaults",
     "MleFit",
+    "WhittleFit",
     "FlickerPreset",
     "StartUp",
     "FirstCall",
@@ -466,6 +468,47 @@ class MleFit:
         self.rate = None
 
 
+class WhittleFit:
+    """``whittle`` (defaults: QNBKR with BIC term selection; and all five terms without selection) on 4 h
+    at 100 Hz, against one real FFT of the same record (the O(n log n) floor of any Whittle fit)."""
+
+    params = [[1_440_000]]
+    quick_params = [[40_000]]
+    param_names = ["n"]
+    repeats = 5
+    quick_repeats = 1
+    budget_s = 120.0
+    baselines = {"time_fit": ("baseline_rfft", "numpy.fft.rfft of the record (one FFT)"),
+                 "time_fit_full": ("baseline_rfft", "numpy.fft.rfft of the record (one FFT)")}
+
+    def setup(self, n):
+        import estimators
+
+        self.rate, self.dt = _adis_record(n)
+        self.est = estimators.get("whittle")
+        self.full = estimators.get("whittle", select=False)
+        self._fit(self.est, self.rate[:20_000])  # compile / load the kernels
+        self._fit(self.full, self.rate[:20_000])
+
+    @staticmethod
+    def _fit(est, rate):
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            est.fit(rate, 0.01)
+
+    def time_fit(self, n):
+        self._fit(self.est, self.rate)
+
+    def time_fit_full(self, n):
+        self._fit(self.full, self.rate)
+
+    def baseline_rfft(self, n):
+        np.fft.rfft(self.rate)
+
+    def teardown(self, n):
+        self.rate = None
+
+
 class OnlineDefaults:
     """shakf / nekf ``fit`` with DEFAULT settings (x0 from an AV fit, decimated trajectory) vs the
     full per-sample trajectory (the default before issue 14), on an ADIS16405_Y-like record."""
@@ -695,14 +738,14 @@ class EstimateMemory:
 
 
 ALL = [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, OnlineKernels, OnlineDefaults,
-       MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy, StartUp, FirstCall]
+       MleFit, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy, StartUp, FirstCall]
 
 
 def classes(quick: bool) -> list:
     """The benchmark classes of a run (``quick``: the CI subset on tiny sizes)."""
     if quick:
         return [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, QuickOnlineKernels,
-                OnlineDefaults, MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, QuickStartUp,
+                OnlineDefaults, MleFit, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, QuickStartUp,
                 FirstCall]
     return ALL
 

@@ -205,47 +205,60 @@ def render_latex(summary: pd.DataFrame, meta: dict | None = None) -> str:
     return "\n".join(out)
 
 
-def leaderboard(summary: pd.DataFrame) -> str:
+def leaderboard(summary: pd.DataFrame, tidy: pd.DataFrame | None = None) -> str:
     """Who wins where: per coefficient, each estimator over all gyros of the study.
 
-    Only gyros that have the coefficient count. Columns: the number of gyros on which the
-    estimator has the lowest RMSE (among those with a
-    physical estimate in at least half the replicates), the median over gyros of the absolute error %, of the
-    relative std (std / true), of std / CRLB, and the share of replicates without a physical estimate
-    (fit times: timings.md).
+    Only gyros that have the coefficient count. A *tested win* is a gyro on which the estimator has
+    the lowest RMSE (among those with a physical estimate in at least half the replicates) and the
+    paired bootstrap 95 % interval of RMSE(best) / RMSE(runner-up) on the same replicates lies below
+    1 (studies.scoring.wins); *best, tied* counts gyros where it has the lowest RMSE but the interval
+    includes 1 (a tie, not a win), or where no other estimator has enough physical estimates to
+    compare with. Then the medians over gyros of RMSE / CRLB (the Cramer-Rao bound
+    for the record length), of the absolute bias over SE (the bias over its Monte Carlo standard error std /
+    sqrt(replicates): above ~2 the bias is real), of the absolute error of the mean %, and the share
+    of replicates without a physical estimate (fit times: timings.md; per gyro: scores.md).
     """
+    from studies.scoring import wins as tested_wins
+
     s = summary[np.isfinite(summary["true"]) & (summary["true"] > 0)].copy()  # gyros that have the term
-    s["rel_rmse"] = s["rmse"] / s["true"]
-    s["rel_std_pct"] = s["std"] / s["true"] * 100
     s["bad_share"] = (s["n_nonphysical"] + s["n_failed"]) / s["n"]
-    if "std_over_crlb" not in s:
-        s["std_over_crlb"] = math.nan
-    ok = s[(s["n_ok"] >= np.ceil(s["n"] / 2)) & np.isfinite(s["rel_rmse"])]
-    winners = ok.loc[ok.groupby(["gyro", "coefficient"])["rel_rmse"].idxmin()]
+    crlb = s["crlb_std"] if "crlb_std" in s else pd.Series(math.nan, index=s.index)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s["rmse_over_crlb"] = s["rmse"] / crlb
+        s["abs_bias_over_se"] = (s["mean"] - s["true"]).abs() / (s["std"] / np.sqrt(s["n_ok"]))
+    w = tested_wins(tidy) if tidy is not None and len(s) else pd.DataFrame(columns=["coefficient", "best", "verdict"])
     out = ["# Who wins where", ""]
-    out.append(leaderboard.__doc__.split("\n\n")[1].strip().replace("\n    ", " "))
+    out.append(" ".join(line.strip() for line in leaderboard.__doc__.split("\n\n")[1].splitlines()))
     out.append("")
     for c in [c for c in COEFFICIENTS if c in set(s["coefficient"])]:
         d = s[s["coefficient"] == c]
-        wins = winners[winners["coefficient"] == c]["estimator"].value_counts()
+        wc = w[w["coefficient"] == c]
         g = d.groupby("estimator", sort=False)
+        idx = g.size().index
+
+        def count(verdicts, wc=wc, idx=idx):
+            return wc[wc["verdict"].isin(verdicts)]["best"].value_counts().reindex(idx).fillna(0).astype(int)
+
         table = pd.DataFrame(
             {
                 "gyros": g["gyro"].nunique(),
-                "lowest RMSE on": wins.reindex(g.size().index).fillna(0).astype(int),
+                "tested wins": count(["win"]),
+                "best, tied": count(["tie", "alone"]),
+                "median RMSE / CRLB": g["rmse_over_crlb"].median().round(2),
+                "median abs. bias / SE": g["abs_bias_over_se"].median().round(1),
                 "median abs. error %": g["error_pct"].median().round(1),
-                "median std %": g["rel_std_pct"].median().round(1),
-                "median std / CRLB": g["std_over_crlb"].median().round(2),
                 "no estimate %": (g["bad_share"].mean() * 100).round(0),
             }
-        ).sort_values(["lowest RMSE on", "median std %"], ascending=[False, True])
+        )
+        table["_r"] = table["median RMSE / CRLB"].fillna(np.inf)
+        table = table.sort_values(["tested wins", "best, tied", "_r"], ascending=[False, False, True]).drop(columns="_r")
         out.append(f"## {c}")
         out.append("")
         out.append("| estimator | " + " | ".join(table.columns) + " |")
         out.append("|---|" + "---|" * len(table.columns))
+        ints = ("gyros", "tested wins", "best, tied", "no estimate %")
         for e, r in table.iterrows():
-            cells = ["–" if pd.isna(v) else (str(int(v)) if k in ("gyros", "lowest RMSE on", "no estimate %") else f"{v:g}")
-                     for k, v in r.items()]
+            cells = ["–" if pd.isna(v) else (str(int(v)) if k in ints else f"{v:g}") for k, v in r.items()]
             out.append(f"| {e} | " + " | ".join(cells) + " |")
         out.append("")
     return "\n".join(out) + "\n"
@@ -364,7 +377,7 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     atomic_write_text(out / "table.md", render_markdown(summary, meta))
     written += [out / "table.csv", out / "table.md"]
     if len(cfg.gyros) > 1 or len(cfg.estimators) > 1:
-        atomic_write_text(out / "leaderboard.md", leaderboard(summary))
+        atomic_write_text(out / "leaderboard.md", leaderboard(summary, tidy))
         written.append(out / "leaderboard.md")
     if "lower" in tidy.columns:  # coverage, RMSE/CRLB, bias/SE and tested wins (studies.scoring)
         from studies.scoring import write_scores

@@ -56,3 +56,20 @@ def test_selection_rates_count_the_exact_true_set():
     t = selection_rates(pd.DataFrame(rows), {("g", "N"): 0.01, ("g", "B"): 0.2}).iloc[0]
     assert t["true_set"] == "NB" and t["replicates"] == 3
     np.testing.assert_allclose([t["exact"], t["keep_B"], t["add_K"], t["max_crlb_rel"]], [1 / 3, 2 / 3, 1 / 3, 0.2])
+
+
+def test_leaderboard_counts_only_tested_wins():
+    # gyro g1: "good" beats "bad" clearly (a win); gyro g2: "bad" and "same" differ by 1 % (a tie)
+    from studies.report import leaderboard, summarize
+
+    rng = np.random.default_rng(1)
+    e = rng.standard_normal(40)
+    t1 = _tidy({"good": 0.5 * rng.standard_normal(40), "bad": e})
+    t2 = _tidy({"same": e * (1 + 0.01 * rng.standard_normal(40)), "bad": e}).assign(gyro="g2")
+    tidy = pd.concat([t1, t2], ignore_index=True)
+    lines = [ln for ln in leaderboard(summarize(tidy), tidy).splitlines() if ln.startswith("| ")]
+    header = [c.strip() for c in lines[0].strip("|").split("|")]
+    rows = {r[0]: dict(zip(header, r)) for r in ([c.strip() for c in ln.strip("|").split("|")] for ln in lines[1:])}
+    assert rows["good"]["tested wins"] == "1" and rows["good"]["best, tied"] == "0"
+    assert int(rows["same"]["tested wins"]) + int(rows["bad"]["tested wins"]) == 0  # g2 is a tie, no win
+    assert int(rows["same"]["best, tied"]) + int(rows["bad"]["best, tied"]) == 1
