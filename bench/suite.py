@@ -20,6 +20,9 @@ Every speed claim is a ratio against a baseline timed in the same loop:
   mean and buffer handling before) and against the bound of one cumulative sum + one read per tau.
 * ``OnlineDefaults`` -- shakf / nekf with default settings against the full per-sample trajectory.
 * ``MleFit`` -- ``mle`` (compiled likelihood) against the statsmodels path it replaced, 4 h at 100 Hz.
+* ``MleFitDrift`` -- ``mle`` with the full latent model QN+WN+GM+RW+DR (as in the studies) on 2 h of
+  the ADIS16405_X preset: the augmented Kalman filter against the exact initial filter of before.
+* ``WhittleFit`` -- ``whittle`` (with and without term selection) on 4 h at 100 Hz against one FFT.
 * ``FlickerPreset`` -- the ADIS16405 preset (flicker B, tau_max = 2x the record) at 1e6 samples.
 * ``ReadRecording`` -- reading a 7-column CSV (time + 6 IMU axes) through ``avbench estimate``'s
   reader (:mod:`studies.recordings.readers`) against a bare ``pandas.read_csv`` of the same file,
@@ -57,6 +60,8 @@ __all__ = [
     "AllanKernel",
     "OnlineDefaults",
     "MleFit",
+    "MleFitDrift",
+    "WhittleFit",
     "FlickerPreset",
     "StartUp",
     "FirstCall",
@@ -466,6 +471,90 @@ class MleFit:
         self.rate = None
 
 
+class MleFitDrift:
+    """``mle`` with model QN+WN+GM+RW+DR on 2 h of ADIS16405_X at 100 Hz: the augmented Kalman filter
+    (default with a drift) against the exact initial filter (the path before, whose covariance never
+    reaches its steady state with a drift); same optimiser, start and Hessian."""
+
+    params = [[720_000]]
+    quick_params = [[40_000]]
+    param_names = ["n"]
+    repeats = 3
+    quick_repeats = 1
+    budget_s = 300.0
+    baselines = {"time_fit": ("baseline_exact_initial",
+                              "same fit through the exact initial (diffuse) Kalman filter (mle before)")}
+    model = "QN+WN+GM+RW+DR"
+
+    def setup(self, n):
+        import estimators
+        from noise_models import presets
+
+        g = presets.get("ADIS16405_X")
+        self.rate, self.dt = g.simulate(n, np.random.default_rng(1)), g.dt
+        self.est = estimators.get("mle", model=self.model)
+        self.old = estimators.get("mle", model=self.model)
+        self.old._loglike_method = "exact_initial"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            for est in (self.est, self.old):
+                est.fit(self.rate[:20_000], self.dt)  # compile / load the kernels
+
+    def time_fit(self, n):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self.est.fit(self.rate, self.dt)
+
+    def baseline_exact_initial(self, n):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self.old.fit(self.rate, self.dt)
+
+    def teardown(self, n):
+        self.rate = None
+
+
+class WhittleFit:
+    """``whittle`` (defaults: QNBKR with BIC term selection; and all five terms without selection) on 4 h
+    at 100 Hz, against one real FFT of the same record (the O(n log n) floor of any Whittle fit)."""
+
+    params = [[1_440_000]]
+    quick_params = [[40_000]]
+    param_names = ["n"]
+    repeats = 5
+    quick_repeats = 1
+    budget_s = 120.0
+    baselines = {"time_fit": ("baseline_rfft", "numpy.fft.rfft of the record (one FFT)"),
+                 "time_fit_full": ("baseline_rfft", "numpy.fft.rfft of the record (one FFT)")}
+
+    def setup(self, n):
+        import estimators
+
+        self.rate, self.dt = _adis_record(n)
+        self.est = estimators.get("whittle")
+        self.full = estimators.get("whittle", select=False)
+        self._fit(self.est, self.rate[:20_000])  # compile / load the kernels
+        self._fit(self.full, self.rate[:20_000])
+
+    @staticmethod
+    def _fit(est, rate):
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            est.fit(rate, 0.01)
+
+    def time_fit(self, n):
+        self._fit(self.est, self.rate)
+
+    def time_fit_full(self, n):
+        self._fit(self.full, self.rate)
+
+    def baseline_rfft(self, n):
+        np.fft.rfft(self.rate)
+
+    def teardown(self, n):
+        self.rate = None
+
+
 class OnlineDefaults:
     """shakf / nekf ``fit`` with DEFAULT settings (x0 from an AV fit, decimated trajectory) vs the
     full per-sample trajectory (the default before issue 14), on an ADIS16405_Y-like record."""
@@ -695,15 +784,16 @@ class EstimateMemory:
 
 
 ALL = [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, OnlineKernels, OnlineDefaults,
-       MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy, StartUp, FirstCall]
+       MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy,
+       StartUp, FirstCall]
 
 
 def classes(quick: bool) -> list:
     """The benchmark classes of a run (``quick``: the CI subset on tiny sizes)."""
     if quick:
         return [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, QuickOnlineKernels,
-                OnlineDefaults, MleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, QuickStartUp,
-                FirstCall]
+                OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording,
+                EstimateMemory, QuickStartUp, FirstCall]
     return ALL
 
 

@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["BlockMeanSystem", "diffuse_loglike", "_gm_block", "_level_block"]
+__all__ = ["BlockMeanSystem", "diffuse_loglike", "augmented_loglike", "_gm_block", "_level_block"]
 
 #: statsmodels' thresholds (``KalmanFilter``): diffuse F_inf, and the steady-state test on P
 TOL_DIFFUSE = 1e-10
@@ -116,13 +116,60 @@ class BlockMeanSystem:
         H = v.get("log_N", 0.0) ** 2 / (m * dt)
         return T, Qc, H, P0, Pinf0
 
-    def loglike(self, y, params, scale: float = 1.0, final=None) -> float:
+    def loglike(self, y, params, scale: float = 1.0, final=None, method: str = "auto") -> float:
         """Exact diffuse log-likelihood of ``y * scale`` (scaled units); ``final``: optional
-        ``(a, P)`` arrays that receive the last filtered state and its covariance."""
+        ``(a, P)`` arrays that receive the last filtered state and its covariance.
+
+        ``method``: "exact_initial" (:func:`diffuse_loglike`), "augmented"
+        (:func:`augmented_loglike`, falling back to the former where it returns NaN) or "auto":
+        augmented with a drift (whose shrinking variance keeps the exact initial filter's
+        covariance from ever reaching its steady state), exact initial otherwise (where its
+        steady state comes first).
+        """
+        if method not in ("auto", "exact_initial", "augmented"):
+            raise ValueError(f"method: expected 'auto', 'exact_initial' or 'augmented', got {method!r}")
         T, Qc, H, P0, Pinf0 = self.matrices(params, scale)
         a_out = np.empty(self.k) if final is None else final[0]
         P_out = np.empty((self.k, self.k)) if final is None else final[1]
+        if method == "augmented" or (method == "auto" and self.drift):
+            ll = augmented_loglike(y, scale, T, Qc, self.Z, H, P0, self.lev, a_out, P_out)
+            if not math.isnan(ll):
+                return ll
         return diffuse_loglike(y, scale, T, Qc, self.Z, H, P0, Pinf0, a_out, P_out)
+
+
+@njit(cache=True)
+def _sparse_rows(T):
+    """T's non-zero entries row by row (CSR): row pointers, rows, columns, values."""
+    k = T.shape[0]
+    tp = np.zeros(k + 1, dtype=np.int64)
+    for i in range(k):
+        tp[i + 1] = tp[i] + _nonzeros(T[i])[0]
+    ti = np.empty(tp[k], dtype=np.int64)
+    tl = np.empty(tp[k], dtype=np.int64)
+    tv = np.empty(tp[k])
+    for i in range(k):
+        _, cols, vals = _nonzeros(T[i])
+        for e in range(cols.shape[0]):
+            ti[tp[i] + e], tl[tp[i] + e], tv[tp[i] + e] = i, cols[e], vals[e]
+    return tp, ti, tl, tv
+
+
+@njit(cache=True)
+def _nonzeros(z):
+    """Count, positions and values of the non-zero entries of the vector ``z``."""
+    nnz = 0
+    for i in range(z.shape[0]):
+        if z[i] != 0.0:
+            nnz += 1
+    idx = np.empty(nnz, dtype=np.int64)
+    val = np.empty(nnz)
+    e = 0
+    for i in range(z.shape[0]):
+        if z[i] != 0.0:
+            idx[e], val[e] = i, z[i]
+            e += 1
+    return nnz, idx, val
 
 
 @njit(cache=True)
@@ -151,6 +198,32 @@ def _predict(tp, ti, tl, tv, Pf, Qc, P, tmp):
             s = 0.5 * (P[i, j] + P[j, i])
             P[i, j] = s
             P[j, i] = s
+
+
+@njit(cache=True)
+def _sq_change(P, Pprev):
+    """Squared Frobenius norm of P - Pprev (the steady-state test)."""
+    k = P.shape[0]
+    ss = 0.0
+    for i in range(k):
+        for j in range(k):
+            d = P[i, j] - Pprev[i, j]
+            ss += d * d
+    return ss
+
+
+@njit(cache=True)
+def _steady_gain(P, Z, H, M, K, Pf):
+    """Freeze the filter at the predicted covariance P: returns F, fills the gain K = P Z / F and the
+    filtered covariance Pf = P - P Z K'."""
+    k = P.shape[0]
+    F = _forecast(P, Z, H, M)
+    for i in range(k):
+        K[i] = M[i] / F
+    for i in range(k):
+        for j in range(k):
+            Pf[i, j] = P[i, j] - M[i] * K[j]
+    return F
 
 
 @njit(cache=True)
@@ -188,23 +261,7 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
     Mi = np.empty(k)
     K0 = np.empty(k)
     K1 = np.empty(k)
-    # T's non-zero entries by rows (CSR), for the covariance prediction
-    tp = np.zeros(k + 1, dtype=np.int64)
-    nnz = 0
-    for i in range(k):
-        for j in range(k):
-            if T[i, j] != 0.0:
-                nnz += 1
-        tp[i + 1] = nnz
-    ti = np.empty(nnz, dtype=np.int64)
-    tl = np.empty(nnz, dtype=np.int64)
-    tv = np.empty(nnz)
-    e = 0
-    for i in range(k):
-        for j in range(k):
-            if T[i, j] != 0.0:
-                ti[e], tl[e], tv[e] = i, j, T[i, j]
-                e += 1
+    tp, ti, tl, tv = _sparse_rows(T)  # T's non-zero entries by rows, for the covariance prediction
     zero = np.zeros((k, k))
     log2pi = math.log(2.0 * math.pi)
     ll = 0.0
@@ -284,21 +341,11 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
         if diffuse or t < nobs_diffuse + 1:
             _predict(tp, ti, tl, tv, Pif, zero, Pi, tmp)
         elif t + 1 < n:
-            ss = 0.0
-            for i in range(k):
-                for j in range(k):
-                    d = P[i, j] - Pprev[i, j]
-                    ss += d * d
-            if ss < TOL_CONVERGED:
+            if _sq_change(P, Pprev) < TOL_CONVERGED:
                 # the next forecast's F and gain are those of this step's covariance
                 converged = True
                 t_conv = t + 1
-                Fc = _forecast(P, Z, H, M)
-                for i in range(k):
-                    K0[i] = M[i] / Fc
-                for i in range(k):
-                    for j in range(k):
-                        Pf[i, j] = P[i, j] - M[i] * K0[j]
+                Fc = _steady_gain(P, Z, H, M, K0, Pf)
     if converged:
         ll -= 0.5 * ((n - t_conv) * (log2pi + math.log(Fc)) + ssq / Fc)
     for i in range(k):
@@ -306,3 +353,257 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
         for j in range(k):
             P_out[i, j] = Pf[i, j]
     return ll
+
+
+#: smallest forecast variance (units of the scaled data, whose variance is 1) the augmented filter
+#: accepts; below it the Schur complement q - s' S^-1 s would cancel too many digits and the
+#: likelihood falls back to the exact initial filter
+TOL_AUGMENTED = 1e-8
+#: squared relative change of the diffuse columns per step below which they are at their fixed
+#: point (a relative change of 1e-14 per step, geometrically decaying: ~1e-12 on the likelihood)
+TOL_COLUMNS = 1e-28
+#: the augmented filter's steady-state test on P (squared Frobenius norm of the change per step);
+#: tighter than statsmodels' 1e-19, so that it equals the (never frozen, with a drift) exact
+#: initial filter to ~1e-14 relative
+TOL_CONVERGED_AUGMENTED = 1e-28
+
+
+@njit(cache=True)
+def _augmented_step(yt, A, Af, Kf, w, zi, zv, tp, tl, tv):
+    """One filtering and prediction step of every column: w = (y, 0) - Z'A, Af = A + Kf w, A = T Af."""
+    k, c = A.shape
+    for col in range(c):
+        acc = yt if col == 0 else 0.0
+        for e in range(zi.shape[0]):
+            acc -= zv[e] * A[zi[e], col]
+        w[col] = acc
+    for i in range(k):
+        for col in range(c):
+            Af[i, col] = A[i, col] + Kf[i] * w[col]
+    for i in range(k):
+        for col in range(c):
+            acc = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc += tv[e] * Af[tl[e], col]
+            A[i, col] = acc
+
+
+@njit(cache=True)
+def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
+    """Diffuse log-likelihood of ``y * scale`` by the augmented Kalman filter.
+
+    The states ``lev, ..., k-1`` (level, block-mean level, slope) are diffuse: the state is
+    :math:`\\alpha_t = \\alpha^*_t + A_t\\delta`, :math:`\\delta` the diffuse initial values, and one
+    ordinary Kalman filter (initial covariance ``P0``, zero on the diffuse block) runs on the data
+    column and the d columns of :math:`A_t` together (de Jong 1991; Durbin & Koopman 2012,
+    Sec. 5.7): with the innovation row :math:`w_t = (y_t, 0) - Z'A_t` and
+    :math:`G = \\sum_t w_t' w_t/F_t = \\begin{pmatrix} q & s'\\\\ s & S\\end{pmatrix}`,
+
+    .. math::
+
+        \\log L_d = -\\tfrac12\\Big[n\\log 2\\pi + \\sum_t \\log F_t + q - s'S^{-1}s + \\log|S|\\Big],
+
+    the same exact diffuse likelihood as :func:`diffuse_loglike` (Durbin & Koopman 2012, Sec. 5.7.4),
+    but with a covariance that reaches its steady state also with a drift in the model (the
+    slope's shrinking variance lives in :math:`S^{-1}`, not in :math:`P_t`). Same symmetry and
+    steady-state rules as :func:`diffuse_loglike`. ``a_out``/``P_out`` receive the last filtered
+    state :math:`a + A\\hat\\delta` and covariance :math:`P + A S^{-1} A'`. Returns NaN when a
+    forecast variance falls below ``TOL_AUGMENTED`` (the caller then uses :func:`diffuse_loglike`).
+    """
+    n = y.shape[0]
+    k = T.shape[0]
+    d = k - lev
+    c = d + 1
+    A = np.zeros((k, c))
+    for j in range(d):
+        A[lev + j, j + 1] = 1.0
+    Af = np.empty((k, c))
+    P = P0.copy()
+    Pf = np.empty((k, k))
+    Pprev = np.empty((k, k))
+    tmp = np.empty((k, k))
+    M = np.empty(k)
+    Kf = np.empty(k)
+    w = np.empty(c)
+    G = np.zeros((c, c))
+    Gss = np.zeros((c, c))  # sum of w w' over the steady-state steps (divided by Fc at the end)
+    tp, ti, tl, tv = _sparse_rows(T)
+    _, zi, zv = _nonzeros(Z)
+    zn = zi.shape[0]
+    logdet = 0.0
+    converged = False
+    Fc = 1.0
+    t_conv = n
+    t = 0
+    while t < n and not converged:
+        # phase 1: the covariance is still moving
+        F = _forecast(P, Z, H, M)
+        if not F > TOL_AUGMENTED:
+            return np.nan
+        for i in range(k):
+            Kf[i] = M[i] / F
+        _augmented_step(y[t] * scale, A, Af, Kf, w, zi, zv, tp, tl, tv)
+        logdet += math.log(F)
+        for i in range(c):
+            for j in range(i + 1):
+                G[i, j] += w[i] * w[j] / F
+        for i in range(k):
+            for j in range(k):
+                Pf[i, j] = P[i, j] - M[i] * Kf[j]
+                Pprev[i, j] = P[i, j]
+        _predict(tp, ti, tl, tv, Pf, Qc, P, tmp)
+        t += 1
+        if t < n:
+            if _sq_change(P, Pprev) < TOL_CONVERGED_AUGMENTED:
+                # steady state: the next forecast's F and gain are those of this covariance
+                converged = True
+                t_conv = t
+                Fc = _steady_gain(P, Z, H, M, Kf, Pf)
+    Aprev = np.empty((k, c))
+    fixed = False
+    while t < n and not fixed:
+        # phase 2: fixed gain; the diffuse columns still move (to their fixed point A = T (A - Kf Z'A))
+        for i in range(k):
+            for col in range(1, c):
+                Aprev[i, col] = A[i, col]
+        _augmented_step(y[t] * scale, A, Af, Kf, w, zi, zv, tp, tl, tv)
+        for i in range(c):
+            for j in range(i + 1):
+                Gss[i, j] += w[i] * w[j]
+        t += 1
+        ss = 0.0
+        nn = 0.0
+        for i in range(k):
+            for col in range(1, c):
+                dd = A[i, col] - Aprev[i, col]
+                ss += dd * dd
+                nn += A[i, col] * A[i, col]
+        fixed = ss <= TOL_COLUMNS * nn
+    # phase 3: the diffuse columns at their fixed point (their innovations w[1:] constant): only the
+    # data column moves
+    n_fixed = n - t
+    w1 = np.empty(c)
+    for col in range(1, c):
+        acc = 0.0
+        for e in range(zn):
+            acc -= zv[e] * A[zi[e], col]
+        w1[col] = acc
+        if n_fixed > 0:  # (else Af already holds the last filtered columns)
+            for i in range(k):
+                Af[i, col] = A[i, col] + Kf[i] * acc
+    a0 = A[:, 0].copy()
+    sw = 0.0
+    sww = 0.0
+    while t < n:
+        v = y[t] * scale
+        for e in range(zn):
+            v -= zv[e] * a0[zi[e]]
+        sw += v
+        sww += v * v
+        for i in range(k):
+            Af[i, 0] = a0[i] + Kf[i] * v
+        for i in range(k):
+            acc = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc += tv[e] * Af[tl[e], 0]
+            a0[i] = acc
+        t += 1
+    if converged:
+        logdet += (n - t_conv) * math.log(Fc)
+        Gss[0, 0] += sww
+        for i in range(1, c):
+            Gss[i, 0] += w1[i] * sw
+            for j in range(1, i + 1):
+                Gss[i, j] += w1[i] * w1[j] * n_fixed
+        for i in range(c):
+            for j in range(i + 1):
+                G[i, j] += Gss[i, j] / Fc
+    for i in range(c):
+        for j in range(i):
+            G[j, i] = G[i, j]
+    # Cholesky S = R R' of the d x d block, then q - s' S^-1 s = q - |R^-1 s|^2, log|S| = 2 sum log R_ii
+    R = np.zeros((d, d))
+    for i in range(d):
+        for j in range(i + 1):
+            acc = G[i + 1, j + 1]
+            for l in range(j):
+                acc -= R[i, l] * R[j, l]
+            if i == j:
+                if not acc > 0.0:
+                    return -np.inf
+                R[i, i] = math.sqrt(acc)
+            else:
+                R[i, j] = acc / R[j, j]
+    u = np.empty(d)
+    for i in range(d):
+        acc = G[i + 1, 0]
+        for l in range(i):
+            acc -= R[i, l] * u[l]
+        u[i] = acc / R[i, i]
+    quad = G[0, 0]
+    logS = 0.0
+    for i in range(d):
+        quad -= u[i] * u[i]
+        logS += 2.0 * math.log(R[i, i])
+    # delta_hat = -S^-1 s (back substitution R' delta = -u); Sinv = R'^-1 R^-1
+    dh = np.empty(d)
+    for i in range(d - 1, -1, -1):
+        acc = -u[i]
+        for l in range(i + 1, d):
+            acc -= R[l, i] * dh[l]
+        dh[i] = acc / R[i, i]
+    Rinv = np.zeros((d, d))
+    for j in range(d):
+        for i in range(j, d):
+            acc = 1.0 if i == j else 0.0
+            for l in range(j, i):
+                acc -= R[i, l] * Rinv[l, j]
+            Rinv[i, j] = acc / R[i, i]
+    # the last filtered state: Af (before the final prediction) of every column
+    for i in range(k):
+        acc = Af[i, 0]
+        for j in range(d):
+            acc += Af[i, j + 1] * dh[j]
+        a_out[i] = acc
+    B = np.zeros((k, d))  # A S^-1 A' = B B' with B = A R'^-1 (A = Af[:, 1:])
+    for i in range(k):
+        for j in range(d):
+            acc = 0.0
+            for l in range(j + 1):
+                acc += Af[i, l + 1] * Rinv[j, l]
+            B[i, j] = acc
+    for i in range(k):
+        for j in range(k):
+            acc = Pf[i, j]
+            for l in range(d):
+                acc += B[i, l] * B[j, l]
+            P_out[i, j] = acc
+    return -0.5 * (n * math.log(2.0 * math.pi) + logdet + quad + logS)
+
+
+def augmented_loglike_py(y, scale, T, Qc, Z, H, P0, lev):
+    """Plain-NumPy reference of :func:`augmented_loglike` (tests only): the same augmented filter
+    without the steady-state shortcuts. Returns ``(loglike, a, P)`` (last filtered state and
+    covariance, as ``a_out``/``P_out``)."""
+    k = T.shape[0]
+    d = k - lev
+    A = np.zeros((k, d + 1))
+    A[lev:, 1:] = np.eye(d)
+    P = P0.copy()
+    G = np.zeros((d + 1, d + 1))
+    logdet = 0.0
+    for yt in np.asarray(y, dtype=float) * scale:
+        F = Z @ P @ Z + H
+        Kf = P @ Z / F
+        w = np.concatenate([[yt], np.zeros(d)]) - Z @ A
+        G += np.outer(w, w) / F
+        logdet += math.log(F)
+        Af = A + np.outer(Kf, w)
+        Pf = P - np.outer(Kf, P @ Z)
+        A = T @ Af
+        P = T @ Pf @ T.T + Qc
+        P = (P + P.T) / 2
+    q, s, S = G[0, 0], G[1:, 0], G[1:, 1:]
+    dh = -np.linalg.solve(S, s)
+    ll = -0.5 * (y.size * math.log(2 * math.pi) + logdet + q - s @ np.linalg.solve(S, s) + np.linalg.slogdet(S)[1])
+    return ll, Af[:, 0] + Af[:, 1:] @ dh, Pf + Af[:, 1:] @ np.linalg.solve(S, Af[:, 1:].T)

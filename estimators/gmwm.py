@@ -54,6 +54,7 @@ Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.le
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg import cho_factor, solve_triangular
@@ -64,7 +65,7 @@ from estimators.av_model import PLATEAU
 from estimators.base import Estimator, register
 from estimators.fit_check import assess_fit
 
-__all__ = ["GMWM", "LATENTS", "parse_model", "build_gyro", "av_covariance"]
+__all__ = ["GMWM", "LATENTS", "WaveletVariance", "parse_model", "build_gyro", "av_covariance"]
 
 #: level of the difference-in-J test that drops a shortest scale (``min_m="auto"``)
 SCALE_TEST_LEVEL = 0.001
@@ -79,6 +80,28 @@ LATENTS = {
     "DR": (("R",), "R"),
 }
 _ORDER = ("QN", "WN", "GM", "FL", "RW", "DR")
+
+
+class WaveletVariance(NamedTuple):
+    """The AV values a :class:`GMWM` matches, and how to read them.
+
+    ``tau, avar, m, edf``: octave taus (s), AV values, cluster sizes, engine edf (first-step
+    weights). ``cov_scale``: factor by which their covariance exceeds the classical one (1 for the
+    classical AV). ``white_gain``: None, or per tau the factor by which this AV estimator sees the
+    white (ARW) part of the process, :math:`N^2/\\tau` (the model matched is then the exact AV plus
+    ``(white_gain - 1) N^2 / tau``). ``reference_is_classical``: the poor-fit check compares the fit
+    with the classical AV (else with these values). ``diagnostics``: extra entries for
+    ``diagnostics_``.
+    """
+
+    tau: np.ndarray
+    avar: np.ndarray
+    m: np.ndarray
+    edf: np.ndarray
+    cov_scale: float = 1.0
+    white_gain: np.ndarray | None = None
+    reference_is_classical: bool = True
+    diagnostics: dict | None = None
 
 
 def parse_model(model) -> tuple[str, ...]:
@@ -216,6 +239,10 @@ class GMWM(Estimator):
     True
     """
 
+    #: run the poor-fit check (:func:`estimators.fit_check.assess_fit`); not a setting: an estimator
+    #: that uses the GMWM fit only as its start sets it False on its instance
+    _assess = True
+
     def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6):
         self.model = model
         self.min_clusters = min_clusters
@@ -241,15 +268,17 @@ class GMWM(Estimator):
 
     # -- fitting ---------------------------------------------------------------------------------
     def _wavelet_variance(self, rate, dt):
-        """(tau, avar, m, edf, cov_scale): the AV values matched and the factor by which their
-        covariance exceeds the classical one (1 here; see :mod:`estimators.robust`)."""
+        """The AV values matched (:class:`WaveletVariance`): here the classical overlapping AV at
+        octave taus, with nothing added (robust variants: :mod:`estimators.robust`)."""
         res = allan_variance(rate, dt, taus="octave", overlapping=True)
-        return res.tau, res.avar, res.m, res.edf, 1.0
+        return WaveletVariance(res.tau, res.avar, res.m, res.edf)
 
     def _fit(self, rate, dt):
         latents = self._check()
         n = rate.size
-        tau_all, avar_all, m_all, edf_all, cov_scale = self._wavelet_variance(rate, dt)
+        wv = self._wavelet_variance(rate, dt)
+        tau_all, avar_all, m_all, edf_all, cov_scale = wv.tau, wv.avar, wv.m, wv.edf, wv.cov_scale
+        gain_all = wv.white_gain
         usable = (n // m_all >= self.min_clusters) & (avar_all > 0)
         n_par = sum(len(LATENTS[lat][0]) for lat in latents)
         if self.min_m == "auto":
@@ -271,7 +300,7 @@ class GMWM(Estimator):
         for m0 in lows:
             keep = usable & (m_all >= m0)
             fit = self._fit_scales(latents, tau_all[keep], avar_all[keep], m_all[keep], edf_all[keep], n, dt,
-                                   cov_scale)
+                                   cov_scale, None if gain_all is None else gain_all[keep])
             k = int(np.count_nonzero(keep))
             tried.append((m0, fit["J_stat"], k))
             if best is not None:
@@ -284,18 +313,28 @@ class GMWM(Estimator):
         diag["min_m"] = int(diag["m"][0])
         if self.min_m == "auto":
             diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
+        if not self._assess:  # a starting fit (estimators.mle): no poor-fit check
+            return best["coefs"], {}, diag
         gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
-        diag.update(assess_fit(rate, dt, gyro.avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
-                               reference=self._check_reference(tau_all, avar_all, m_all, n),
-                               cov_scale=cov_scale))
+        model_avar = gyro.avar
+        if gain_all is not None and "WN" in latents:
+            n_wn = diag["values"][_param_index(latents, "WN")]
+
+            def model_avar(tau):  # the fitted curve as the record's AV estimator sees it (see _fit_scales)
+                gain = np.interp(np.log(tau), np.log(tau_all), gain_all)
+                return gyro.avar(tau) + (gain - 1.0) * n_wn**2 / tau
+
+        reference = None if wv.reference_is_classical else (tau_all, avar_all, m_all, n)
+        diag.update(assess_fit(rate, dt, model_avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
+                               reference=reference, cov_scale=cov_scale))
+        diag.update(wv.diagnostics or {})
         return best["coefs"], {}, diag
 
-    def _check_reference(self, tau, avar, m, n):
-        """The AV curve the poor-fit check compares with (None: the classical overlapping AV)."""
-        return None
+    def _fit_scales(self, latents, tau, avar, m, edf, n, dt, cov_scale, white_gain=None):
+        """Two-step GMWM on the given scales; returns dict(coefs, J_stat, diag).
 
-    def _fit_scales(self, latents, tau, avar, m, edf, n, dt, cov_scale):
-        """Two-step GMWM on the given scales; returns dict(coefs, J_stat, diag)."""
+        ``white_gain`` (None or one value per tau): the record's AV estimator sees the white
+        (ARW) part of the model multiplied by it (:class:`WaveletVariance`)."""
         n_par = sum(len(LATENTS[lat][0]) for lat in latents)
         T = n * dt
         lo, hi = _bounds(latents, tau, avar, dt, T)
@@ -315,6 +354,12 @@ class GMWM(Estimator):
 
             def model_av(u):
                 return build_gyro(latents, np.exp(u), dt).avar(tau)
+
+        if white_gain is not None and "WN" in latents:
+            j_wn, extra, plain_av = _param_index(latents, "WN"), (white_gain - 1.0) / tau, model_av
+
+            def model_av(u):
+                return plain_av(u) + np.exp(2.0 * u[j_wn]) * extra
 
         # step 1: diagonal weights from the engine's edf, several starts
         L1 = np.sqrt(2.0 * avar**2 / edf * cov_scale)

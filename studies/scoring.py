@@ -138,7 +138,7 @@ def wins(tidy: pd.DataFrame, n_boot=N_BOOT, seed=0) -> pd.DataFrame:
         ratio, lo, hi = paired_rmse_ratio(tidy, g, c, best, second, n_boot, seed)
         rows.append({"gyro": g, "coefficient": c, "best": best, "runner_up": second, "ratio": ratio,
                      "lower": lo, "upper": hi, "verdict": "win" if hi < 1 else "tie"})
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows, columns=["gyro", "coefficient", "best", "runner_up", "ratio", "lower", "upper", "verdict"])
 
 
 def _md_table(df: pd.DataFrame) -> list[str]:
