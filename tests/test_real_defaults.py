@@ -37,7 +37,7 @@ def _axes(path, units, accel_units=None):
 @needs
 @pytest.mark.parametrize("name", DEFAULT_METHODS)
 def test_defaults_are_physically_plausible_on_real_gyros(name):
-    # plausibility bounds (DEFAULT_METHODS gave N 1.4-2.8, B 8-58 on all 19 gyro axes; results/real):
+    # plausibility bounds (DEFAULT_METHODS gave N 1.8-2.8, B 7.7-58 on all 19 gyro axes; results/real):
     # N within a factor 1.5 of the 2-3 deg/sqrt(h) every method and the datasheet's noise density
     # agree on (MTi-G: 1.3-2.2), B between a fifth and twice the ADEV minimum read as a plateau
     # (B = min ADEV / 0.664: 38-46 deg/h on ADIS, 7-60 on the MTi-G)
