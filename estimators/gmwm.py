@@ -471,16 +471,30 @@ def _starts(latents, tau, avar, n_starts, lo, hi):
     return out
 
 
+#: a parameter whose Jacobian column is below this fraction of the largest is taken as unidentified
+#: (held fixed for the covariance of the others)
+_FREE_COLUMN = 1e-6
+
+
 def _report(latents, values, jac, at_floor):
     """Coefficients (SI), their standard errors (delta method), and the named latent parameters."""
     import pandas as pd
 
     from noise_models.terms import B_EQUIV_OVER_SIGMA
 
-    try:
-        cov_u = np.linalg.inv(jac.T @ jac)
-    except np.linalg.LinAlgError:
-        cov_u = np.full((values.size, values.size), np.nan)
+    # a term on its lower bound, or at round-off level where the curve cannot see it (e.g. K on a gyro
+    # without rate random walk: its Jacobian column is ~0), is held fixed: the covariance is that of
+    # the other parameters (inverse Gauss-Newton information of the free ones), and the fixed ones have
+    # no standard error
+    col = np.linalg.norm(jac, axis=0)
+    free = ~np.asarray(at_floor) & (col > _FREE_COLUMN * (col.max() if col.size else 0.0))
+    cov_u = np.full((values.size, values.size), np.nan)
+    if free.any():
+        jf = jac[:, free]
+        try:
+            cov_u[np.ix_(free, free)] = np.linalg.inv(jf.T @ jf)
+        except np.linalg.LinAlgError:
+            pass
     var_u = np.diag(cov_u)
     se_u = np.sqrt(np.where(var_u > 0, var_u, np.nan))  # no curvature: no standard error
     coefs, std, params = {}, {}, {}

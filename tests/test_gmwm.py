@@ -152,3 +152,20 @@ def test_auto_scales_keep_every_octave_of_an_unfiltered_record_and_flag_a_wrong_
 def test_min_m_setting_is_validated():
     with pytest.raises(ValueError, match="min_m"):
         estimators.get("gmwm", min_m="all").fit(np.random.default_rng(0).standard_normal(50_000), 0.1)
+
+
+def test_a_term_estimated_at_zero_leaves_the_others_standard_errors():
+    # SRS2000 has no rate random walk or ramp: fitted with RW and DR, those run to 0 (or round-off)
+    # and are held fixed; Q, N, B keep a standard error (before: none at all in half the replicates)
+    from noise_models import presets
+
+    g = presets.get("SRS2000")
+    got = 0
+    for seed in range(6):
+        x = g.simulate(12_000, np.random.default_rng(seed))
+        est = estimators.get("gmwm", model="QN+WN+FL+RW+DR").fit(x, g.dt)
+        se = est.std_err_
+        assert np.all(np.isfinite(se[["Q", "N", "B"]])) and np.all(se[["Q", "N", "B"]] > 0), seed
+        assert np.isnan(se["R"])  # R at 0 or round-off: held fixed, no standard error
+        got += int(np.isnan(se["K"]))
+    assert got >= 1  # at least one replicate puts K at round-off level (its error is then NaN)
