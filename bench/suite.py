@@ -234,6 +234,13 @@ ESTIMATOR_SETTINGS = {
 }
 
 
+def _quiet_fit(est, rate, dt):
+    """``est.fit(rate, dt)`` without warnings (the benchmarks time fits, not their messages)."""
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        return est.fit(rate, dt)
+
+
 class EstimatorScaling:
     """Every registered estimator's ``fit`` (terms NBK) on an ADIS16405-like 100 Hz record."""
 
@@ -265,16 +272,10 @@ class EstimatorScaling:
         except (TypeError, ValueError):
             settings.pop("terms")
             self.est = estimators.get(estimator, **settings)
-        self._fit(self.rate[: min(n, 5000)])  # compile / load kernels
-
-    def _fit(self, rate):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            with np.errstate(all="ignore"):
-                self.est.fit(rate, self.dt)
+        _quiet_fit(self.est, self.rate[: min(n, 5000)], self.dt)  # compile / load kernels
 
     def time_fit(self, estimator, n):
-        self._fit(self.rate)
+        _quiet_fit(self.est, self.rate, self.dt)
 
     def teardown(self, estimator, n):
         self.rate = None
@@ -455,14 +456,10 @@ class MleFit:
 
         self.rate, self.dt = _adis_record(n)
         self.est = estimators.get("mle")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            self.est.fit(self.rate[:20_000], self.dt)  # compile / load the kernel
+        _quiet_fit(self.est, self.rate[:20_000], self.dt)  # compile / load the kernel
 
     def time_fit(self, n):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            self.est.fit(self.rate, self.dt)
+        _quiet_fit(self.est, self.rate, self.dt)
 
     def baseline_statsmodels(self, n):
         mle_statsmodels_path(self.rate, self.dt)
@@ -495,20 +492,14 @@ class MleFitDrift:
         self.est = estimators.get("mle", model=self.model)
         self.old = estimators.get("mle", model=self.model)
         self.old._loglike_method = "exact_initial"
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            for est in (self.est, self.old):
-                est.fit(self.rate[:20_000], self.dt)  # compile / load the kernels
+        for est in (self.est, self.old):
+            _quiet_fit(est, self.rate[:20_000], self.dt)  # compile / load the kernels
 
     def time_fit(self, n):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            self.est.fit(self.rate, self.dt)
+        _quiet_fit(self.est, self.rate, self.dt)
 
     def baseline_exact_initial(self, n):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            self.old.fit(self.rate, self.dt)
+        _quiet_fit(self.old, self.rate, self.dt)
 
     def teardown(self, n):
         self.rate = None
@@ -533,20 +524,14 @@ class WhittleFit:
         self.rate, self.dt = _adis_record(n)
         self.est = estimators.get("whittle")
         self.full = estimators.get("whittle", select=False)
-        self._fit(self.est, self.rate[:20_000])  # compile / load the kernels
-        self._fit(self.full, self.rate[:20_000])
-
-    @staticmethod
-    def _fit(est, rate):
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            est.fit(rate, 0.01)
+        for est in (self.est, self.full):
+            _quiet_fit(est, self.rate[:20_000], self.dt)  # compile / load the kernels
 
     def time_fit(self, n):
-        self._fit(self.est, self.rate)
+        _quiet_fit(self.est, self.rate, self.dt)
 
     def time_fit_full(self, n):
-        self._fit(self.full, self.rate)
+        _quiet_fit(self.full, self.rate, self.dt)
 
     def baseline_rfft(self, n):
         np.fft.rfft(self.rate)
@@ -573,19 +558,14 @@ class OnlineDefaults:
         self.rate, self.dt = _adis_record(n, seed=7)
         self.est = estimators.get(estimator, terms="NBK")
         self.full = estimators.get(estimator, terms="NBK", trajectory_every=1)
-        self._fit(self.est, self.rate[:70_000])
-        self._fit(self.full, self.rate[:70_000])
-
-    def _fit(self, est, rate):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            est.fit(rate, self.dt)
+        for est in (self.est, self.full):
+            _quiet_fit(est, self.rate[:70_000], self.dt)  # compile / load kernels
 
     def time_fit_default(self, estimator, n):
-        self._fit(self.est, self.rate)
+        _quiet_fit(self.est, self.rate, self.dt)
 
     def baseline_full_trajectory(self, estimator, n):
-        self._fit(self.full, self.rate)
+        _quiet_fit(self.full, self.rate, self.dt)
 
     def teardown(self, estimator, n):
         self.rate = None
