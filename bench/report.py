@@ -40,8 +40,10 @@ LIMITS = {
     "lines and the checks (blank lines, NaN) on the float columns.",
     "estimate": "The record (memory-mapped, float64, not copied), one cumulative sum of it per AV (n + 1 values) "
     "and the estimators' own work arrays, plus ~300 MB of libraries (numpy, scipy, pandas, numba, matplotlib).",
-    "study": "Fresh-process imports in the parent and in each loky worker, the 4 LS fits of each replicate "
-    "(least squares on 72 000 AV values, pandas result packing), and the report's matplotlib figures.",
+    "study": "The 4 LS fits of each replicate, now ~4x what they were when the target was met (13.0 s): each runs "
+    "the poor-fit check added since (issue 12), whose model covariance of the octave AV "
+    "(estimators.gmwm.av_covariance: the Haar filter gains on a grid of 8 points per cycle of the longest cluster) "
+    "is ~75 ms of a ~110 ms fit, measured with cProfile; then fresh-process imports and the report's figures.",
     "help": "The interpreter's own start (timed beside it) plus argparse and the CLI modules: the commands import "
     "numpy, pandas, the simulators and the estimators only when they run.",
     "import": "numpy (~0.15 CPU-s) and numba (~0.3 CPU-s, the simulators' compiled kernels); pandas, scipy.optimize, "
