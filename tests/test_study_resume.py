@@ -138,6 +138,13 @@ def test_stale_temporary_files_are_cleaned(tmp_path):
     assert not stale.exists()
 
 
+def _interruptible():
+    """In the child: Ctrl-C as a terminal delivers it. A shell that starts a command in the background
+    (``cmd &`` without job control) makes it ignore SIGINT, and a child inherits that; Python then
+    installs no KeyboardInterrupt handler, so these tests would test nothing."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _cli(out: Path, config: Path) -> subprocess.Popen:
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
     return subprocess.Popen(
@@ -147,6 +154,7 @@ def _cli(out: Path, config: Path) -> subprocess.Popen:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=_interruptible,
     )
 
 
@@ -253,7 +261,7 @@ def test_stopped_parent_leaves_no_workers(tmp_path, sig):
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen(
         [sys.executable, "-m", "studies.cli", "run", str(config), "--out", str(out), "--no-progress", "--jobs", "2"],
-        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_interruptible,
     )
     _wait_for_shards(shard_dir, 1, proc)  # the workers are running blocks
     children = _children(proc.pid)
