@@ -1,7 +1,8 @@
 """Real static recordings: every method on every gyro and accelerometer axis, and the run-to-run
 consistency table.
 
-``python -m studies.real_runs --data ../shared/data/real --out results/real``
+``python -m studies.real_runs --data DIR --out results/real`` (``DIR``: the folder holding
+``adis16405-calgary/`` and ``mtig-cont-imu1/``; default: the environment variable ``AVBENCH_REAL_DATA``)
 
 Reads (only if present; nothing here needs them) the six ADIS16405 runs
 ``adis16405-calgary/adis_16405_imu{1..6}.npz`` (gyro x, y, z in deg/s and accelerometer x, y, z in g,
@@ -33,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +48,8 @@ RECORDS += [("mtig_cont_imu1", "mtig_cont_imu1", "mtig-cont-imu1/cont_imu1.npz",
 METHODS = ["ols", "ols_trimmed", "wls", "wls_edf", "slope_lines", "log_fit", "nnls_rel", "gmwm", "gmwm_robust",
            "gmwm_despiked", "mle"]
 SIG = 5  # significant digits of the committed numbers
+#: the environment variable that says where the (optional, licensed) recordings are
+DATA_ENV = "AVBENCH_REAL_DATA"
 _GROUP = {r[0]: r[1] for r in RECORDS}
 
 
@@ -182,13 +186,16 @@ def _figures(data: Path, df: pd.DataFrame, out: Path) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--data", default="../shared/data/real", help="folder holding the recordings (read in place)")
+    ap.add_argument("--data", default=os.environ.get(DATA_ENV),
+                    help=f"folder holding adis16405-calgary/ and mtig-cont-imu1/ (read in place; default: ${DATA_ENV})")
     ap.add_argument("--out", default="results/real", help="output folder")
     ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated estimator names")
     ap.add_argument("--skip-slow", action="store_true", help="leave out the MLE")
     ap.add_argument("--tables-only", action="store_true",
                     help="do not fit: rebuild the consistency table and figures from OUT/coefficients.csv")
     args = ap.parse_args(argv)
+    if not args.data:
+        raise SystemExit(f"real_runs: give --data DIR (the folder of the recordings) or set {DATA_ENV}")
     data, out = Path(args.data), Path(args.out)
     methods = [m for m in args.methods.split(",") if m and not (args.skip_slow and m == "mle")]
     if not any((data / r[2]).exists() for r in RECORDS):

@@ -125,3 +125,19 @@ def dask_cluster():
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         yield c
+
+
+#: the optional, licensed static recordings (folder with adis16405-calgary/ and mtig-cont-imu1/),
+#: read in place where the environment variable AVBENCH_REAL_DATA says; tests that need them skip
+REAL_DATA = __import__("os").environ.get("AVBENCH_REAL_DATA")
+
+
+def real_recording(rel: str):
+    """(path, skip marker) of one recording under :data:`REAL_DATA`; the marker skips, saying why,
+    when the variable is unset or the file is absent."""
+    from pathlib import Path
+
+    path = Path(REAL_DATA or "/nonexistent") / rel
+    why = ("real recordings not configured: set AVBENCH_REAL_DATA to their folder (optional, licensed data)"
+           if not REAL_DATA else f"{rel} not found under AVBENCH_REAL_DATA={REAL_DATA} (optional, licensed data)")
+    return path, pytest.mark.skipif(not path.exists(), reason=why)

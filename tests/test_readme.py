@@ -30,15 +30,16 @@ def test_readme_first_command_runs_a_committed_study():
 
 
 def test_nothing_points_outside_the_project():
-    """Nothing but the licensed recordings (shared/data/...) is read from ../shared."""
+    """Nothing names the developers' shared folder (users have none): the optional recordings are
+    found through AVBENCH_REAL_DATA or an explicit --data."""
     offenders = []
-    for folder in ("noise_models", "estimators", "studies", "bench", "docs", "tests"):
-        for p in (ROOT / folder).rglob("*"):
+    for folder in (".", "noise_models", "estimators", "studies", "bench", "docs", "tests", "results"):
+        for p in [ROOT / "README.md"] if folder == "." else (ROOT / folder).rglob("*"):
             if p.suffix not in {".py", ".toml", ".md", ".csv"} or "__pycache__" in p.parts:
                 continue
             rel = str(p.relative_to(ROOT))
             text = p.read_text(errors="replace")
-            for m in re.finditer(r"shared/([A-Za-z_]+)", text):
-                if m.group(1) != "data" and rel != "tests/test_readme.py":
+            for m in re.finditer(r"\.\./sha[r]ed|sha[r]ed/data", text):
+                if rel != "tests/test_readme.py":
                     offenders.append(f"{rel}: {m.group(0)}")
     assert not offenders, offenders

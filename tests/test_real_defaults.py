@@ -1,26 +1,24 @@
-"""The default methods on the real recordings (optional: skipped when the licensed recordings are
-not next to the repository, in ../shared/data/real/, read in place), read as ``avbench estimate``
+"""The default methods on the real recordings (optional: skipped unless AVBENCH_REAL_DATA names the
+folder of the licensed recordings, read in place), read as ``avbench estimate``
 and ``studies.real_runs`` read them: through the recordings pipeline, units from one place."""
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import estimators
+from conftest import real_recording
 from estimators.allan import allan_variance
 from estimators.base import DEFAULT_METHODS
 from noise_models.units import DISPLAY_UNITS, from_si
 
-# next to the repository (../shared/data/real), or where AVBENCH_REAL_DATA says (e.g. from a worktree)
-DATA = Path(os.environ.get("AVBENCH_REAL_DATA",
-                          Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"))
-ADIS = DATA / "adis16405-calgary" / "adis_16405_imu1.npz"
-MTIG = DATA / "mtig-cont-imu1" / "cont_imu1.npz"
-needs = pytest.mark.skipif(not (ADIS.exists() and MTIG.exists()),
-                           reason="real recordings not found in ../shared/data/real (optional, licensed data)")
+ADIS, _needs_adis = real_recording("adis16405-calgary/adis_16405_imu1.npz")
+MTIG, _needs_mtig = real_recording("mtig-cont-imu1/cont_imu1.npz")
+
+
+def needs(test):
+    return _needs_adis(_needs_mtig(test))
 
 
 def _axes(path, units, accel_units=None):

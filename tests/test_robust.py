@@ -4,9 +4,8 @@ import numpy as np
 import pytest
 
 import estimators
-from pathlib import Path
 
-from conftest import mc_tolerance
+from conftest import mc_tolerance, real_recording
 from estimators.robust import GMWMRobust, hampel_outliers, m_scale, masked_allan_variance, robust_allan_variance, tuning
 from noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, RateRandomWalk
 
@@ -20,10 +19,7 @@ F = Gyro(dt=DT, terms=[AngleRandomWalk(N=(2.24, "deg/sqrt(h)")),
 #: gyro -> (GMWM latent model, coefficients checked)
 CASES = {"gauss-markov": (G, "WN+GM", ("N", "B")), "flicker": (F, "WN+FL+RW", ("N", "B", "K"))}
 
-DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
-MTIG = DATA / "mtig-cont-imu1" / "cont_imu1.npz"
-needs_mtig = pytest.mark.skipif(not MTIG.exists(),
-                                reason="MTi-G recording not found in ../shared/data/real (optional, licensed data)")
+MTIG, needs_mtig = real_recording("mtig-cont-imu1/cont_imu1.npz")
 
 
 def spikes(x, rng, eps=0.05, size=10.0):
