@@ -172,6 +172,19 @@ def _nonzeros(z):
     return nnz, idx, val
 
 
+@njit(cache=True, inline="always")
+def _csr_left(tp, tl, tv, X, out):
+    """out = T X, T given by its non-zero entries row by row (``tp``: row pointers, ``tl``: columns,
+    ``tv``: values); the sums run over the same terms in the same order as the dense product, less
+    the zeros."""
+    for i in range(out.shape[0]):
+        for j in range(X.shape[1]):
+            acc = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc += tv[e] * X[tl[e], j]
+            out[i, j] = acc
+
+
 @njit(cache=True)
 def _predict(tp, ti, tl, tv, Pf, Qc, P, tmp):
     """P = T Pf T' + Qc, then forced symmetric (statsmodels' STABILITY_FORCE_SYMMETRY).
@@ -181,12 +194,7 @@ def _predict(tp, ti, tl, tv, Pf, Qc, P, tmp):
     The sums run over the same terms in the same order as the dense product, less the zeros.
     """
     k = P.shape[0]
-    for i in range(k):
-        for j in range(k):
-            acc = 0.0
-            for e in range(tp[i], tp[i + 1]):
-                acc += tv[e] * Pf[tl[e], j]
-            tmp[i, j] = acc
+    _csr_left(tp, tl, tv, Pf, tmp)
     for i in range(k):
         for j in range(k):
             acc = 0.0
@@ -380,12 +388,7 @@ def _augmented_step(yt, A, Af, Kf, w, zi, zv, tp, tl, tv):
     for i in range(k):
         for col in range(c):
             Af[i, col] = A[i, col] + Kf[i] * w[col]
-    for i in range(k):
-        for col in range(c):
-            acc = 0.0
-            for e in range(tp[i], tp[i + 1]):
-                acc += tv[e] * Af[tl[e], col]
-            A[i, col] = acc
+    _csr_left(tp, tl, tv, Af, A)
 
 
 @njit(cache=True)
@@ -491,22 +494,18 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
         if n_fixed > 0:  # (else Af already holds the last filtered columns)
             for i in range(k):
                 Af[i, col] = A[i, col] + Kf[i] * acc
-    a0 = A[:, 0].copy()
+    a0 = A[:, :1].copy()  # the data column
     sw = 0.0
     sww = 0.0
     while t < n:
         v = y[t] * scale
         for e in range(zn):
-            v -= zv[e] * a0[zi[e]]
+            v -= zv[e] * a0[zi[e], 0]
         sw += v
         sww += v * v
         for i in range(k):
-            Af[i, 0] = a0[i] + Kf[i] * v
-        for i in range(k):
-            acc = 0.0
-            for e in range(tp[i], tp[i + 1]):
-                acc += tv[e] * Af[tl[e], 0]
-            a0[i] = acc
+            Af[i, 0] = a0[i, 0] + Kf[i] * v
+        _csr_left(tp, tl, tv, Af[:, :1], a0)
         t += 1
     if converged:
         logdet += (n - t_conv) * math.log(Fc)
