@@ -117,7 +117,7 @@ import warnings
 import numpy as np
 
 __all__ = ["ALPHA", "MIN_CLUSTERS", "assess_fit", "assess_five_term", "five_term_gyro", "fit_statistic",
-           "refit_weights", "weighted_chi2_sf", "bootstrap_fit_check"]
+           "union_covariance", "refit_weights", "weighted_chi2_sf", "bootstrap_fit_check"]
 
 #: significance level of the poor-fit flag
 ALPHA = 0.01
@@ -218,7 +218,17 @@ def weighted_chi2_sf(x, weights) -> float:
     return float(min(max(p, 0.0), 1.0))
 
 
-def refit_weights(refit, m_check, cov_gyro, n_samples, cov_scale=1.0, rel_step=REL_STEP):
+def union_covariance(m_fit, m_check, cov_gyro, n_samples, cov_scale=1.0):
+    """``(u, omega)``: the cluster sizes of the fit and of the check together (sorted) and the model
+    covariance of the overlapping AV at them (:func:`estimators.gmwm.av_covariance`, times
+    ``cov_scale``); the check's own covariance is its sub-matrix."""
+    from estimators.gmwm import av_covariance
+
+    u = np.union1d(np.asarray(m_fit, dtype=np.int64), np.asarray(m_check, dtype=np.int64))
+    return u, av_covariance(cov_gyro, u, n_samples) * cov_scale
+
+
+def refit_weights(refit, m_check, cov_gyro, n_samples, cov_scale=1.0, rel_step=REL_STEP, union=None):
     """Weights of the null distribution of T for an estimator that is a function of the AV curve.
 
     ``refit = (m_fit, avar_fit, fn)``: the cluster sizes and values of the (overlapping) AV the
@@ -234,18 +244,16 @@ def refit_weights(refit, m_check, cov_gyro, n_samples, cov_scale=1.0, rel_step=R
         \\lambda = \\mathrm{eig}(L^{-1}\\Sigma_r L^{-T}),\\ \\Omega_c = LL^T,
 
     :math:`\\Omega_u` the model covariance of the AV at the union of sizes
-    (:func:`estimators.gmwm.av_covariance`). Returns ``(weights, J)``. For an efficient fit the
+    (:func:`union_covariance`; pass its result as ``union`` where it is already computed). Returns
+    ``(weights, J)``. For an efficient fit the
     weights are k - p ones and p zeros (the chi^2_{k-p} of GMM); an inefficient one has some above
     1 and more than p below: that is where the plain chi^2 reference gave false alarms.
     """
-    from estimators.gmwm import av_covariance
-
     m_fit, avar_fit, fn = refit
     m_fit = np.asarray(m_fit, dtype=np.int64)
     avar_fit = np.asarray(avar_fit, dtype=float)
     m_check = np.asarray(m_check, dtype=np.int64)
-    u = np.union1d(m_fit, m_check)
-    omega = av_covariance(cov_gyro, u, n_samples) * cov_scale
+    u, omega = union if union is not None else union_covariance(m_fit, m_check, cov_gyro, n_samples, cov_scale)
     i_f, i_c = np.searchsorted(u, m_fit), np.searchsorted(u, m_check)
     sd = np.sqrt(np.clip(np.diag(omega)[i_f], 0, None))
     tau_c = m_check * cov_gyro.dt
@@ -324,16 +332,21 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
         # nothing left to test the model against
         out.update(poor_fit=False, fit_stat=math.nan, fit_dof=0, fit_pvalue=math.nan, fit_reference="none")
         return out
+    union = None
     if cov_gyro is None or not np.all(np.isfinite(model)):
         cov = np.zeros((tau.size, tau.size))
+    elif refit is not None:  # one covariance for the check and its reference (refit_weights)
+        union = union_covariance(refit[0], m, cov_gyro, n, cov_scale)
+        i_c = np.searchsorted(union[0], np.asarray(m, dtype=np.int64))
+        cov = union[1][np.ix_(i_c, i_c)]
     else:
         cov = av_covariance(cov_gyro, m, n) * cov_scale
     T, dof, p, z = fit_statistic(avar, model, cov, n_params)
     out["fit_check"]["z"] = z
     reference_name = "chi2"
-    if refit is not None and cov_gyro is not None and np.isfinite(T):
+    if union is not None and np.isfinite(T):
         try:
-            lam, _ = refit_weights(refit, m, cov_gyro, n, cov_scale)
+            lam, _ = refit_weights(refit, m, cov_gyro, n, cov_scale, union=union)
         except (np.linalg.LinAlgError, ValueError, FloatingPointError):
             lam = None  # keep the chi^2_{k-p} reference
         if lam is not None and np.all(np.isfinite(lam)) and lam.sum() > 0:
