@@ -205,7 +205,7 @@ def render_latex(summary: pd.DataFrame, meta: dict | None = None) -> str:
     return "\n".join(out)
 
 
-def leaderboard(summary: pd.DataFrame, tidy: pd.DataFrame | None = None) -> str:
+def leaderboard(summary: pd.DataFrame, wins: pd.DataFrame | None = None) -> str:
     """Who wins where: per coefficient, each estimator over all gyros of the study.
 
     Only gyros that have the coefficient count. A *tested win* is a gyro on which the estimator has
@@ -217,16 +217,16 @@ def leaderboard(summary: pd.DataFrame, tidy: pd.DataFrame | None = None) -> str:
     for the record length), of the absolute bias over SE (the bias over its Monte Carlo standard error std /
     sqrt(replicates): above ~2 the bias is real), of the absolute error of the mean %, and the share
     of replicates without a physical estimate (fit times: timings.md; per gyro: scores.md).
-    """
-    from studies.scoring import wins as tested_wins
 
+    ``wins``: the paired comparisons of :func:`studies.scoring.wins` (none: no tested wins).
+    """
     s = summary[np.isfinite(summary["true"]) & (summary["true"] > 0)].copy()  # gyros that have the term
     s["bad_share"] = (s["n_nonphysical"] + s["n_failed"]) / s["n"]
     crlb = s["crlb_std"] if "crlb_std" in s else pd.Series(math.nan, index=s.index)
     with np.errstate(divide="ignore", invalid="ignore"):
         s["rmse_over_crlb"] = s["rmse"] / crlb
         s["abs_bias_over_se"] = (s["mean"] - s["true"]).abs() / (s["std"] / np.sqrt(s["n_ok"]))
-    w = tested_wins(tidy) if tidy is not None and len(s) else pd.DataFrame(columns=["coefficient", "best", "verdict"])
+    w = wins if wins is not None else pd.DataFrame(columns=["coefficient", "best", "verdict"])
     out = ["# Who wins where", ""]
     out.append(" ".join(line.strip() for line in leaderboard.__doc__.split("\n\n")[1].splitlines()))
     out.append("")
@@ -264,22 +264,15 @@ def leaderboard(summary: pd.DataFrame, tidy: pd.DataFrame | None = None) -> str:
     return "\n".join(out) + "\n"
 
 
-def _crlb_column(cfg, summary: pd.DataFrame) -> pd.DataFrame:
+def _crlb_column(bounds: dict, summary: pd.DataFrame) -> pd.DataFrame:
+    """``crlb_std`` (the Cramer-Rao bound, in each row's unit) and ``std_over_crlb`` from ``bounds``
+    (:func:`studies.scoring.crlb_table`: {(gyro, coefficient): bound in SI})."""
     s = summary.copy()
     s["crlb_std"] = math.nan
-    try:
-        from estimators import crlb
-    except ImportError:
-        return s
-    for gspec in cfg.gyros:
-        try:
-            bound = crlb(gspec.gyro, gspec.n_samples)
-        except Exception:  # a model the bound does not cover: leave NaN
-            continue
-        for c in COEFFICIENTS:
-            sel = (s["gyro"] == gspec.label) & (s["coefficient"] == c)
-            if sel.any() and np.isfinite(bound.get(c, math.nan)):
-                s.loc[sel, "crlb_std"] = from_si(c, float(bound[c]), s.loc[sel, "unit"].iloc[0])
+    for (g, c), b in bounds.items():
+        sel = (s["gyro"] == g) & (s["coefficient"] == c)
+        if sel.any() and np.isfinite(b):
+            s.loc[sel, "crlb_std"] = from_si(c, float(b), s.loc[sel, "unit"].iloc[0])
     s["std_over_crlb"] = s["std"] / s["crlb_std"]
     return s
 
@@ -355,7 +348,10 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     """
     out = Path(out)
     (out / MARKER).unlink(missing_ok=True)  # incomplete from here until the new marker is written
-    summary = _crlb_column(cfg, summarize(tidy, getattr(cfg, "units", None)))
+    from studies.scoring import crlb_table, wins, write_scores
+
+    bounds = crlb_table(cfg)  # computed once, for the tables and the scores
+    summary = _crlb_column(bounds, summarize(tidy, getattr(cfg, "units", None)))
     if cfg.paper_table is not None:  # validated by the config: a missing table is a ConfigError there
         from studies.papers import add_paper, load_paper_table
 
@@ -376,13 +372,12 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     atomic_write_text(out / "table.csv", summary.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
     atomic_write_text(out / "table.md", render_markdown(summary, meta))
     written += [out / "table.csv", out / "table.md"]
+    w = wins(tidy)  # the paired bootstrap comparisons, once, for the leaderboard and the scores
     if len(cfg.gyros) > 1 or len(cfg.estimators) > 1:
-        atomic_write_text(out / "leaderboard.md", leaderboard(summary, tidy))
+        atomic_write_text(out / "leaderboard.md", leaderboard(summary, w))
         written.append(out / "leaderboard.md")
     if "lower" in tidy.columns:  # coverage, RMSE/CRLB, bias/SE and tested wins (studies.scoring)
-        from studies.scoring import write_scores
-
-        written += write_scores(cfg, tidy, out)
+        written += write_scores(tidy, out, bounds, w)
     if "seconds" in tidy:
         t = timings(tidy)
         atomic_write_text(out / "timings.csv", t.to_csv(index=False, float_format="%.4g"))

@@ -169,16 +169,16 @@ def render_scores(sc: pd.DataFrame, w: pd.DataFrame) -> str:
     return "\n".join(out) + "\n"
 
 
-def write_scores(cfg, tidy: pd.DataFrame, out) -> list:
+def write_scores(tidy: pd.DataFrame, out, bounds: dict, w: pd.DataFrame) -> list:
     """Write ``scores.csv`` (6 significant digits) and ``scores.md`` beside the study's tables (a hook
-    of ``write_report``); returns their paths."""
+    of ``write_report``, which passes the study's :func:`crlb_table` and :func:`wins`); returns their
+    paths."""
     from pathlib import Path
 
     from studies.report import TABLE_DIGITS, atomic_write_text
 
     out = Path(out)
-    sc = scores(tidy, crlb_table(cfg))
-    w = wins(tidy)
+    sc = scores(tidy, bounds)
     atomic_write_text(out / "scores.csv", sc.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
     atomic_write_text(out / "scores.md", render_scores(sc, w))
     return [out / "scores.csv", out / "scores.md"]

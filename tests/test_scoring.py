@@ -67,7 +67,7 @@ def test_leaderboard_counts_only_tested_wins():
     t1 = _tidy({"good": 0.5 * rng.standard_normal(40), "bad": e})
     t2 = _tidy({"same": e * (1 + 0.01 * rng.standard_normal(40)), "bad": e}).assign(gyro="g2")
     tidy = pd.concat([t1, t2], ignore_index=True)
-    lines = [ln for ln in leaderboard(summarize(tidy), tidy).splitlines() if ln.startswith("| ")]
+    lines = [ln for ln in leaderboard(summarize(tidy), wins(tidy)).splitlines() if ln.startswith("| ")]
     header = [c.strip() for c in lines[0].strip("|").split("|")]
     rows = {r[0]: dict(zip(header, r)) for r in ([c.strip() for c in ln.strip("|").split("|")] for ln in lines[1:])}
     assert rows["good"]["tested wins"] == "1" and rows["good"]["best, tied"] == "0"
