@@ -132,3 +132,80 @@ def test_a_poor_start_is_retried_until_scoring_converges(seed):
     assert conv
     assert d["loglik"] >= ll_truth - 1e-6
     assert abs(est.coefficients_["N"] / g.coefficients["N"] - 1) < 5 * est.std_err_["N"] / g.coefficients["N"]
+
+
+def _dense_covariance(comp, n, dt, tc=None):
+    """Time-domain covariance of one unit-variance term (normalised units, as WhittleFit uses)."""
+    from scipy.linalg import toeplitz
+
+    lag = np.arange(n)
+    if comp == "N":
+        return np.eye(n) / dt
+    if comp == "Q":
+        r = np.zeros(n)
+        r[0], r[1] = 2 / dt**2, -1 / dt**2
+        return toeplitz(r)
+    if comp == "GM":
+        return toeplitz(np.exp(-lag * dt / tc))
+    if comp == "B":  # a filter memory far beyond the record: the ideal 1/f up to ~1e-5
+        return toeplitz(BiasInstability(B=1.0, tau_max=1e6 * dt).autocovariance(n - 1, dt))
+    if comp == "K":  # random walk of increments with variance dt
+        s = np.minimum.outer(lag, lag) + 1.0
+        return s * dt
+    raise AssertionError(comp)
+
+
+@pytest.mark.parametrize("comp", ["N", "Q", "GM", "B", "K"])
+@pytest.mark.parametrize("n", [300, 301])
+def test_trend_variance_is_the_exact_quadratic_form(comp, n):
+    """WhittleFit.trend_weights reproduce the profiled slope, and trend_variance equals c^T Sigma c with
+    each term's dense covariance (the random walk's includes its end-point drift)."""
+    rng = np.random.default_rng(n)
+    x = rng.standard_normal(n).cumsum() * 0.1 + rng.standard_normal(n)
+    wf = WhittleFit(x, DT)
+    comps, a, tc = ["N", "B", "K"], np.array([1.0, 0.3, 0.01]), None
+    beta = wf.evaluate(comps, a)[1]
+    c = wf.trend_weights(comps, a)
+    assert abs(c @ (x / wf.scale) - beta) < 1e-10 * abs(beta)
+    assert abs(c.sum()) < 1e-12 * np.abs(c).sum()
+    one_tc = 40 * DT if comp == "GM" else None
+    both = ["N"] + ([comp] if comp != "N" else [])  # white noise keeps the spectrum positive
+    got = wf.trend_variance(both, np.ones(len(both)), one_tc)
+    cc = wf.trend_weights(both, np.ones(len(both)), one_tc)
+    want = cc @ sum(_dense_covariance(x, n, DT, one_tc) for x in both) @ cc
+    assert got == pytest.approx(want, rel=1e-4 if comp == "B" else 1e-9)
+
+
+def _ramp_z2(R, seed):
+    """Squared z-statistics of the slope on R records of 20 min of SRS2000 (Q + N + flicker, no ramp),
+    with the slope's variance from the true spectrum and from the fitted one."""
+    from noise_models import presets
+
+    g = presets.get("SRS2000")
+    truth, fitted = [], []
+    for s in np.random.SeedSequence(seed).spawn(R):
+        x = g.simulate(12_000, np.random.default_rng(s))
+        wf = WhittleFit(x, g.dt)
+        a = np.array([g.coefficients[c] ** 2 for c in "QNB"]) / wf.scale**2
+        beta = wf.trend_weights(list("QNB"), a) @ (x / wf.scale)
+        truth.append(beta**2 / wf.trend_variance(list("QNB"), a))
+        e = estimators.get("whittle", terms="QNBR", select=False).fit(x, g.dt)
+        fitted.append((e.coefficients_["R"] / e.std_err_["R"]) ** 2)
+    return np.array(truth), np.array(fitted)
+
+
+def _check_ramp_z2(truth, fitted):
+    """chi^2_1 under the model: mean 1 with standard error sqrt(2/R), 3 SE either side."""
+    R = truth.size
+    tol = 3 * math.sqrt(2 / R)
+    assert abs(truth.mean() - 1) < tol, truth.mean()
+    assert abs(fitted.mean() - 1) < tol, fitted.mean()  # the plug-in: the GLS formula gave ~6
+
+
+def test_ramp_standard_error_matches_the_spread_small():
+    _check_ramp_z2(*_ramp_z2(R=60, seed=31))
+
+
+@pytest.mark.slow
+def test_ramp_standard_error_matches_the_spread_slow():
+    _check_ramp_z2(*_ramp_z2(R=400, seed=32))
