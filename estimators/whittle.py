@@ -94,6 +94,11 @@ Reading / where it is not exact
   spectrum's own error makes it somewhat small (the trend and the flicker level share the lowest
   frequencies).
 * Gauss-Markov (setting ``bias="gauss_markov"``): B is then SPEC's :math:`B_{equiv} = 0.9294\\sigma`.
+  ``bias="select"`` chooses between the two spectra by the penalised likelihood of the full models
+  (non-nested models: the comparison is the criterion's, not a test). Over the band a record
+  resolves, a Gauss-Markov process with Tc beyond the record looks like a random walk and one with
+  Tc of a few samples like white noise; flicker is told from Gauss-Markov by the curvature of the
+  spectrum across the decades between.
 * Selection: BIC is consistent for the true set as n grows; intervals after selection ignore the
   selection step (post-selection inference), which is why dropped terms keep the full model's upper
   bound.
@@ -443,9 +448,11 @@ class Whittle(Estimator):
     ----------
     terms : str
         Terms modelled (subset of "QNBKR"); with ``select=True``, the candidates.
-    bias : {"flicker", "gauss_markov"}
+    bias : {"flicker", "gauss_markov", "select"}
         Spectrum of the bias-instability term: flicker (Kasdin & Walter, the presets' truth) or a
-        first-order Gauss-Markov process (B reported as :math:`B_{equiv} = 0.9294\\sigma`).
+        first-order Gauss-Markov process (B reported as :math:`B_{equiv} = 0.9294\\sigma`); "select"
+        fits the full model with each and keeps the one with the lower penalised likelihood (the
+        ``criterion``'s, Gauss-Markov counting two parameters), before term selection.
     select : bool
         Choose the terms present among ``terms`` (module docstring). Default True.
     criterion : {"bic", "lr"}
@@ -460,7 +467,8 @@ class Whittle(Estimator):
     diagnostics_ : dict
         ``terms`` (the terms kept), ``loglik``, ``bic``, ``n_iter``, ``converged``, ``beta`` (trend
         slope, rad/s per sample), ``tc`` (Gauss-Markov), ``full_std_err`` (the full model's),
-        ``selection`` (BIC of each model visited).
+        ``selection`` (BIC of each model visited), ``bias_model`` (the bias-instability spectrum
+        used) and ``bias_models`` (the penalised likelihood of each full model tried).
 
     Examples
     --------
@@ -481,8 +489,8 @@ class Whittle(Estimator):
 
     def _check(self):
         terms = check_terms(self.terms)
-        if self.bias not in ("flicker", "gauss_markov"):
-            raise ValueError(f"bias: expected 'flicker' or 'gauss_markov', got {self.bias!r}")
+        if self.bias not in ("flicker", "gauss_markov", "select"):
+            raise ValueError(f"bias: expected 'flicker', 'gauss_markov' or 'select', got {self.bias!r}")
         if not isinstance(self.select, (bool, np.bool_)):
             raise ValueError(f"select: expected True or False, got {self.select!r}")
         if self.criterion not in _PENALTY:
@@ -496,12 +504,7 @@ class Whittle(Estimator):
     def _fit(self, rate, dt):
         terms = self._check()
         wf = WhittleFit(rate, dt)
-        bname = "GM" if self.bias == "gauss_markov" else "B"
-        comps = [bname if c == "B" else c for c in terms if c != "R"]
         n = rate.size
-        full = whittle_fit(wf, comps, self.n_starts)
-        fits = {tuple(full["comps"]): full}
-        chosen = full
         pen = _PENALTY[self.criterion](n)
 
         def n_par(f):
@@ -509,6 +512,17 @@ class Whittle(Estimator):
 
         def bic(f):
             return -2 * f["loglik"] + n_par(f) * pen
+
+        # the bias-instability spectrum: as set, or (bias="select") the better penalised full model
+        shapes = [self.bias] if self.bias != "select" else (["flicker", "gauss_markov"] if "B" in terms else ["flicker"])
+        fulls = {}
+        for shape in shapes:
+            bname = "GM" if shape == "gauss_markov" else "B"
+            fulls[shape] = whittle_fit(wf, [bname if c == "B" else c for c in terms if c != "R"], self.n_starts)
+        shape = min(fulls, key=lambda sh: bic(fulls[sh]))
+        full = fulls[shape]
+        fits = {tuple(full["comps"]): full}
+        chosen = full
 
         if self.select:
             cur = full
@@ -554,6 +568,8 @@ class Whittle(Estimator):
             "full_coefficients": pd.Series(full_coefs, dtype=float).reindex(list(COEFFICIENTS)),
             **_zero_bounds(wf, chosen, kept, terms, coefs, se),
             "selection": {"".join(k): float(bic(v)) for k, v in fits.items()},
+            "bias_model": shape,
+            "bias_models": {sh: float(bic(f)) for sh, f in fulls.items()},
         }
         if not chosen["converged"]:
             diag["failure"] = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
