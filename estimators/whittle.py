@@ -601,7 +601,8 @@ class Whittle(Estimator):
         return coefs, {}, diag
 
     def _report(self, wf, fit, kept, terms, select, k_drift=0.0, pen=None):
-        """Coefficients (SI) and standard errors (crlb at the estimate; R: the exact variance of the slope, WhittleFit.trend_variance).
+        """Coefficients (SI) and standard errors (crlb at the estimate; R: the exact variance of the
+        slope, :meth:`WhittleFit.trend_variance`).
 
         The ramp test uses the random-walk drift of the *full* model (``k_drift``): a random walk
         too weak to be kept still drifts, and that drift must not be read as a ramp."""
