@@ -99,6 +99,17 @@ Reading / where it is not exact
   resolves, a Gauss-Markov process with Tc beyond the record looks like a random walk and one with
   Tc of a few samples like white noise; flicker is told from Gauss-Markov by the curvature of the
   spectrum across the decades between.
+* Short records (``results/coverage_true_terms``: 20 min, the fit told the true terms). Three
+  finite-sample effects pull B down by up to half a CRLB std where its CRLB relative std is 0.2-0.3:
+  the profiled trend slope takes low-frequency power (``reml=True`` gives it back: -0.44 -> -0.25
+  CRLB on the 50 Hz ADIS preset, -0.17 -> -0.03 on CRG20); a term near its boundary at 0 (K on the
+  ADIS presets at 20 min) trades power with B (-0.3 to -0.5, which REML does not change); and a
+  coefficient is the square root of a variance estimate (Jensen: about -rel.std/2 of a CRLB std).
+  Terms forced where they are absent (``terms="QNBKR"`` on a gyro without Q or K) sit on that
+  boundary too, and cost more: their estimates are >= 0 and take power from their neighbours.
+  Also, the expected periodogram of 1/f noise exceeds its spectrum at the lowest ordinates (+15-20 %
+  at k = 1, ~1/k after; the leakage of a spectrum singular at 0) which the likelihood ignores; the
+  debiased Whittle likelihood of Sykulski et al. (2019) would use the expected periodogram instead.
 * Selection: BIC is consistent for the true set as n grows; intervals after selection ignore the
   selection step (post-selection inference), which is why dropped terms keep the full model's upper
   bound.
