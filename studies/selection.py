@@ -14,7 +14,8 @@ Usage::
         studies/model_selection_8h.toml --out results/model_selection
 
 reads ``results/<study name>/tidy.csv`` of each config (``--results`` to change the folder) and
-writes ``selection.csv`` and ``selection.md`` in ``--out``.
+writes ``selection.csv``, ``selection.md`` and ``selection.png`` (the exact-set share against the
+record length, one panel per gyro) in ``--out``.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ import pandas as pd
 
 from noise_models.units import COEFFICIENTS
 
-__all__ = ["selection_rates", "main"]
+__all__ = ["selection_rates", "selection_figure", "main"]
 
 
 def selection_rates(tidy: pd.DataFrame, crlb_rel: dict | None = None, length: str = "") -> pd.DataFrame:
@@ -108,8 +109,54 @@ def main(argv=None) -> int:
 
     atomic_write_text(out / "selection.csv", table.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
     atomic_write_text(out / "selection.md", _render(table))
+    from studies.figures import _save
+
+    _save(selection_figure(table), out / "selection.png")
     print(f"wrote {out / 'selection.md'}")
     return 0
+
+
+def selection_figure(t: pd.DataFrame):
+    """Exact-set share (Clopper-Pearson 95 % bars) against the record length, a panel per gyro and a
+    line per estimator; filled markers where the target applies (every present term's CRLB relative
+    std < 0.3), open where it does not; the 90 % target dashed."""
+    from studies.figures import plt, series_style
+
+    t = t.assign(hours=t["length"].str.replace(" h", "", regex=False).astype(float))
+    gyros = list(dict.fromkeys(t["gyro"]))
+    ncol = min(5, len(gyros))
+    nrow = math.ceil(len(gyros) / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(2.6 * ncol, 2.4 * nrow + 0.6), sharex=True, sharey=True,
+                             squeeze=False)
+    for ax, g in zip(axes.flat, gyros):
+        d = t[t["gyro"] == g]
+        for i, (e, de) in enumerate(d.groupby("estimator", sort=False)):
+            de = de.sort_values("hours")
+            st = series_style(i)
+            err = [de["exact"] - de["exact_lo"], de["exact_hi"] - de["exact"]]
+            ax.errorbar(de["hours"], de["exact"], yerr=err, color=st["color"], lw=1, capsize=2, label=e)
+            on = de["target_applies"].to_numpy(bool)
+            ax.plot(de["hours"][on], de["exact"][on], "o", color=st["color"], ms=5)
+            ax.plot(de["hours"][~on], de["exact"][~on], "o", mfc="white", color=st["color"], ms=5)
+        ax.axhline(0.9, color="0.5", ls="--", lw=0.8)
+        ax.set_xscale("log")
+        hours = sorted(t["hours"].unique())
+        ax.set_xticks(hours, [f"{h:g}" for h in hours])
+        ax.xaxis.set_minor_locator(plt.NullLocator())
+        ax.set_xlim(hours[0] / 1.6, hours[-1] * 1.6)
+        ax.set_title(f"{g} ({d['true_set'].iloc[0]})", fontsize=8)
+        ax.set_ylim(-0.03, 1.03)
+        ax.tick_params(labelsize=7)
+    for ax in axes.flat[len(gyros):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel("record length (h)", fontsize=8)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("true set chosen", fontsize=8)
+    fig.suptitle("Term selection: share of replicates choosing exactly the true terms (filled: target "
+                 "applies; dashed: 90 %)", fontsize=9)
+    fig.tight_layout()
+    return fig
 
 
 def _render(t: pd.DataFrame) -> str:

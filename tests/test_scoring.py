@@ -58,6 +58,18 @@ def test_selection_rates_count_the_exact_true_set():
     np.testing.assert_allclose([t["exact"], t["keep_B"], t["add_K"], t["max_crlb_rel"]], [1 / 3, 2 / 3, 1 / 3, 0.2])
 
 
+def test_selection_figure_has_a_panel_per_gyro():
+    from studies.selection import selection_figure
+
+    t = pd.DataFrame([dict(length=f"{h:g} h", gyro=g, estimator="w", true_set="NB", exact=e, exact_lo=e / 2,
+                           exact_hi=min(1.0, e * 1.5), target_applies=h > 1)
+                      for g in ("a", "b", "c") for h, e in ((0.5, 0.2), (2.0, 0.6), (8.0, 0.95))])
+    fig = selection_figure(t)
+    visible = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in visible] == ["a (NB)", "b (NB)", "c (NB)"]
+    assert [tk.get_text() for tk in visible[0].get_xticklabels()] == ["0.5", "2", "8"]
+
+
 def test_leaderboard_counts_only_tested_wins():
     # gyro g1: "good" beats "bad" clearly (a win); gyro g2: "bad" and "same" differ by 1 % (a tie)
     from studies.report import leaderboard, summarize
