@@ -66,7 +66,9 @@ the boundary of the parameter space and is the chi-bar-squared mixture
 under the null; the penalty is a plain approximation there). The ramp is kept when
 :math:`\\hat\\beta^2 / \\mathrm{Var}_0 > c` with :math:`\\mathrm{Var}_0` the variance of
 :math:`\\hat\\beta` without a ramp (exact, with the random walk of the full model, even
-when K itself is dropped): the same penalty for its one parameter. Dropped terms are reported as 0;
+when K itself is dropped): with BIC the same penalty for its one parameter; with the LR test
+:math:`c = 3.841`, the two-sided :math:`\\chi^2_1` 95 % point (the slope's null, 0, is not on a
+boundary). Dropped terms are reported as 0;
 ``conf_int`` gives them the boundary upper bound (:func:`_zero_bounds`).
 
 What selection can do: a term whose variance has Wald statistic
@@ -445,6 +447,9 @@ def _zero_bounds(wf, fit, kept, terms, coefs, se):
 
 #: penalty per parameter of each selection criterion, as a function of n
 _PENALTY = {"bic": math.log, "lr": lambda n: 2.705543454095404}  # chi2_1 90 % point (chi-bar^2, 5 %)
+#: the ramp's: its slope can take either sign (beta = 0 is inside the parameter space), so the 5 % test
+#: is the two-sided chi2_1 95 % point, not the boundary mixture's
+_RAMP_PENALTY = {"bic": math.log, "lr": lambda n: 3.841458820694124}
 
 
 def _drop_candidates(fit, pen):
@@ -500,7 +505,8 @@ class Whittle(Estimator):
     diagnostics_ : dict
         ``terms`` (the terms kept), ``loglik``, ``bic``, ``n_iter``, ``converged``, ``beta`` (trend
         slope, rad/s per sample), ``tc`` (Gauss-Markov), ``full_std_err`` (the full model's),
-        ``selection`` (BIC of each model visited), ``bias_model`` (the bias-instability spectrum
+        ``selection`` (BIC of each model visited), ``ramp_z2`` (the ramp's squared z-statistic,
+        :math:`\\hat\\beta^2/\\mathrm{Var}_0`, NaN without R in ``terms``), ``bias_model`` (the bias-instability spectrum
         used) and ``bias_models`` (the penalised likelihood of each full model tried).
 
     Examples
@@ -586,11 +592,12 @@ class Whittle(Estimator):
         kept = [c for c in chosen["comps"] if c not in chosen["absent"]]
         full_kept = [c for c in full["comps"] if c not in full["absent"]]
         k_full = math.sqrt(full["a"][full["comps"].index("K")]) * wf.scale if "K" in full_kept else 0.0
-        coefs, se, tr = self._report(wf, chosen, kept, terms, select=self.select, k_drift=k_full, pen=pen)
+        coefs, se, tr, ramp_z2 = self._report(wf, chosen, kept, terms, select=self.select, k_drift=k_full,
+                                              pen=_RAMP_PENALTY[self.criterion](n))
         if chosen is full:
             full_coefs, full_se = coefs, se
         else:
-            full_coefs, full_se, _ = self._report(wf, full, full_kept, terms, select=False, k_drift=k_full)
+            full_coefs, full_se, _, _ = self._report(wf, full, full_kept, terms, select=False, k_drift=k_full)
         diag = {
             "terms": "".join(("B" if c == "GM" else c) for c in kept) + ("R" if tr else ""),
             "loglik": float(chosen["loglik"]),
@@ -604,6 +611,7 @@ class Whittle(Estimator):
             "full_coefficients": pd.Series(full_coefs, dtype=float).reindex(list(COEFFICIENTS)),
             **_zero_bounds(wf, chosen, kept, terms, coefs, se),
             "selection": {"".join(k): float(bic(v)) for k, v in fits.items()},
+            "ramp_z2": ramp_z2,
             "bias_model": shape,
             "bias_models": {sh: float(bic(f)) for sh, f in fulls.items()},
         }
@@ -639,13 +647,14 @@ class Whittle(Estimator):
             for c in bound.index:
                 if c in coefs and c != "R" and np.isfinite(bound[c]):
                     se[c] = bound[c]
-        keep_r = False
+        keep_r, z2 = False, math.nan
         if "R" in terms:
             d = fit["detail"]
             a_walk = max(val.get("K", 0.0), k_drift) ** 2 / s**2
             var_r = wf.trend_variance(fit["comps"], fit["a"], fit["tc"], a_walk=a_walk) * s**2 / dt**2
             r_hat = abs(d["beta"]) * s / dt
-            keep_r = (not select) or r_hat**2 / var_r > (math.log(n) if pen is None else pen)
+            z2 = r_hat**2 / var_r
+            keep_r = (not select) or z2 > (math.log(n) if pen is None else pen)
             coefs["R"] = r_hat if keep_r else 0.0
             se["R"] = math.sqrt(var_r)
-        return coefs, se, keep_r
+        return coefs, se, keep_r, z2

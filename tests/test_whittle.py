@@ -280,3 +280,51 @@ def test_reml_variance_of_flicker_unbiased_slow():
     z = _reml_bias(R=400, seed=42)
     assert abs(z[True]) < 3, z
     assert z[False] < -3, z
+
+
+def _lr_ramp_rate(R, seed):
+    """Share of R records of 20 min of SRS2000 (no ramp) in which the LR criterion keeps a ramp."""
+    from noise_models import presets
+
+    g = presets.get("SRS2000")
+    kept = 0
+    for s in np.random.SeedSequence(seed).spawn(R):
+        e = estimators.get("whittle", criterion="lr").fit(g.simulate(12_000, np.random.default_rng(s)), g.dt)
+        kept += e.coefficients_["R"] > 0
+    return kept / R
+
+
+def _check_lr_ramp_rate(rate, R):
+    """A test at level 5 % keeps a ramp that is not there in no more than 5 % of records, up to 3
+    binomial SE (measured: 3.3 % at 600 records; the model's random walk, fitted though absent, adds
+    drift variance, which makes the test a little conservative)."""
+    assert rate < 0.05 + 3 * math.sqrt(0.05 * 0.95 / R), rate
+
+
+@pytest.mark.parametrize("criterion, threshold", [("lr", 3.841458820694124), ("bic", None)])
+def test_ramp_is_kept_exactly_when_its_z2_passes_the_criterion(criterion, threshold):
+    """The ramp's threshold: the two-sided chi2_1 95 % point for the LR test (its slope's null is not on
+    a boundary, unlike a variance's), log n for BIC. Records with a ramp of every strength around it."""
+    g = Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), BiasInstability(B=3e-4, tau_max=2e4)])
+    n = 40_000
+    threshold = threshold or math.log(n)
+    rng = np.random.default_rng(8)
+    seen = []
+    for slope in np.linspace(0, 4e-8, 24):
+        x = g.simulate(n, rng) + slope * np.arange(n)
+        e = estimators.get("whittle", terms="NBR", criterion=criterion).fit(x, DT)
+        z2 = e.diagnostics_["ramp_z2"]
+        assert (e.coefficients_["R"] > 0) == (z2 > threshold), (z2, e.coefficients_["R"])
+        seen.append(z2)
+    assert min(seen) < threshold < max(seen)  # both sides were exercised
+    if criterion == "lr":  # and the band a boundary-mixture threshold (2.706) would decide otherwise
+        assert any(2.706 < z < threshold for z in seen)
+
+
+def test_lr_ramp_test_has_its_level_small():
+    _check_lr_ramp_rate(_lr_ramp_rate(100, 51), 100)
+
+
+@pytest.mark.slow
+def test_lr_ramp_test_has_its_level_slow():
+    _check_lr_ramp_rate(_lr_ramp_rate(600, 52), 600)
