@@ -30,9 +30,9 @@ LIMITS = {
     "thousand steps: a state update per block mean; with a drift the augmented filter, whose diffuse columns "
     "also settle); 2p evaluations per L-BFGS gradient (central differences), ~30 iterations, plus the "
     "Hessian's 4p^2; the diagonal-weight GMWM start and the fit check are a fixed share (~half of the default fit).",
-    "whittle": "One FFT of the record, then per likelihood evaluation the exact spectra of the terms at the n/2 "
-    "Fourier frequencies (the flicker term's is a sum over its filter); L-BFGS in log-parameters from several "
-    "starts, and with selection one fit per candidate term set.",
+    "whittle": "One FFT of the record; then Fisher scoring in log-parameters, each step one compiled pass over the "
+    "n/2 Fourier frequencies with the terms' closed-form spectra; the ramp's exact variance costs two FFTs of twice "
+    "the record per model reported, and with selection there is one fit per candidate term set.",
     "arma_em": "One compiled pass per sample: the Kalman update of the 2-state equivalent-ARMA model and the recursive EM statistics of "
     "Elliott & Krishnamurthy (its finite-dimensional filters); the default fit adds its AV-fit start.",
     "shakf": "One compiled pass (3 states): the recursive AV, the time update and a scalar measurement update per sample.",

@@ -506,8 +506,9 @@ class Whittle(Estimator):
         ``terms`` (the terms kept), ``loglik``, ``bic``, ``n_iter``, ``converged``, ``beta`` (trend
         slope, rad/s per sample), ``tc`` (Gauss-Markov), ``full_std_err`` (the full model's),
         ``selection`` (BIC of each model visited), ``ramp_z2`` (the ramp's squared z-statistic,
-        :math:`\\hat\\beta^2/\\mathrm{Var}_0`, NaN without R in ``terms``), ``bias_model`` (the bias-instability spectrum
-        used) and ``bias_models`` (the penalised likelihood of each full model tried).
+        :math:`\\hat\\beta^2/\\mathrm{Var}_0`, NaN without R in ``terms``), ``bias_model`` (the
+        bias-instability spectrum used) and ``bias_models`` (the penalised likelihood of each full
+        model tried).
 
     Examples
     --------
@@ -556,7 +557,9 @@ class Whittle(Estimator):
             return -2 * f["loglik"] + n_par(f) * pen
 
         # the bias-instability spectrum: as set, or (bias="select") the better penalised full model
-        shapes = [self.bias] if self.bias != "select" else (["flicker", "gauss_markov"] if "B" in terms else ["flicker"])
+        shapes = [self.bias]
+        if self.bias == "select":
+            shapes = ["flicker", "gauss_markov"] if "B" in terms else ["flicker"]
         fulls = {}
         for shape in shapes:
             bname = "GM" if shape == "gauss_markov" else "B"

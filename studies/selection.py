@@ -61,19 +61,12 @@ def selection_rates(tidy: pd.DataFrame, crlb_rel: dict | None = None, length: st
 
 
 def _crlb_rel(cfg) -> dict:
-    from estimators import crlb
+    """{(gyro, coefficient): CRLB relative std} of the present terms (:func:`studies.scoring.crlb_table`)."""
+    from studies.scoring import crlb_table
 
-    out = {}
-    for g in cfg.gyros:
-        try:
-            b = crlb(g.gyro, g.n_samples)
-        except Exception:
-            continue
-        truth = g.gyro.coefficients
-        for c in COEFFICIENTS:
-            if np.isfinite(truth[c]) and truth[c] > 0:
-                out[(g.label, c)] = float(b[c] / truth[c])
-    return out
+    truth = {g.label: g.gyro.coefficients for g in cfg.gyros}
+    return {(g, c): b / truth[g][c] for (g, c), b in crlb_table(cfg).items()
+            if np.isfinite(truth[g][c]) and truth[g][c] > 0}
 
 
 def main(argv=None) -> int:
@@ -128,6 +121,7 @@ def selection_figure(t: pd.DataFrame):
     nrow = math.ceil(len(gyros) / ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(2.6 * ncol, 2.4 * nrow + 0.6), sharex=True, sharey=True,
                              squeeze=False)
+    hours = sorted(t["hours"].unique())
     for ax, g in zip(axes.flat, gyros):
         d = t[t["gyro"] == g]
         for i, (e, de) in enumerate(d.groupby("estimator", sort=False)):
@@ -140,7 +134,6 @@ def selection_figure(t: pd.DataFrame):
             ax.plot(de["hours"][~on], de["exact"][~on], "o", mfc="white", color=st["color"], ms=5)
         ax.axhline(0.9, color="0.5", ls="--", lw=0.8)
         ax.set_xscale("log")
-        hours = sorted(t["hours"].unique())
         ax.set_xticks(hours, [f"{h:g}" for h in hours])
         ax.xaxis.set_minor_locator(plt.NullLocator())
         ax.set_xlim(hours[0] / 1.6, hours[-1] * 1.6)

@@ -1,3 +1,5 @@
+import os
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -129,7 +131,7 @@ def dask_cluster():
 
 #: the optional, licensed static recordings (folder with adis16405-calgary/ and mtig-cont-imu1/),
 #: read in place where the environment variable AVBENCH_REAL_DATA says; tests that need them skip
-REAL_DATA = __import__("os").environ.get("AVBENCH_REAL_DATA")
+REAL_DATA = os.environ.get("AVBENCH_REAL_DATA")
 
 
 def real_recording(rel: str):
