@@ -22,7 +22,9 @@ Every estimator, batch or online, follows the scikit-learn contract:
       ``conf_int(level=0.95, conservative=False)`` gives intervals (:mod:`estimators.uncertainty`).
 
 Subclasses implement ``_fit(rate, dt)`` returning ``(coefficients: dict, nonphysical: dict,
-diagnostics: dict)``; the base class does the input checks and packs the results.
+diagnostics: dict)``; the base class does the input checks and packs the results. A subclass whose
+settings can be validated without data may also define ``check_settings()`` (raise ``ValueError``
+naming the bad setting): study configs then call it instead of trial fits on simulated records.
 
 Register a subclass with the decorator ``@register("name")``; ``estimators.get(name, **settings)``
 returns a new configured instance.

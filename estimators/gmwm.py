@@ -251,7 +251,9 @@ class GMWM(Estimator):
         self.n_starts = n_starts
 
     # -- settings --------------------------------------------------------------------------------
-    def _check(self):
+    def check_settings(self):
+        """Raise ValueError naming the first bad setting (no data needed; fit calls it, and study
+        configs call it instead of a trial fit); return the parsed latents."""
         latents = parse_model(self.model)
         if isinstance(self.min_clusters, bool) or not isinstance(self.min_clusters, (int, np.integer)) \
                 or self.min_clusters < 2:
@@ -274,7 +276,7 @@ class GMWM(Estimator):
         return WaveletVariance(res.tau, res.avar, res.m, res.edf)
 
     def _fit(self, rate, dt):
-        latents = self._check()
+        latents = self.check_settings()
         n = rate.size
         wv = self._wavelet_variance(rate, dt)
         tau_all, avar_all, m_all, edf_all, cov_scale = wv.tau, wv.avar, wv.m, wv.edf, wv.cov_scale

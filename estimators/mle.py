@@ -152,7 +152,9 @@ class MLE(Estimator):
         self.max_blocks = max_blocks
         self.maxiter = maxiter
 
-    def _check(self):
+    def check_settings(self):
+        """Raise ValueError naming the first bad setting (no data needed; fit calls it, and study
+        configs call it instead of a trial fit); return the parsed latents."""
         latents = parse_model(self.model)
         bad = [lat for lat in latents if lat not in _ALLOWED]
         if bad:
@@ -169,7 +171,7 @@ class MLE(Estimator):
         return latents
 
     def _fit(self, rate, dt):
-        latents = self._check()
+        latents = self.check_settings()
         n = rate.size
         m = max(1, math.ceil(n / self.max_blocks)) if self.block == "auto" else int(self.block)
         if n // m < 16:

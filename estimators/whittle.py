@@ -528,7 +528,9 @@ class Whittle(Estimator):
         self.n_starts = n_starts
         self.reml = reml
 
-    def _check(self):
+    def check_settings(self):
+        """Raise ValueError naming the first bad setting (no data needed; fit calls it, and study
+        configs call it instead of a trial fit); return the parsed terms."""
         terms = check_terms(self.terms)
         if self.bias not in ("flicker", "gauss_markov", "select"):
             raise ValueError(f"bias: expected 'flicker', 'gauss_markov' or 'select', got {self.bias!r}")
@@ -545,7 +547,7 @@ class Whittle(Estimator):
         return terms
 
     def _fit(self, rate, dt):
-        terms = self._check()
+        terms = self.check_settings()
         wf = WhittleFit(rate, dt, reml=self.reml)
         n = rate.size
         pen = _PENALTY[self.criterion](n)

@@ -148,6 +148,26 @@ def test_estimator_failing_on_every_record_is_a_config_error(tmp_path):
         load_config(write(tmp_path, study_toml(extra_estimators=extra)))
 
 
+@pytest.mark.parametrize("name, bad, match", [("gmwm", 'model = "WN+XX"', "model"),
+                                              ("mle", "maxiter = 0", "maxiter"),
+                                              ("whittle", 'criterion = "aic"', "criterion")])
+def test_check_settings_replaces_the_trial_fit(tmp_path, monkeypatch, name, bad, match):
+    """Estimators that validate their settings without data (``check_settings``) are not fitted by
+    the settings probe (GMWM's trial fits made loading a 16-gyro config take minutes); bad settings
+    are still a config error naming the setting."""
+    from estimators import get
+
+    fitted = []
+    monkeypatch.setattr(type(get(name)), "_fit", lambda self, rate, dt: fitted.append(rate.size))
+    ok = f'\n[[estimators]]\nname = "{name}"\n'
+    load_config(write(tmp_path, study_toml(extra_estimators=ok)))
+    assert fitted == [], "the settings probe fitted an estimator that has check_settings"
+    extra = f'\n[[estimators]]\nname = "{name}"\nsettings = {{ {bad} }}\n'
+    with pytest.raises(ValueError, match=rf"estimators\[2\]\.settings: .*{match}"):
+        load_config(write(tmp_path, study_toml(extra_estimators=extra)))
+    assert fitted == []
+
+
 def test_worker_death_retried_once_then_study_completes(tmp_path):
     """A worker that dies once (os._exit) is replaced and its blocks retried: same table as serial."""
     marker = tmp_path / "died_once"
