@@ -85,3 +85,58 @@ def test_leaderboard_counts_only_tested_wins():
     assert rows["good"]["tested wins"] == "1" and rows["good"]["best, tied"] == "0"
     assert int(rows["same"]["tested wins"]) + int(rows["bad"]["tested wins"]) == 0  # g2 is a tie, no win
     assert int(rows["same"]["best, tied"]) + int(rows["bad"]["best, tied"]) == 1
+
+
+def _length_study(n=20_000):
+    """A one-gyro 'study' (white + flicker noise) with three estimators of known error laws."""
+    from types import SimpleNamespace
+
+    from estimators import crlb
+    from noise_models import AngleRandomWalk, BiasInstability, Gyro
+
+    g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), BiasInstability(B=3e-4, tau_max=4000.0)])
+    cfg = SimpleNamespace(gyros=[SimpleNamespace(label="g", gyro=g, n_samples=n)],
+                          estimators=[SimpleNamespace(label=lab, name=name) for lab, name in
+                                      (("W good", "whittle"), ("W biased", "whittle"), ("other", "ols"))])
+    b = crlb(g, n)
+    z = np.random.default_rng(0).standard_normal(400)
+    laws = {"W good": z, "W biased": 0.5 * z + 1.0, "other": 3 * z}  # errors in CRLB units
+    rows = [dict(gyro="g", replicate=r, estimator=e, coefficient=c, true=g.coefficients[c],
+                 estimate=g.coefficients[c] + b[c] * x, nonphysical=False, failure="")
+            for e, err in laws.items() for c in ("N", "B") for r, x in enumerate(err)]
+    return pd.DataFrame(rows), cfg, b / g.coefficients
+
+
+def test_record_length_targets_judge_rmse_and_bias_against_the_bound():
+    from studies.record_length import length_table, targets_table
+
+    tidy, cfg, rel = _length_study()
+    assert rel["B"] < 0.5  # the whittle target applies to B and N
+    lengths = length_table(tidy, cfg, ["W good", "other"])
+    assert list(lengths["best"]) == ["W good", "W good"]
+    np.testing.assert_allclose(lengths["crlb_rel"], [rel["N"], rel["B"]])
+    np.testing.assert_allclose(lengths["rel_rmse[other]"], 3 * np.sqrt(np.mean(
+        np.random.default_rng(0).standard_normal(400) ** 2)) * lengths["crlb_rel"], rtol=1e-9)
+    t = targets_table(tidy, cfg, lengths).set_index(["target", "estimator", "coefficient"])
+    for c in ("N", "B"):
+        best = t.loc[("best_QNB", "W good", c)]
+        assert best["met"] and best["clear"] and best["rmse_lo"] < best["rmse_over_crlb"] < best["rmse_hi"]
+        assert t.loc[("whittle", "W good", c)]["met"]
+        biased = t.loc[("whittle", "W biased", c)]  # RMSE 1.12 CRLB is within 1.3, the bias of 1 CRLB is not
+        assert biased["rmse_over_crlb"] < 1.3 and not biased["met"] and biased["clear"]
+    assert ("whittle", "other", "N") not in t.index  # only whittle variants are held to the whittle target
+
+
+def test_record_length_crossing_and_figure():
+    from studies.record_length import _crossing, crossover_figure
+
+    grid = np.geomspace(0.5, 96, 9)
+    rel = 0.5 * (grid / 2) ** -0.5  # a power law: log-log interpolation is exact
+    np.testing.assert_allclose(_crossing(grid, rel, 0.3), 2 * (0.5 / 0.3) ** 2)
+    assert np.isnan(_crossing(grid, rel, 1e-3))
+    table = pd.DataFrame([dict(hours=h, gyro=g, coefficient=c, best_rel_rmse=0.5 / h, **{"rel_rmse[w]": 0.6 / h})
+                          for g, cs in (("a", "KR"), ("b", "K")) for c in cs for h in (2.0, 24.0)])
+    curves = {"a": np.tile(rel[:, None], (1, 5)), "b": np.tile(rel[:, None], (1, 5))}
+    fig = crossover_figure(table, curves, grid, ["w"])
+    titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
+    assert titles == ["K, a", "K, b", "R, a (no CRLB: deterministic)"]
