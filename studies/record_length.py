@@ -31,9 +31,7 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -255,29 +253,14 @@ def _render(table: pd.DataFrame, targets: pd.DataFrame, k_lengths: pd.DataFrame)
 
 
 def main(argv=None) -> int:
-    from studies.config import ConfigError, load_config
-    from studies.report import TABLE_DIGITS, atomic_write_text, read_tidy
+    from studies.report import TABLE_DIGITS, atomic_write_text, finished_studies_parser, parse_finished
 
-    ap = argparse.ArgumentParser(prog="python -m studies.record_length", description=__doc__.split("\n\n")[0])
-    ap.add_argument("configs", nargs="+", help="study TOML files of the same gyros, one per record length")
-    ap.add_argument("--results", default="results", help="folder holding results/<study name> (default results)")
-    ap.add_argument("--out", default="results/record_length", help="output folder")
+    ap = finished_studies_parser("python -m studies.record_length", __doc__.split("\n\n")[0],
+                                 "results/record_length")
     ap.add_argument("--estimators", nargs="*", default=None,
                     help="estimator labels compared (default: every variant of " + ", ".join(DEFAULT_COMPARED) + ")")
-    a = ap.parse_args(argv)
-    cfgs, tidies = [], []
-    for path in a.configs:
-        try:
-            cfg = load_config(path)
-        except (ConfigError, OSError) as e:
-            print(f"error: {e}", file=sys.stderr)
-            return 2
-        folder = Path(a.results) / cfg.name
-        if not (folder / "tidy.csv").is_file():
-            print(f"error: {folder / 'tidy.csv'}: not found; run 'avbench run {path}' first", file=sys.stderr)
-            return 2
-        cfgs.append(cfg)
-        tidies.append(read_tidy(folder))
+    a, finished = parse_finished(ap, argv)
+    cfgs, tidies = (list(x) for x in zip(*finished))
     labels = [set(e.label for e in c.estimators) for c in cfgs]
     if a.estimators is None:
         compared = [e.label for e in cfgs[0].estimators if e.name in DEFAULT_COMPARED
@@ -285,9 +268,8 @@ def main(argv=None) -> int:
     else:
         missing = [e for e in a.estimators if not all(e in s for s in labels)]
         if missing:
-            print(f"error: --estimators: {', '.join(missing)} not in every study; expected labels from "
-                  f"{', '.join(sorted(set.intersection(*labels)))}", file=sys.stderr)
-            return 2
+            ap.error(f"--estimators: {', '.join(missing)} not in every study; expected labels from "
+                     f"{', '.join(sorted(set.intersection(*labels)))}")
         compared = list(a.estimators)
     table = pd.concat([length_table(t, c, compared) for t, c in zip(tidies, cfgs)], ignore_index=True)
     targets = pd.concat([targets_table(t, c, table[table["hours"] == _hours(c)]) for t, c in zip(tidies, cfgs)],

@@ -306,6 +306,44 @@ def read_tidy(folder) -> pd.DataFrame:
     return d
 
 
+def finished_studies_parser(prog: str, description: str, default_out: str):
+    """Command-line parser of the summaries that read finished studies (``studies.selection``,
+    ``studies.record_length``): the study configs, ``--results`` and ``--out``."""
+    import argparse
+
+    ap = argparse.ArgumentParser(prog=prog, description=description)
+    ap.add_argument("configs", nargs="+", help="study TOML files, one per record length")
+    ap.add_argument("--results", default="results", help="folder holding results/<study name> (default results)")
+    ap.add_argument("--out", default=default_out, help=f"output folder (default {default_out})")
+    return ap
+
+
+def parse_finished(ap, argv=None):
+    """``(args, [(config, tidy), ...])`` from a :func:`finished_studies_parser`; a config or tidy
+    table that cannot be read is a usage error (exit status 2, naming it)."""
+    a = ap.parse_args(argv)
+    try:
+        return a, [read_finished(path, a.results) for path in a.configs]
+    except ValueError as e:
+        ap.error(str(e))
+
+
+def read_finished(config_path, results="results"):
+    """``(config, tidy table)`` of the finished study configured in ``config_path``, read from
+    ``<results>/<study name>``; ``ValueError`` (naming the config or the missing table and the
+    command that makes it) if either cannot be read."""
+    from studies.config import ConfigError, load_config
+
+    try:
+        cfg = load_config(config_path)
+    except (ConfigError, OSError) as e:
+        raise ValueError(str(e)) from None
+    folder = Path(results) / cfg.name
+    if not (folder / TIDY_FILE).is_file():
+        raise ValueError(f"{folder / TIDY_FILE}: not found; run 'avbench run {config_path}' first")
+    return cfg, read_tidy(folder)
+
+
 def timings(tidy: pd.DataFrame) -> pd.DataFrame:
     """Fit time per replicate of each gyro x estimator (median, mean, max seconds)."""
     per = tidy.groupby(["gyro", "estimator", "replicate"], sort=False)["seconds"].first().reset_index()

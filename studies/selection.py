@@ -20,9 +20,7 @@ record length, one panel per gyro) in ``--out``.
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -70,27 +68,12 @@ def _crlb_rel(cfg) -> dict:
 
 
 def main(argv=None) -> int:
-    from studies.config import ConfigError, load_config
+    from studies.report import finished_studies_parser, parse_finished
 
-    ap = argparse.ArgumentParser(prog="python -m studies.selection", description=__doc__.split("\n\n")[0])
-    ap.add_argument("configs", nargs="+", help="study TOML files, one per record length")
-    ap.add_argument("--results", default="results", help="folder holding results/<study name> (default results)")
-    ap.add_argument("--out", default="results/model_selection", help="output folder")
-    a = ap.parse_args(argv)
+    ap = finished_studies_parser("python -m studies.selection", __doc__.split("\n\n")[0], "results/model_selection")
+    a, finished = parse_finished(ap, argv)
     frames = []
-    for path in a.configs:
-        try:
-            cfg = load_config(path)
-        except (ConfigError, OSError) as e:
-            print(f"error: {e}", file=sys.stderr)
-            return 2
-        from studies.report import read_tidy
-
-        folder = Path(a.results) / cfg.name
-        if not (folder / "tidy.csv").is_file():
-            print(f"error: {folder / 'tidy.csv'}: not found; run 'avbench run {path}' first", file=sys.stderr)
-            return 2
-        tidy = read_tidy(folder)
+    for cfg, tidy in finished:
         n = {g.label: g.n_samples * g.gyro.dt for g in cfg.gyros}
         length = f"{max(n.values()) / 3600:g} h"
         frames.append(selection_rates(tidy, _crlb_rel(cfg), length))
