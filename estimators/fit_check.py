@@ -65,7 +65,7 @@ white noise, N (5e4, 200)     ols           chi2       5 (2.5 %)      2.5 %
 white noise, N (5e4, 200)     wls           chi2       7 (3.5 %)      3.5 %
 white noise, N (5e4, 200)     wls_edf       chi2       157 (78.5 %)   78.5 %         b
 white noise, N (2e4, 30)      wls_edf       bootstrap  p<0.1: 10 %    --             c
-CRG20, QNB (3.6e4, 200)       log_fit       weighted   0 (0 %)        77 %           e
+CRG20, QNB (3.6e4, 200)       log_fit       weighted   0 (0 %)        73 %           e
 CRG20, QNB (3.6e4, 200)       nnls_rel      weighted   20 (10 %)      79.5 %         d
 CRG20, QNB (3.6e4, 200)       slope_lines   weighted   187 (93.5 %)   100 %          a
 CRG20, QNB (3.6e4, 200)       ols           chi2       63 (31.5 %)    31.5 %         b
