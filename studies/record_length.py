@@ -37,6 +37,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from studies.report import record_hours
+
 __all__ = ["length_table", "targets_table", "crlb_curve", "crossover_figure", "main"]
 
 N_BOOT = 2000
@@ -51,43 +53,40 @@ WHITTLE_CRLB_REL_MAX = 0.5
 K_LEVELS = (0.3, 0.5)
 
 
-def _hours(cfg) -> float:
-    return max(g.n_samples * g.gyro.dt for g in cfg.gyros) / 3600
-
-
 def _has_flicker(gyro) -> bool:
     return any(type(t).__name__ == "BiasInstability" for t in gyro.terms)
 
 
-def length_table(tidy: pd.DataFrame, cfg, compared: list[str]) -> pd.DataFrame:
-    """Per gyro x present coefficient of one study: CRLB relative std, best estimator, relative RMSEs."""
-    from studies.scoring import crlb_table, scores
+def length_table(tidy: pd.DataFrame, cfg, compared: list[str], bounds: dict) -> pd.DataFrame:
+    """Per gyro x present coefficient of one study: CRLB relative std, best estimator, relative RMSEs
+    (``bounds``: the study's :func:`studies.scoring.crlb_table`)."""
+    from studies.scoring import comparable, scores
 
-    sc = scores(tidy, crlb_table(cfg))
+    sc = scores(tidy, bounds)
     sc = sc[np.isfinite(sc["true"]) & (sc["true"] > 0)]
+    ok = comparable(sc)
     rows = []
     for (g, c), d in sc.groupby(["gyro", "coefficient"], sort=False):
         true = float(d["true"].iloc[0])
-        bound = float(d["crlb"].iloc[0])
-        ok = d[(d["n_ok"] >= np.ceil(d["n"] / 2)) & np.isfinite(d["rmse"])].sort_values("rmse")
-        row = {"hours": _hours(cfg), "gyro": g, "coefficient": c, "crlb_rel": bound / true,
-               "best": ok.iloc[0]["estimator"] if len(ok) else "",
-               "best_rel_rmse": float(ok.iloc[0]["rmse"]) / true if len(ok) else math.nan,
-               "best_rmse_over_crlb": float(ok.iloc[0]["rmse_over_crlb"]) if len(ok) else math.nan}
+        ranked = ok[(ok["gyro"] == g) & (ok["coefficient"] == c)].sort_values("rmse")
+        best = ranked.iloc[0] if len(ranked) else None
+        row = {"hours": record_hours(cfg), "gyro": g, "coefficient": c, "crlb_rel": float(d["crlb"].iloc[0]) / true,
+               "best": "" if best is None else best["estimator"],
+               "best_rel_rmse": math.nan if best is None else float(best["rmse"]) / true,
+               "best_rmse_over_crlb": math.nan if best is None else float(best["rmse_over_crlb"])}
+        rmse = ranked.set_index("estimator")["rmse"]
         for e in compared:
-            de = d[d["estimator"] == e]
-            enough = len(de) and de["n_ok"].iloc[0] >= math.ceil(de["n"].iloc[0] / 2)
-            row[f"rel_rmse[{e}]"] = float(de["rmse"].iloc[0]) / true if enough else math.nan
+            row[f"rel_rmse[{e}]"] = float(rmse[e]) / true if e in rmse.index else math.nan
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def _ok_errors(tidy, gyro, estimator, coefficient) -> tuple[np.ndarray, float]:
+def _ok_errors(tidy, gyro, estimator, coefficient) -> np.ndarray:
+    """Estimate - truth over the replicates with a physical estimate."""
     from studies.scoring import _ok
 
-    d = tidy[(tidy["gyro"] == gyro) & (tidy["estimator"] == estimator) & (tidy["coefficient"] == coefficient)]
-    ok = _ok(d)
-    return (ok["estimate"] - ok["true"]).to_numpy(float), float(d["true"].iloc[0])
+    ok = _ok(tidy[(tidy["gyro"] == gyro) & (tidy["estimator"] == estimator) & (tidy["coefficient"] == coefficient)])
+    return (ok["estimate"] - ok["true"]).to_numpy(float)
 
 
 def _rmse_interval(err: np.ndarray, seed: int) -> tuple[float, float]:
@@ -99,17 +98,14 @@ def _rmse_interval(err: np.ndarray, seed: int) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def targets_table(tidy: pd.DataFrame, cfg, lengths: pd.DataFrame) -> pd.DataFrame:
+def targets_table(tidy: pd.DataFrame, cfg, lengths: pd.DataFrame, bounds: dict) -> pd.DataFrame:
     """The two accuracy targets of one study (module docstring), one row per checked cell."""
-    from studies.scoring import crlb_table
-
-    bounds = crlb_table(cfg)
     names = {e.label: e.name for e in cfg.estimators}
     flicker = {g.label: _has_flicker(g.gyro) for g in cfg.gyros}
     rows = []
 
     def check(target, g, c, e, limit):
-        err, _ = _ok_errors(tidy, g, e, c)
+        err = _ok_errors(tidy, g, e, c)
         bound = bounds.get((g, c), math.nan)
         if not err.size or not bound > 0:
             return
@@ -117,7 +113,7 @@ def targets_table(tidy: pd.DataFrame, cfg, lengths: pd.DataFrame) -> pd.DataFram
         lo, hi = (v / bound for v in _rmse_interval(err, seed=len(rows)))
         bias = float(err.mean()) / bound
         se = float(err.std(ddof=1)) / math.sqrt(err.size) / bound if err.size > 1 else math.nan
-        row = {"hours": _hours(cfg), "target": target, "gyro": g, "coefficient": c, "estimator": e,
+        row = {"hours": record_hours(cfg), "target": target, "gyro": g, "coefficient": c, "estimator": e,
                "replicates": err.size, "rmse_over_crlb": ratio, "rmse_lo": lo, "rmse_hi": hi,
                "limit": limit, "bias_over_crlb": bias, "bias_lo": bias - 1.96 * se, "bias_hi": bias + 1.96 * se}
         # each criterion: (met on the point value, interval wholly on that side)
@@ -271,12 +267,16 @@ def main(argv=None) -> int:
             ap.error(f"--estimators: {', '.join(missing)} not in every study; expected labels from "
                      f"{', '.join(sorted(set.intersection(*labels)))}")
         compared = list(a.estimators)
-    table = pd.concat([length_table(t, c, compared) for t, c in zip(tidies, cfgs)], ignore_index=True)
-    targets = pd.concat([targets_table(t, c, table[table["hours"] == _hours(c)]) for t, c in zip(tidies, cfgs)],
+    from studies.scoring import crlb_table
+
+    bounds = [crlb_table(c) for c in cfgs]  # once per study, for both tables
+    lengths = [length_table(t, c, compared, b) for t, c, b in zip(tidies, cfgs, bounds)]
+    table = pd.concat(lengths, ignore_index=True)
+    targets = pd.concat([targets_table(t, c, ln, b) for t, c, ln, b in zip(tidies, cfgs, lengths, bounds)],
                         ignore_index=True)
     # the CRLB against record length, from the longest study's gyros (their flicker memory covers it)
-    longest = max(cfgs, key=_hours)
-    grid = np.geomspace(0.5, 4 * _hours(longest), 13)
+    longest = max(cfgs, key=record_hours)
+    grid = np.geomspace(0.5, 4 * record_hours(longest), 13)
     with_kr = set(table.loc[table["coefficient"].isin(["K", "R"]), "gyro"])
     curves = {g.label: crlb_curve(g.gyro, grid) for g in longest.gyros if g.label in with_kr}
     k_lengths = pd.DataFrame([{"gyro": g, **{f"hours_at_{lvl:.0%}": _crossing(grid, cur[:, 3], lvl)

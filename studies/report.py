@@ -306,6 +306,11 @@ def read_tidy(folder) -> pd.DataFrame:
     return d
 
 
+def record_hours(cfg) -> float:
+    """The study's record length in hours (its longest gyro record)."""
+    return max(g.n_samples * g.gyro.dt for g in cfg.gyros) / 3600
+
+
 def finished_studies_parser(prog: str, description: str, default_out: str):
     """Command-line parser of the summaries that read finished studies (``studies.selection``,
     ``studies.record_length``): the study configs, ``--results`` and ``--out``."""

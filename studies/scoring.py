@@ -33,7 +33,7 @@ from scipy import stats
 
 from noise_models.units import COEFFICIENTS
 
-__all__ = ["scores", "paired_rmse_ratio", "wins", "render_scores", "crlb_table", "write_scores"]
+__all__ = ["scores", "comparable", "paired_rmse_ratio", "wins", "render_scores", "crlb_table", "write_scores"]
 
 N_BOOT = 2000
 
@@ -97,6 +97,13 @@ def scores(tidy: pd.DataFrame, crlb: dict | None = None) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def comparable(sc: pd.DataFrame) -> pd.DataFrame:
+    """The rows of :func:`scores` that compete for best: a present coefficient, and a physical estimate
+    in at least half the replicates (the rule of :func:`wins`)."""
+    return sc[np.isfinite(sc["true"]) & (sc["true"] > 0) & (sc["n_ok"] >= np.ceil(sc["n"] / 2))
+              & np.isfinite(sc["rmse"])]
+
+
 def paired_rmse_ratio(tidy, gyro, coefficient, a, b, n_boot=N_BOOT, seed=0, level=0.95):
     """(ratio, lower, upper): RMSE of ``a`` over RMSE of ``b`` on their common physical replicates,
     with a paired bootstrap interval (replicates resampled with replacement)."""
@@ -124,8 +131,7 @@ def wins(tidy: pd.DataFrame, n_boot=N_BOOT, seed=0) -> pd.DataFrame:
     """Per gyro x coefficient: best and runner-up by RMSE (estimators with a physical estimate in at
     least half the replicates), the paired RMSE ratio and its interval, and ``verdict`` "win" when
     the interval is below 1, else "tie"."""
-    sc = scores(tidy)
-    sc = sc[np.isfinite(sc["true"]) & (sc["true"] > 0) & (sc["n_ok"] >= np.ceil(sc["n"] / 2)) & np.isfinite(sc["rmse"])]
+    sc = comparable(scores(tidy))
     rows = []
     for (g, c), d in sc.groupby(["gyro", "coefficient"], sort=False):
         d = d.sort_values("rmse")

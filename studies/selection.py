@@ -68,14 +68,13 @@ def _crlb_rel(cfg) -> dict:
 
 
 def main(argv=None) -> int:
-    from studies.report import finished_studies_parser, parse_finished
+    from studies.report import finished_studies_parser, parse_finished, record_hours
 
     ap = finished_studies_parser("python -m studies.selection", __doc__.split("\n\n")[0], "results/model_selection")
     a, finished = parse_finished(ap, argv)
     frames = []
     for cfg, tidy in finished:
-        n = {g.label: g.n_samples * g.gyro.dt for g in cfg.gyros}
-        length = f"{max(n.values()) / 3600:g} h"
+        length = f"{record_hours(cfg):g} h"
         frames.append(selection_rates(tidy, _crlb_rel(cfg), length))
     table = pd.concat(frames, ignore_index=True)
     table["target_applies"] = table["max_crlb_rel"] < 0.3

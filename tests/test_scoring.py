@@ -112,12 +112,15 @@ def test_record_length_targets_judge_rmse_and_bias_against_the_bound():
 
     tidy, cfg, rel = _length_study()
     assert rel["B"] < 0.5  # the whittle target applies to B and N
-    lengths = length_table(tidy, cfg, ["W good", "other"])
+    from studies.scoring import crlb_table
+
+    bounds = crlb_table(cfg)
+    lengths = length_table(tidy, cfg, ["W good", "other"], bounds)
     assert list(lengths["best"]) == ["W good", "W good"]
     np.testing.assert_allclose(lengths["crlb_rel"], [rel["N"], rel["B"]])
     np.testing.assert_allclose(lengths["rel_rmse[other]"], 3 * np.sqrt(np.mean(
         np.random.default_rng(0).standard_normal(400) ** 2)) * lengths["crlb_rel"], rtol=1e-9)
-    t = targets_table(tidy, cfg, lengths).set_index(["target", "estimator", "coefficient"])
+    t = targets_table(tidy, cfg, lengths, bounds).set_index(["target", "estimator", "coefficient"])
     for c in ("N", "B"):
         best = t.loc[("best_QNB", "W good", c)]
         assert best["met"] and best["clear"] and best["rmse_lo"] < best["rmse_over_crlb"] < best["rmse_hi"]
