@@ -1,6 +1,6 @@
 """``python -m bench [--quick] [--out DIR]`` (also ``avbench bench ...``).
 
-Runs the benchmark classes of :mod:`bench.suite` and writes README.md (targets and tables),
+Runs the benchmark classes of :mod:`avbench.bench.suite` and writes README.md (targets and tables),
 results.json, results.csv and scaling.png under ``--out``: by default ``results/bench`` for a full
 run, and a new temporary folder for ``--quick`` (tiny sizes, about a minute; the CI smoke test, its
 figures make no claims), so a smoke run never overwrites the committed benchmark unless asked to
@@ -53,7 +53,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from bench import harness, report, suite
+    from avbench.bench import harness, report, suite
 
     args.out = str(output_folder(args))
     if getattr(args, "report_only", False):
@@ -95,7 +95,7 @@ def run(args) -> int:
 
 
 def main(argv=None) -> int:
-    from studies.cli import plain_text
+    from avbench.text import plain_text
 
     p = _arguments(argparse.ArgumentParser(prog="python -m bench", description=plain_text(__doc__),
                                            formatter_class=argparse.RawDescriptionHelpFormatter))

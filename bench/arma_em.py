@@ -3,9 +3,9 @@
 :func:`bench_arma_em` simulates ``n_samples`` of an ADIS16405_Y record (N + B + K, the 2-state
 model of Miao et al. 2015, eq. 63) and, in the same run (median of ``repeats``):
 
-* the numba kernel (:func:`estimators._arma_em_kernels.ek_run`) with the recursive M-step after
+* the numba kernel (:func:`avbench.estimators.online._arma_em_kernels.ek_run`) with the recursive M-step after
   every sample (the paper's setting), and a batch pass (parameters fixed, no M-step);
-* the NumPy reference (:mod:`estimators._arma_em_reference`) on a shorter slice, recursive;
+* the NumPy reference (:mod:`avbench.estimators.online._arma_em_reference`) on a shorter slice, recursive;
 * what a user runs: ``ArmaEM()`` with default settings, fed on line with ``partial_fit`` in
   chunks of ``chunk`` samples (recursive EM every sample, trajectory every 1000 samples,
   start from the Allan-variance fit of the first chunk), and ``fit`` in batch mode
@@ -14,7 +14,7 @@ model of Miao et al. 2015, eq. 63) and, in the same run (median of ``repeats``):
   samples, the cheapest per-sample filter, so that the ratios cancel the machine's load.
 
 It returns samples/s, the ratios and the 1-minute load average. One thread; kernels are compiled
-before timing. ``python -m bench.arma_em`` prints the numbers.
+before timing. ``python -m avbench.bench.arma_em`` prints the numbers.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ __all__ = ["bench_arma_em", "run"]
 
 
 def _filter(g, y, recursive):
-    from estimators.arma_em import EKFilter, initial_model, prior_covariance
+    from avbench.estimators.online.arma_em import EKFilter, initial_model, prior_covariance
 
     coefs = {c: g.coefficients[c] for c in "NBK"}
     A, C, Q, R = initial_model(coefs, 100.0, g.dt, "NBK", "eq63")
@@ -51,7 +51,7 @@ def _median_rate(g, y, repeats, recursive, engine):
 
 def _estimator_rate(y, dt, repeats, chunk, **settings):
     """Samples/s of ArmaEM(**settings): partial_fit in chunks (``chunk``) or one fit (None)."""
-    from estimators.arma_em import ArmaEM
+    from avbench.estimators.online.arma_em import ArmaEM
 
     times = []
     for _ in range(repeats):
@@ -112,7 +112,7 @@ def bench_arma_em(n_samples=1_000_000, n_reference=2_000, repeats=5, chunk=100_0
         and ``online_over_raw`` (the scalar Kalman baseline), ``load_avg_1min``, ``n_samples``,
         ``n_reference``, ``repeats``, ``chunk``.
     """
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     g = presets.get("ADIS16405_Y")
     y = g.simulate(n_samples, np.random.default_rng(seed))

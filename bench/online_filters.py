@@ -1,9 +1,9 @@
 """Throughput of the online filters: compiled kernel vs the plain-NumPy per-sample reference.
 
 Each function times the kernel on ``n_samples`` of an ADIS16405_Y-like record and the NumPy
-reference (:mod:`estimators._online_reference`) on a shorter slice of the same record (it is
+reference (:mod:`avbench.estimators.online._reference`) on a shorter slice of the same record (it is
 ~10^4 times slower), takes the median of ``repeats`` runs, and returns samples/s and their ratio.
-One thread, kernels compiled before timing. ``python -m bench.online_filters`` prints the numbers.
+One thread, kernels compiled before timing. ``python -m avbench.bench.online_filters`` prints the numbers.
 """
 
 from __future__ import annotations
@@ -17,14 +17,14 @@ __all__ = ["bench_shakf", "bench_nekf", "run"]
 
 
 def _record(n_samples, seed):
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     g = presets.get("ADIS16405_Y")
     return g, g.simulate(n_samples, np.random.default_rng(seed))
 
 
 def _median_rate(fn, n, repeats):
-    from estimators.base import IdentifiabilityWarning
+    from avbench.estimators.base import IdentifiabilityWarning
 
     times = []
     for _ in range(repeats):
@@ -37,8 +37,8 @@ def _median_rate(fn, n, repeats):
 
 
 def _estimator(name, g, **settings):
-    import estimators
-    from estimators.base import IdentifiabilityWarning
+    from avbench import estimators
+    from avbench.estimators.base import IdentifiabilityWarning
 
     est = estimators.get(name, terms="NBK", x0={c: g.coefficients[c] for c in "NBK"}, trajectory_every=0, **settings)
     with warnings.catch_warnings():
@@ -49,7 +49,7 @@ def _estimator(name, g, **settings):
 
 def bench_shakf(n_samples=2_000_000, n_reference=2_000, repeats=5, seed=0) -> dict:
     """SHAKF (3 states, tau0 measurement): samples/s of the kernel and of the NumPy reference."""
-    from estimators._online_reference import shakf_reference
+    from avbench.estimators.online._reference import shakf_reference
 
     g, rate = _record(n_samples, seed)
     est = _estimator("shakf", g)
@@ -67,7 +67,7 @@ def bench_shakf(n_samples=2_000_000, n_reference=2_000, repeats=5, seed=0) -> di
 
 def bench_nekf(n_samples=500_000, n_reference=1_000, repeats=3, p=5, seed=0) -> dict:
     """NEKF (3 states + 2*3*p weights): samples/s of the kernel and of the NumPy reference."""
-    from estimators._online_reference import nekf_reference
+    from avbench.estimators.online._reference import nekf_reference
 
     g, rate = _record(n_samples, seed)
     est = _estimator("nekf", g, p=p)

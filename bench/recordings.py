@@ -2,12 +2,12 @@
 
 * :func:`write_csv` -- a 7-column CSV (time + 3 gyro + 3 accel axes, header row) of ``n`` rows;
 * :func:`read_peak` -- in a child process: the peak RSS of reading that CSV with
-  :func:`studies.recordings.readers.read_recording`, above the RSS after imports, against the size
+  :func:`avbench.recordings.readers.read_recording`, above the RSS after imports, against the size
   of the numeric data (n x 7 x 8 bytes);
 * :func:`estimate_peak` -- in a child process: ``avbench estimate REC.npy --fs 100 --units rad/s``
   on ``n`` float64 samples; its peak RSS (``ru_maxrss`` of the child) against the record's size.
 
-``python -m bench.recordings csv N`` / ``python -m bench.recordings estimate N`` run one measurement
+``python -m avbench.bench.recordings csv N`` / ``python -m avbench.bench.recordings estimate N`` run one measurement
 and print it as JSON.
 """
 
@@ -55,7 +55,7 @@ def _vmhwm_mb() -> float:
 def _read_here(path: str, n: int) -> dict:
     import pandas  # noqa: F401  (imported before the baseline RSS is taken)
 
-    from studies.recordings.readers import read_recording
+    from avbench.recordings.readers import read_recording
 
     base = _vmhwm_mb()
     t0 = time.perf_counter()
@@ -70,7 +70,7 @@ def _read_here(path: str, n: int) -> dict:
 
 def read_peak(path, n: int) -> dict:
     """Peak memory of reading the CSV at ``path`` (child process)."""
-    out = subprocess.run([sys.executable, "-m", "bench.recordings", "csv-file", str(path), str(n)],
+    out = subprocess.run([sys.executable, "-m", "avbench.bench.recordings", "csv-file", str(path), str(n)],
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout)
 
@@ -90,7 +90,7 @@ def estimate_peak(n: int, methods: str = "nnls_rel,gmwm", seed: int = 0) -> dict
                 "r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
                 "print(r.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, time.perf_counter() - t); "
                 "sys.stderr.write(r.stderr[-2000:])")
-        cmd = [sys.executable, "-c", code, sys.executable, "-m", "studies.cli", "estimate", str(f), "--fs", "100",
+        cmd = [sys.executable, "-c", code, sys.executable, "-m", "avbench.cli", "estimate", str(f), "--fs", "100",
                "--units", "rad/s", "--method", methods, "--out", str(Path(d) / "out"), "--no-progress"]
         r = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "MPLBACKEND": "Agg"})
         rc, kb, wall = r.stdout.split()
@@ -114,4 +114,4 @@ if __name__ == "__main__":
     elif what == "estimate":
         print(json.dumps(estimate_peak(int(float(sys.argv[2])))))
     else:
-        raise SystemExit("usage: python -m bench.recordings csv|estimate N")
+        raise SystemExit("usage: python -m avbench.bench.recordings csv|estimate N")

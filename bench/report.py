@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bench.suite import loglog_slope
+from avbench.bench.suite import loglog_slope
 
 __all__ = ["write_outputs", "targets"]
 
@@ -44,7 +44,7 @@ LIMITS = {
     "and the estimators' own work arrays, plus ~300 MB of libraries (numpy, scipy, pandas, numba, matplotlib).",
     "study": "The 4 LS fits of each replicate, now ~4x what they were when the target was met (13.0 s): each runs "
     "the poor-fit check added since (issue 12), whose model covariance of the octave AV "
-    "(estimators.gmwm.av_covariance: the Haar filter gains on a grid of 8 points per cycle of the longest cluster) "
+    "(avbench.estimators.allan.covariance.av_covariance: the Haar filter gains on a grid of 8 points per cycle of the longest cluster) "
     "is ~75 ms of a ~110 ms fit, measured with cProfile; then fresh-process imports and the report's figures.",
     "help": "The interpreter's own start (timed beside it) plus argparse and the CLI modules: the commands import "
     "numpy, pandas, the simulators and the estimators only when they run.",
@@ -83,7 +83,7 @@ HOT_PATHS = """## What was done to the hot paths (issue 6)
   lengths depend on L only, so streaming stays bit-identical to one-shot generation and records of
   different lengths from one seed share their prefix; values changed at rounding level only.
 - **Study** (`studies/runner.py`, minimal): the AV curve is memoised per replicate
-  (`estimators.allan.memoize_allan`, keyed by the array's identity, holding a reference to it), so the
+  (`avbench.estimators.allan.variance.memoize_allan`, keyed by the array's identity, holding a reference to it), so the
   four LS estimators compute it once; loky workers run numba kernels on one thread. In
   `estimators/least_squares.py` one per-row Python list in `wls_edf` became array indexing (same
   values). `allan.py` and `terms.py` import scipy.stats / scipy.signal / scipy.linalg lazily.
@@ -95,7 +95,7 @@ on 2 cores. Per replicate (cProfile, one process): simulation 0.2 s (three FFTs 
 samples of a 288 000-tap flicker filter, the filter spectrum recomputed each time, 812 000 normals),
 four LS fits 0.4 s (the 'all'-grid AV computed four times, 80 ms of per-row Python in `wls_edf`,
 lstsq on 72 000 x 3). Start-up: ~5 s of imports per process (parent and each worker; scipy.signal,
-scipy.stats, statsmodels via `estimators.mle`). Report: ~12-15 s (matplotlib `savefig(bbox_inches=
+scipy.stats, statsmodels via `avbench.estimators.likelihood.mle`). Report: ~12-15 s (matplotlib `savefig(bbox_inches=
 'tight')` and mathtext parsing of log-axis tick labels).
 
 After (same command, fresh output folder, estimates equal to the earlier run's to 1e-13): 13.0 s wall
@@ -107,7 +107,7 @@ core while other work runs, so the 15 s target holds only on a lightly loaded ma
 
 - Imports: `estimators/__init__` imports every estimator module, and `estimators/mle.py` imports
   statsmodels at module level (which pulls in scipy.stats, scipy.signal, formulaic, ...): ~1.1 s of the
-  ~1.9 s import time of `studies.runner` on an idle machine, paid by the parent and by every loky
+  ~1.9 s import time of `avbench.studies.runner` on an idle machine, paid by the parent and by every loky
   worker, and ~40 MB of every process's resident memory (198 -> 238 MB when imported beside numpy,
   pandas, numba and scipy.optimize/linalg/fft). A lazy import inside `mle` would remove it, and with
   it the 24 h stream's peak would be ~290 MB, under the 300 MB target that it now misses by 28 MB.
@@ -283,7 +283,7 @@ def _startup_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
     d = startup[startup["method"] == "track_import"]
     if len(d):
         r = d.iloc[-1]
-        rows.append({"target": "`import estimators, noise_models` <= 1 CPU-s",
+        rows.append({"target": "`from avbench import estimators, noise_models` <= 1 CPU-s",
                      "measured": f"{r['import_cpu_s']:.2f} CPU-s ({r['import_wall_s']:.2f} s wall)",
                      "met": None if quick else bool(r["import_cpu_s"] <= 1.0), "limit": LIMITS["import"]})
     d = _pick(df, "FirstCall", "track_first_call")
@@ -452,7 +452,7 @@ def write_outputs(cases, machine: dict, out: Path, quick: bool, seconds: float, 
           f"numpy {machine['numpy']}, numba {machine['numba']} ({machine['numba_threads']} threads), "
           f"allantools {machine.get('allantools', '-')}." + ("" if machine.get("runs") else f" Total {seconds:.0f} s.")]
     if machine.get("runs") or machine.get("earlier_run"):
-        from bench.harness import run_history
+        from avbench.bench.harness import run_history
 
         runs = run_history({"machine": machine})
         md[-1] += " The figures come from these runs (later ones replace the benchmarks they re-ran): " + "; ".join(

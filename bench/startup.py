@@ -4,7 +4,7 @@ Every figure is measured in fresh child processes (the runner's own imports and 
 
 * :func:`help_times` -- wall time of ``avbench --help`` and of every subcommand's help, against the
   bare interpreter (``python -c pass``) timed in the same loop;
-* :func:`import_cpu` -- CPU seconds of ``import estimators, noise_models`` (``time.process_time``
+* :func:`import_cpu` -- CPU seconds of ``from avbench import estimators, noise_models`` (``time.process_time``
   around the import in a fresh interpreter);
 * :func:`first_call` -- for one estimator, with an empty numba cache folder (``NUMBA_CACHE_DIR``, so
   the user's own cache is neither used nor touched): a first process compiles (the first-ever cost),
@@ -44,9 +44,9 @@ def _env(**extra) -> dict:
 
 
 def _avbench() -> list[str]:
-    """The installed ``avbench`` script beside this interpreter, else ``python -m studies.cli``."""
+    """The installed ``avbench`` script beside this interpreter, else ``python -m avbench.cli``."""
     script = Path(sys.executable).with_name("avbench")
-    return [str(script)] if script.is_file() else [sys.executable, "-m", "studies.cli"]
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "avbench.cli"]
 
 
 def _wall(cmd, env=None) -> float:
@@ -71,8 +71,8 @@ def help_times(repeats: int = 5) -> dict:
 
 
 def import_cpu(repeats: int = 5, modules: str = "estimators, noise_models") -> dict:
-    """CPU seconds (median) of ``import <modules>`` in a fresh interpreter, and its wall time."""
-    code = (f"import time; c = time.process_time(); w = time.perf_counter(); import {modules}; "
+    """CPU seconds (median) of ``from avbench import <modules>`` in a fresh interpreter, and its wall time."""
+    code = (f"import time; c = time.process_time(); w = time.perf_counter(); from avbench import {modules}; "
             "print(time.process_time() - c, time.perf_counter() - w)")
     cpu, wall = [], []
     for _ in range(repeats):
@@ -87,8 +87,8 @@ _FIRST_CALL_CHILD = r"""
 import json, sys, time, warnings
 import numpy as np
 t0 = time.perf_counter()
-import estimators
-from noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
+from avbench import estimators
+from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
 name, settings = sys.argv[1], json.loads(sys.argv[2])
 g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=8.7e-4), GaussMarkov(sigma=1e-4, tc=50.0), RateRandomWalk(K=2e-6)])
 truth = {c: float(g.coefficients[c]) for c in "NBK"}

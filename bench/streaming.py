@@ -13,7 +13,7 @@ and reports
 * ``rss_anon_end_mb`` / ``rss_file_end_mb`` -- private (heap) and file-backed (library code,
   shared between processes) resident memory at the end.
 
-``python -m bench.streaming N`` runs one measurement in this process and prints it as JSON.
+``python -m avbench.bench.streaming N`` runs one measurement in this process and prints it as JSON.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ __all__ = ["stream_record", "measure", "streaming_gyro"]
 
 def streaming_gyro(dt: float = 1e-3, tau_max: float = 100.0):
     """ADIS16405-like N + flicker B + K gyro at 1 kHz (flicker filter memory ``tau_max`` s)."""
-    from noise_models import AngleRandomWalk, BiasInstability, Gyro, RateRandomWalk
+    from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, RateRandomWalk
 
     return Gyro(dt=dt, terms=[AngleRandomWalk(N=(2.2, "deg/sqrt(h)")),
                               BiasInstability(B=(28.0, "deg/h"), tau_max=tau_max),
@@ -44,8 +44,8 @@ def stream_record(n_samples: int, chunk_size: int = 1 << 18, dt: float = 1e-3, t
 
     import numpy as np
 
-    import estimators
-    from estimators.allan import StreamingAllan
+    from avbench import estimators
+    from avbench.estimators.allan.variance import StreamingAllan
 
     def rss_mb():
         # VmHWM is this process's own peak; ru_maxrss can carry a parent's peak across fork/exec
@@ -115,10 +115,10 @@ def _proc_status() -> dict:
 
 def measure(n_samples: int, timeout: float = 3600.0, **kwargs) -> dict:
     """:func:`stream_record` in a fresh Python process; its report."""
-    args = [sys.executable, "-m", "bench.streaming", str(int(n_samples)), json.dumps(kwargs)]
+    args = [sys.executable, "-m", "avbench.bench.streaming", str(int(n_samples)), json.dumps(kwargs)]
     out = subprocess.run(args, capture_output=True, text=True, timeout=timeout, check=False)
     if out.returncode != 0:
-        raise RuntimeError(f"bench.streaming child failed ({out.returncode}): {out.stderr[-2000:]}")
+        raise RuntimeError(f"avbench.bench.streaming child failed ({out.returncode}): {out.stderr[-2000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 

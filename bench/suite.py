@@ -1,4 +1,4 @@
-"""The benchmarks (asv-style classes run by :mod:`bench.harness`; ``python -m bench`` runs them all).
+"""The benchmarks (asv-style classes run by :mod:`avbench.bench.harness`; ``python -m bench`` runs them all).
 
 Every speed claim is a ratio against a baseline timed in the same loop:
 
@@ -7,13 +7,13 @@ Every speed claim is a ratio against a baseline timed in the same loop:
   deterministic) into a preallocated, already-touched buffer: the physical limit of any Gaussian
   generator (the gyro, which must allocate its output, also pays the page faults). B is a Gauss-Markov term or the
   flicker (Kasdin-Walter) filter with ``tau_max`` = 1 h at 100 Hz (360 000 taps).
-* ``AllanOverlapping`` -- :func:`estimators.allan_variance` (overlapping, octave taus) against
+* ``AllanOverlapping`` -- :func:`avbench.estimators.allan_variance` (overlapping, octave taus) against
   allantools ``oadev`` on the same data, values checked equal to 1e-10 relative.
 * ``AllanEngine`` -- non-overlapping octave AV and :class:`StreamingAllan` (scaling only).
 * ``EstimatorScaling`` -- every estimator's ``fit`` against n (linear cost), an ADIS16405-like
   100 Hz record (N, B, K), octave grids; larger n are skipped once a fit takes > ``budget_s``.
 * ``OnlineKernels`` -- SHAKF / NEKF / ARMA-EM kernels against their plain-NumPy per-sample
-  references (:mod:`bench.online_filters`, :mod:`bench.arma_em`).
+  references (:mod:`avbench.bench.online_filters`, :mod:`avbench.bench.arma_em`).
 * ``StreamingMemory`` -- peak memory of Gyro.stream + StreamingAllan + SHAKF partial_fit, in a child
   process, for growing n (flat in n), up to 24 h at 1 kHz (8.64e7 samples).
 * ``AllanKernel`` -- the overlapping AV against its own path before issue 14 (same kernel; check,
@@ -25,15 +25,15 @@ Every speed claim is a ratio against a baseline timed in the same loop:
 * ``WhittleFit`` -- ``whittle`` (with and without term selection) on 4 h at 100 Hz against one FFT.
 * ``FlickerPreset`` -- the ADIS16405 preset (flicker B, tau_max = 2x the record) at 1e6 samples.
 * ``ReadRecording`` -- reading a 7-column CSV (time + 6 IMU axes) through ``avbench estimate``'s
-  reader (:mod:`studies.recordings.readers`) against a bare ``pandas.read_csv`` of the same file,
-  and the reader's peak memory over the numeric data (:mod:`bench.recordings`).
+  reader (:mod:`avbench.recordings.readers`) against a bare ``pandas.read_csv`` of the same file,
+  and the reader's peak memory over the numeric data (:mod:`avbench.bench.recordings`).
 * ``EstimateMemory`` -- peak RSS of ``avbench estimate`` (nnls_rel, gmwm) on an n-sample .npy in a
   child process, against the record's size, up to 5e7 samples (400 MB).
 * ``LvStudy`` -- wall time of ``avbench run studies/lv2015.toml`` with ``--jobs 1`` and ``--jobs 2``
   from fresh processes, alternated (full mode only), and where a replicate's time goes.
 * ``StartUp`` / ``FirstCall`` -- ``avbench --help`` and every subcommand's help against the bare
-  interpreter, CPU time of ``import estimators, noise_models``, and each filter's first-ever compile
-  and second-process first-call cost (:mod:`bench.startup`).
+  interpreter, CPU time of ``from avbench import estimators, noise_models``, and each filter's first-ever compile
+  and second-process first-call cost (:mod:`avbench.bench.startup`).
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def _repeats_for(n):
 
 def composite_gyro(kind: str, dt: float = 0.01):
     """The five-term gyro: Q + N + B + K + R; B Gauss-Markov ("gauss_markov") or flicker ("flicker")."""
-    from noise_models import (
+    from avbench.noise_models import (
         AngleRandomWalk,
         BiasInstability,
         GaussMarkov,
@@ -148,7 +148,7 @@ class AllanOverlapping:
         return _repeats_for(p[-1])
 
     def setup(self, n):
-        from estimators.allan import allan_variance
+        from avbench.estimators.allan.variance import allan_variance
 
         self.x = np.random.default_rng(3).standard_normal(n)
         self.x += np.cumsum(np.random.default_rng(4).standard_normal(n)) * 1e-3  # white + RRW
@@ -163,7 +163,7 @@ class AllanOverlapping:
                 raise AssertionError(f"allan_variance differs from allantools.oadev at n = {n}")
 
     def time_allan_variance(self, n):
-        from estimators.allan import allan_variance
+        from avbench.estimators.allan.variance import allan_variance
 
         allan_variance(self.x, 1.0, "octave", overlapping=True)
 
@@ -192,19 +192,19 @@ class AllanEngine:
         return _repeats_for(p[-1])
 
     def setup(self, n):
-        from estimators.allan import StreamingAllan, allan_variance
+        from avbench.estimators.allan.variance import StreamingAllan, allan_variance
 
         self.x = np.random.default_rng(5).standard_normal(n)
         allan_variance(self.x[:1000], 1.0, overlapping=False)
         StreamingAllan(1.0).update(self.x[:1000])
 
     def time_nonoverlapping_octave(self, n):
-        from estimators.allan import allan_variance
+        from avbench.estimators.allan.variance import allan_variance
 
         allan_variance(self.x, 1.0, "octave", overlapping=False)
 
     def time_streaming_octave(self, n):
-        from estimators.allan import StreamingAllan
+        from avbench.estimators.allan.variance import StreamingAllan
 
         acc = StreamingAllan(1.0)
         for i in range(0, n, 1 << 18):
@@ -253,8 +253,8 @@ class EstimatorScaling:
     _records: dict = {}
 
     def setup(self, estimator, n):
-        import estimators
-        from noise_models import presets
+        from avbench import estimators
+        from avbench.noise_models import presets
 
         if estimator not in estimators.names():
             raise NotImplementedError
@@ -297,7 +297,7 @@ class OnlineKernels:
 
 def _online_rows(module, quick):
     if module == "shakf_nekf":
-        from bench import online_filters
+        from avbench.bench import online_filters
 
         out = {}
         for row in online_filters.run(quick=quick):
@@ -306,7 +306,7 @@ def _online_rows(module, quick):
             out[f"{f}_reference_samples_per_s"] = row["reference_samples_per_s"]
             out[f"{f}_ratio"] = row["speedup"]
         return out
-    from bench import arma_em
+    from avbench.bench import arma_em
 
     r = arma_em.run(quick=quick)["arma_em"]
     return {
@@ -333,7 +333,7 @@ class StreamingMemory:
         pass
 
     def peakmem_stream(self, n):
-        from bench.streaming import measure
+        from avbench.bench.streaming import measure
 
         return measure(n)
 
@@ -349,11 +349,11 @@ class LvStudy:
         pass
 
     def track_wall(self, study):
-        from bench.startup import study_walls
+        from avbench.bench.startup import study_walls
 
         out = Path(tempfile.mkdtemp(prefix="avbench_bench_"))
         try:  # untimed first run: warms numba's disk cache and the OS file cache, gives a tidy table
-            subprocess.run([sys.executable, "-m", "studies.cli", "run", str(ROOT / "studies" / f"{study}.toml"),
+            subprocess.run([sys.executable, "-m", "avbench.cli", "run", str(ROOT / "studies" / f"{study}.toml"),
                             "--jobs", "2", "--out", str(out), "--no-progress"],
                            check=True, capture_output=True, cwd=ROOT, timeout=1800)
             t_report = _time_report(out, study)
@@ -364,9 +364,9 @@ class LvStudy:
 
 
 def _time_report(out: Path, study: str) -> float:
-    """Seconds to rewrite the finished study's tables and figures (studies.report.write_report)."""
-    from studies.config import load_config
-    from studies.report import read_tidy, write_report
+    """Seconds to rewrite the finished study's tables and figures (avbench.studies.report.write_report)."""
+    from avbench.studies.config import load_config
+    from avbench.studies.report import read_tidy, write_report
 
     cfg = load_config(ROOT / "studies" / f"{study}.toml")
     tidy = read_tidy(out)
@@ -378,12 +378,12 @@ def _time_report(out: Path, study: str) -> float:
 
 def replicate_profile(study: str = "lv2015") -> dict:
     """Where the time goes: imports (fresh process), config, one replicate's simulation and fits."""
-    code = "import time; t=time.perf_counter(); import studies.runner, studies.report; print(time.perf_counter()-t)"
+    code = "import time; t=time.perf_counter(); import avbench.studies.runner, avbench.studies.report; print(time.perf_counter()-t)"
     imp = float(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
                                check=True).stdout.strip())
-    from estimators.allan import memoize_allan
-    from studies.config import load_config
-    from studies.runner import _fit_one, replicate_rng
+    from avbench.estimators.allan.variance import memoize_allan
+    from avbench.studies.config import load_config
+    from avbench.studies.runner import _fit_one, replicate_rng
 
     t0 = time.perf_counter()
     cfg = load_config(ROOT / "studies" / f"{study}.toml")
@@ -404,7 +404,7 @@ def replicate_profile(study: str = "lv2015") -> dict:
 
 
 def _adis_record(n, seed=6):
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     g = presets.get("ADIS16405_Y")
     return g.simulate(n, np.random.default_rng(seed)), g.dt
@@ -418,9 +418,9 @@ def mle_statsmodels_path(rate, dt, model="WN+GM+RW", max_blocks=50_000, maxiter=
     """
     from statsmodels.tools.sm_exceptions import PrecisionWarning
 
-    from estimators._mle_model import BlockMeanModel
-    from estimators.gmwm import GMWM, parse_model
-    from estimators.mle import _pow2_at_least, _start_values, block_means
+    from avbench.estimators.likelihood._mle_model import BlockMeanModel
+    from avbench.estimators.likelihood.gmwm import GMWM, parse_model
+    from avbench.estimators.likelihood.mle import _pow2_at_least, _start_values, block_means
 
     latents = parse_model(model)
     m = max(1, math.ceil(rate.size / max_blocks))
@@ -452,8 +452,7 @@ class MleFit:
                               "model-weighted GMWM start + statsmodels MLEModel fit + Hessian (mle before issue 14)")}
 
     def setup(self, n):
-        import estimators
-
+        from avbench import estimators
         self.rate, self.dt = _adis_record(n)
         self.est = estimators.get("mle")
         _quiet_fit(self.est, self.rate[:20_000], self.dt)  # compile / load the kernel
@@ -484,8 +483,8 @@ class MleFitDrift:
     model = "QN+WN+GM+RW+DR"
 
     def setup(self, n):
-        import estimators
-        from noise_models import presets
+        from avbench import estimators
+        from avbench.noise_models import presets
 
         g = presets.get("ADIS16405_X")
         self.rate, self.dt = g.simulate(n, np.random.default_rng(1)), g.dt
@@ -519,8 +518,7 @@ class WhittleFit:
                  "time_fit_full": ("baseline_rfft", "numpy.fft.rfft of the record (one FFT)")}
 
     def setup(self, n):
-        import estimators
-
+        from avbench import estimators
         self.rate, self.dt = _adis_record(n)
         self.est = estimators.get("whittle")
         self.full = estimators.get("whittle", select=False)
@@ -553,8 +551,7 @@ class OnlineDefaults:
     baselines = {"time_fit_default": ("baseline_full_trajectory", "same filter with trajectory_every=1")}
 
     def setup(self, estimator, n):
-        import estimators
-
+        from avbench import estimators
         self.rate, self.dt = _adis_record(n, seed=7)
         self.est = estimators.get(estimator, terms="NBK")
         self.full = estimators.get(estimator, terms="NBK", trajectory_every=1)
@@ -574,9 +571,9 @@ class OnlineDefaults:
 def allan_variance_before(rate, dt, taus="octave"):
     """The overlapping AV as computed before issue 14: ``check_record`` (boolean ``isfinite``
     temporary), a NumPy mean pass, a fresh cumulative-sum array, the same per-tau kernel."""
-    from estimators import _allan_kernels as K
-    from estimators.allan import _result, cluster_sizes
-    from estimators.base import check_record
+    from avbench.estimators.allan import _kernels as K
+    from avbench.estimators.allan.variance import _result, cluster_sizes
+    from avbench.estimators.validation import check_record
 
     rate, dt = check_record(rate, dt)
     n = rate.size
@@ -599,7 +596,7 @@ class AllanKernel:
     baselines = {"time_allan_variance": ("baseline_before", "check_record + mean + fresh cumsum + same kernel (before)")}
 
     def setup(self, n):
-        from estimators.allan import allan_variance
+        from avbench.estimators.allan.variance import allan_variance
 
         self.x = np.random.default_rng(3).standard_normal(n)
         self.x += np.cumsum(np.random.default_rng(4).standard_normal(n)) * 1e-3
@@ -608,7 +605,7 @@ class AllanKernel:
             raise AssertionError(f"fused AV differs from the path before at n = {n}")
 
     def time_allan_variance(self, n):
-        from estimators.allan import allan_variance
+        from avbench.estimators.allan.variance import allan_variance
 
         allan_variance(self.x, 1.0, "octave", overlapping=True)
 
@@ -617,8 +614,8 @@ class AllanKernel:
 
     def track_bound(self, n):
         """Seconds of the bound (best of 5): one compiled cumulative sum + n_taus reads of S."""
-        from estimators import _allan_kernels as K
-        from estimators.allan import allan_variance, cluster_sizes
+        from avbench.estimators.allan import _kernels as K
+        from avbench.estimators.allan.variance import allan_variance, cluster_sizes
 
         m = cluster_sizes("octave", n, 1.0, 10)
         S = np.empty(n + 1)
@@ -650,7 +647,7 @@ class FlickerPreset:
     baselines = {"time_simulate": ("baseline_normals", "NumPy standard_normal, 3 per sample, into a reused buffer")}
 
     def setup(self, preset, n):
-        from noise_models import presets
+        from avbench.noise_models import presets
 
         self.g = presets.get(preset)
         self.g.simulate(1000, np.random.default_rng(0))
@@ -677,12 +674,12 @@ class StartUp:
         pass
 
     def track_help(self, process):
-        from bench.startup import help_times
+        from avbench.bench.startup import help_times
 
         return help_times(self.help_repeats)
 
     def track_import(self, process):
-        from bench.startup import import_cpu
+        from avbench.bench.startup import import_cpu
 
         return import_cpu(self.help_repeats)
 
@@ -699,8 +696,7 @@ class FirstCall:
     param_names = ["estimator"]
 
     def setup(self, estimator):
-        import estimators
-
+        from avbench import estimators
         if estimator not in estimators.names():
             raise NotImplementedError
         self.settings = dict(ESTIMATOR_SETTINGS.get(estimator, {}))
@@ -708,7 +704,7 @@ class FirstCall:
             self.settings["terms"] = "NBK"
 
     def track_first_call(self, estimator):
-        from bench.startup import first_call
+        from avbench.bench.startup import first_call
 
         return first_call(estimator, self.settings)
 
@@ -722,7 +718,7 @@ class ReadRecording:
     baselines = {"time_read": ("baseline_read", "pandas.read_csv of the same file (C engine, defaults)")}
 
     def setup(self, n):
-        from bench.recordings import write_csv
+        from avbench.bench.recordings import write_csv
 
         self.dir = Path(tempfile.mkdtemp(prefix="avbench_csv_"))
         self.path = write_csv(self.dir / "r.csv", n)
@@ -732,7 +728,7 @@ class ReadRecording:
         shutil.rmtree(self.dir, ignore_errors=True)
 
     def time_read(self, n):
-        from studies.recordings.readers import read_recording
+        from avbench.recordings.readers import read_recording
 
         read_recording(self.path, gyro="gyro_x,gyro_y,gyro_z", accel="acc_x,acc_y,acc_z")
 
@@ -742,7 +738,7 @@ class ReadRecording:
         pd.read_csv(self.path)
 
     def peakmem_read(self, n):
-        from bench.recordings import read_peak
+        from avbench.bench.recordings import read_peak
 
         return read_peak(self.path, n)
 
@@ -758,7 +754,7 @@ class EstimateMemory:
         pass
 
     def peakmem_estimate(self, n):
-        from bench.recordings import estimate_peak
+        from avbench.bench.recordings import estimate_peak
 
         return estimate_peak(n)
 

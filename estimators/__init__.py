@@ -1,24 +1,30 @@
 """Estimators of the Allan-variance coefficients Q, N, B, K, R, and the Allan-variance engine.
 
-Every estimator follows one interface (:class:`estimators.base.Estimator`): configure with settings,
+Every estimator follows one interface (:class:`avbench.estimators.base.Estimator`): configure with settings,
 ``fit(rate, dt)``, read ``coefficients_`` (SI, ``pandas.Series`` indexed Q, N, B, K, R).
 ``estimators.get(name, **settings)`` builds one from its registry name; ``estimators.names()``
 lists them.
 
 Importing this package is cheap: the built-in estimators are listed by name in
-:data:`estimators.base.BUILTIN` and their modules (with scipy.optimize, statsmodels and the compiled
+:data:`avbench.estimators.base.BUILTIN` and their modules (with scipy.optimize, statsmodels and the compiled
 filters they need) are imported the first time one of them is asked for; the Allan-variance names
-(``allan_variance``, ``StreamingAllan``, ...) and every submodule (``estimators.gmwm``, ...) are
+(``allan_variance``, ``StreamingAllan``, ...) and every submodule (``avbench.estimators.likelihood.gmwm``, ...) are
 loaded on first access (PEP 562 module ``__getattr__``).
 """
 
+if __name__ != "avbench.estimators":  # the folder imported by its pre-0.2 name (from a source checkout)
+    from avbench.renamed import moved as _moved
+
+    raise ImportError(_moved(__name__))
+
+
 import importlib as _importlib
 
-from noise_models._numba_cache import ensure_cache_dir as _ensure_cache_dir
+from avbench.noise_models._numba_cache import ensure_cache_dir as _ensure_cache_dir
 
 _ensure_cache_dir()  # before any module with compiled kernels is imported
 
-from estimators.base import (  # noqa: E402
+from avbench.estimators.base import (  # noqa: E402
     AvbenchWarning,
     DivergenceWarning,
     Estimator,
@@ -28,7 +34,6 @@ from estimators.base import (  # noqa: E402
     names,
     register,
 )
-from estimators.crlb import crlb  # noqa: E402
 
 __all__ = [
     "AllanResult",
@@ -47,7 +52,10 @@ __all__ = [
 ]
 
 #: public names loaded on first access, and the module that holds them
-_LAZY = {name: "estimators.allan" for name in ("AllanResult", "RecursiveAllan", "StreamingAllan", "allan_variance")}
+_LAZY = {
+    **{name: "avbench.estimators.allan.variance" for name in ("AllanResult", "RecursiveAllan", "StreamingAllan", "allan_variance")},
+    "crlb": "avbench.estimators.likelihood.crlb",
+}
 
 
 def __getattr__(name: str):

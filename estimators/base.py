@@ -19,7 +19,7 @@ Every estimator, batch or online, follows the scikit-learn contract:
   ``std_err_``
       ``pandas.Series`` like ``coefficients_``: standard errors (SI) where the method gives them
       (``diagnostics_["std_err"]``), NaN elsewhere; ``bootstrap(...)`` fills them for any method.
-      ``conf_int(level=0.95, conservative=False)`` gives intervals (:mod:`estimators.uncertainty`).
+      ``conf_int(level=0.95, conservative=False)`` gives intervals (:mod:`avbench.estimators.uncertainty`).
 
 Subclasses implement ``_fit(rate, dt)`` returning ``(coefficients: dict, nonphysical: dict,
 diagnostics: dict)``; the base class does the input checks and packs the results. A subclass whose
@@ -39,8 +39,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from noise_models.terms import _check_dt as check_dt
-from noise_models.units import COEFFICIENTS
+from avbench.estimators.validation import check_common_settings, check_dt, check_record
+from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = [
     "DEFAULT_METHODS",
@@ -52,10 +52,8 @@ __all__ = [
     "AvbenchWarning",
     "DivergenceWarning",
     "IdentifiabilityWarning",
-    "check_record",
     "coefficient_series",
     "data_scale_exponent",
-    "DT_RANGE",
     "SAFE_SPREAD",
 ]
 
@@ -78,23 +76,23 @@ _REGISTRY: dict[str, type["Estimator"]] = {}
 #: on first use, so ``import estimators`` does not pay for scipy.optimize, statsmodels or the
 #: compiled filters (a test checks that importing each module registers exactly these names).
 BUILTIN: dict[str, str] = {
-    "arma_em": "estimators.arma_em:ArmaEM",
-    "gmwm": "estimators.gmwm:GMWM",
-    "gmwm_despiked": "estimators.robust:GMWMDespiked",
-    "gmwm_robust": "estimators.robust:GMWMRobust",
-    "log_fit": "estimators.practitioners:LogFit",
-    "mle": "estimators.mle:MLE",
-    "nekf": "estimators.nekf:Nekf",
-    "nekf_multitau": "estimators.nekf:NekfMultitau",
-    "nnls_rel": "estimators.practitioners:NNLSRel",
-    "ols": "estimators.least_squares:OLS",
-    "ols_trimmed": "estimators.least_squares:TrimmedOLS",
-    "shakf": "estimators.shakf:Shakf",
-    "shakf_multitau": "estimators.shakf:ShakfMultitau",
-    "slope_lines": "estimators.practitioners:SlopeLines",
-    "wls": "estimators.least_squares:WLS",
-    "wls_edf": "estimators.least_squares:EDFWeightedLS",
-    "whittle": "estimators.whittle:Whittle",
+    "arma_em": "avbench.estimators.online.arma_em:ArmaEM",
+    "gmwm": "avbench.estimators.likelihood.gmwm:GMWM",
+    "gmwm_despiked": "avbench.estimators.robust.gmwm:GMWMDespiked",
+    "gmwm_robust": "avbench.estimators.robust.gmwm:GMWMRobust",
+    "log_fit": "avbench.estimators.curve_fits.practitioners:LogFit",
+    "mle": "avbench.estimators.likelihood.mle:MLE",
+    "nekf": "avbench.estimators.online.nekf:Nekf",
+    "nekf_multitau": "avbench.estimators.online.nekf:NekfMultitau",
+    "nnls_rel": "avbench.estimators.curve_fits.practitioners:NNLSRel",
+    "ols": "avbench.estimators.curve_fits.least_squares:OLS",
+    "ols_trimmed": "avbench.estimators.curve_fits.least_squares:TrimmedOLS",
+    "shakf": "avbench.estimators.online.shakf:Shakf",
+    "shakf_multitau": "avbench.estimators.online.shakf:ShakfMultitau",
+    "slope_lines": "avbench.estimators.curve_fits.practitioners:SlopeLines",
+    "wls": "avbench.estimators.curve_fits.least_squares:WLS",
+    "wls_edf": "avbench.estimators.curve_fits.least_squares:EDFWeightedLS",
+    "whittle": "avbench.estimators.likelihood.whittle:Whittle",
 }
 
 #: The methods to run on a user's recording when none are named (``avbench estimate``): methods
@@ -132,9 +130,9 @@ def names() -> list[str]:
     those installed packages declare, sorted.
 
     Installed packages declare estimators in the entry-point group ``avbench.estimators``
-    (:mod:`noise_models.plugins`); they are listed here without being imported.
+    (:mod:`avbench.noise_models.plugins`); they are listed here without being imported.
     """
-    from noise_models.plugins import ESTIMATOR_GROUP, entry_point_names
+    from avbench.noise_models.plugins import ESTIMATOR_GROUP, entry_point_names
 
     return sorted(set(_REGISTRY) | set(BUILTIN) | set(entry_point_names(ESTIMATOR_GROUP)))
 
@@ -145,10 +143,10 @@ def estimator_class(name: str, search=None) -> type["Estimator"]:
     ``name`` is a registry name (``"wls"``), the name of an entry point of the group
     ``avbench.estimators`` declared by an installed package, or an import path
     ``"package.module:Class"``. ``search``: a folder to look in for a plugin module that is not
-    importable otherwise (see :func:`noise_models.plugins.import_module`). A plugin that cannot
-    be imported is a :class:`noise_models.plugins.PluginError` (a ``ValueError``) naming the module.
+    importable otherwise (see :func:`avbench.noise_models.plugins.import_module`). A plugin that cannot
+    be imported is a :class:`avbench.noise_models.plugins.PluginError` (a ``ValueError``) naming the module.
     """
-    from noise_models import plugins
+    from avbench.noise_models import plugins
 
     if not isinstance(name, str):
         raise ValueError(f"estimator name: expected a string, got {name!r}")
@@ -171,7 +169,7 @@ def estimator_class(name: str, search=None) -> type["Estimator"]:
     cls = plugins.load_object(target, search)
     if not (isinstance(cls, type) and issubclass(cls, Estimator)):
         raise plugins.PluginError(
-            f"estimator {name!r}: {target} is {cls!r}, expected a subclass of estimators.Estimator"
+            f"estimator {name!r}: {target} is {cls!r}, expected a subclass of avbench.estimators.Estimator"
         )
     if "name" not in cls.__dict__:  # not registered under a name of its own
         cls.name = name
@@ -199,23 +197,6 @@ def get(name, **settings) -> "Estimator":
     return cls(**settings)
 
 
-def check_common_settings(params: dict) -> None:
-    """Validate the settings several estimators share, wherever they appear.
-
-    ``terms``: a non-empty subset of QNBKR; ``taus``: "octave", "decade", "all" or a list of
-    positive seconds; ``overlapping``: a bool (a string such as "maybe" is refused, not read as true).
-    """
-    from estimators.allan import check_taus
-    from estimators.av_model import check_terms
-
-    if "terms" in params:
-        check_terms(params["terms"])
-    if "taus" in params:
-        check_taus(params["taus"])
-    if "overlapping" in params and not isinstance(params["overlapping"], bool | np.bool_):
-        raise ValueError(f"overlapping: expected true or false, got {params['overlapping']!r}")
-
-
 def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill=math.nan) -> pd.Series:
     """A Series indexed Q, N, B, K, R, filled from ``values`` (missing keys get ``fill``)."""
     import pandas as pd
@@ -227,40 +208,16 @@ def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill
     return pd.Series([values.get(c, fill) for c in COEFFICIENTS], index=list(COEFFICIENTS), dtype=dtype)
 
 
-#: sample intervals an estimator accepts (1 ns .. ~11.6 days): beyond them tau**2 and tau**-2 in the
-#: Allan-variance model leave float64's comfortable range
-DT_RANGE = (1e-9, 1e6)
-
-
-def check_record(rate, dt) -> tuple[np.ndarray, float]:
-    """Validate a gyro record: 1-D, finite, at least 16 samples; ``dt`` finite and in :data:`DT_RANGE`."""
-    dt = check_dt(dt)
-    if not DT_RANGE[0] <= dt <= DT_RANGE[1]:
-        raise ValueError(
-            f"dt: expected a sample interval between {DT_RANGE[0]:g} s and {DT_RANGE[1]:g} s "
-            f"(a rate between {1 / DT_RANGE[1]:g} Hz and {1 / DT_RANGE[0]:g} Hz), got {dt!r} s"
-        )
-    arr = np.asarray(rate)
-    if arr.dtype.kind not in "iuf":
-        raise ValueError(f"rate: expected numeric samples, got dtype {arr.dtype}")
-    if arr.ndim != 1:
-        raise ValueError(f"rate: expected a 1-D array of rate samples, got shape {arr.shape}")
-    if arr.size < 16:
-        raise ValueError(f"rate: expected at least 16 samples, got {arr.size}")
-    arr = arr.astype(np.float64, copy=False)
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        first = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"rate: {int(bad.sum())} non-finite sample(s) (NaN/inf), the first at index {first}")
-    return arr, dt
-
-
 class Estimator:
     """Base class of all coefficient estimators (see the module docstring for the contract)."""
 
     name: ClassVar[str] = "?"
     #: True for estimators that can also consume a record chunk by chunk (``partial_fit``).
     online: ClassVar[bool] = False
+    #: True for estimators that see the record only through ``allan_variance`` of the engine: on a
+    #: record with gaps they are fitted to all of it, the clusters straddling a gap left out
+    #: (``avbench.estimators.allan.variance.skip_gaps``); False: fitted to the longest gap-free run.
+    uses_allan_variance: ClassVar[bool] = False
 
     # -- parameters (scikit-learn style) -------------------------------------------------------
     @classmethod
@@ -343,7 +300,29 @@ class Estimator:
         se[~np.isfinite(c)] = math.nan
         self.std_err_ = se
 
-    # -- uncertainty (estimators.uncertainty) ------------------------------------------------------
+    # -- the fitted model ---------------------------------------------------------------------
+    def model_avar(self, tau) -> np.ndarray:
+        """The Allan variance (SI, of the record as handed to ``fit``) at ``tau`` (s) of the model this
+        estimator fitted: what a figure draws over the record's AV and what its residuals are taken from.
+
+        An estimator whose model is a sum of noise terms other than the five-term curve (a Gauss-Markov
+        bias instability, a flicker with its filter memory, ...) keeps that model as a
+        :class:`avbench.noise_models.Gyro` in ``diagnostics_["model"]`` (in the units it was fitted in,
+        see ``data_scale``): its exact discrete AV is returned. Otherwise the five-term curve of
+        ``coefficients_`` (IEEE 952 / Lv et al. 2015, :func:`avbench.estimators.allan.model.model_avar`;
+        terms without a finite value left out). A subclass may override this method.
+        """
+        from avbench.estimators.allan.model import model_avar
+
+        self._check_fitted()
+        tau = np.asarray(tau, dtype=float)
+        gyro = self.diagnostics_.get("model")
+        if gyro is not None:
+            return gyro.avar(tau) * float(self.diagnostics_.get("data_scale", 1.0)) ** 2
+        c = self.coefficients_
+        return model_avar({k: float(v) for k, v in c.items() if np.isfinite(v)}, tau)
+
+    # -- uncertainty (avbench.estimators.uncertainty) ------------------------------------------------------
     def _check_fitted(self):
         if not hasattr(self, "coefficients_"):
             raise ValueError(f"{type(self).__name__}: not fitted yet; call fit(rate, dt) first")
@@ -353,9 +332,9 @@ class Estimator:
 
         Log-scale normal intervals from ``std_err_`` (NaN where there is none); with
         ``conservative=True`` one-sided upper bounds holding jointly with probability ``level``
-        (an overbound; lower = 0). See :mod:`estimators.uncertainty`.
+        (an overbound; lower = 0). See :mod:`avbench.estimators.uncertainty`.
         """
-        from estimators.uncertainty import interval, zero_quantile
+        from avbench.estimators.uncertainty import interval, zero_quantile
 
         self._check_fitted()
         upper0 = None
@@ -368,9 +347,9 @@ class Estimator:
     def bootstrap(self, n_samples: int, dt, n_draws: int = 20, seed=0) -> "Estimator":
         """Replace ``std_err_`` by a parametric bootstrap: ``n_draws`` records of ``n_samples``
         samples simulated from the fitted coefficients with the exact generators, refitted by
-        clones of this estimator (:func:`estimators.uncertainty.parametric_bootstrap`). Costs
+        clones of this estimator (:func:`avbench.estimators.uncertainty.parametric_bootstrap`). Costs
         ``n_draws`` fits. Returns ``self``."""
-        from estimators.uncertainty import parametric_bootstrap
+        from avbench.estimators.uncertainty import parametric_bootstrap
 
         self._check_fitted()
         se = parametric_bootstrap(self, int(n_samples), check_dt(dt), n_draws, seed)
@@ -384,7 +363,7 @@ class Estimator:
         """The fitted coefficients in SI and in ``units`` (default: the papers' units)."""
         import pandas as pd
 
-        from noise_models.units import PAPER_UNITS, SI_UNITS, from_si
+        from avbench.noise_models.units import PAPER_UNITS, SI_UNITS, from_si
 
         units = units or PAPER_UNITS
         c = self.coefficients_
@@ -417,7 +396,7 @@ def data_scale_exponent(rate: np.ndarray) -> int:
 
 def _scale_coefficients(name: str, value, factor: float):
     """A coefficient mapping (SI floats or (value, unit) pairs) multiplied by ``factor``, in SI."""
-    from noise_models.units import as_si
+    from avbench.noise_models.units import as_si
 
     if not isinstance(value, dict):
         return value  # the estimator's own validation reports what is wrong with it

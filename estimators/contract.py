@@ -22,6 +22,10 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
     if provided: ``std_err_`` a float Series indexed Q..R, finite only where the coefficient is,
     non-negative; ``conf_int()`` a two-column DataFrame indexed Q..R with lower <= estimate <= upper
     where finite;
+``model``
+    ``model_avar(tau)`` (the AV of the fitted model, :meth:`Estimator.model_avar`) gives a float
+    array of ``tau``'s shape, finite and non-negative, at the record's octave taus; an estimator that
+    does not override it (a plugin, say) gets the five-term curve of its coefficients;
 ``determinism``
     a fresh copy (unpickled) fitted on the same record gives identical coefficients (and standard
     errors); refitting a fitted estimator on another record equals a fresh fit on it, and refitting
@@ -34,7 +38,7 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
     2^14 samples at 10 Hz, a fixed seed) every coefficient of the gyro the estimator reports
     lies within :data:`Z_RECOVERY` standard deviations of an estimator
     :data:`EFFICIENCY_ALLOWANCE` times less efficient than the Cramér-Rao bound of that record
-    (``estimators.crlb``): :math:`|\\hat\\theta - \\theta| \\le z\\,E\\,\\sigma_{CRLB}`. With
+    (``avbench.estimators.likelihood.crlb``): :math:`|\\hat\\theta - \\theta| \\le z\\,E\\,\\sigma_{CRLB}`. With
     z = 4 an unbiased Gaussian estimator that meets the allowance fails by chance with probability
     below 1e-4 per coefficient. The band is ±22 % of N and ±8.4 K (K shows only in the last
     octaves of this record): it catches unit slips (deg for rad: 57; hours for seconds: 60; a
@@ -48,7 +52,7 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
 
 Examples
 --------
->>> from estimators.contract import check_estimator
+>>> from avbench.estimators.contract import check_estimator
 >>> report = check_estimator("ols", raise_on_failure=False)   # doctest: +SKIP
 >>> report.ok                                                  # doctest: +SKIP
 True
@@ -69,8 +73,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from estimators.base import Estimator, estimator_class, get
-from noise_models.units import COEFFICIENTS
+from avbench.estimators.base import Estimator, estimator_class, get
+from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = [
     "check_estimator",
@@ -102,7 +106,7 @@ def recovery_gyro():
     (crossover 3 N^2 / K^2 = 3300 s). A curve fit of all five terms on all cluster sizes (OLS of
     Lv et al. 2015) still recovers N here, while a strong random walk would swamp it.
     """
-    from noise_models import AngleRandomWalk, Gyro, RateRandomWalk
+    from avbench.noise_models import AngleRandomWalk, Gyro, RateRandomWalk
 
     return Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=3e-5)], name="recovery")
 
@@ -242,7 +246,7 @@ def check_estimator(estimator, *, raise_on_failure: bool = True, settings: dict 
         cls, settings = type(estimator), estimator.get_params()
     elif isinstance(estimator, type):
         if not issubclass(estimator, Estimator):
-            raise ValueError(f"{estimator!r}: expected a subclass of estimators.Estimator")
+            raise ValueError(f"{estimator!r}: expected a subclass of avbench.estimators.Estimator")
         cls = estimator
     else:
         classes = load_estimators(str(estimator))
@@ -277,6 +281,7 @@ class _Checker:
             ("fit", self.check_fit),
             ("attributes", self.check_attributes),
             ("uncertainty", self.check_uncertainty),
+            ("model", self.check_model),
             ("determinism", self.check_determinism),
             ("bad input", self.check_bad_input),
             ("recovery", self.check_recovery),
@@ -364,7 +369,7 @@ class _Checker:
         return g, a, b
 
     def check_fit(self):
-        from estimators.base import IdentifiabilityWarning
+        from avbench.estimators.base import IdentifiabilityWarning
 
         self.gyro, self.a, self.b = self.records()
         est = self.new()
@@ -442,6 +447,19 @@ class _Checker:
         provided = " and ".join(x for x, v in (("std_err_", se), ("conf_int", ci_f)) if v is not None)
         return problems, f"{provided} checked"
 
+    def check_model(self):
+        est = self._need_fit()
+        g, rate, _ = self.records()
+        tau = g.dt * 2.0 ** np.arange(int(np.log2(rate.size / 2)))
+        curve = np.asarray(est.model_avar(tau))
+        if curve.shape != tau.shape or curve.dtype.kind != "f":
+            return [f"model_avar(tau) has shape {curve.shape} and dtype {curve.dtype}, expected floats of shape {tau.shape}"]
+        bad = ~(np.isfinite(curve) & (curve >= 0))
+        if bad.any():
+            return [f"model_avar is not finite and non-negative at tau = {tau[bad][:3].tolist()} s"]
+        own = type(est).model_avar is not Estimator.model_avar or "model" in est.diagnostics_
+        return [], "its own model" if own else "the five-term curve of its coefficients (default)"
+
     def check_determinism(self):
         est = self._need_fit()
         problems = []
@@ -498,7 +516,7 @@ class _Checker:
         return problems
 
     def check_recovery(self):
-        from estimators.crlb import crlb
+        from avbench.estimators.likelihood.crlb import crlb
 
         est = self._need_fit()
         if self.first is None:

@@ -5,10 +5,10 @@ where the method gives none) and ``conf_int(level=0.95, conservative=False)``. W
 errors come from:
 
 =====================  ==========================================================================
-``whittle``            inverse Whittle information at the estimate (:func:`estimators.crlb.crlb`)
+``whittle``            inverse Whittle information at the estimate (:func:`avbench.estimators.likelihood.crlb.crlb`)
 ``gmwm``               GMM sandwich :math:`(D^T\\Omega^{-1}D)^{-1}` (Guerrier et al. 2013)
 ``mle``                observed information of the exact likelihood, delta method
-LS curve fits          :func:`ls_std_err`: the sandwich of the least-squares solution with the
+LS curve fits          :func:`~avbench.estimators.curve_fits.least_squares.ls_std_err`: the sandwich of the least-squares solution with the
                        EDF (diagonal) covariance of the AV values under the fitted model, delta
                        method from :math:`\\beta` to the coefficients
 every estimator        :meth:`Estimator.bootstrap` (:func:`parametric_bootstrap`): refit
@@ -45,9 +45,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from noise_models.units import COEFFICIENTS
+from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["interval", "ls_std_err", "parametric_bootstrap", "gyro_from_coefficients"]
+__all__ = ["interval", "parametric_bootstrap", "zero_quantile"]
 
 
 #: above this relative standard error the log-scale interval is not used (exp(z se/c) explodes when
@@ -97,25 +97,6 @@ def zero_quantile(level, conservative, se, coefs) -> float:
     return float(_z(level, conservative, int((np.isfinite(c) & np.isfinite(s) & (c > 0)).sum())))
 
 
-def gyro_from_coefficients(coefs, dt: float, duration_s: float):
-    """The model a coefficient set stands for, with the exact generators: Q quantization, N white,
-    B flicker (Kasdin-Walter, ``tau_max`` = 2 x the record, as the presets), K random walk, R ramp.
-    NaN and zero coefficients are left out."""
-    from noise_models import AngleRandomWalk, BiasInstability, Gyro, Quantization, RateRamp, RateRandomWalk
-
-    make = {
-        "Q": lambda v: Quantization(Q=v),
-        "N": lambda v: AngleRandomWalk(N=v),
-        "B": lambda v: BiasInstability(B=v, tau_max=2 * duration_s),
-        "K": lambda v: RateRandomWalk(K=v),
-        "R": lambda v: RateRamp(R=v),
-    }
-    terms = [make[c](float(coefs[c])) for c in COEFFICIENTS if np.isfinite(coefs[c]) and coefs[c] > 0]
-    if not terms:
-        raise ValueError("bootstrap: the fit gave no positive coefficient to simulate from")
-    return Gyro(dt=dt, terms=terms)
-
-
 def parametric_bootstrap(estimator, n_samples: int, dt: float, n_draws: int = 20, seed=0) -> pd.Series:
     """Standard errors (SI) by refitting ``n_draws`` records simulated from the fitted model.
 
@@ -125,7 +106,11 @@ def parametric_bootstrap(estimator, n_samples: int, dt: float, n_draws: int = 20
     """
     if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 3:
         raise ValueError(f"n_draws: expected an integer >= 3, got {n_draws!r}")
-    g = gyro_from_coefficients(estimator.coefficients_, dt, n_samples * dt)
+    from avbench.noise_models import Gyro
+
+    g = Gyro.from_coefficients(estimator.coefficients_, dt, flicker_tau_max=2 * n_samples * dt)
+    if g is None:
+        raise ValueError("bootstrap: the fit gave no positive coefficient to simulate from")
     draws = []
     for ss in np.random.SeedSequence(seed).spawn(int(n_draws)):
         e = estimator.clone()
@@ -140,47 +125,3 @@ def parametric_bootstrap(estimator, n_samples: int, dt: float, n_draws: int = 20
         v = arr[:, j][np.isfinite(arr[:, j])] if arr.size else np.array([])
         out[c] = float(np.std(v, ddof=1)) if v.size >= 3 else math.nan
     return pd.Series(out, dtype=float)
-
-
-def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask) -> pd.Series:
-    """Standard errors of a least-squares AV-curve fit (sandwich with the EDF covariance of the AV).
-
-    .. math::
-
-        \\mathrm{Cov}(\\hat\\beta) = A\\,\\Omega\\,A^T,\\quad A = (X^TW^2X)^{-1}X^TW^2,\\quad
-        \\Omega = \\mathrm{diag}(2\\,\\sigma^4_i/\\mathrm{edf}_i),
-
-    :math:`W` the row scale (``row_scale``; rows of ``X`` and ``av`` selected by ``mask``),
-    :math:`\\sigma^2_i` the fitted AV and :math:`\\mathrm{edf}_i` the equivalent degrees of freedom of
-    the noise type dominating it (:func:`estimators.least_squares.edf_of_rows`, as ``wls_edf``
-    weights). The AV values at different taus are correlated (adjacent octaves by 0.5-0.9 for
-    random-walk-like terms; :func:`estimators.gmwm.av_covariance` computes it, at a cost of seconds
-    per fit on long records): the diagonal ignores this, so these standard errors are optimistic
-    where the fit leans on the long taus (K, R) - the coverage study measures by how much.
-    Delta method: :math:`\\mathrm{se}(c) = \\mathrm{se}(\\beta_c)/(2\\,k_c\\,c)`, :math:`\\beta_c = k_c c^2`.
-    NaN for a coefficient without a physical estimate, and for all on grids denser than about
-    two taus per octave (median ratio of consecutive cluster sizes below 1.5, e.g. ``taus="all"``):
-    neighbouring AV values there are almost perfectly correlated and a diagonal covariance would
-    be wrong by orders of magnitude (use ``Estimator.bootstrap``).
-    """
-    from estimators.av_model import BETA_SCALE, coefficients_from_beta
-    from estimators.least_squares import edf_of_rows
-
-    out = pd.Series(math.nan, index=list(COEFFICIENTS), dtype=float)
-    m = np.asarray(av.m, dtype=float)[mask]
-    if m.size < 2 or np.median(m[1:] / m[:-1]) < 1.5:
-        return out
-    level, edf = edf_of_rows(av, X, beta, terms)
-    var = (2 * level**2 / edf)[mask]
-    w = np.ones(var.size) if row_scale is None else np.asarray(row_scale, dtype=float)
-    Xm = X[mask]
-    norms = np.linalg.norm(Xm * w[:, None], axis=0)
-    norms[norms == 0] = 1.0
-    A = np.linalg.pinv(Xm * w[:, None] / norms) * w[None, :] / norms[:, None]
-    cov = (A * var[None, :]) @ A.T
-    coefs, _ = coefficients_from_beta(beta, terms)
-    for j, c in enumerate(terms):
-        v = coefs[c]
-        if np.isfinite(v) and v > 0 and cov[j, j] >= 0:
-            out[c] = math.sqrt(cov[j, j]) / (2 * BETA_SCALE[c] * v)
-    return out

@@ -1,18 +1,24 @@
 """Synthetic gyros whose Allan-variance coefficients, and exact discrete Allan variance, are known.
 
->>> from noise_models import presets
+>>> from avbench.noise_models import presets
 >>> g = presets.get("SRS2000")
 >>> g.dt
 0.1
 """
 
-from noise_models._numba_cache import ensure_cache_dir as _ensure_cache_dir
+if __name__ != "avbench.noise_models":  # the folder imported by its pre-0.2 name (from a source checkout)
+    from avbench.renamed import moved as _moved
+
+    raise ImportError(_moved(__name__))
+
+
+from avbench.noise_models._numba_cache import ensure_cache_dir as _ensure_cache_dir
 
 _ensure_cache_dir()  # before any module with compiled kernels is imported
 
-from noise_models import presets, units  # noqa: E402
-from noise_models.gyro import Gyro  # noqa: E402
-from noise_models.terms import (  # noqa: E402
+from avbench.noise_models import presets, units  # noqa: E402
+from avbench.noise_models.gyro import Gyro  # noqa: E402
+from avbench.noise_models.terms import (  # noqa: E402
     AngleRandomWalk,
     BiasInstability,
     GaussMarkov,
@@ -59,10 +65,10 @@ def term_class(name: str, search=None) -> type[NoiseTerm]:
 
     A built-in term (a key of :data:`TERM_TYPES`), the name of an entry point of the group
     ``avbench.noise_terms`` declared by an installed package, or an import path
-    ``"package.module:Class"`` (see :mod:`noise_models.plugins`; ``search`` as there). The class
+    ``"package.module:Class"`` (see :mod:`avbench.noise_models.plugins`; ``search`` as there). The class
     must subclass :class:`NoiseTerm`. Errors are ``ValueError`` naming what was expected.
     """
-    from noise_models import plugins
+    from avbench.noise_models import plugins
 
     if not isinstance(name, str):
         raise ValueError(f"expected a term type name, got {name!r}")
@@ -80,5 +86,5 @@ def term_class(name: str, search=None) -> type[NoiseTerm]:
             )
     cls = plugins.load_object(target, search)
     if not (isinstance(cls, type) and issubclass(cls, NoiseTerm)):
-        raise plugins.PluginError(f"term type {name!r}: {target} is {cls!r}, expected a subclass of noise_models.NoiseTerm")
+        raise plugins.PluginError(f"term type {name!r}: {target} is {cls!r}, expected a subclass of avbench.noise_models.NoiseTerm")
     return cls

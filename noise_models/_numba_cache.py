@@ -35,7 +35,7 @@ def _user_cache() -> Path:
     # numba's user-wide locator: appdirs' user cache folder of "numba"
     if sys.platform == "darwin":
         return Path.home() / "Library" / "Caches" / "numba"
-    if os.name == "nt":
+    if sys.platform == "win32":
         return Path(os.environ.get("LOCALAPPDATA", Path.home())) / "numba" / "Cache"
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "numba"
 

@@ -7,8 +7,8 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from noise_models.terms import NoiseTerm, _check_dt, _check_n
-from noise_models.units import COEFFICIENTS
+from avbench.noise_models.terms import NoiseTerm, _check_dt, _check_n
+from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = ["Gyro"]
 
@@ -90,6 +90,26 @@ class Gyro:
             seen[t.coefficient] = t
         self.terms = terms
         self.name = name
+
+    @classmethod
+    def from_coefficients(cls, coefs, dt, flicker_tau_max=None) -> "Gyro | None":
+        """The five-term model a coefficient set stands for, with the exact generators: Q quantization,
+        N white, B flicker (``BiasInstability`` with ``tau_max=flicker_tau_max``, else its default), K random walk,
+        R ramp. Coefficients that are missing, NaN or not positive are left out; ``None`` if none is left.
+        """
+        from avbench.noise_models.terms import (
+            AngleRandomWalk, BiasInstability, Quantization, RateRamp, RateRandomWalk,
+        )
+
+        make = {"Q": lambda v: Quantization(Q=v), "N": lambda v: AngleRandomWalk(N=v),
+                "B": lambda v: BiasInstability(B=v) if flicker_tau_max is None else BiasInstability(B=v, tau_max=flicker_tau_max), "K": lambda v: RateRandomWalk(K=v),
+                "R": lambda v: RateRamp(R=v)}
+        terms = []
+        for c, term in make.items():
+            v = coefs.get(c, math.nan) if hasattr(coefs, "get") else math.nan
+            if v is not None and np.isfinite(v) and v > 0:
+                terms.append(term(float(v)))
+        return cls(dt=dt, terms=terms) if terms else None
 
     def __repr__(self) -> str:
         label = f"name={self.name!r}, " if self.name else ""

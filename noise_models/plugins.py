@@ -1,6 +1,6 @@
 """Plugins: classes named by import path ``"pkg.module:Class"`` or registered by installed packages.
 
-A study config (and ``estimators.get``) can name a class that avbench does not ship:
+A study config (and ``avbench.estimators.get``) can name a class that avbench does not ship:
 
 * by **import path**, ``"my_pkg.my_module:MyEstimator"`` (the module is imported, the class read);
 * by **entry point**: an installed distribution declares, in its ``pyproject.toml``,
@@ -29,6 +29,8 @@ import importlib
 import importlib.metadata
 import sys
 from pathlib import Path
+
+from avbench.renamed import OLD_NAMES, moved
 
 __all__ = [
     "ESTIMATOR_GROUP",
@@ -69,8 +71,10 @@ def import_module(module: str, search: Path | None = None):
     try:
         return importlib.import_module(module)
     except ModuleNotFoundError as e:
-        top = module.split(".")[0]
-        if search is not None and e.name == top:
+        top, missing = module.split(".")[0], e.name or ""
+        if missing.split(".")[0] in OLD_NAMES:  # a plugin written against avbench's pre-0.2 names
+            raise PluginError(f"plugin module {module!r}: {moved(missing)}") from None
+        if search is not None and missing == top:
             folder = Path(search).resolve()
             if (folder / f"{top}.py").is_file() or (folder / top).is_dir():
                 if str(folder) not in sys.path:
@@ -81,6 +85,8 @@ def import_module(module: str, search: Path | None = None):
             f"cannot import plugin module {module!r} ({e}); expected it installed in this Python "
             "environment (pip install ...) or on PYTHONPATH"
         ) from None
+    except ImportError as e:  # e.g. a pre-0.2 avbench folder on sys.path refusing its old name
+        raise PluginError(f"plugin module {module!r}: {e}") from None
     except Exception as e:
         raise PluginError(f"importing plugin module {module!r} failed: {type(e).__name__}: {e}") from None
 

@@ -1,7 +1,7 @@
 """Gyros from the source papers, at the papers' sample rates.
 
 Every preset lists its source table, how its units were read, the sample rate and the paper's record
-length. Bias instability is simulated as flicker noise (:class:`~noise_models.BiasInstability`)
+length. Bias instability is simulated as flicker noise (:class:`~avbench.noise_models.BiasInstability`)
 with its filter memory ``tau_max`` twice the record length T, so the exact AV stays within about 1 %
 of the plateau (2 ln2/pi) B^2 from tau = 8 dt to T/15 and rises by about 7 % at the longest octave
 tau = T/2 (the truth every estimator is scored against is that exact curve, not the constant);
@@ -28,8 +28,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from noise_models.gyro import Gyro
-from noise_models.terms import AngleRandomWalk, BiasInstability, Quantization, RateRamp, RateRandomWalk
+from avbench.noise_models.gyro import Gyro
+from avbench.noise_models.terms import AngleRandomWalk, BiasInstability, Quantization, RateRamp, RateRandomWalk
 
 __all__ = ["Preset", "get", "names", "info", "record_seconds"]
 
@@ -196,7 +196,7 @@ def info(name: str) -> Preset:
 
 
 def get(name: str) -> Gyro:
-    """A :class:`~noise_models.Gyro` for preset ``name`` at the paper's sample rate."""
+    """A :class:`~avbench.noise_models.Gyro` for preset ``name`` at the paper's sample rate."""
     return info(name).gyro()
 
 

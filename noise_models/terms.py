@@ -42,8 +42,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from noise_models.exact_avar import avar_from_autocovariance, check_m
-from noise_models.units import as_si
+from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
+from avbench.noise_models.units import as_si
 
 __all__ = [
     "NoiseTerm",

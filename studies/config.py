@@ -5,7 +5,7 @@ The schema -- every key, its type, default and meaning, with an example -- is in
 Estimators and noise terms may be plugins: a registry name, an entry point of the groups
 ``avbench.estimators`` / ``avbench.noise_terms``, or an import path ``"module:Class"`` (a module
 beside the config file is found); ``[study] plugins`` lists modules to import first, in every
-process (:mod:`noise_models.plugins`).
+process (:mod:`avbench.noise_models.plugins`).
 
 Errors name the file, the key and what was expected (:class:`ConfigError`), and are raised before any
 work starts and before anything is written. Besides types and ranges, every gyro is simulated for a
@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-import estimators
-from noise_models import TERM_TYPES, Gyro, presets, term_class
-from noise_models.plugins import PluginError, import_module, version_of
+from avbench import estimators
+from avbench.noise_models import TERM_TYPES, Gyro, presets, term_class
+from avbench.noise_models.plugins import PluginError, import_module, version_of
 
 __all__ = ["ConfigError", "StudyConfig", "GyroSpec", "EstimatorSpec", "load_config", "parse_config"]
 
@@ -72,7 +72,7 @@ class EstimatorSpec:
             s["x0"] = {c: float(truth[c]) * self.x0_truth_scale for c in terms if np.isfinite(truth[c])}
         return s
 
-    def make(self, gyro: GyroSpec) -> "estimators.Estimator":
+    def make(self, gyro: GyroSpec) -> "avbench.estimators.Estimator":
         return estimators.get(self.cls if self.cls is not None else self.name, **self.settings_for(gyro))
 
 
@@ -207,7 +207,7 @@ def _check_label(ctx: _Ctx, key: str, v) -> str:
 
 
 def _builtin(cls) -> bool:
-    return cls.__module__.split(".")[0] in ("estimators", "noise_models")
+    return cls.__module__.split(".")[0] == "avbench"
 
 
 def _build_gyro(ctx: _Ctx, i: int, g: dict, search: Path | None = None) -> tuple[str, Gyro, float | None]:
@@ -365,7 +365,7 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         ctx.fail("study.paper_table", "required when a gyro names its paper_gyro")
     for c, u in study.get("units", {}).items():
         try:
-            from noise_models.units import from_si
+            from avbench.noise_models.units import from_si
 
             from_si(c, 1.0, u)
         except ValueError as e:
@@ -457,7 +457,7 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
 
 
 def _read_paper_table(ctx: _Ctx, path: Path):
-    from studies.papers import load_paper_table
+    from avbench.studies.papers import load_paper_table
 
     try:
         return load_paper_table(path)
@@ -551,8 +551,8 @@ def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | No
        failures are data, recorded per replicate. Reported failures
        (``diagnostics_["failure"]``) are data, never a settings error.
     """
-    from estimators.allan import cluster_sizes
-    from estimators.av_model import check_terms
+    from avbench.estimators.allan.variance import cluster_sizes
+    from avbench.estimators.validation import check_terms
 
     dt, n = gyro.gyro.dt, gyro.n_samples
     check = getattr(est, "check_settings", None)
@@ -599,7 +599,7 @@ def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | No
 
 def load_config(path, overrides: dict[str, Any] | None = None) -> StudyConfig:
     """Read and validate a study TOML file (``overrides`` update its [study] table)."""
-    from studies.data_files import check_path_kind
+    from avbench.recordings.files import check_path_kind
 
     path = Path(path)
     try:

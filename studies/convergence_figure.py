@@ -3,7 +3,7 @@
 One simulated record per set-up; every filter's estimate of each coefficient against the sample
 index over the whole record (log scale: the transient the papers show and the end are both
 visible), with the true value as a line.
-``python -m studies.convergence_figure`` writes ``results/<study>/convergence_<gyro>.png`` for the
+``python -m avbench.studies.convergence_figure`` writes ``results/<study>/convergence_<gyro>.png`` for the
 Miao et al. set-ups.
 """
 
@@ -50,11 +50,11 @@ def convergence_figure(preset, terms, x0, out, *, n_samples=None, seed=0, filter
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    import estimators
-    from estimators.base import IdentifiabilityWarning
-    from noise_models import presets
-    from noise_models.units import PAPER_UNITS, from_si
-    from studies.figures import series_style
+    from avbench import estimators
+    from avbench.estimators.base import IdentifiabilityWarning
+    from avbench.noise_models import presets
+    from avbench.noise_models.units import PAPER_UNITS, from_si
+    from avbench.studies.figures import series_style
 
     g = presets.get(preset)
     n = n_samples or presets.info(preset).n_samples

@@ -13,10 +13,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from estimators.allan import allan_variance  # noqa: E402
-from estimators.av_model import model_avar  # noqa: E402
-from noise_models.units import COEFFICIENTS  # noqa: E402
-from studies.seeding import replicate_rng  # noqa: E402
+from avbench.estimators.allan.variance import allan_variance  # noqa: E402
+from avbench.estimators.allan.model import model_avar  # noqa: E402
+from avbench.noise_models.units import COEFFICIENTS  # noqa: E402
+from avbench.studies.seeding import replicate_rng  # noqa: E402
 
 __all__ = ["av_figure", "spread_figure", "study_figures", "series_style"]
 

@@ -1,6 +1,6 @@
-"""False alarms and power of the poor-fit flag (:mod:`estimators.fit_check`), by Monte Carlo.
+"""False alarms and power of the poor-fit flag (:mod:`avbench.estimators.allan.fit_check`), by Monte Carlo.
 
-``python -m studies.fit_check_calibration [--replicates 200]``
+``python -m avbench.studies.fit_check_calibration [--replicates 200]``
 
 For each case (a simulated gyro, the term set fitted, the record length) and estimator: the
 fraction of replicates the flag fires at p < 0.01 with the reference the estimator now uses, and
@@ -26,7 +26,7 @@ METHODS = ("slope_lines", "log_fit", "nnls_rel", "ols", "wls", "wls_edf", "gmwm"
 
 
 def _gyro(name):
-    from noise_models import AngleRandomWalk, GaussMarkov, Gyro, presets
+    from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, presets
 
     if name == "white":
         return Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3)])
@@ -39,8 +39,8 @@ def flag_rates(case: str, method: str, replicates: int, n_samples: int | None = 
     """Flags over ``replicates`` simulated records of ``case`` fitted by ``method`` (module docstring)."""
     from scipy import stats
 
-    import estimators
-    from estimators.fit_check import ALPHA
+    from avbench import estimators
+    from avbench.estimators.allan.fit_check import ALPHA
 
     factory, terms, gm_model, n_default, _ = CASES[case]
     g = factory()

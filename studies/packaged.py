@@ -14,7 +14,7 @@ __all__ = ["names", "path_of", "description", "resolve"]
 
 
 def _folder() -> Path:
-    return Path(str(resources.files("studies")))
+    return Path(str(resources.files(__package__)))
 
 
 def names() -> list[str]:

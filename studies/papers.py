@@ -4,7 +4,7 @@ Each CSV starts with ``#`` comment lines naming its source (authors, year, journ
 units of its numbers; a study names one with ``paper_table = "paper_tables/<file>.csv"`` (relative
 to the study file), and its tables then print the paper's figures beside ours. A study whose
 paper table cannot be read, or whose ``paper_gyro`` / ``paper_method`` names are not in it, is a
-configuration error (:mod:`studies.config`), never a silent omission.
+configuration error (:mod:`avbench.studies.config`), never a silent omission.
 """
 
 from __future__ import annotations

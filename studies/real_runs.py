@@ -1,23 +1,23 @@
 """Real static recordings: every method on every gyro and accelerometer axis, and the run-to-run
 consistency table.
 
-``python -m studies.real_runs --data DIR --out results/real`` (``DIR``: the folder holding
+``python -m avbench.studies.real_runs --data DIR --out results/real`` (``DIR``: the folder holding
 ``adis16405-calgary/`` and ``mtig-cont-imu1/``; default: the environment variable ``AVBENCH_REAL_DATA``)
 
 Reads (only if present; nothing here needs them) the six ADIS16405 runs
 ``adis16405-calgary/adis_16405_imu{1..6}.npz`` (gyro x, y, z in deg/s and accelerometer x, y, z in g,
 100 Hz) and the MTi-G ``mtig-cont-imu1/cont_imu1.npz`` (one gyro axis, units not stated, taken as
 rad/s, 100 Hz). The recordings are read in place, never copied, through the recordings pipeline of
-``avbench estimate`` (:mod:`studies.recordings`: reader, timing, SI units through
-:mod:`noise_models.units`, gap-aware fits), so sensor and axis names and units come from the same
+``avbench estimate`` (:mod:`avbench.recordings`: reader, timing, SI units through
+:mod:`avbench.noise_models.units`, gap-aware fits), so sensor and axis names and units come from the same
 code. Writes to ``--out``:
 
 ``coefficients.csv``  one row per record x sensor x axis x method x coefficient: value and standard
-                      error in the display units of :data:`noise_models.units.DISPLAY_UNITS` (gyro:
+                      error in the display units of :data:`avbench.noise_models.units.DISPLAY_UNITS` (gyro:
                       the papers' units; accelerometer: m/s/sqrt(h), ug, ...), the coefficient's
                       ``flag`` (ok / not modelled / non-physical / failed), and the fit's ``poor_fit``
                       flag with its statistic, dof, p-value and the reference distribution the
-                      p-value comes from (:mod:`estimators.fit_check`) (5 significant digits);
+                      p-value comes from (:mod:`avbench.estimators.allan.fit_check`) (5 significant digits);
 ``consistency.csv`` / ``consistency.md``  per ADIS sensor, axis, method and coefficient: mean over the
                       six runs, run-to-run standard deviation, the method's own median standard
                       error, their ratio, the number of runs with a value, and of poor fits;
@@ -55,11 +55,11 @@ _GROUP = {r[0]: r[1] for r in RECORDS}
 
 def _records(data: Path):
     """(record, sensor, axis, samples in SI, Timing) for every axis of every recording under ``data``,
-    read by the recordings pipeline (:func:`studies.recordings.readers.read_recording`,
-    :func:`~studies.recordings.timing.timing_of`, :func:`~studies.recordings.sensors.to_si`)."""
-    from studies.recordings.readers import read_recording
-    from studies.recordings.sensors import to_si
-    from studies.recordings.timing import timing_of
+    read by the recordings pipeline (:func:`avbench.recordings.readers.read_recording`,
+    :func:`~avbench.recordings.timing.timing_of`, :func:`~avbench.recordings.sensors.to_si`)."""
+    from avbench.recordings.readers import read_recording
+    from avbench.recordings.sensors import to_si
+    from avbench.recordings.timing import timing_of
 
     for name, _, rel, units, accel_units, fs in RECORDS:
         p = data / rel
@@ -79,10 +79,10 @@ def _round(v):
 
 
 def fit_all(data: Path, methods) -> pd.DataFrame:
-    """Every method on every axis (:func:`studies.recordings.fit.fit_axis`), one row per coefficient."""
-    from noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si
-    from studies.recordings.fit import fit_axis
-    from studies.recordings.report import coefficient_flags
+    """Every method on every axis (:func:`avbench.recordings.fit.fit_axis`), one row per coefficient."""
+    from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si
+    from avbench.recordings.fit import fit_axis
+    from avbench.recordings.report import coefficient_flags
 
     rows = []
     for rec, sensor, axis, x, timing in _records(data):
@@ -147,9 +147,9 @@ def _figures(data: Path, df: pd.DataFrame, out: Path) -> list[str]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from estimators.av_model import model_avar
-    from noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si, to_si
-    from studies.recordings.fit import scaled_allan
+    from avbench.estimators.allan.model import model_avar
+    from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si, to_si
+    from avbench.recordings.fit import scaled_allan
 
     curves: dict = {}
     for rec, sensor, axis, x, timing in _records(data):

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from noise_models.units import COEFFICIENTS, PAPER_UNITS, from_si
-from studies.outputs import atomic_write_text
+from avbench.noise_models.units import COEFFICIENTS, PAPER_UNITS, from_si
+from avbench.outputs import TABLE_DIGITS, TIDY_DIGITS, atomic_write_text
 
 __all__ = ["summarize", "render_markdown", "render_latex", "write_report", "check_report", "read_summary",
            "read_tidy", "write_tidy", "timings"]
@@ -218,7 +218,7 @@ def leaderboard(summary: pd.DataFrame, wins: pd.DataFrame | None = None) -> str:
     sqrt(replicates): above ~2 the bias is real), of the absolute error of the mean %, and the share
     of replicates without a physical estimate (fit times: timings.md; per gyro: scores.md).
 
-    ``wins``: the paired comparisons of :func:`studies.scoring.wins` (none: no tested wins).
+    ``wins``: the paired comparisons of :func:`avbench.studies.scoring.wins` (none: no tested wins).
     """
     s = summary[np.isfinite(summary["true"]) & (summary["true"] > 0)].copy()  # gyros that have the term
     s["bad_share"] = (s["n_nonphysical"] + s["n_failed"]) / s["n"]
@@ -266,7 +266,7 @@ def leaderboard(summary: pd.DataFrame, wins: pd.DataFrame | None = None) -> str:
 
 def _crlb_column(bounds: dict, summary: pd.DataFrame) -> pd.DataFrame:
     """``crlb_std`` (the Cramer-Rao bound, in each row's unit) and ``std_over_crlb`` from ``bounds``
-    (:func:`studies.scoring.crlb_table`: {(gyro, coefficient): bound in SI})."""
+    (:func:`avbench.studies.scoring.crlb_table`: {(gyro, coefficient): bound in SI})."""
     s = summary.copy()
     s["crlb_std"] = math.nan
     for (g, c), b in bounds.items():
@@ -277,11 +277,6 @@ def _crlb_column(bounds: dict, summary: pd.DataFrame) -> pd.DataFrame:
     return s
 
 
-#: significant digits of the committed numbers: results move by ~1e-12 (relative) between machines
-#: and library versions, so the files that regeneration compares carry no more than the arithmetic
-#: supports (tidy: estimates to 9 digits; tables: statistics to 6 digits)
-TIDY_DIGITS = 9
-TABLE_DIGITS = 6
 #: the file written last: its presence says the report is complete, and it lists every output with
 #: its SHA-256, so a folder whose report was interrupted (or edited) is recognised as such
 MARKER = "meta.json"
@@ -312,8 +307,8 @@ def record_hours(cfg) -> float:
 
 
 def finished_studies_parser(prog: str, description: str, default_out: str):
-    """Command-line parser of the summaries that read finished studies (``studies.selection``,
-    ``studies.record_length``): the study configs, ``--results`` and ``--out``."""
+    """Command-line parser of the summaries that read finished studies (``avbench.studies.summaries.selection``,
+    ``avbench.studies.summaries.record_length``): the study configs, ``--results`` and ``--out``."""
     import argparse
 
     ap = argparse.ArgumentParser(prog=prog, description=description)
@@ -337,7 +332,7 @@ def read_finished(config_path, results="results"):
     """``(config, tidy table)`` of the finished study configured in ``config_path``, read from
     ``<results>/<study name>``; ``ValueError`` (naming the config or the missing table and the
     command that makes it) if either cannot be read."""
-    from studies.config import ConfigError, load_config
+    from avbench.studies.config import ConfigError, load_config
 
     try:
         cfg = load_config(config_path)
@@ -391,12 +386,12 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     """
     out = Path(out)
     (out / MARKER).unlink(missing_ok=True)  # incomplete from here until the new marker is written
-    from studies.scoring import crlb_table, wins, write_scores
+    from avbench.studies.scoring import crlb_table, wins, write_scores
 
     bounds = crlb_table(cfg)  # computed once, for the tables and the scores
     summary = _crlb_column(bounds, summarize(tidy, getattr(cfg, "units", None)))
     if cfg.paper_table is not None:  # validated by the config: a missing table is a ConfigError there
-        from studies.papers import add_paper, load_paper_table
+        from avbench.studies.papers import add_paper, load_paper_table
 
         paper = load_paper_table(cfg.paper_table)
         gmap = {g.label: g.paper_gyro for g in cfg.gyros if g.paper_gyro}
@@ -419,13 +414,13 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     if len(cfg.gyros) > 1 or len(cfg.estimators) > 1:
         atomic_write_text(out / "leaderboard.md", leaderboard(summary, w))
         written.append(out / "leaderboard.md")
-    if "lower" in tidy.columns:  # coverage, RMSE/CRLB, bias/SE and tested wins (studies.scoring)
+    if "lower" in tidy.columns:  # coverage, RMSE/CRLB, bias/SE and tested wins (avbench.studies.scoring)
         written += write_scores(tidy, out, bounds, w)
     if "seconds" in tidy:
         t = timings(tidy)
         atomic_write_text(out / "timings.csv", t.to_csv(index=False, float_format="%.4g"))
         atomic_write_text(out / "timings.md", render_timings(t, meta))
-    from studies.figures import study_figures
+    from avbench.studies.figures import study_figures
 
     written += study_figures(cfg, tidy, out)
     meta["outputs"] = {p.name: _sha256(p) for p in sorted(written, key=lambda p: p.name)}

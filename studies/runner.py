@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from estimators.allan import memoize_allan
-from studies.config import StudyConfig
-from studies.seeding import replicate_rng
+from avbench.estimators.allan.variance import memoize_allan
+from avbench.studies.config import StudyConfig
+from avbench.studies.seeding import replicate_rng
 
 __all__ = [
     "run_study",
@@ -87,7 +87,7 @@ def tasks_of(cfg: StudyConfig) -> list[Task]:
 
 def _modelled(est, coefs, nonphys) -> list[str]:
     """Coefficients an estimator estimates: its ``terms`` setting, else what it returned."""
-    from estimators.av_model import check_terms
+    from avbench.estimators.validation import check_terms
 
     terms = getattr(est, "terms", None)
     if terms is not None:
@@ -223,7 +223,7 @@ def _compute_block(cfg: StudyConfig, task: Task) -> tuple[Task, pd.DataFrame]:
     Workers never write files (on a cluster they may not share the client's disk): the process
     that runs the study saves each block as it arrives.
     """
-    from studies.workers import one_numba_thread
+    from avbench.studies.workers import one_numba_thread
 
     one_numba_thread()
     cfg.import_plugins()  # the same plugin modules as the process that loaded the config
@@ -273,7 +273,7 @@ def resolve_execution(cfg: StudyConfig, n_jobs=1, backend=None, scheduler=None) 
     ``scheduler`` without ``backend`` implies "dask"; the config's scheduler is used only with the
     dask backend. Raises ValueError (before anything is written) for impossible combinations.
     """
-    from studies.config import _SCHEDULER_RE
+    from avbench.studies.config import _SCHEDULER_RE
 
     if isinstance(n_jobs, bool) or not isinstance(n_jobs, int | np.integer) or n_jobs == 0:
         raise ValueError(f"jobs: expected a positive number of workers, or -1 for all cores, got {n_jobs!r}")
@@ -337,7 +337,7 @@ def run_study(
         if bar is not None:
             bar.close()
     tidy = collect(shard_dir, tasks, cfg)
-    from studies.report import write_report, write_tidy
+    from avbench.studies.report import write_report, write_tidy
 
     if make_report:
         write_report(cfg, tidy, out)  # tidy.csv, tables, figures; meta.json last
@@ -423,7 +423,7 @@ def _local_runner(n_jobs: int):
     def run(cfg, tasks):
         from concurrent.futures import FIRST_COMPLETED, wait
 
-        from studies.workers import local_workers, worker_count
+        from avbench.studies.workers import local_workers, worker_count
 
         executor = local_workers(n_jobs)
         window = 2 * worker_count(n_jobs)
@@ -497,7 +497,7 @@ class _dask_context:
                     "(start one with 'dask scheduler' and workers with 'dask worker ADDRESS')"
                 ) from None
         else:
-            from studies.workers import worker_count
+            from avbench.studies.workers import worker_count
 
             self.cluster = LocalCluster(
                 n_workers=worker_count(self.n_jobs), threads_per_worker=1, processes=True, dashboard_address=":0"

@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from noise_models.units import COEFFICIENTS
+from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = ["scores", "comparable", "paired_rmse_ratio", "wins", "render_scores", "crlb_table", "write_scores"]
 
@@ -44,7 +44,7 @@ def _ok(d: pd.DataFrame) -> pd.DataFrame:
 
 def crlb_table(cfg) -> dict:
     """{(gyro label, coefficient): CRLB std (SI)} for the study's gyros (NaN where not covered)."""
-    from estimators import crlb
+    from avbench.estimators.likelihood.crlb import crlb
 
     out = {}
     for g in cfg.gyros:
@@ -181,7 +181,7 @@ def write_scores(tidy: pd.DataFrame, out, bounds: dict, w: pd.DataFrame) -> list
     paths."""
     from pathlib import Path
 
-    from studies.report import TABLE_DIGITS, atomic_write_text
+    from avbench.outputs import TABLE_DIGITS, atomic_write_text
 
     out = Path(out)
     sc = scores(tidy, bounds)

@@ -17,6 +17,7 @@ This module imports only the standard library (``avbench run`` imports it before
 from __future__ import annotations
 
 import contextlib
+import importlib
 import os
 import threading
 import time
@@ -27,6 +28,11 @@ __all__ = ["local_workers", "started_early", "worker_count", "one_numba_thread",
 PARENT_POLL_S = 0.5
 #: seconds an idle local worker waits for more blocks before it exits (it is reused meanwhile)
 IDLE_WORKER_TIMEOUT_S = 300
+
+
+#: modules each local worker imports as it starts, by name: the runner, which hands the workers their
+#: blocks (and imports this module), so the first block does not pay for its imports
+WARM_IMPORTS = ("avbench.studies.runner",)
 
 
 def worker_count(n_jobs: int) -> int:
@@ -87,7 +93,8 @@ def _init_worker(parent_pid: int) -> None:
 
     threading.Thread(target=watch, name="avbench-exit-with-parent", daemon=True).start()
     one_numba_thread()
-    import studies.runner  # noqa: F401  (imported once here, not with the first block)
+    for module in WARM_IMPORTS:  # imported once here, not with the first block
+        importlib.import_module(module)
 
 
 def one_numba_thread() -> None:

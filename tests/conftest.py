@@ -28,8 +28,8 @@ def check_monte_carlo_recovery(name: str, seed: int, R: int, n: int = 1_000_000,
     (``diagnostics_["std_err"]``) agree with the replicate spread (variance ratio inside the
     chi^2_{R-1} 99.8 % interval).
     """
-    import estimators
-    from noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
+    from avbench import estimators
+    from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
 
     g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=8.7e-4), GaussMarkov(sigma=1e-4, tc=50.0), RateRandomWalk(K=2e-6)])
     coefs = list(coefs)
@@ -106,7 +106,7 @@ def example_plugin():
     import subprocess
     import sys
 
-    from noise_models import plugins
+    from avbench.noise_models import plugins
 
     pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
     subprocess.run(

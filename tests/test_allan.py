@@ -4,16 +4,16 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from estimators import RecursiveAllan, StreamingAllan, allan_variance
-from estimators.allan import (
+from avbench.estimators import RecursiveAllan, StreamingAllan, allan_variance
+from avbench.estimators.allan.variance import (
     _avar_sums_numpy,
     _oavar_sums_numpy,
     cluster_sizes,
     edf_overlapping,
     recursive_avar,
 )
-from estimators import _allan_kernels as kernels
-from noise_models import AngleRandomWalk, Gyro, presets
+from avbench.estimators.allan import _kernels as kernels
+from avbench.noise_models import AngleRandomWalk, Gyro, presets
 
 allantools = pytest.importorskip("allantools")
 

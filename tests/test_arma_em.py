@@ -8,14 +8,14 @@ import math
 import numpy as np
 import pytest
 
-import estimators
-from estimators import _arma_em_kernels as K
-from estimators._arma_em_reference import ek_run_reference
-from estimators.arma_em import ArmaEM, EKFilter, coefficients_from_model, initial_model
-from estimators.base import DivergenceWarning
-from noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
+from avbench import estimators
+from avbench.estimators.online import _arma_em_kernels as K
+from avbench.estimators.online._arma_em_reference import ek_run_reference
+from avbench.estimators.online.arma_em import ArmaEM, EKFilter, coefficients_from_model, initial_model
+from avbench.estimators.base import DivergenceWarning
+from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
 
-crlb = importlib.import_module("estimators.crlb").crlb
+crlb = importlib.import_module("avbench.estimators.likelihood.crlb").crlb
 
 TRUTH = {"N": 1e-3, "B": 3e-4, "K": 1e-5}
 
@@ -195,7 +195,7 @@ def test_no_divergence_over_seeds_short_records(mode):
     Before the fix 7 of 50 such records (the start of the test above) diverged: the isotropic
     prior I/CC' made eq. 29's x_0 x_0'/k term inflate Q by ~1e8, and the M-step then produced an
     explosive, nearly unobservable mode whose covariance grew like lambda^2k until rounding made
-    A P A' + Q indefinite (see the module docstring of ``estimators.arma_em``).
+    A P A' + Q indefinite (see the module docstring of ``avbench.estimators.online.arma_em``).
     """
     g = _gyro_nbk()
     truth = {"N": 1e-3, "B": 3e-4, "K": 1e-5}
@@ -226,7 +226,7 @@ def test_no_divergence_over_seeds_short_records(mode):
 def test_no_divergence_long_records(n, start):
     """Long records (small default, 2e6 samples slow) with the paper's start, the default start and
     the start of the chunk test: no divergence, covariance positive definite at the end."""
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     if start == "test":
         g, kw = _gyro_nbk(), dict(x0={"N": 2e-3, "B": 1e-4, "K": 3e-5}, tc0=5.0)
@@ -242,7 +242,7 @@ def test_no_divergence_long_records(n, start):
 
 
 def test_prior_covariance_is_the_accumulated_model_covariance():
-    from estimators.arma_em import prior_covariance
+    from avbench.estimators.online.arma_em import prior_covariance
 
     A, _, Q, _ = initial_model(TRUTH, 5.0, 0.01, "NBK", "eq63")
     for h in (1, 2, 3, 16, 777):
@@ -255,7 +255,7 @@ def test_prior_covariance_is_the_accumulated_model_covariance():
 @pytest.mark.parametrize("A", [[[1.02, 0.3], [0.0, 0.9]], [[0.5, 2.0], [-1.0, 0.9]], [[1.001, 0.0], [0.0, 1.002]],
                                [[-1.3, 0.1], [0.2, 0.4]], [[0.99, 0.01], [0.0, 0.98]], [[1.5]], [[0.7]]])
 def test_clip_spectrum_kernel_equals_reference(A):
-    from estimators._arma_em_reference import clip_spectrum_reference
+    from avbench.estimators.online._arma_em_reference import clip_spectrum_reference
 
     A = np.array(A, float)
     lam = np.linalg.eigvals(A)
@@ -303,7 +303,7 @@ def test_recovery_white_plus_gauss_markov():
 @pytest.mark.parametrize("seed", [21, 22])
 def test_recovery_nbk_adis_like_long_record(seed):
     """N + GM + K at ADIS16405-X levels (Miao et al. 2015, Table 2), 5 h at 100 Hz, batch EM."""
-    from noise_models.units import to_si
+    from avbench.noise_models.units import to_si
 
     N, B, Kc = to_si("N", 2.2378, "deg/sqrt(h)"), to_si("B", 28.3271, "deg/h"), to_si("K", 68.5726, "deg/h^1.5")
     gyro = Gyro(dt=0.01, terms=[AngleRandomWalk(N=N), GaussMarkov.from_bias_instability(B, 200.0),

@@ -13,8 +13,8 @@ import pytest
 
 pytest.importorskip("allantools")
 
-from bench import harness, suite  # noqa: E402
-from bench.__main__ import add_parser, main  # noqa: E402
+from avbench.bench import harness, suite  # noqa: E402
+from avbench.bench.__main__ import add_parser, main  # noqa: E402
 
 
 def test_quick_run_writes_outputs(tmp_path, monkeypatch):
@@ -52,7 +52,7 @@ def test_quick_run_writes_outputs(tmp_path, monkeypatch):
     assert "## Targets" in readme and "allantools" in readme
     # start-up and first-call rows are in the targets table, measured, with no claim in a quick run
     targets = {t["target"]: t for t in payload["targets"]}
-    for key in ("`avbench --help`", "`import estimators, noise_models`", "a second process pays"):
+    for key in ("`avbench --help`", "`from avbench import estimators, noise_models`", "a second process pays"):
         row = next(t for name, t in targets.items() if name.startswith(key))
         assert row["met"] is None and row["measured"]
     first = next(c for c in cases if c["benchmark"] == "FirstCall")
@@ -70,7 +70,7 @@ def test_quick_run_never_writes_results_bench_unless_asked(tmp_path, monkeypatch
     assert "avbench-bench-quick-" in folder and (Path(folder) / "results.json").is_file()
     shutil.rmtree(folder)
     # a full run (no --quick) and an explicit --out keep their folders
-    from bench.__main__ import output_folder
+    from avbench.bench.__main__ import output_folder
 
     assert output_folder(argparse.Namespace(out=None, quick=False)) == Path("results/bench")
     assert output_folder(argparse.Namespace(out="x", quick=True)) == Path("x")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from studies.cli import main
+from avbench.cli import main
 
 
 def test_help_lists_commands(capsys):
@@ -66,7 +66,7 @@ def test_help_is_plain_text_and_every_estimator_is_described(capsys):
     """No reST markup in any help text; 'avbench estimators' gives every estimator a description."""
     import re
 
-    from studies.cli import build_parser
+    from avbench.cli import build_parser
 
     parser = build_parser()
     texts = [parser.format_help()]
@@ -77,8 +77,7 @@ def test_help_is_plain_text_and_every_estimator_is_described(capsys):
         assert not re.search(r"``|:[a-z]+:`|^\.\. ", t, re.M), t
     assert main(["estimators"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    import estimators
-
+    from avbench import estimators
     assert len(lines) == len(estimators.names())
     for line in lines:
         name, _, desc = line.partition(" ")
@@ -86,8 +85,8 @@ def test_help_is_plain_text_and_every_estimator_is_described(capsys):
 
 
 def test_preset_notes_quote_their_own_preset(capsys):
-    from noise_models import presets
-    from noise_models.units import from_si
+    from avbench.noise_models import presets
+    from avbench.noise_models.units import from_si
 
     for name in ("FOG1", "FOG2"):
         info = presets.info(name)

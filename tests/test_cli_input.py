@@ -9,10 +9,10 @@ import os
 import numpy as np
 import pytest
 
-from studies import data_files
-from studies.cli import main
+from avbench.recordings import files as data_files
+from avbench.cli import main
 
-pytest.importorskip("studies.estimate")
+pytest.importorskip("avbench.recordings.estimate")
 
 X = np.random.default_rng(0).standard_normal(400)
 GOOD = "\n".join(f"{v:.6f}" for v in X)

@@ -20,9 +20,9 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from studies.cli import main
-from studies.config import ConfigError, load_config, parse_config
-from studies.runner import run_study
+from avbench.cli import main
+from avbench.studies.config import ConfigError, load_config, parse_config
+from avbench.studies.runner import run_study
 
 BASE = """
 [study]

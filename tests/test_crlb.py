@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from estimators.crlb import crlb, spectral_density, whittle_information
-from noise_models import (
+from avbench.estimators.likelihood.crlb import crlb, spectral_density, whittle_information
+from avbench.noise_models import (
     AngleRandomWalk,
     BiasInstability,
     GaussMarkov,

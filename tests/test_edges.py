@@ -19,10 +19,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import estimators
-from estimators.av_model import model_avar
-from estimators.base import BUILTIN
-from noise_models import presets
+from avbench import estimators
+from avbench.estimators.allan.model import model_avar
+from avbench.estimators.base import BUILTIN
+from avbench.noise_models import presets
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -47,7 +47,7 @@ TINY = textwrap.dedent(
 def avbench(*args, cwd=None, timeout=120):
     env = {**os.environ, "MPLBACKEND": "Agg"}
     return subprocess.run(
-        [sys.executable, "-m", "studies.cli", *map(str, args)],
+        [sys.executable, "-m", "avbench.cli", *map(str, args)],
         capture_output=True, text=True, cwd=cwd or ROOT, env=env, timeout=timeout,
     )
 
@@ -135,10 +135,10 @@ def test_table_on_foreign_corrupt_and_incomplete_folders(tiny, tmp_path):
 
 def test_interrupted_report_is_never_read_as_complete(tiny, tmp_path, monkeypatch):
     """A report killed while it is written (here: figures raise) leaves no meta.json: 'table' refuses."""
-    from studies import figures
-    from studies.config import load_config
-    from studies.report import check_report
-    from studies.runner import run_study
+    from avbench.studies import figures
+    from avbench.studies.config import load_config
+    from avbench.studies.report import check_report
+    from avbench.studies.runner import run_study
 
     cfg = load_config(tiny)
     out = tmp_path / "out"
@@ -270,9 +270,9 @@ FAILING = textwrap.dedent(
 def test_method_failing_on_every_record_is_data_not_a_config_error(tmp_path):
     """gmwm cannot fit 16 samples, nobody can fit N = 0: the study runs and records it, and a
     gyro of absurd magnitude (N = 1e200) does not abort the report."""
-    from studies.config import load_config
-    from studies.report import check_report, read_tidy
-    from studies.runner import run_study
+    from avbench.studies.config import load_config
+    from avbench.studies.report import check_report, read_tidy
+    from avbench.studies.runner import run_study
 
     p = tmp_path / "failing.toml"
     p.write_text(FAILING)

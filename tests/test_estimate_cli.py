@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from noise_models import AngleRandomWalk, Gyro, RateRandomWalk
-from noise_models.units import from_si, rate_to_si
-from studies.cli import main
-from studies.recordings.readers import read_recording
+from avbench.noise_models import AngleRandomWalk, Gyro, RateRandomWalk
+from avbench.noise_models.units import from_si, rate_to_si
+from avbench.cli import main
+from avbench.recordings.readers import read_recording
 
 FS = 100.0
 N_TRUE = 2e-3  # rad/sqrt(s)
@@ -46,8 +46,7 @@ def test_csv_with_header_json_only(tmp_path, record, capsys):
     assert n["unit"] == "deg/sqrt(h)"
     assert n["value"] == pytest.approx(from_si("N", n["si"], "deg/sqrt(h)"))
     # the CLI reports what the estimator gives on the converted record, in both units
-    import estimators
-
+    from avbench import estimators
     direct = estimators.get("nnls_rel").fit(rate_to_si(_deg(record), "deg/s"), 1 / FS).coefficients_
     assert n["si"] == pytest.approx(direct["N"], rel=1e-9)
     b = _coef(payload, "nnls_rel", "B")

@@ -19,7 +19,7 @@ ENV = {**os.environ, "MPLBACKEND": "Agg"}
 
 
 def avbench(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "studies.cli", "estimate", *map(str, args)], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "avbench.cli", "estimate", *map(str, args)], capture_output=True,
                           text=True, cwd=cwd, env=ENV, timeout=600)
 
 
@@ -79,8 +79,8 @@ def test_bag_with_a_gap_to_kalibr_yaml(tmp_path, kind):
     # every axis: the estimator's own answer on the same samples with the gap skipped (the CLI adds
     # nothing and loses nothing), and the right order of magnitude (white noise of std s at 200 Hz:
     # N = s / sqrt(200); five free terms on 3000 samples split white noise between Q and N)
-    import estimators
-    from estimators.allan import skip_gaps
+    from avbench import estimators
+    from avbench.estimators.allan.variance import skip_gaps
 
     for sensor, arr, s in (("gyro", gyro, 1e-3), ("accel", acc, 1e-2)):
         axes = data["sensors"][sensor]["axes"]
@@ -112,7 +112,7 @@ def test_fast_bag_decoding_equals_rosbags_deserializer(tmp_path, kind, frame_id)
     pytest.importorskip("rosbags")
     from rosbags.highlevel import AnyReader
 
-    from studies.recordings.readers import _decode_imu, _deserialize_imu
+    from avbench.recordings.readers import _decode_imu, _deserialize_imu
 
     gyro, acc = _imu(50, 7)
     bag = tmp_path / ("b" if kind == "ros2" else "b.bag")

@@ -1,4 +1,4 @@
-"""The estimator contract (``estimators.contract.check_estimator``, ``avbench check-estimator``):
+"""The estimator contract (``avbench.estimators.contract.check_estimator``, ``avbench check-estimator``):
 every built-in estimator passes it, and deliberately broken estimators fail it with a clear reason."""
 
 import math
@@ -8,10 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import estimators
-from estimators import Estimator
-from estimators.contract import ContractError, check_estimator
-from studies.cli import main
+from avbench import estimators
+from avbench.estimators import Estimator
+from avbench.estimators.contract import ContractError, check_estimator
+from avbench.cli import main
 
 #: settings that keep the default run fast; the slow run checks every estimator at its defaults
 FAST = {"mle": {"model": "WN+RW", "max_blocks": 4096}}
@@ -19,12 +19,13 @@ FAST = {"mle": {"model": "WN+RW", "max_blocks": 4096}}
 
 @pytest.mark.parametrize("name", estimators.names())
 def test_builtin_estimators_keep_the_contract(name):
-    if not estimators.estimator_class(name).__module__.startswith("estimators."):
+    if not estimators.estimator_class(name).__module__.startswith("avbench.estimators."):
         pytest.skip(f"{name} is an installed plugin, not a built-in")
     report = check_estimator(name, settings=FAST.get(name), raise_on_failure=False)
     assert report.ok, str(report)
     assert [r.check for r in report.results] == [
-        "init", "params", "pickle", "fit", "attributes", "uncertainty", "determinism", "bad input", "recovery",
+        "init", "params", "pickle", "fit", "attributes", "uncertainty", "model", "determinism", "bad input",
+        "recovery",
     ]
 
 
@@ -168,7 +169,7 @@ def test_broken_estimators_fail_with_a_clear_reason(cls, check, reason):
 
 BROKEN_FILE = '''
 import numpy as np
-from estimators import Estimator
+from avbench.estimators import Estimator
 
 
 class NoSelf(Estimator):
@@ -187,7 +188,7 @@ class NoSelf(Estimator):
 
 def test_cli_check_estimator(tmp_path, capsys):
     assert main(["check-estimator", "ols"]) == 0
-    assert "all 9 checks passed" in capsys.readouterr().out
+    assert "all 10 checks passed" in capsys.readouterr().out
     f = tmp_path / "my_broken_estimator.py"
     f.write_text(BROKEN_FILE)
     assert main(["check-estimator", f"{f}:NoSelf"]) == 1

@@ -1,4 +1,4 @@
-"""The poor-fit check (estimators.fit_check): calibration under the model, power against a missing
+"""The poor-fit check (avbench.estimators.allan.fit_check): calibration under the model, power against a missing
 term, and its presence in every curve-fitting estimator's diagnostics."""
 
 import math
@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-import estimators
-from estimators.fit_check import ALPHA, assess_fit, assess_five_term
-from noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
+from avbench import estimators
+from avbench.estimators.allan.fit_check import ALPHA, assess_fit, assess_five_term
+from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
 
 G = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=20.0), RateRandomWalk(K=3e-6)])
 
@@ -68,7 +68,7 @@ def test_nonphysical_coefficient_leaves_its_term_out_and_is_flagged():
 def test_weighted_chi2_tail_against_its_special_cases_and_simulation():
     from scipy import stats
 
-    from estimators.fit_check import weighted_chi2_sf
+    from avbench.estimators.allan.fit_check import weighted_chi2_sf
 
     for k, x in ((1, 0.5), (3, 7.8), (10, 25.0), (12, 40.0)):
         assert weighted_chi2_sf(x, np.ones(k)) == pytest.approx(stats.chi2.sf(x, k), abs=1e-8)
@@ -85,9 +85,9 @@ def test_weighted_chi2_tail_against_its_special_cases_and_simulation():
 
 def test_refit_weights_of_an_efficient_linear_fit_are_zeros_and_ones():
     # GLS with the AV covariance as weight is the efficient fit: k - p weights 1, p weights 0
-    from estimators.av_model import design_matrix
-    from estimators.fit_check import refit_weights
-    from estimators.gmwm import av_covariance
+    from avbench.estimators.allan.model import design_matrix
+    from avbench.estimators.allan.fit_check import refit_weights
+    from avbench.estimators.allan.covariance import av_covariance
 
     n = 100_000
     m = 2 ** np.arange(0, 13)
@@ -109,7 +109,7 @@ def test_correct_model_not_flagged_small_sample(name):
     # white noise fitted with the right term set (N): with the plain chi^2 reference nnls_rel was
     # flagged in ~80 % of such records; with its own reference the flag should fire with
     # probability 1 %: at most 2 of 12 (binomial 1 %: P(>= 3 of 12) = 2e-4)
-    from studies.fit_check_calibration import flag_rates
+    from avbench.studies.fit_check_calibration import flag_rates
 
     r = flag_rates("white", name, 12, n_samples=20_000, seed=99)
     assert r["reference"] == "weighted chi2"
@@ -118,7 +118,7 @@ def test_correct_model_not_flagged_small_sample(name):
 
 def test_wrong_model_still_flagged_small_sample():
     # a Gauss-Markov bump fitted with white noise only: flagged (power)
-    from studies.fit_check_calibration import flag_rates
+    from avbench.studies.fit_check_calibration import flag_rates
 
     for name in ("nnls_rel", "log_fit"):
         r = flag_rates("white+GM (fitted: N only)", name, 4, n_samples=20_000, seed=5)
@@ -134,7 +134,7 @@ def test_false_alarm_rate_is_nominal(case, name):
     # both real misses of the fitted curve, see estimators/fit_check.py)
     from scipy import stats
 
-    from studies.fit_check_calibration import flag_rates
+    from avbench.studies.fit_check_calibration import flag_rates
 
     r = flag_rates(case, name, 200)
     assert r["flagged"] <= stats.binom.ppf(0.999, 200, 0.01), r
@@ -151,8 +151,8 @@ def test_bootstrap_reference_calibrates_an_inefficient_least_squares_fit():
     # p < 0.1 should happen in 10 % of records: binomial(20, 0.1) 99.9 % bound 7
     from scipy import stats
 
-    from estimators.fit_check import bootstrap_fit_check
-    from studies.fit_check_calibration import _gyro
+    from avbench.estimators.allan.fit_check import bootstrap_fit_check
+    from avbench.studies.fit_check_calibration import _gyro
 
     g = _gyro("white")
     low = plain = 0

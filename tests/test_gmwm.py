@@ -5,11 +5,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-import estimators
+from avbench import estimators
 from conftest import check_monte_carlo_recovery
-from estimators.allan import allan_variance, edf_overlapping
-from estimators.gmwm import av_covariance, build_gyro, parse_model
-from noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
+from avbench.estimators.allan.variance import allan_variance, edf_overlapping
+from avbench.estimators.allan.covariance import av_covariance
+from avbench.estimators.likelihood.gmwm import build_gyro, parse_model
+from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
 
 
 def test_parse_model():
@@ -157,7 +158,7 @@ def test_min_m_setting_is_validated():
 def test_a_term_estimated_at_zero_leaves_the_others_standard_errors():
     # SRS2000 has no rate random walk or ramp: fitted with RW and DR, those run to 0 (or round-off)
     # and are held fixed; Q, N, B keep a standard error (before: none at all in half the replicates)
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     g = presets.get("SRS2000")
     got = 0

@@ -4,10 +4,10 @@
 import numpy as np
 import pytest
 
-import estimators
+from avbench import estimators
 from conftest import assert_mc_recovery
-from estimators.gmwm import parse_model
-from noise_models import AngleRandomWalk, BiasInstability, Gyro, RateRandomWalk
+from avbench.estimators.likelihood.gmwm import parse_model
+from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, RateRandomWalk
 
 DT = 0.1
 

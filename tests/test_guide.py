@@ -56,7 +56,7 @@ def test_config_schema_blocks_run(tmp_path, monkeypatch):
 
 
 def test_config_schema_documents_every_key():
-    from studies import config
+    from avbench.studies import config
 
     text = (DOCS / "CONFIG.md").read_text()
     documented = set(re.findall(r"^\| `([a-z0-9_]+)` \|", text, re.M))

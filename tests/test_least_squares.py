@@ -9,12 +9,12 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-import estimators
-import studies
-from estimators.av_model import PLATEAU, design_matrix
-from estimators.least_squares import solve_scaled
-from noise_models import presets
-from noise_models.units import PAPER_UNITS, to_si
+from avbench import estimators
+from avbench import studies
+from avbench.estimators.allan.model import PLATEAU, design_matrix
+from avbench.estimators.curve_fits.least_squares import solve_scaled
+from avbench.noise_models import presets
+from avbench.noise_models.units import PAPER_UNITS, to_si
 
 LS = ["ols", "ols_trimmed", "wls", "wls_edf"]
 
@@ -68,7 +68,7 @@ def _lv_protocol(gyro_name, R, seed):
 
 
 def _paper(gyro, method):
-    from studies.papers import load_paper_table
+    from avbench.studies.papers import load_paper_table
 
     path = Path(studies.__file__).parent / "paper_tables" / "lv2015_tables_2_4_6.csv"  # shipped with the package
     t = load_paper_table(path)

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_lyapunov
 
-import estimators
+from avbench import estimators
 from conftest import check_monte_carlo_recovery
-from estimators.mle import BlockMeanModel, _gm_block, _level_block, block_means
-from noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
+from avbench.estimators.likelihood.mle import BlockMeanModel, _gm_block, _level_block, block_means
+from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
 
 
 @pytest.mark.parametrize("m, tc", [(1, 0.5), (7, 0.5), (20, 50.0), (64, 0.05)])
@@ -102,7 +102,7 @@ def test_fit_equals_statsmodels_optimum():
     # tight tolerance, reach the same optimum: log-likelihoods within 1e-3 (a parameter error of
     # ~0.05 standard errors costs 1e-3) and estimates within 0.05 standard errors. (statsmodels'
     # default pgtol = 1e-5 stops ~0.3 log-likelihood units short here.)
-    from estimators.mle import maximize_loglike
+    from avbench.estimators.likelihood.mle import maximize_loglike
 
     # (a model whose likelihood is curved in every direction here: with RW added, 2000 s of data
     # leave Tc and K nearly exchangeable and the observed information indefinite, in both fits)

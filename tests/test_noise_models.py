@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from conftest import mc_tolerance
 
-from estimators.allan import allan_variance
-from noise_models import (
+from avbench.estimators.allan.variance import allan_variance
+from avbench.noise_models import (
     AngleRandomWalk,
     BiasInstability,
     GaussMarkov,
@@ -18,8 +18,8 @@ from noise_models import (
     SecondOrderGaussMarkov,
     presets,
 )
-from noise_models.exact_avar import avar_from_autocovariance
-from noise_models.terms import B_EQUIV_OVER_SIGMA
+from avbench.noise_models.exact_avar import avar_from_autocovariance
+from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA
 
 PLATEAU = 2 * math.log(2) / math.pi
 DT = 0.01
@@ -153,7 +153,7 @@ def test_presets_documented_and_consistent():
         assert p.source and g.dt == p.dt and g.name == name
         coefs = g.coefficients
         for c, (v, u) in p.coefficients.items():
-            from noise_models.units import to_si
+            from avbench.noise_models.units import to_si
 
             assert coefs[c] == pytest.approx(to_si(c, v, u))
         tau = np.array([1, 2, 4]) * g.dt

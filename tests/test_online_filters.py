@@ -14,11 +14,11 @@ import warnings
 import numpy as np
 import pytest
 
-import estimators
-from estimators import DivergenceWarning, IdentifiabilityWarning
-from estimators._online_reference import nekf_reference, shakf_reference
-from estimators.allan import recursive_avar
-from noise_models import AngleRandomWalk, Gyro, RateRandomWalk, presets
+from avbench import estimators
+from avbench.estimators import DivergenceWarning, IdentifiabilityWarning
+from avbench.estimators.online._reference import nekf_reference, shakf_reference
+from avbench.estimators.allan.variance import recursive_avar
+from avbench.noise_models import AngleRandomWalk, Gyro, RateRandomWalk, presets
 
 DT = 0.01
 N_TRUE = 1e-4  # rad/s^0.5 -> white rate std N/sqrt(dt) = 1e-3 rad/s

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from studies import packaged
-from studies.cli import main
+from avbench.studies import packaged
+from avbench.cli import main
 
 
 def test_studies_are_listed_from_any_folder(tmp_path):
@@ -26,8 +26,7 @@ def test_studies_are_listed_from_any_folder(tmp_path):
 
 
 def test_run_by_name_writes_to_results_name_in_the_current_folder(tmp_path, monkeypatch, capsys):
-    import studies.runner
-
+    import avbench.studies.runner
     seen = {}
 
     def fake_run_study(cfg, out, **kw):  # the study itself is long: check what would run, where
@@ -35,7 +34,7 @@ def test_run_by_name_writes_to_results_name_in_the_current_folder(tmp_path, monk
         Path(out).mkdir(parents=True, exist_ok=True)
         (Path(out) / "table.md").write_text("table\n")
 
-    monkeypatch.setattr(studies.runner, "run_study", fake_run_study)
+    monkeypatch.setattr(avbench.studies.runner, "run_study", fake_run_study)
     monkeypatch.chdir(tmp_path)
     assert main(["run", "lv2015", "--replicates", "1"]) == 0
     assert seen["name"] == "lv2015" and seen["out"] == Path("results") / "lv2015"

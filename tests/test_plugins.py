@@ -8,13 +8,13 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-import estimators
+from avbench import estimators
 from conftest import STUDY_COLS
-from noise_models import term_class
-from studies.cli import main
-from studies.config import ConfigError, load_config, parse_config
-from studies.report import read_tidy
-from studies.runner import run_study
+from avbench.noise_models import term_class
+from avbench.cli import main
+from avbench.studies.config import ConfigError, load_config, parse_config
+from avbench.studies.report import read_tidy
+from avbench.studies.runner import run_study
 
 STUDY = """
 [study]
@@ -117,8 +117,7 @@ def test_study_plugins_modules_are_imported_by_workers(example_plugin, tmp_path)
 
 
 def test_hash_covers_plugin_versions(example_plugin, tmp_path, monkeypatch):
-    import studies.config as config
-
+    import avbench.studies.config as config
     cfg_path = write(tmp_path)
     key = load_config(cfg_path).result_key()
     monkeypatch.setattr(config, "version_of", lambda obj: "avbench-example-plugin==0.3.0")
@@ -139,8 +138,8 @@ def test_configs_without_plugins_keep_their_hash(tmp_path):
     [
         ('plugins = ["no_such_pkg.mod"]', "ols", r"study\.plugins\[0\]: cannot import plugin module 'no_such_pkg\.mod'"),
         ("", "no_such_pkg.mod:Est", r"estimators\[0\]\.name: cannot import plugin module 'no_such_pkg\.mod'"),
-        ("", "estimators.least_squares:Nope", r"estimators\[0\]\.name: plugin module 'estimators\.least_squares' has no attribute 'Nope'"),
-        ("", "numpy:ndarray", r"estimators\[0\]\.name: .*expected a subclass of estimators\.Estimator"),
+        ("", "avbench.estimators.curve_fits.least_squares:Nope", r"estimators\[0\]\.name: plugin module 'avbench\.estimators\.curve_fits\.least_squares' has no attribute 'Nope'"),
+        ("", "numpy:ndarray", r"estimators\[0\]\.name: .*expected a subclass of avbench\.estimators\.Estimator"),
         ('plugins = ["not a module"]', "ols", r"study\.plugins\[0\]: expected a module name"),
     ],
 )
@@ -171,7 +170,7 @@ def test_estimator_in_a_file_beside_the_config(tmp_path, monkeypatch):
     hash of its source, so editing the file starts a new shard folder."""
     monkeypatch.setattr("sys.path", list(__import__("sys").path))  # undo the folder insertion afterwards
     (tmp_path / "beside_est.py").write_text(
-        "from estimators.least_squares import OLS\n\nclass MyOLS(OLS):\n    '''OLS under another name.'''\n"
+        "from avbench.estimators.curve_fits.least_squares import OLS\n\nclass MyOLS(OLS):\n    '''OLS under another name.'''\n"
     )
     p = tmp_path / "s.toml"
     p.write_text(

@@ -5,11 +5,11 @@ import math
 import numpy as np
 import pytest
 
-import estimators
-from estimators.av_model import model_avar
-from estimators.practitioners import log_fit_beta, nnls_rel_beta, slope_line_coefficients
-from noise_models import presets
-from noise_models.units import COEFFICIENTS
+from avbench import estimators
+from avbench.estimators.allan.model import model_avar
+from avbench.estimators.curve_fits.practitioners import log_fit_beta, nnls_rel_beta, slope_line_coefficients
+from avbench.noise_models import presets
+from avbench.noise_models.units import COEFFICIENTS
 
 TRUE = {"Q": 2e-6, "N": 1e-3, "B": 5e-5, "K": 2e-6, "R": 1e-8}
 TAU = 0.01 * 2.0 ** np.arange(0, 22)
@@ -28,7 +28,7 @@ def test_fits_recover_exact_composite_curves(fit):
     # the continuous five-term model curve is fitted exactly (zero residual is attainable)
     avar = model_avar(TRUE, TAU)
     beta = fit(TAU, avar, "QNBKR")
-    from estimators.av_model import coefficients_from_beta
+    from avbench.estimators.allan.model import coefficients_from_beta
 
     coefs, nonphys = coefficients_from_beta(beta, "QNBKR")
     for c in COEFFICIENTS:
@@ -124,7 +124,7 @@ def test_log_fit_converges_when_terms_end_at_their_floor():
     gyro) end at their floor crept towards it and hit the 5000-evaluation limit on 4 of these 40
     noisy exact-AV curves (2 % of the 2 h MEMS records of grand_comparison_2h, reported as
     failures). With the analytic Jacobian every one converges in a few evaluations."""
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     g = presets.get("ADIS16405_X")
     m = 2 ** np.arange(19)

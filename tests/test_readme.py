@@ -33,7 +33,7 @@ def test_nothing_points_outside_the_project():
     """Nothing names the developers' shared folder (users have none): the optional recordings are
     found through AVBENCH_REAL_DATA or an explicit --data."""
     offenders = []
-    for folder in (".", "noise_models", "estimators", "studies", "bench", "docs", "tests", "results"):
+    for folder in (".", "avbench", "noise_models", "estimators", "studies", "recordings", "bench", "docs", "tests", "results"):
         for p in [ROOT / "README.md"] if folder == "." else (ROOT / folder).rglob("*"):
             if p.suffix not in {".py", ".toml", ".md", ".csv"} or "__pycache__" in p.parts:
                 continue

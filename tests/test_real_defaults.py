@@ -1,17 +1,17 @@
 """The default methods on the real recordings (optional: skipped unless AVBENCH_REAL_DATA names the
 folder of the licensed recordings, read in place), read as ``avbench estimate``
-and ``studies.real_runs`` read them: through the recordings pipeline, units from one place."""
+and ``avbench.studies.real_runs`` read them: through the recordings pipeline, units from one place."""
 
 import math
 
 import numpy as np
 import pytest
 
-import estimators
+from avbench import estimators
 from conftest import real_recording
-from estimators.allan import allan_variance
-from estimators.base import DEFAULT_METHODS
-from noise_models.units import DISPLAY_UNITS, from_si
+from avbench.estimators.allan.variance import allan_variance
+from avbench.estimators.base import DEFAULT_METHODS
+from avbench.noise_models.units import DISPLAY_UNITS, from_si
 
 ADIS, _needs_adis = real_recording("adis16405-calgary/adis_16405_imu1.npz")
 MTIG, _needs_mtig = real_recording("mtig-cont-imu1/cont_imu1.npz")
@@ -23,8 +23,8 @@ def needs(test):
 
 def _axes(path, units, accel_units=None):
     """(sensor, axis, samples in SI) of a recording, through the pipeline of ``avbench estimate``."""
-    from studies.recordings.readers import read_recording
-    from studies.recordings.sensors import to_si
+    from avbench.recordings.readers import read_recording
+    from avbench.recordings.sensors import to_si
 
     for s in to_si(read_recording(path), units, accel_units):
         for axis, x in s.axes.items():

@@ -1,4 +1,4 @@
-"""studies.real_runs plumbing on small generated recordings laid out like the real ones (no real data):
+"""avbench.studies.real_runs plumbing on small generated recordings laid out like the real ones (no real data):
 every gyro and accelerometer axis through the recordings pipeline, units per sensor, the
 consistency table for both sensors, and one figure per sensor and axis."""
 
@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from noise_models.units import STANDARD_GRAVITY
-from studies import real_runs
+from avbench.noise_models.units import STANDARD_GRAVITY
+from avbench.studies import real_runs
 
 DT = 0.01
 N_SAMPLES = 20_000
@@ -61,8 +61,7 @@ def test_every_axis_of_both_sensors_with_its_units(layout):
 def test_coefficients_are_the_estimator_on_the_si_samples_in_display_units(layout, sensor, column0, factor):
     # the same estimator on the file's columns converted by hand (deg/s -> rad/s, g -> m/s^2), its
     # N and B converted by hand to deg/sqrt(h), deg/h or m/s/sqrt(h), ug: equal to the 5 digits written
-    import estimators
-
+    from avbench import estimators
     root, out = layout
     df = pd.read_csv(out / "coefficients.csv")
     x = np.load(root / "adis16405-calgary" / "adis_16405_imu1.npz")["data"]

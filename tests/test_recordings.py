@@ -8,13 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from estimators.allan import allan_variance, allan_variance_gaps, skip_gaps
-from noise_models import AngleRandomWalk, Gyro, RateRandomWalk
-from noise_models.units import samples_to_si, to_si
-from studies.recordings import filter_yaml
-from studies.recordings.fit import agreement, fit_axis
-from studies.recordings.readers import read_recording
-from studies.recordings.timing import timing_of
+from avbench.estimators.allan.variance import allan_variance, allan_variance_gaps, skip_gaps
+from avbench.noise_models import AngleRandomWalk, Gyro, RateRandomWalk
+from avbench.noise_models.units import samples_to_si, to_si
+from avbench.recordings import filter_yaml
+from avbench.recordings.fit import agreement, fit_axis
+from avbench.recordings.readers import read_recording
+from avbench.recordings.timing import timing_of
 
 # -- gap-aware Allan variance -------------------------------------------------------------------------
 

@@ -18,9 +18,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from studies.config import load_config
-from studies.report import read_tidy
-from studies.runner import run_study
+from avbench.studies.config import load_config
+from avbench.studies.report import read_tidy
+from avbench.studies.runner import run_study
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ["lv2015"]

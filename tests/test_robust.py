@@ -3,11 +3,10 @@
 import numpy as np
 import pytest
 
-import estimators
-
+from avbench import estimators
 from conftest import mc_tolerance, real_recording
-from estimators.robust import GMWMRobust, hampel_outliers, m_scale, masked_allan_variance, robust_allan_variance, tuning
-from noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, RateRandomWalk
+from avbench.estimators.robust.gmwm import GMWMRobust, hampel_outliers, m_scale, masked_allan_variance, robust_allan_variance, tuning
+from avbench.noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, RateRandomWalk
 
 DT = 0.1
 NS = 200_000
@@ -195,9 +194,9 @@ def _mtig():
 @needs_mtig
 def test_robust_fits_are_plausible_on_the_contaminated_mtig():
     # The MTi-G's white noise is an iid heavy-tailed scale mixture with 0.03 % gross errors
-    # (estimators.robust, "The MTi-G record"): the despiked fit leaves out only the gross errors
+    # (avbench.estimators.robust.gmwm, "The MTi-G record"): the despiked fit leaves out only the gross errors
     # (the gap rule), so N drops by the few % they carry and B stays; the fit passes its check.
-    from noise_models.units import from_si
+    from avbench.noise_models.units import from_si
 
     x = _mtig()
     ref = estimators.get("gmwm").fit(x, 0.01)

@@ -1,9 +1,9 @@
-"""studies.scoring: coverage, RMSE/CRLB, bias/SE, paired RMSE-ratio test."""
+"""avbench.studies.scoring: coverage, RMSE/CRLB, bias/SE, paired RMSE-ratio test."""
 
 import numpy as np
 import pandas as pd
 
-from studies.scoring import paired_rmse_ratio, render_scores, scores, wins
+from avbench.studies.scoring import paired_rmse_ratio, render_scores, scores, wins
 
 
 def _tidy(errors: dict, true=1.0, half_width=0.1):
@@ -43,7 +43,7 @@ def test_paired_ratio_win_and_tie():
 
 
 def test_selection_rates_count_the_exact_true_set():
-    from studies.selection import selection_rates
+    from avbench.studies.summaries.selection import selection_rates
 
     rows = []
     # truth: N and B present, K absent; replicate 0 exact, 1 adds K, 2 drops B
@@ -59,7 +59,7 @@ def test_selection_rates_count_the_exact_true_set():
 
 
 def test_selection_figure_has_a_panel_per_gyro():
-    from studies.selection import selection_figure
+    from avbench.studies.summaries.selection import selection_figure
 
     t = pd.DataFrame([dict(length=f"{h:g} h", gyro=g, estimator="w", true_set="NB", exact=e, exact_lo=e / 2,
                            exact_hi=min(1.0, e * 1.5), target_applies=h > 1)
@@ -72,7 +72,7 @@ def test_selection_figure_has_a_panel_per_gyro():
 
 def test_leaderboard_counts_only_tested_wins():
     # gyro g1: "good" beats "bad" clearly (a win); gyro g2: "bad" and "same" differ by 1 % (a tie)
-    from studies.report import leaderboard, summarize
+    from avbench.studies.report import leaderboard, summarize
 
     rng = np.random.default_rng(1)
     e = rng.standard_normal(40)
@@ -91,8 +91,8 @@ def _length_study(n=20_000):
     """A one-gyro 'study' (white + flicker noise) with three estimators of known error laws."""
     from types import SimpleNamespace
 
-    from estimators import crlb
-    from noise_models import AngleRandomWalk, BiasInstability, Gyro
+    from avbench.estimators.likelihood.crlb import crlb
+    from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro
 
     g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), BiasInstability(B=3e-4, tau_max=4000.0)])
     cfg = SimpleNamespace(gyros=[SimpleNamespace(label="g", gyro=g, n_samples=n)],
@@ -108,11 +108,11 @@ def _length_study(n=20_000):
 
 
 def test_record_length_targets_judge_rmse_and_bias_against_the_bound():
-    from studies.record_length import length_table, targets_table
+    from avbench.studies.summaries.record_length import length_table, targets_table
 
     tidy, cfg, rel = _length_study()
     assert rel["B"] < 0.5  # the whittle target applies to B and N
-    from studies.scoring import crlb_table
+    from avbench.studies.scoring import crlb_table
 
     bounds = crlb_table(cfg)
     lengths = length_table(tidy, cfg, ["W good", "other"], bounds)
@@ -131,7 +131,7 @@ def test_record_length_targets_judge_rmse_and_bias_against_the_bound():
 
 
 def test_record_length_crossing_and_figure():
-    from studies.record_length import _crossing, crossover_figure
+    from avbench.studies.summaries.record_length import _crossing, crossover_figure
 
     grid = np.geomspace(0.5, 96, 9)
     rel = 0.5 * (grid / 2) ** -0.5  # a power law: log-log interpolation is exact

@@ -1,4 +1,4 @@
-"""Start-up stays light: what ``import estimators, noise_models`` and ``avbench --help`` load, the lazy
+"""Start-up stays light: what ``from avbench import estimators, noise_models`` and ``avbench --help`` load, the lazy
 estimator registry, and where numba caches the compiled kernels.
 
 No timings here (they are in bench/): the checks are on which modules a fresh interpreter imports.
@@ -34,28 +34,28 @@ def _heavy(mods: set[str]) -> list[str]:
 
 
 def test_import_loads_no_heavy_library_and_no_estimator_module():
-    mods = _fresh_modules("import estimators, noise_models")
+    mods = _fresh_modules("from avbench import estimators, noise_models")
     assert not _heavy(mods)
-    loaded = {m for m in mods if m.startswith("estimators.")}
-    assert loaded <= {"estimators.base", "estimators.crlb"}, loaded
+    loaded = {m for m in mods if m.startswith("avbench.estimators.")}
+    assert loaded <= {"avbench.estimators.base", "avbench.estimators.validation", "avbench.estimators.uncertainty"}, loaded
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["simulate", "--help"], ["studies", "--help"],
                                   ["check-estimator", "--help"], ["bench", "--help"]])
 def test_help_imports_neither_simulators_nor_estimators(argv):
     mods = _fresh_modules(
-        "import contextlib, io\nfrom studies.cli import main\n"
+        "import contextlib, io\nfrom avbench.cli import main\n"
         f"with contextlib.redirect_stdout(io.StringIO()):\n    try:\n        main({argv!r})\n    except SystemExit:\n        pass"
     )
     assert not _heavy(mods)
-    assert not {m for m in mods if m.split(".")[0] in ("estimators", "noise_models")}
+    assert not {m for m in mods if m.startswith(("avbench.estimators", "avbench.noise_models"))}
 
 
 def test_listed_estimate_help_is_the_real_one():
     """``avbench --help`` lists ``estimate`` without importing it: with the parser's own help line."""
     import argparse
 
-    from studies.cli import build_parser
+    from avbench.cli import build_parser
 
     def listed(parser):
         action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
@@ -67,24 +67,25 @@ def test_listed_estimate_help_is_the_real_one():
 
 def test_registry_table_matches_what_the_modules_register():
     """BUILTIN (name -> module:Class) is exactly what importing every estimator module registers."""
-    import estimators
-    from estimators.base import _REGISTRY, BUILTIN
+    from avbench import estimators
+    from avbench.estimators.base import _REGISTRY, BUILTIN
 
-    for m in pkgutil.iter_modules(estimators.__path__):
-        if not m.name.startswith("_"):
-            importlib.import_module(f"estimators.{m.name}")
-    shipped = {n: f"{c.__module__}:{c.__qualname__}" for n, c in _REGISTRY.items() if c.__module__.startswith("estimators.")}
+    for m in pkgutil.walk_packages(estimators.__path__, "avbench.estimators."):
+        if not m.name.rpartition(".")[2].startswith("_"):
+            importlib.import_module(m.name)
+    shipped = {n: f"{c.__module__}:{c.__qualname__}" for n, c in _REGISTRY.items()
+               if c.__module__.startswith("avbench.estimators.")}
     assert shipped == BUILTIN
     assert set(BUILTIN) <= set(estimators.names())
 
 
 def test_lazy_names_and_user_registration():
     code = (
-        "import estimators, sys\n"
-        "assert 'estimators.gmwm' not in sys.modules\n"
-        "assert estimators.estimator_class('gmwm').__name__ == 'GMWM' and 'estimators.gmwm' in sys.modules\n"
-        "from estimators import allan_variance, StreamingAllan\n"
-        "assert estimators.least_squares.WLS is estimators.estimator_class('wls')\n"
+        "import sys\nimport avbench.estimators.curve_fits.least_squares\nfrom avbench import estimators\n"
+        "assert 'avbench.estimators.likelihood.gmwm' not in sys.modules\n"
+        "assert estimators.estimator_class('gmwm').__name__ == 'GMWM' and 'avbench.estimators.likelihood.gmwm' in sys.modules\n"
+        "from avbench.estimators import allan_variance, StreamingAllan\n"
+        "assert avbench.estimators.curve_fits.least_squares.WLS is estimators.estimator_class('wls')\n"
         "@estimators.register('my_est')\n"
         "class Mine(estimators.Estimator):\n"
         "    '''A user's estimator.'''\n"
@@ -107,8 +108,8 @@ def test_lazy_names_and_user_registration():
 
 
 def test_estimators_command_describes_every_estimator(capsys):
-    import estimators
-    from studies.cli import main
+    from avbench import estimators
+    from avbench.cli import main
 
     assert main(["estimators"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
@@ -119,7 +120,7 @@ def test_estimators_command_describes_every_estimator(capsys):
 def test_numba_cache_falls_back_to_a_temp_folder(tmp_path, monkeypatch):
     """Neither the source tree nor the user's cache folder writable: NUMBA_CACHE_DIR is set to a
     writable per-user folder (numba would otherwise refuse to import a cache=True kernel)."""
-    from noise_models import _numba_cache as nc
+    from avbench.noise_models import _numba_cache as nc
 
     blocker = tmp_path / "a_file"
     blocker.write_text("")
@@ -141,7 +142,7 @@ def test_numba_cache_falls_back_to_a_temp_folder(tmp_path, monkeypatch):
 
 
 def test_numba_cache_untouched_when_the_source_tree_is_writable(monkeypatch):
-    from noise_models import _numba_cache as nc
+    from avbench.noise_models import _numba_cache as nc
 
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.setattr(nc, "_checked", False)

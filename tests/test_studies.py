@@ -20,11 +20,11 @@ import pytest
 
 from conftest import STUDY_COLS as COLS
 from conftest import study_toml
-from estimators.base import Estimator, register
-from estimators.least_squares import OLS
-from studies.config import load_config, parse_config
-from studies.report import summarize
-from studies.runner import (
+from avbench.estimators.base import Estimator, register
+from avbench.estimators.curve_fits.least_squares import OLS
+from avbench.studies.config import load_config, parse_config
+from avbench.studies.report import summarize
+from avbench.studies.runner import (
     StudyError,
     Task,
     _atomic_write_parquet,
@@ -155,7 +155,7 @@ def test_check_settings_replaces_the_trial_fit(tmp_path, monkeypatch, name, bad,
     """Estimators that validate their settings without data (``check_settings``) are not fitted by
     the settings probe (GMWM's trial fits made loading a 16-gyro config take minutes); bad settings
     are still a config error naming the setting."""
-    from estimators import get
+    from avbench.estimators import get
 
     fitted = []
     monkeypatch.setattr(type(get(name)), "_fit", lambda self, rate, dt: fitted.append(rate.size))
@@ -211,7 +211,7 @@ def test_what_is_shipped_per_task_is_small(tmp_path):
         assert len(pickle.dumps((cfg, t))) < 20_000
     import cloudpickle
 
-    from studies.runner import _compute_block
+    from avbench.studies.runner import _compute_block
 
     assert len(cloudpickle.dumps((_compute_block, cfg, tasks_of(cfg)[0]))) < 20_000
     # a block's result is a few rows, not samples

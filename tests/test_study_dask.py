@@ -11,13 +11,13 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-import studies.runner as runner  # noqa: E402
+import avbench.studies.runner as runner  # noqa: E402
 from conftest import STUDY_COLS as COLS  # noqa: E402
 from conftest import study_toml  # noqa: E402
-from studies.cli import main  # noqa: E402
-from studies.config import load_config  # noqa: E402
-from studies.report import read_tidy  # noqa: E402
-from studies.runner import run_study, tasks_of  # noqa: E402
+from avbench.cli import main  # noqa: E402
+from avbench.studies.config import load_config  # noqa: E402
+from avbench.studies.report import read_tidy  # noqa: E402
+from avbench.studies.runner import run_study, tasks_of  # noqa: E402
 
 def toml(extra_study=""):
     return study_toml(name="tiny_dask", seed=5, extra_study=extra_study)

@@ -15,11 +15,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-import studies.runner as runner
+import avbench.studies.runner as runner
 from conftest import STUDY_COLS as COLS
-from studies.config import load_config
-from studies.report import read_tidy
-from studies.runner import collect, run_study, tasks_of
+from avbench.studies.config import load_config
+from avbench.studies.report import read_tidy
+from avbench.studies.runner import collect, run_study, tasks_of
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -148,7 +148,7 @@ def _interruptible():
 def _cli(out: Path, config: Path) -> subprocess.Popen:
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
     return subprocess.Popen(
-        [sys.executable, "-m", "studies.cli", "run", str(config), "--out", str(out), "--no-progress"],
+        [sys.executable, "-m", "avbench.cli", "run", str(config), "--out", str(out), "--no-progress"],
         cwd=ROOT,
         env=env,
         stdout=subprocess.PIPE,
@@ -260,7 +260,7 @@ def test_stopped_parent_leaves_no_workers(tmp_path, sig):
     shard_dir = out / "_shards" / load_config(config).result_key()
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "studies.cli", "run", str(config), "--out", str(out), "--no-progress", "--jobs", "2"],
+        [sys.executable, "-m", "avbench.cli", "run", str(config), "--out", str(out), "--no-progress", "--jobs", "2"],
         cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_interruptible,
     )
     _wait_for_shards(shard_dir, 1, proc)  # the workers are running blocks

@@ -8,9 +8,9 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-import estimators
-from estimators.uncertainty import interval
-from noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, RateRandomWalk
+from avbench import estimators
+from avbench.estimators.uncertainty import interval
+from avbench.noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, RateRandomWalk
 
 COEFS = ["Q", "N", "B", "K", "R"]
 

@@ -2,7 +2,7 @@ import math
 
 import pytest
 
-from noise_models import units
+from avbench.noise_models import units
 
 
 def test_known_conversions():

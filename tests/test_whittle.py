@@ -5,12 +5,12 @@ import math
 import numpy as np
 import pytest
 
-import estimators
+from avbench import estimators
 from conftest import assert_mc_recovery
-from estimators._whittle_kernels import whittle_pass, whittle_pass_py
-from estimators.crlb import crlb
-from estimators.whittle import WhittleFit
-from noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
+from avbench.estimators.likelihood._whittle_kernels import whittle_pass, whittle_pass_py
+from avbench.estimators.likelihood.crlb import crlb
+from avbench.estimators.likelihood.whittle import WhittleFit
+from avbench.noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
 
 DT = 0.1
 
@@ -117,7 +117,7 @@ def test_a_poor_start_is_retried_until_scoring_converges(seed):
     """20 min of SRS2000 (quantization-dominated): on these records the relative-residual NNLS start
     reads white noise as quantization and Fisher scoring crawls without converging (N off by 20-90 %).
     The fit must converge, and to a likelihood no lower than scoring started at the truth reaches."""
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     g = presets.get("SRS2000")
     x = g.simulate(12_000, np.random.default_rng(seed))
@@ -180,7 +180,7 @@ def test_trend_variance_is_the_exact_quadratic_form(comp, n):
 def _ramp_z2(R, seed):
     """Squared z-statistics of the slope on R records of 20 min of SRS2000 (Q + N + flicker, no ramp),
     with the slope's variance from the true spectrum and from the fitted one."""
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     g = presets.get("SRS2000")
     truth, fitted = [], []
@@ -257,7 +257,7 @@ def test_reml_score_is_the_derivative_of_the_restricted_likelihood(comps, tc):
 def _reml_bias(R, seed):
     """B^2 of the ADIS 50 Hz preset (N + flicker) on R records of 20 min, fitted with its true terms:
     mean error over its Monte Carlo standard error, profile and restricted likelihood."""
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     g = presets.get("ADIS16405_X_50HZ")
     b2 = {False: [], True: []}
@@ -286,7 +286,7 @@ def test_reml_variance_of_flicker_unbiased_slow():
 
 def _lr_ramp_rate(R, seed):
     """Share of R records of 20 min of SRS2000 (no ramp) in which the LR criterion keeps a ramp."""
-    from noise_models import presets
+    from avbench.noise_models import presets
 
     g = presets.get("SRS2000")
     kept = 0

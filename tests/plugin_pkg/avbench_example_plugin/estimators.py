@@ -7,7 +7,7 @@
 
 import numpy as np
 
-from estimators import Estimator, allan_variance, register
+from avbench.estimators import Estimator, allan_variance, register
 
 
 class TwoSlope(Estimator):

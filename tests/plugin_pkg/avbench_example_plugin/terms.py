@@ -5,8 +5,8 @@ import math
 
 import numpy as np
 
-from noise_models import NoiseTerm
-from noise_models.terms import TermStream
+from avbench.noise_models import NoiseTerm
+from avbench.noise_models.terms import TermStream
 
 
 class _PeriodicStream(TermStream):

@@ -1,0 +1,417 @@
+"""The ``avbench`` command.
+
+Examples
+--------
+avbench presets                                  # the gyros of the papers
+avbench simulate SRS2000 --hours 4 --seed 1      # simulate one, print its Allan deviation table
+avbench simulate ADIS16405_Y --hours 1 --out y.npy
+avbench studies                                  # the studies shipped with avbench
+avbench run lv2015 --jobs 2                      # a packaged study by name -> ./results/lv2015/
+avbench run my_study.toml --jobs 2               # your own study file
+avbench check-estimator my_estimator.py:MyEstimator   # does it keep the estimator contract?
+avbench table results/lv2015 --latex             # re-print a finished study's table
+avbench estimate rec.csv --fs 100 --units deg/s --method wls,gmwm   # your own recording
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from avbench.text import plain_text
+
+# Heavy libraries (numpy, pandas, the simulators and estimators) are imported inside the commands:
+# `avbench --help` and every subcommand's help must start in a fraction of a second.
+
+__all__ = ["main", "build_parser"]
+
+
+def _fail(msg: str) -> int:
+    print(f"avbench: error: {msg}", file=sys.stderr)
+    return 2
+
+
+# -- presets / estimators -----------------------------------------------------------------------
+
+
+def cmd_presets(args) -> int:
+    import numpy as np
+
+    from avbench.noise_models import presets
+    from avbench.noise_models.units import PAPER_UNITS, from_si
+
+    for name in presets.names():
+        p = presets.info(name)
+        g = p.gyro()
+        coefs = ", ".join(
+            f"{c} = {from_si(c, v, PAPER_UNITS[c]):.4g} {PAPER_UNITS[c]}"
+            for c, v in g.coefficients.items()
+            if np.isfinite(v)
+        )
+        print(f"{name:18s} {1 / p.dt:6.0f} Hz  {p.duration_s / 3600:.0f} h  {coefs}")
+        if args.verbose:
+            print(f"{'':18s} source: {p.source}")
+            if p.units_note:
+                print(f"{'':18s} note: {p.units_note}")
+    return 0
+
+
+def cmd_estimators(args) -> int:
+    from avbench import estimators
+    for name in estimators.names():
+        try:
+            cls = estimators.estimator_class(name)
+        except ValueError as e:  # an installed plugin that does not import: say so, list the rest
+            print(f"{name:16s} (cannot be loaded: {e})")
+            continue
+        where = "" if cls.__module__.startswith("avbench.") else f" [{cls.__module__}:{cls.__qualname__}]"
+        print(f"{name:16s} {describe(cls)}{where}")
+    return 0
+
+
+def cmd_check_estimator(args) -> int:
+    import json
+
+    from avbench.estimators.contract import check_estimator, load_estimators
+
+    settings = {}
+    if args.settings:
+        try:
+            settings = json.loads(args.settings)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"--settings: expected a JSON object, got {args.settings!r} ({e})") from None
+        if not isinstance(settings, dict):
+            raise ValueError(f"--settings: expected a JSON object of settings, got {args.settings!r}")
+    classes = load_estimators(args.path)
+    failed = 0
+    for cls in classes:
+        report = check_estimator(cls, raise_on_failure=False, settings=settings)
+        print(report)
+        failed += not report.ok
+    return 1 if failed else 0
+
+
+def describe(cls) -> str:
+    """The one-line description of an estimator class: its docstring's first line, as plain text."""
+    lines = (cls.__doc__ or "").strip().splitlines()
+    return plain_text(lines[0].strip()) if lines else ""
+
+
+def _plain_help(parser: argparse.ArgumentParser) -> None:
+    """Strip reST markup from every help text, description and epilog of a parser and its subcommands."""
+    for attr in ("description", "epilog", "usage"):
+        if getattr(parser, attr, None):
+            setattr(parser, attr, plain_text(getattr(parser, attr)))
+    for action in parser._actions:
+        if action.help and action.help is not argparse.SUPPRESS:
+            action.help = plain_text(action.help)
+        if isinstance(action, argparse._SubParsersAction):
+            for choice in action._choices_actions:
+                if choice.help:
+                    choice.help = plain_text(choice.help)
+            for sub in set(action.choices.values()):
+                _plain_help(sub)
+
+
+# -- simulate -----------------------------------------------------------------------------------
+
+
+def _n_samples(args, dt: float, default_s: float) -> int:
+    import numpy as np
+
+    given = [x is not None for x in (args.hours, args.seconds, args.samples)]
+    if sum(given) > 1:
+        raise ValueError("give at most one of --hours, --seconds, --samples")
+    if args.samples is not None:
+        n = args.samples
+    else:
+        seconds = args.hours * 3600 if args.hours is not None else args.seconds if args.seconds is not None else default_s
+        if not np.isfinite(seconds) or seconds <= 0:
+            raise ValueError(f"record length: expected a positive duration, got {seconds!r} s")
+        n = int(round(seconds / dt))
+    if n < 16:
+        raise ValueError(f"record length: {n} samples is too short (need at least 16)")
+    need = n * SIMULATE_BYTES_PER_SAMPLE
+    free = _available_memory()
+    if free is not None and need > free:
+        raise ValueError(
+            f"record length: {n:,} samples need about {need / 2**30:.1f} GiB of memory to simulate and analyse, "
+            f"and {free / 2**30:.1f} GiB are available; expected a shorter record"
+        )
+    return n
+
+
+#: bytes of memory per simulated sample: the record (8) and the Allan-variance engine's cumulative
+#: sum (8) and temporaries, with a margin
+SIMULATE_BYTES_PER_SAMPLE = 32
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available now (MemAvailable), or None where the system does not say."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def cmd_simulate(args) -> int:
+    import numpy as np
+
+    from avbench.estimators.allan.variance import allan_variance
+    from avbench.noise_models import presets
+    from avbench.noise_models.units import rate_to_si
+
+    gyro = presets.get(args.preset)
+    if args.seed < 0:
+        raise ValueError(f"--seed: expected a non-negative integer, got {args.seed}")
+    n = _n_samples(args, gyro.dt, presets.record_seconds(args.preset))
+    out = Path(args.out) if args.out else None
+    if out is not None:
+        from avbench.outputs import prepare_out_dir
+
+        if out.suffix not in (".npy", ".csv"):
+            raise ValueError(f"--out: expected a .npy or .csv file name, got {args.out!r}")
+        prepare_out_dir(out.parent, "--out", outputs=(out.name,))
+    rng = np.random.default_rng(args.seed)
+    rate = gyro.simulate(n, rng)
+    av = allan_variance(rate, gyro.dt, taus=args.taus, overlapping=not args.non_overlapping)
+    to_unit = 1.0 / rate_to_si(1.0, args.units)
+    truth = np.sqrt(gyro.avar(av.tau)) * to_unit
+    print(f"# {args.preset}: {n} samples at dt = {gyro.dt} s ({n * gyro.dt / 3600:.2f} h), seed {args.seed}")
+    print(f"# {'overlapping' if av.overlapping else 'non-overlapping'} Allan deviation in {args.units}; "
+          f"68 % chi^2 interval; exact ADEV of the generator")
+    print(f"{'tau_s':>12} {'m':>9} {'J':>9} {'adev':>12} {'ci_low':>12} {'ci_high':>12} {'exact':>12} {'ratio':>7}")
+    lo, hi = np.sqrt(av.ci_low) * to_unit, np.sqrt(av.ci_high) * to_unit
+    for i in range(len(av)):
+        a = av.adev[i] * to_unit
+        print(
+            f"{av.tau[i]:12.4g} {av.m[i]:9d} {av.J[i]:9d} {a:12.5g} {lo[i]:12.5g} "
+            f"{hi[i]:12.5g} {truth[i]:12.5g} {a / truth[i]:7.3f}"
+        )
+    if out is not None:
+        from avbench.outputs import tmp_name
+
+        tmp = tmp_name(out).with_suffix(out.suffix)
+        try:
+            if out.suffix == ".npy":
+                np.save(tmp, rate)
+            else:
+                np.savetxt(tmp, rate, header=f"rate_rad_s (dt = {gyro.dt} s, preset {args.preset}, seed {args.seed})")
+            tmp.replace(out)
+        finally:
+            tmp.unlink(missing_ok=True)
+        print(f"# wrote {n} samples (rad/s) to {out}", file=sys.stderr)
+    return 0
+
+
+# -- studies ------------------------------------------------------------------------------------
+
+#: files 'avbench run' writes into its --out (figures are named per gyro)
+REPORT_FILES = ("tidy.csv", "table.csv", "table.md", "leaderboard.md", "meta.json", "timings.csv", "timings.md",
+                "scores.csv", "scores.md")
+
+
+def cmd_studies(args) -> int:
+    from avbench.studies import packaged
+
+    for name in packaged.names():
+        print(f"{name:22s} {packaged.description(name)}")
+    return 0
+
+
+def cmd_run(args) -> int:
+    from avbench.studies.workers import started_early
+
+    # local workers start now and import while this process reads the config
+    with started_early(args.jobs if _local_pool_wanted(args) else None):
+        return _run(args)
+
+
+def _run(args) -> int:
+    from avbench.studies import packaged
+    from avbench.studies.config import load_config
+    from avbench.studies.runner import run_study
+
+    overrides = {}
+    if args.replicates is not None:
+        overrides["replicates"] = args.replicates
+    cfg = load_config(packaged.resolve(args.config), overrides)
+    out = Path(args.out) if args.out else Path("results") / cfg.name
+    from avbench.outputs import prepare_out_dir
+
+    prepare_out_dir(out, "--out", REPORT_FILES)
+    run_study(
+        cfg,
+        out=out,
+        n_jobs=args.jobs,
+        backend=args.backend,
+        scheduler=args.scheduler,
+        progress=not args.no_progress,
+    )
+    print((out / "table.md").read_text())
+    print(f"# results in {out}/ (tidy.csv, table.md, table.csv, leaderboard.md, figures; fit times in timings.md)", file=sys.stderr)
+    return 0
+
+
+def _local_pool_wanted(args) -> bool:
+    """Local workers will be needed (valid --jobs other than 1, no dask backend asked for)."""
+    jobs = args.jobs
+    return (
+        isinstance(jobs, int)
+        and (jobs > 1 or -(os.cpu_count() or 1) <= jobs <= -1)
+        and args.backend in (None, "loky")
+        and not args.scheduler
+    )
+
+
+def cmd_table(args) -> int:
+    from avbench.studies.report import read_summary, render_latex, render_markdown
+
+    summary, meta = read_summary(args.dir)  # ValueError for a foreign, corrupt or incomplete folder
+    if args.latex:
+        print(render_latex(summary, meta))
+    elif args.csv:
+        print(summary.to_csv(index=False))
+    else:
+        print(render_markdown(summary, meta))
+    return 0
+
+
+# -- parser -------------------------------------------------------------------------------------
+
+
+#: the one-line help of ``avbench estimate`` in the list of commands (as in avbench.recordings.estimate.add_parser)
+ESTIMATE_HELP = "fit the noise coefficients of a static IMU recording"
+
+
+def _command(argv) -> str | None:
+    """The subcommand named in ``argv`` (its first positional word), if any."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def build_parser(argv=None) -> argparse.ArgumentParser:
+    """The ``avbench`` parser; given ``argv``, commands other than the one it names are only listed."""
+    p = argparse.ArgumentParser(
+        prog="avbench",
+        description=(
+            "Benchmark estimators of gyro Allan-variance noise coefficients (Q, N, B, K, R) on "
+            "simulated gyros whose coefficients are known exactly."
+        ),
+        epilog=__doc__.split("Examples\n--------\n", 1)[1],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    s = sub.add_parser("presets", help="list the papers' gyros")
+    s.add_argument("-v", "--verbose", action="store_true", help="also print each preset's source and unit notes")
+    s.set_defaults(func=cmd_presets)
+
+    s = sub.add_parser("estimators", help="list the registered estimators")
+    s.set_defaults(func=cmd_estimators)
+
+    s = sub.add_parser("simulate", help="simulate a preset gyro and print its Allan deviation table")
+    s.add_argument("preset", help="preset name (see 'avbench presets')")
+    s.add_argument("--hours", type=float, help="record length in hours (default: the paper's)")
+    s.add_argument("--seconds", type=float, help="record length in seconds")
+    s.add_argument("--samples", type=int, help="record length in samples")
+    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    s.add_argument("--taus", default="octave", choices=["octave", "decade", "all"], help="tau grid (default octave)")
+    s.add_argument("--non-overlapping", action="store_true", help="non-overlapping AV (default: overlapping)")
+    s.add_argument("--units", default="deg/h", choices=["rad/s", "deg/s", "deg/h"], help="ADEV units (default deg/h)")
+    s.add_argument("--out", help="also write the samples (rad/s) to FILE.npy or FILE.csv")
+    s.set_defaults(func=cmd_simulate)
+
+    s = sub.add_parser("check-estimator", help="check an estimator against the estimator contract")
+    s.add_argument(
+        "path",
+        help="a registered name (wls), an import path (my_pkg.my_module:MyEstimator), "
+        "FILE.py:Class, or FILE.py (every estimator defined in it)",
+    )
+    s.add_argument("--settings", help='settings as a JSON object, e.g. \'{"terms": "NK"}\' (default: the defaults)')
+    s.set_defaults(func=cmd_check_estimator)
+
+    s = sub.add_parser("studies", help="list the studies shipped with avbench (run one by name)")
+    s.set_defaults(func=cmd_studies)
+
+    s = sub.add_parser("run", help="run a Monte Carlo study from a TOML config")
+    s.add_argument("config", help="study TOML file, or the name of a packaged study (see 'avbench studies')")
+    s.add_argument("--jobs", "-j", type=int, default=1, help="parallel workers (default 1; -1 = all cores)")
+    s.add_argument("--out", help="output folder (default results/<study name>)")
+    s.add_argument("--backend", choices=["loky", "dask"], help="execution backend (default: the config's, else loky)")
+    s.add_argument("--scheduler", help="dask scheduler address tcp://HOST:PORT (backend dask)")
+    s.add_argument("--replicates", type=int, help="override the number of replicates")
+    s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_run)
+
+    s = sub.add_parser("table", help="re-print a finished study's table")
+    s.add_argument("dir", help="a study's output folder")
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--latex", action="store_true", help="LaTeX")
+    g.add_argument("--csv", action="store_true", help="CSV")
+    s.set_defaults(func=cmd_table)
+
+    if argv is None or _command(argv) == "estimate":
+        from avbench.recordings import estimate  # imports numpy and pandas: only when its parser is needed
+
+        estimate.add_parser(sub)
+    else:  # the same entry in the list of commands, without importing it
+        sub.add_parser("estimate", help=ESTIMATE_HELP)
+    try:
+        import avbench.bench.__main__ as bench_main
+        bench_main.add_parser(sub)
+    except (ImportError, AttributeError):
+        pass
+    _plain_help(p)
+    return p
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv)
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    try:
+        return int(args.func(args) or 0)
+    except BrokenPipeError:  # the reader went away (e.g. '| head'): not an error of ours
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 0
+    except (ValueError, OSError) as e:  # bad input, an unreadable or unwritable path: one line, exit 2
+        return _fail(_one_line(e))
+    except MemoryError:
+        return _fail("out of memory; use a shorter record or fewer replicates per block")
+    except RecursionError:
+        return _fail("input nested too deeply to read")
+    except Exception as e:
+        from avbench.studies.runner import StudyError
+
+        if isinstance(e, StudyError):  # workers kept dying, cluster unreachable, ...: no traceback
+            return _fail(str(e))
+        raise
+    except KeyboardInterrupt:
+        print("avbench: interrupted; finished blocks are saved, rerun the same command to resume", file=sys.stderr)
+        return 130
+
+
+def _one_line(e: BaseException) -> str:
+    """An exception as the one line a user reads; OSErrors name the path and the system's reason."""
+    if isinstance(e, OSError) and e.filename is not None and e.strerror:
+        return f"{e.filename}: {e.strerror}"
+    return str(e) if str(e) else type(e).__name__
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,239 @@
+"""Least-squares fits of the Allan-variance curve (Lv et al. 2015) and an EDF-weighted extension.
+
+All four fit the linear model sigma^2(tau) = X(tau) beta of :mod:`avbench.estimators.allan.model`
+(Lv et al. 2015, eqs 4-7) to the AV values of the record, and differ only in which rows they keep
+and how they weight them:
+
+``ols``          all AV values, unweighted (eq. 7);
+``ols_trimmed``  only the values whose 1-sigma ADEV error 100/sqrt(2(J-1)) % is at most
+                 ``max_error_pct`` (40 % in Lv et al. 2015, section 3.1);
+``wls``          every row multiplied by its cluster count J (eqs 11-14, as written);
+``wls_edf``      (beyond the paper) rows scaled by 1/sd(AV_i), sd from the equivalent degrees of
+                 freedom of each AV value for the noise type that dominates it, iterated from the
+                 ``wls`` fit.
+
+Notes on Lv et al. 2015. Eq. 9 calls e(tau) "the variance of w_i" and then divides the equation
+by it; since Var(AV) is proportional to AV^2/J, the statistically natural row scale is sqrt(J)/AV,
+whereas eqs 11-13 multiply each row by J (i.e. least-squares weights J^2, and no AV^2 factor).
+``wls`` implements eqs 11-14 exactly as printed; ``wls_edf`` is the variance-correct version.
+Negative elements of beta are reported as non-physical (NaN, flagged), as the paper prints "-".
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from avbench.estimators.allan.variance import allan_variance, edf_overlapping
+from avbench.estimators.allan.model import BETA_SCALE, coefficients_from_beta, design_matrix
+from avbench.estimators.validation import check_terms
+from avbench.noise_models.units import COEFFICIENTS
+from avbench.estimators.base import Estimator, register
+from avbench.estimators.allan.fit_check import assess_five_term
+
+__all__ = ["OLS", "TrimmedOLS", "WLS", "EDFWeightedLS", "solve_scaled", "ls_std_err"]
+
+
+def solve_scaled(X: np.ndarray, y: np.ndarray, row_scale: np.ndarray | None = None) -> np.ndarray:
+    """Least-squares beta minimising ||diag(row_scale) (X beta - y)||, with column equilibration.
+
+    The columns tau^-2 .. tau^2 span many decades; scaling them to unit norm before ``lstsq`` and
+    back afterwards gives the same solution with far better conditioning.
+    """
+    if row_scale is not None:
+        X = X * row_scale[:, None]
+        y = y * row_scale
+    norms = np.linalg.norm(X, axis=0)
+    norms[norms == 0] = 1.0
+    b, *_ = np.linalg.lstsq(X / norms, y, rcond=None)
+    return b / norms
+
+
+class _AVCurveFit(Estimator):
+    """Shared machinery: compute the AV, pick rows and weights, solve, pack the result."""
+
+    uses_allan_variance = True
+
+    def __init__(self, *, terms="QNBKR", taus="all", overlapping=False):
+        self.terms = terms
+        self.taus = taus
+        self.overlapping = overlapping
+
+    def _weights(self, av, X, terms):
+        """(row mask, row scale or None, extra diagnostics)."""
+        return np.ones(len(av), dtype=bool), None, {}
+
+    def _fit(self, rate, dt):
+        terms = check_terms(self.terms)
+        av = allan_variance(rate, dt, taus=self.taus, overlapping=bool(self.overlapping))
+        X = design_matrix(av.tau, terms)
+        mask, scale, extra = self._weights(av, X, terms)
+        if mask.sum() < len(terms):
+            coefs = {c: np.nan for c in terms}
+            return coefs, {}, {
+                "failure": f"only {int(mask.sum())} AV values usable for {len(terms)} coefficients",
+                "allan": av,
+            }
+        beta = solve_scaled(X[mask], av.avar[mask], None if scale is None else scale[mask])
+        coefs, nonphys = coefficients_from_beta(beta, terms)
+        fitted = X @ beta
+
+        rs = None if scale is None else scale[mask]
+        diag = {
+            "std_err": ls_std_err(beta, terms, X, rs, av, mask),
+            "allan": av,
+            "used": mask,
+            "beta": dict(zip(terms, beta)),
+            "fitted_avar": fitted,
+            "residuals": av.avar - fitted,
+            **extra,
+        }
+        diag.update(assess_five_term(rate, dt, coefs, len(terms), (av.tau[mask].min(), av.tau[mask].max())))
+        return coefs, nonphys, diag
+
+
+@register("ols")
+class OLS(_AVCurveFit):
+    """Ordinary least squares on all AV values (Lv et al. 2015, eq. 7).
+
+    Parameters
+    ----------
+    terms : str or list
+        Coefficients modelled (subset of "QNBKR"; Lv et al. 2015 fit "QNB").
+    taus : "all", "octave", "decade" or array
+        AV grid (Lv et al. 2015 use "all Allan variance values" without saying which grid).
+    overlapping : bool
+        Overlapping AV (default: non-overlapping, as eq. 2).
+    """
+
+
+@register("ols_trimmed")
+class TrimmedOLS(_AVCurveFit):
+    """OLS on the AV values whose error 100/sqrt(2(J-1)) % is at most ``max_error_pct``.
+
+    Lv et al. 2015, section 3.1 and eq. 8 (threshold 40 %, "empirically 30 % to 40 %").
+    """
+
+    def __init__(self, *, terms="QNBKR", taus="all", overlapping=False, max_error_pct=40.0):
+        super().__init__(terms=terms, taus=taus, overlapping=overlapping)
+        self.max_error_pct = max_error_pct
+
+    def _weights(self, av, X, terms):
+        thr = float(self.max_error_pct)
+        if not np.isfinite(thr) or thr <= 0:
+            raise ValueError(f"max_error_pct: expected a positive percentage, got {self.max_error_pct!r}")
+        with np.errstate(divide="ignore"):
+            err = 100.0 / np.sqrt(2.0 * (av.J - 1))
+        return err <= thr, None, {"error_pct": err}
+
+
+@register("wls")
+class WLS(_AVCurveFit):
+    """Weighted least squares of Lv et al. 2015, eqs 11-14: every row multiplied by J.
+
+    .. math:: \\beta = (X'^T X')^{-1} X'^T y',\\quad X' = \\mathrm{diag}(J) X,\\ y' = \\mathrm{diag}(J) y
+    """
+
+    def _weights(self, av, X, terms):
+        return np.ones(len(av), dtype=bool), av.J.astype(float), {"row_scale": av.J.astype(float)}
+
+
+_NOISE_OF_TERM = {"Q": "white_pm", "N": "white_fm", "B": "flicker_fm", "K": "rw_fm", "R": "rw_fm"}
+
+
+def _edf_nonoverlapping(J: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """EDF of the non-overlapping AV from J clusters, by noise type.
+
+    Exact for white FM, 2(J-1)^2/(3J-4) (adjacent differences correlate with rho = -1/2), and for
+    white PM, 2(J-1)^2 / [(J-1) + (8/9)(J-2) + (1/18)(J-3)] (rho_1 = -2/3, rho_2 = 1/6); the
+    white-FM value is used for flicker and random-walk FM (an approximation).
+    """
+    J = J.astype(float)
+    fm = 2 * (J - 1) ** 2 / np.maximum(3 * J - 4, 1)
+    pm = 2 * (J - 1) ** 2 / np.maximum((J - 1) + 8 / 9 * (J - 2) + (J - 3) / 18, 1)
+    return np.maximum(np.where(noise == "white_pm", pm, fm), 1.0)
+
+
+@register("wls_edf")
+class EDFWeightedLS(_AVCurveFit):
+    """Least squares weighted by the actual variance of each AV value (beyond Lv et al. 2015).
+
+    Var(AV_i) ~ 2 AV_i^2 / edf_i, with AV_i the fitted model value and edf_i the equivalent degrees
+    of freedom for the noise type whose term dominates the fitted AV at tau_i (overlapping: NIST SP
+    1065 Table 5; non-overlapping: see ``_edf_nonoverlapping``). Starts from the ``wls`` fit and
+    re-weights ``n_iter`` times (rows whose fitted AV is not positive keep the empirical AV).
+    """
+
+    def __init__(self, *, terms="QNBKR", taus="all", overlapping=False, n_iter=5):
+        super().__init__(terms=terms, taus=taus, overlapping=overlapping)
+        self.n_iter = n_iter
+
+    def _weights(self, av, X, terms):
+        if not isinstance(self.n_iter, int) or self.n_iter < 1:
+            raise ValueError(f"n_iter: expected a positive integer, got {self.n_iter!r}")
+        beta = solve_scaled(X, av.avar, av.J.astype(float))
+        scale = None
+        for _ in range(self.n_iter):
+            level, edf = edf_of_rows(av, X, beta, terms)
+            scale = np.sqrt(edf / 2.0) / level
+            beta = solve_scaled(X, av.avar, scale)
+        return np.ones(len(av), dtype=bool), scale, {"row_scale": scale, "edf": edf}
+
+
+def edf_of_rows(av, X, beta, terms):
+    """(model AV level, edf) of every AV value under the fit ``beta``: the level is the fitted AV
+    (the empirical one where the fit is not positive), the edf that of the noise type whose term
+    dominates the fitted AV there (overlapping: NIST SP 1065 Table 5; else ``_edf_nonoverlapping``)."""
+    noise_of_column = np.array([_NOISE_OF_TERM[t] for t in terms], dtype=object)
+    contrib = X * np.maximum(beta, 0)[None, :]
+    model = contrib.sum(axis=1)
+    level = np.where(model > 0, model, av.avar)
+    dominant = noise_of_column[contrib.argmax(axis=1)]
+    if av.overlapping:
+        edf = edf_overlapping(av.m, av.n_samples, dominant)
+    else:
+        edf = _edf_nonoverlapping(av.J, dominant)
+    return level, edf
+
+
+def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask) -> pd.Series:
+    """Standard errors of a least-squares AV-curve fit (sandwich with the EDF covariance of the AV).
+
+    .. math::
+
+        \\mathrm{Cov}(\\hat\\beta) = A\\,\\Omega\\,A^T,\\quad A = (X^TW^2X)^{-1}X^TW^2,\\quad
+        \\Omega = \\mathrm{diag}(2\\,\\sigma^4_i/\\mathrm{edf}_i),
+
+    :math:`W` the row scale (``row_scale``; rows of ``X`` and ``av`` selected by ``mask``),
+    :math:`\\sigma^2_i` the fitted AV and :math:`\\mathrm{edf}_i` the equivalent degrees of freedom of
+    the noise type dominating it (:func:`edf_of_rows`, as ``wls_edf``
+    weights). The AV values at different taus are correlated (adjacent octaves by 0.5-0.9 for
+    random-walk-like terms; :func:`avbench.estimators.allan.covariance.av_covariance` computes it, at a cost of seconds
+    per fit on long records): the diagonal ignores this, so these standard errors are optimistic
+    where the fit leans on the long taus (K, R) - the coverage study measures by how much.
+    Delta method: :math:`\\mathrm{se}(c) = \\mathrm{se}(\\beta_c)/(2\\,k_c\\,c)`, :math:`\\beta_c = k_c c^2`.
+    NaN for a coefficient without a physical estimate, and for all on grids denser than about
+    two taus per octave (median ratio of consecutive cluster sizes below 1.5, e.g. ``taus="all"``):
+    neighbouring AV values there are almost perfectly correlated and a diagonal covariance would
+    be wrong by orders of magnitude (use ``Estimator.bootstrap``).
+    """
+    out = pd.Series(math.nan, index=list(COEFFICIENTS), dtype=float)
+    m = np.asarray(av.m, dtype=float)[mask]
+    if m.size < 2 or np.median(m[1:] / m[:-1]) < 1.5:
+        return out
+    level, edf = edf_of_rows(av, X, beta, terms)
+    var = (2 * level**2 / edf)[mask]
+    w = np.ones(var.size) if row_scale is None else np.asarray(row_scale, dtype=float)
+    Xm = X[mask]
+    norms = np.linalg.norm(Xm * w[:, None], axis=0)
+    norms[norms == 0] = 1.0
+    A = np.linalg.pinv(Xm * w[:, None] / norms) * w[None, :] / norms[:, None]
+    cov = (A * var[None, :]) @ A.T
+    coefs, _ = coefficients_from_beta(beta, terms)
+    for j, c in enumerate(terms):
+        v = coefs[c]
+        if np.isfinite(v) and v > 0 and cov[j, j] >= 0:
+            out[c] = math.sqrt(cov[j, j]) / (2 * BETA_SCALE[c] * v)
+    return out

@@ -1,0 +1,608 @@
+"""The block-mean state-space model of :mod:`avbench.estimators.likelihood.mle` and its compiled Kalman likelihood.
+
+:class:`BlockMeanSystem` builds the system matrices (transition ``T``, disturbance covariance
+``Qc``, design ``Z``, observation variance ``H``, initial covariances) of the exact block-mean
+model derived in the :mod:`avbench.estimators.likelihood.mle` docstring; :func:`diffuse_loglike` evaluates its exact
+Gaussian log-likelihood by the Kalman filter with the exact initial treatment of the diffuse
+states (level, drift) of Durbin & Koopman (2012, Sec. 5.2, univariate form of Sec. 6.4; Koopman &
+Durbin 2000): while the diffuse covariance :math:`P_\\infty` is non-zero, an observation with
+:math:`F_\\infty = Z P_\\infty Z' > 0` contributes :math:`-\\tfrac12\\log(2\\pi F_\\infty)` and
+updates with the gains :math:`K_0 = P_\\infty Z'/F_\\infty`,
+:math:`K_1 = (P_* Z' - F_* K_0)/F_\\infty`; afterwards the ordinary prediction-error decomposition
+:math:`-\\tfrac12\\sum_t(\\log 2\\pi F_t + v_t^2/F_t)` (Durbin & Koopman 2012, eq. 7.2).
+
+The recursion is the one statsmodels runs for ``BlockMeanModel`` (univariate diffuse filter,
+diffuse tolerance 1e-10, predicted covariance forced symmetric, and the covariance frozen once
+the squared Frobenius norm of its change is below 1e-19 -- a time-invariant filter has then
+reached its steady state, so later steps update the state only). That model
+(:mod:`avbench.estimators.likelihood._mle_model`) is kept as the reference the tests hold this one to. Everything
+here is NumPy + numba: no statsmodels import.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["BlockMeanSystem", "diffuse_loglike", "augmented_loglike", "_gm_block", "_level_block"]
+
+#: statsmodels' thresholds (``KalmanFilter``): diffuse F_inf, and the steady-state test on P
+TOL_DIFFUSE = 1e-10
+TOL_CONVERGED = 1e-19
+
+
+def _gm_block(phi_log, sigma, m):
+    """Transition and disturbance covariance of (s, xbar) for a GM with log(phi) = phi_log."""
+    j = np.arange(1, m + 1, dtype=float)
+    phi = math.exp(phi_log)
+    c = np.expm1(j * phi_log) / math.expm1(phi_log)  # (1 - phi^j) / (1 - phi), stable as phi -> 1
+    pw = np.exp((j - 1) * phi_log)  # phi^(j-1)
+    q = sigma**2 * -math.expm1(2 * phi_log)  # sigma^2 (1 - phi^2)
+    a = float(np.exp(j * phi_log).sum()) / m
+    cov = q * np.array([[pw @ pw, pw @ c / m], [pw @ c / m, c @ c / m**2]])
+    T = np.array([[phi**m, 0.0], [a, 0.0]])
+    return T, cov
+
+
+def _level_block(K2dt, m, dt, drift):
+    j = np.arange(1, m + 1, dtype=float)
+    cov = K2dt * np.array([[m, j.sum() / m], [j.sum() / m, (j @ j) / m**2]])
+    T = np.array([[1.0, 0.0], [1.0, 0.0]])
+    if drift:
+        T = np.hstack([T, [[m * dt], [dt * (m + 1) / 2]]])
+        T = np.vstack([T, [0.0, 0.0, 1.0]])
+        cov = np.pad(cov, ((0, 1), (0, 1)))
+    return T, cov
+
+
+class BlockMeanSystem:
+    """Layout and system matrices of the block-mean model (see :mod:`avbench.estimators.likelihood.mle`).
+
+    State: ``(s, xbar)`` if "GM", ``(theta_j, theta_{j-1})`` if "QN", then ``(L, Lbar[, r])``; the
+    level (and slope) are diffuse. Parameters are the natural logarithms of, in order, Q (if
+    "QN"), N (if "WN"), sigma and Tc (if "GM"), K (if "RW").
+    """
+
+    def __init__(self, latents, m: int, dt: float):
+        self.latents = tuple(latents)
+        self.m, self.dt = int(m), float(dt)
+        self.has_gm = "GM" in self.latents
+        self.has_q = "QN" in self.latents
+        self.drift = "DR" in self.latents
+        self.q0 = 2 if self.has_gm else 0  # first state of the quantization block
+        self.lev = self.q0 + (2 if self.has_q else 0)
+        self.k = self.lev + 2 + (1 if self.drift else 0)
+        Z = np.zeros(self.k)
+        Z[self.lev + 1] = 1.0
+        if self.has_gm:
+            Z[1] = 1.0
+        if self.has_q:  # block mean of theta-differences telescopes: (theta_j - theta_{j-1}) / (m dt)
+            Z[self.q0], Z[self.q0 + 1] = 1.0 / (m * dt), -1.0 / (m * dt)
+        self.Z = Z
+        names = []
+        for lat in self.latents:
+            names += {"QN": ["log_Q"], "WN": ["log_N"], "GM": ["log_sigma", "log_tc"], "RW": ["log_K"]}.get(lat, [])
+        self.names = names
+
+    def values(self, params) -> dict:
+        return dict(zip(self.names, np.exp(np.asarray(params, dtype=float))))
+
+    def matrices(self, params, scale: float = 1.0):
+        """``(T, Qc, H, P0, Pinf0)`` for log-parameters ``params``, data multiplied by ``scale``.
+
+        ``P0`` is the covariance of the first state from its stationary distribution (GM,
+        quantization); ``Pinf0`` is the identity on the diffuse block (level, drift).
+        """
+        v = {key: (val if key == "log_tc" else val * scale) for key, val in self.values(params).items()}
+        m, dt, k = self.m, self.dt, self.k
+        T, Qc, P0, Pinf0 = np.zeros((k, k)), np.zeros((k, k)), np.zeros((k, k)), np.zeros((k, k))
+        if self.has_gm:
+            sigma, tc = v["log_sigma"], v["log_tc"]
+            Tg, Qg = _gm_block(-dt / tc, sigma, m)
+            T[:2, :2], Qc[:2, :2] = Tg, Qg
+            P0[:2, :2] = sigma**2 * np.outer(Tg[:, 0], Tg[:, 0]) + Qg  # (s_1, xbar_1) from a stationary s_0
+        if self.has_q:
+            q, Q2 = self.q0, v["log_Q"] ** 2
+            T[q + 1, q] = 1.0
+            Qc[q, q] = Q2
+            P0[q, q] = P0[q + 1, q + 1] = Q2
+        K2dt = v.get("log_K", 0.0) ** 2 * dt
+        Tl, Ql = _level_block(K2dt, m, dt, self.drift)
+        T[self.lev :, self.lev :], Qc[self.lev :, self.lev :] = Tl, Ql
+        for i in range(self.lev, k):
+            Pinf0[i, i] = 1.0
+        H = v.get("log_N", 0.0) ** 2 / (m * dt)
+        return T, Qc, H, P0, Pinf0
+
+    def loglike(self, y, params, scale: float = 1.0, final=None, method: str = "auto") -> float:
+        """Exact diffuse log-likelihood of ``y * scale`` (scaled units); ``final``: optional
+        ``(a, P)`` arrays that receive the last filtered state and its covariance.
+
+        ``method``: "exact_initial" (:func:`diffuse_loglike`), "augmented"
+        (:func:`augmented_loglike`, falling back to the former where it returns NaN) or "auto":
+        augmented with a drift (whose shrinking variance keeps the exact initial filter's
+        covariance from ever reaching its steady state), exact initial otherwise (where its
+        steady state comes first).
+        """
+        if method not in ("auto", "exact_initial", "augmented"):
+            raise ValueError(f"method: expected 'auto', 'exact_initial' or 'augmented', got {method!r}")
+        T, Qc, H, P0, Pinf0 = self.matrices(params, scale)
+        a_out = np.empty(self.k) if final is None else final[0]
+        P_out = np.empty((self.k, self.k)) if final is None else final[1]
+        if method == "augmented" or (method == "auto" and self.drift):
+            ll = augmented_loglike(y, scale, T, Qc, self.Z, H, P0, self.lev, a_out, P_out)
+            if not math.isnan(ll):
+                return ll
+        return diffuse_loglike(y, scale, T, Qc, self.Z, H, P0, Pinf0, a_out, P_out)
+
+
+@njit(cache=True)
+def _sparse_rows(T):
+    """T's non-zero entries row by row (CSR): row pointers, rows, columns, values."""
+    k = T.shape[0]
+    tp = np.zeros(k + 1, dtype=np.int64)
+    for i in range(k):
+        tp[i + 1] = tp[i] + _nonzeros(T[i])[0]
+    ti = np.empty(tp[k], dtype=np.int64)
+    tl = np.empty(tp[k], dtype=np.int64)
+    tv = np.empty(tp[k])
+    for i in range(k):
+        _, cols, vals = _nonzeros(T[i])
+        for e in range(cols.shape[0]):
+            ti[tp[i] + e], tl[tp[i] + e], tv[tp[i] + e] = i, cols[e], vals[e]
+    return tp, ti, tl, tv
+
+
+@njit(cache=True)
+def _nonzeros(z):
+    """Count, positions and values of the non-zero entries of the vector ``z``."""
+    nnz = 0
+    for i in range(z.shape[0]):
+        if z[i] != 0.0:
+            nnz += 1
+    idx = np.empty(nnz, dtype=np.int64)
+    val = np.empty(nnz)
+    e = 0
+    for i in range(z.shape[0]):
+        if z[i] != 0.0:
+            idx[e], val[e] = i, z[i]
+            e += 1
+    return nnz, idx, val
+
+
+@njit(cache=True, inline="always")
+def _csr_left(tp, tl, tv, X, out):
+    """out = T X, T given by its non-zero entries row by row (``tp``: row pointers, ``tl``: columns,
+    ``tv``: values); the sums run over the same terms in the same order as the dense product, less
+    the zeros."""
+    for i in range(out.shape[0]):
+        for j in range(X.shape[1]):
+            acc = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc += tv[e] * X[tl[e], j]
+            out[i, j] = acc
+
+
+@njit(cache=True)
+def _predict(tp, ti, tl, tv, Pf, Qc, P, tmp):
+    """P = T Pf T' + Qc, then forced symmetric (statsmodels' STABILITY_FORCE_SYMMETRY).
+
+    T is given by its non-zero entries, row by row (``tp``: row pointers, ``tl``: columns, ``tv``:
+    values, ``ti`` unused): the block-mean transition has at most 8 of its 49 entries non-zero.
+    The sums run over the same terms in the same order as the dense product, less the zeros.
+    """
+    k = P.shape[0]
+    _csr_left(tp, tl, tv, Pf, tmp)
+    for i in range(k):
+        for j in range(k):
+            acc = 0.0
+            for e in range(tp[j], tp[j + 1]):
+                acc += tmp[i, tl[e]] * tv[e]
+            P[i, j] = acc + Qc[i, j]
+    for i in range(k):
+        for j in range(i + 1, k):
+            s = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = s
+            P[j, i] = s
+
+
+@njit(cache=True)
+def _sq_change(P, Pprev):
+    """Squared Frobenius norm of P - Pprev (the steady-state test)."""
+    k = P.shape[0]
+    ss = 0.0
+    for i in range(k):
+        for j in range(k):
+            d = P[i, j] - Pprev[i, j]
+            ss += d * d
+    return ss
+
+
+@njit(cache=True)
+def _steady_gain(P, Z, H, M, K, Pf):
+    """Freeze the filter at the predicted covariance P: returns F, fills the gain K = P Z / F and the
+    filtered covariance Pf = P - P Z K'."""
+    k = P.shape[0]
+    F = _forecast(P, Z, H, M)
+    for i in range(k):
+        K[i] = M[i] / F
+    for i in range(k):
+        for j in range(k):
+            Pf[i, j] = P[i, j] - M[i] * K[j]
+    return F
+
+
+@njit(cache=True)
+def _forecast(P, Z, H, M):
+    """M = P Z and the forecast variance Z' P Z + H."""
+    k = P.shape[0]
+    F = H
+    for i in range(k):
+        acc = 0.0
+        for j in range(k):
+            acc += P[i, j] * Z[j]
+        M[i] = acc
+        F += Z[i] * acc
+    return F
+
+
+@njit(cache=True)
+def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
+    """Log-likelihood of ``y * scale`` under the state-space model (module docstring).
+
+    Returns the log-likelihood in the scaled units; ``a_out``/``P_out`` receive the last filtered
+    state and covariance. A non-positive forecast variance outside the diffuse period gives -inf.
+    """
+    n = y.shape[0]
+    k = T.shape[0]
+    a = np.zeros(k)
+    af = np.empty(k)
+    P = P0.copy()
+    Pi = Pinf0.copy()
+    Pf = np.empty((k, k))
+    Pif = np.empty((k, k))
+    Pprev = np.empty((k, k))
+    tmp = np.empty((k, k))
+    M = np.empty(k)
+    Mi = np.empty(k)
+    K0 = np.empty(k)
+    K1 = np.empty(k)
+    tp, ti, tl, tv = _sparse_rows(T)  # T's non-zero entries by rows, for the covariance prediction
+    zero = np.zeros((k, k))
+    log2pi = math.log(2.0 * math.pi)
+    ll = 0.0
+    nobs_diffuse = 0
+    converged = False
+    Fc = 1.0
+    ssq = 0.0
+    t_conv = n
+    for t in range(n):
+        diffuse = False
+        if t == nobs_diffuse:
+            ss = 0.0
+            for i in range(k):
+                for j in range(k):
+                    ss += Pi[i, j] * Pi[i, j]
+            if ss > TOL_DIFFUSE:
+                nobs_diffuse += 1
+                diffuse = True
+        v = y[t] * scale
+        for i in range(k):
+            v -= Z[i] * a[i]
+        if converged:
+            # steady state: fixed gain K0 and forecast variance Fc (the log-determinant term
+            # -0.5 log(2 pi Fc) per step is added once at the end)
+            for i in range(k):
+                af[i] = a[i] + K0[i] * v
+            ssq += v * v
+            for i in range(k):
+                acc = 0.0
+                for e in range(tp[i], tp[i + 1]):
+                    acc += tv[e] * af[tl[e]]
+                a[i] = acc
+            continue
+        F = max(_forecast(P, Z, H, M), 0.0)
+        Fi = max(_forecast(Pi, Z, 0.0, Mi), 0.0) if diffuse else 0.0
+        if diffuse and Fi > TOL_DIFFUSE:
+            for i in range(k):
+                K0[i] = Mi[i] / Fi
+            for i in range(k):
+                K1[i] = M[i] / Fi + (-F / Fi) * K0[i]
+            for i in range(k):
+                af[i] = a[i] + K0[i] * v
+            # Pf = P L0' + Pi L1', Pif = Pi L0' with L0 = I - K0 Z', L1 = -K1 Z'
+            for i in range(k):
+                for j in range(k):
+                    Pf[i, j] = P[i, j] - M[i] * K0[j] - Mi[i] * K1[j]
+                    Pif[i, j] = Pi[i, j] - Mi[i] * K0[j]
+            ll -= 0.5 * math.log(2.0 * math.pi * Fi)
+        elif F > TOL_DIFFUSE:
+            for i in range(k):
+                K0[i] = M[i] / F
+            for i in range(k):
+                af[i] = a[i] + K0[i] * v
+            for i in range(k):
+                for j in range(k):
+                    Pf[i, j] = P[i, j] - M[i] * K0[j]
+                    Pif[i, j] = Pi[i, j]
+            ll -= 0.5 * (log2pi + math.log(F) + v * v / F)
+        else:
+            if not diffuse:
+                return -np.inf
+            for i in range(k):
+                af[i] = a[i]
+                for j in range(k):
+                    Pf[i, j] = P[i, j]
+                    Pif[i, j] = Pi[i, j]
+        # prediction
+        for i in range(k):
+            acc = 0.0
+            for j in range(k):
+                acc += T[i, j] * af[j]
+            a[i] = acc
+        for i in range(k):
+            for j in range(k):
+                Pprev[i, j] = P[i, j]
+        _predict(tp, ti, tl, tv, Pf, Qc, P, tmp)
+        if diffuse or t < nobs_diffuse + 1:
+            _predict(tp, ti, tl, tv, Pif, zero, Pi, tmp)
+        elif t + 1 < n:
+            if _sq_change(P, Pprev) < TOL_CONVERGED:
+                # the next forecast's F and gain are those of this step's covariance
+                converged = True
+                t_conv = t + 1
+                Fc = _steady_gain(P, Z, H, M, K0, Pf)
+    if converged:
+        ll -= 0.5 * ((n - t_conv) * (log2pi + math.log(Fc)) + ssq / Fc)
+    for i in range(k):
+        a_out[i] = af[i]
+        for j in range(k):
+            P_out[i, j] = Pf[i, j]
+    return ll
+
+
+#: smallest forecast variance (units of the scaled data, whose variance is 1) the augmented filter
+#: accepts; below it the Schur complement q - s' S^-1 s would cancel too many digits and the
+#: likelihood falls back to the exact initial filter
+TOL_AUGMENTED = 1e-8
+#: squared relative change of the diffuse columns per step below which they are at their fixed
+#: point (a relative change of 1e-14 per step, geometrically decaying: ~1e-12 on the likelihood)
+TOL_COLUMNS = 1e-28
+#: the augmented filter's steady-state test on P (squared Frobenius norm of the change per step);
+#: tighter than statsmodels' 1e-19, so that it equals the (never frozen, with a drift) exact
+#: initial filter to ~1e-14 relative
+TOL_CONVERGED_AUGMENTED = 1e-28
+
+
+@njit(cache=True)
+def _augmented_step(yt, A, Af, Kf, w, zi, zv, tp, tl, tv):
+    """One filtering and prediction step of every column: w = (y, 0) - Z'A, Af = A + Kf w, A = T Af."""
+    k, c = A.shape
+    for col in range(c):
+        acc = yt if col == 0 else 0.0
+        for e in range(zi.shape[0]):
+            acc -= zv[e] * A[zi[e], col]
+        w[col] = acc
+    for i in range(k):
+        for col in range(c):
+            Af[i, col] = A[i, col] + Kf[i] * w[col]
+    _csr_left(tp, tl, tv, Af, A)
+
+
+@njit(cache=True)
+def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
+    """Diffuse log-likelihood of ``y * scale`` by the augmented Kalman filter.
+
+    The states ``lev, ..., k-1`` (level, block-mean level, slope) are diffuse: the state is
+    :math:`\\alpha_t = \\alpha^*_t + A_t\\delta`, :math:`\\delta` the diffuse initial values, and one
+    ordinary Kalman filter (initial covariance ``P0``, zero on the diffuse block) runs on the data
+    column and the d columns of :math:`A_t` together (de Jong 1991; Durbin & Koopman 2012,
+    Sec. 5.7): with the innovation row :math:`w_t = (y_t, 0) - Z'A_t` and
+    :math:`G = \\sum_t w_t' w_t/F_t = \\begin{pmatrix} q & s'\\\\ s & S\\end{pmatrix}`,
+
+    .. math::
+
+        \\log L_d = -\\tfrac12\\Big[n\\log 2\\pi + \\sum_t \\log F_t + q - s'S^{-1}s + \\log|S|\\Big],
+
+    the same exact diffuse likelihood as :func:`diffuse_loglike` (Durbin & Koopman 2012, Sec. 5.7.4),
+    but with a covariance that reaches its steady state also with a drift in the model (the
+    slope's shrinking variance lives in :math:`S^{-1}`, not in :math:`P_t`). Same symmetry and
+    steady-state rules as :func:`diffuse_loglike`. ``a_out``/``P_out`` receive the last filtered
+    state :math:`a + A\\hat\\delta` and covariance :math:`P + A S^{-1} A'`. Returns NaN when a
+    forecast variance falls below ``TOL_AUGMENTED`` (the caller then uses :func:`diffuse_loglike`).
+    """
+    n = y.shape[0]
+    k = T.shape[0]
+    d = k - lev
+    c = d + 1
+    A = np.zeros((k, c))
+    for j in range(d):
+        A[lev + j, j + 1] = 1.0
+    Af = np.empty((k, c))
+    P = P0.copy()
+    Pf = np.empty((k, k))
+    Pprev = np.empty((k, k))
+    tmp = np.empty((k, k))
+    M = np.empty(k)
+    Kf = np.empty(k)
+    w = np.empty(c)
+    G = np.zeros((c, c))
+    Gss = np.zeros((c, c))  # sum of w w' over the steady-state steps (divided by Fc at the end)
+    tp, ti, tl, tv = _sparse_rows(T)
+    _, zi, zv = _nonzeros(Z)
+    zn = zi.shape[0]
+    logdet = 0.0
+    converged = False
+    Fc = 1.0
+    t_conv = n
+    t = 0
+    while t < n and not converged:
+        # phase 1: the covariance is still moving
+        F = _forecast(P, Z, H, M)
+        if not F > TOL_AUGMENTED:
+            return np.nan
+        for i in range(k):
+            Kf[i] = M[i] / F
+        _augmented_step(y[t] * scale, A, Af, Kf, w, zi, zv, tp, tl, tv)
+        logdet += math.log(F)
+        for i in range(c):
+            for j in range(i + 1):
+                G[i, j] += w[i] * w[j] / F
+        for i in range(k):
+            for j in range(k):
+                Pf[i, j] = P[i, j] - M[i] * Kf[j]
+                Pprev[i, j] = P[i, j]
+        _predict(tp, ti, tl, tv, Pf, Qc, P, tmp)
+        t += 1
+        if t < n:
+            if _sq_change(P, Pprev) < TOL_CONVERGED_AUGMENTED:
+                # steady state: the next forecast's F and gain are those of this covariance
+                converged = True
+                t_conv = t
+                Fc = _steady_gain(P, Z, H, M, Kf, Pf)
+    Aprev = np.empty((k, c))
+    fixed = False
+    while t < n and not fixed:
+        # phase 2: fixed gain; the diffuse columns still move (to their fixed point A = T (A - Kf Z'A))
+        for i in range(k):
+            for col in range(1, c):
+                Aprev[i, col] = A[i, col]
+        _augmented_step(y[t] * scale, A, Af, Kf, w, zi, zv, tp, tl, tv)
+        for i in range(c):
+            for j in range(i + 1):
+                Gss[i, j] += w[i] * w[j]
+        t += 1
+        ss = 0.0
+        nn = 0.0
+        for i in range(k):
+            for col in range(1, c):
+                dd = A[i, col] - Aprev[i, col]
+                ss += dd * dd
+                nn += A[i, col] * A[i, col]
+        fixed = ss <= TOL_COLUMNS * nn
+    # phase 3: the diffuse columns at their fixed point (their innovations w[1:] constant): only the
+    # data column moves
+    n_fixed = n - t
+    w1 = np.empty(c)
+    for col in range(1, c):
+        acc = 0.0
+        for e in range(zn):
+            acc -= zv[e] * A[zi[e], col]
+        w1[col] = acc
+        if n_fixed > 0:  # (else Af already holds the last filtered columns)
+            for i in range(k):
+                Af[i, col] = A[i, col] + Kf[i] * acc
+    a0 = A[:, :1].copy()  # the data column
+    sw = 0.0
+    sww = 0.0
+    while t < n:
+        v = y[t] * scale
+        for e in range(zn):
+            v -= zv[e] * a0[zi[e], 0]
+        sw += v
+        sww += v * v
+        for i in range(k):
+            Af[i, 0] = a0[i, 0] + Kf[i] * v
+        _csr_left(tp, tl, tv, Af[:, :1], a0)
+        t += 1
+    if converged:
+        logdet += (n - t_conv) * math.log(Fc)
+        Gss[0, 0] += sww
+        for i in range(1, c):
+            Gss[i, 0] += w1[i] * sw
+            for j in range(1, i + 1):
+                Gss[i, j] += w1[i] * w1[j] * n_fixed
+        for i in range(c):
+            for j in range(i + 1):
+                G[i, j] += Gss[i, j] / Fc
+    for i in range(c):
+        for j in range(i):
+            G[j, i] = G[i, j]
+    # Cholesky S = R R' of the d x d block, then q - s' S^-1 s = q - |R^-1 s|^2, log|S| = 2 sum log R_ii
+    R = np.zeros((d, d))
+    for i in range(d):
+        for j in range(i + 1):
+            acc = G[i + 1, j + 1]
+            for l in range(j):
+                acc -= R[i, l] * R[j, l]
+            if i == j:
+                if not acc > 0.0:
+                    return -np.inf
+                R[i, i] = math.sqrt(acc)
+            else:
+                R[i, j] = acc / R[j, j]
+    u = np.empty(d)
+    for i in range(d):
+        acc = G[i + 1, 0]
+        for l in range(i):
+            acc -= R[i, l] * u[l]
+        u[i] = acc / R[i, i]
+    quad = G[0, 0]
+    logS = 0.0
+    for i in range(d):
+        quad -= u[i] * u[i]
+        logS += 2.0 * math.log(R[i, i])
+    # delta_hat = -S^-1 s (back substitution R' delta = -u); Sinv = R'^-1 R^-1
+    dh = np.empty(d)
+    for i in range(d - 1, -1, -1):
+        acc = -u[i]
+        for l in range(i + 1, d):
+            acc -= R[l, i] * dh[l]
+        dh[i] = acc / R[i, i]
+    Rinv = np.zeros((d, d))
+    for j in range(d):
+        for i in range(j, d):
+            acc = 1.0 if i == j else 0.0
+            for l in range(j, i):
+                acc -= R[i, l] * Rinv[l, j]
+            Rinv[i, j] = acc / R[i, i]
+    # the last filtered state: Af (before the final prediction) of every column
+    for i in range(k):
+        acc = Af[i, 0]
+        for j in range(d):
+            acc += Af[i, j + 1] * dh[j]
+        a_out[i] = acc
+    B = np.zeros((k, d))  # A S^-1 A' = B B' with B = A R'^-1 (A = Af[:, 1:])
+    for i in range(k):
+        for j in range(d):
+            acc = 0.0
+            for l in range(j + 1):
+                acc += Af[i, l + 1] * Rinv[j, l]
+            B[i, j] = acc
+    for i in range(k):
+        for j in range(k):
+            acc = Pf[i, j]
+            for l in range(d):
+                acc += B[i, l] * B[j, l]
+            P_out[i, j] = acc
+    return -0.5 * (n * math.log(2.0 * math.pi) + logdet + quad + logS)
+
+
+def augmented_loglike_py(y, scale, T, Qc, Z, H, P0, lev):
+    """Plain-NumPy reference of :func:`augmented_loglike` (tests only): the same augmented filter
+    without the steady-state shortcuts. Returns ``(loglike, a, P)`` (last filtered state and
+    covariance, as ``a_out``/``P_out``)."""
+    k = T.shape[0]
+    d = k - lev
+    A = np.zeros((k, d + 1))
+    A[lev:, 1:] = np.eye(d)
+    P = P0.copy()
+    G = np.zeros((d + 1, d + 1))
+    logdet = 0.0
+    for yt in np.asarray(y, dtype=float) * scale:
+        F = Z @ P @ Z + H
+        Kf = P @ Z / F
+        w = np.concatenate([[yt], np.zeros(d)]) - Z @ A
+        G += np.outer(w, w) / F
+        logdet += math.log(F)
+        Af = A + np.outer(Kf, w)
+        Pf = P - np.outer(Kf, P @ Z)
+        A = T @ Af
+        P = T @ Pf @ T.T + Qc
+        P = (P + P.T) / 2
+    q, s, S = G[0, 0], G[1:, 0], G[1:, 1:]
+    dh = -np.linalg.solve(S, s)
+    ll = -0.5 * (y.size * math.log(2 * math.pi) + logdet + q - s @ np.linalg.solve(S, s) + np.linalg.slogdet(S)[1])
+    return ll, Af[:, 0] + Af[:, 1:] @ dh, Pf + Af[:, 1:] @ np.linalg.solve(S, Af[:, 1:].T)

@@ -1,0 +1,338 @@
+"""Exact Gaussian maximum likelihood of the composite gyro model through the Kalman filter.
+
+The rate is modelled as white noise (N) + first-order Gauss-Markov (sigma, Tc) + rate random walk (K)
+(+ deterministic drift R), the model of Nikolic et al. (IEEE Sensors J. 2016) and of the
+GMWM literature; the likelihood is evaluated exactly by the Kalman filter of a linear Gaussian
+state-space model (Durbin & Koopman 2012, Ch. 7 for the prediction error decomposition and Ch. 5 for
+the exact diffuse initialisation of the level and drift; with a drift the equivalent augmented
+filter of de Jong 1991, see "Kalman filters" below), compiled (:mod:`avbench.estimators.likelihood._mle_kernels`).
+The same model as a statsmodels ``MLEModel`` (:mod:`avbench.estimators.likelihood._mle_model`) is the reference the
+tests hold the compiled likelihood and the fit to.
+
+Block averaging (setting ``block``)
+-----------------------------------
+The Kalman filter costs O(n) per likelihood evaluation, too slow for 1e6 samples and a few hundred
+evaluations. The record is therefore replaced by its means over non-overlapping blocks of m samples,
+and the likelihood of *the block means* is computed **exactly**: the block mean of the model is
+again a linear state-space model with known matrices (no approximation, only the information at
+time scales below m dt is given up). Per sample,
+:math:`x_k = \\phi x_{k-1} + e_k` (:math:`\\phi = e^{-\\Delta t/T_c}`, :math:`\\mathrm{var}\\,e =
+\\sigma^2(1-\\phi^2)`; Miao et al. 2015, eq. 6), :math:`L_k = L_{k-1} + r\\Delta t + w_k`
+(:math:`\\mathrm{var}\\,w = K^2\\Delta t`), :math:`y_k = x_k + L_k + \\varepsilon_k`
+(:math:`\\mathrm{var}\\,\\varepsilon = N^2/\\Delta t`). With :math:`s_j` the GM value and
+:math:`L_j` the level at the end of block j, and :math:`c_i = (1-\\phi^i)/(1-\\phi)`,
+
+.. math::
+
+    s_{j+1} &= \\phi^m s_j + \\textstyle\\sum_{i=1}^m \\phi^{i-1} e_{(i)}, &
+    \\bar x_{j+1} &= a\\,s_j + \\tfrac1m\\textstyle\\sum_{i=1}^m c_i\\, e_{(i)},\\quad
+    a = \\tfrac1m\\textstyle\\sum_{i=1}^m\\phi^i, \\\\
+    L_{j+1} &= L_j + r\\,m\\Delta t + \\textstyle\\sum_{i=1}^m w_{(i)}, &
+    \\bar L_{j+1} &= L_j + r\\Delta t\\,\\tfrac{m+1}2 + \\tfrac1m\\textstyle\\sum_{i=1}^m i\\,w_{(i)},
+
+(index (i) counts innovations from the *end* of the block), and the block mean is
+:math:`\\bar y_{j+1} = \\bar x_{j+1} + \\bar L_{j+1} + \\bar\\varepsilon_{j+1}` with
+:math:`\\mathrm{var}\\,\\bar\\varepsilon = N^2/(m\\Delta t)`. The state is
+:math:`(s, \\bar x, L, \\bar L[, r])`; the disturbance covariances follow from the sums above. For
+m = 1 this is the sample-level model itself. Quantization noise: averaging divides its variance by
+m^2 (its block mean telescopes to a difference of two angle errors), so for m > 1 it
+is often negligible beside the white noise; it can be modelled exactly with the latent "QN": with
+white angle noise :math:`\\theta` of std Q the block mean of the quantization rate telescopes to
+:math:`(\\theta_j - \\theta_{j-1})/(m\\Delta t)`, :math:`\\theta_j` the angle error at the end of
+block j, i.e. two more states :math:`(\\theta_j, \\theta_{j-1})` with
+:math:`T = \\begin{pmatrix}0&0\\\\1&0\\end{pmatrix}`, disturbance variance :math:`Q^2` on the first.
+
+The default ``block="auto"`` takes the smallest m giving at most ``max_blocks`` (50,000) block means,
+but never more than a fifth of the Gauss-Markov correlation time found by the GMWM starting fit (so
+that the GM stays resolved). For 1e6 samples at 100 Hz this is m = 20 (0.2 s blocks); the time of
+a fit is in ``results/bench`` (``MleFit``, against the statsmodels reference path). The price is paid by N: the white-noise information sits
+at the shortest time scales, so its relative standard error becomes :math:`1/\\sqrt{2n/m}` instead
+of the CRLB :math:`1/\\sqrt{2n}`; B, K and R, whose information lies at long time scales, lose
+almost nothing. Use ``block=1`` for the full sample-level likelihood.
+
+Kalman filters
+--------------
+Two filters compute the same exact diffuse likelihood (to ~1e-14 relative; tested). Without a
+drift, the exact initial filter of Durbin & Koopman (2012, Sec. 5.2): its covariance reaches a
+steady state after a few thousand block means and every later step is a state update only. With
+a drift ("DR") that filter's covariance never settles (the slope's variance keeps shrinking,
+~1/t), and every step pays the full covariance recursion; there the **augmented** filter is used
+(de Jong 1991, "The diffuse Kalman filter", Ann. Statist. 19; Durbin & Koopman 2012, Sec. 5.7):
+the diffuse initial values (level, block-mean level, slope) become d extra columns of the state
+mean, the covariance is that of a proper initial state and settles as without a drift, and the
+likelihood is :math:`-\\tfrac12[n\\log2\\pi + \\sum\\log F_t + q - s'S^{-1}s + \\log|S|]` from the
+accumulated cross-products of the innovation columns (:func:`avbench.estimators.likelihood._mle_kernels.augmented_loglike`).
+On 2 h of the ADIS16405_X preset with "QN+WN+GM+RW+DR" this makes a likelihood evaluation ~8x
+cheaper and the whole fit several times faster (``results/bench``, ``MleFitDrift``).
+
+Starting values come from :class:`avbench.estimators.likelihood.gmwm.GMWM` with the same latent model, diagonal
+weights and three trial correlation times, fitted on the octaves the block means resolve (cluster sizes >= m). The likelihood is
+maximised by L-BFGS-B over the log-parameters with a central-difference gradient, to a tighter
+tolerance than statsmodels' default (each evaluation costs milliseconds). Standard errors
+are from the observed information (numerical Hessian of the log-likelihood in the log-parameters,
+central differences as statsmodels ``cov_type="approx"``) by the delta method; the drift, a diffuse state, gets the filtered
+GLS estimate and its filtered standard deviation.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from avbench.estimators.base import Estimator, register
+from avbench.estimators.allan.fit_check import assess_fit
+from avbench.estimators.likelihood.gmwm import GMWM, build_gyro, parse_model
+
+__all__ = ["MLE", "block_means"]
+
+_ALLOWED = ("QN", "WN", "GM", "RW", "DR")
+
+
+def __getattr__(name):
+    # the statsmodels reference model lives in avbench.estimators.likelihood._mle_model, imported on first use
+    if name == "BlockMeanModel":
+        from avbench.estimators.likelihood import _mle_model
+
+        return getattr(_mle_model, name)
+    if name in ("BlockMeanSystem", "_gm_block", "_level_block"):
+        from avbench.estimators.likelihood import _mle_kernels
+
+        return getattr(_mle_kernels, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def block_means(rate, m: int) -> np.ndarray:
+    """Means of the non-overlapping blocks of ``m`` samples (a trailing partial block is dropped)."""
+    J = rate.size // m
+    return rate[: J * m].reshape(J, m).mean(axis=1)
+
+
+@register("mle")
+class MLE(Estimator):
+    """Maximum-likelihood estimator of (Q,) N, B (via GM), K (and R) through the Kalman filter.
+
+    Parameters
+    ----------
+    model : str or list of str
+        Latent model from "QN", "WN", "GM", "RW", "DR" (default "WN+GM+RW"); see
+        :func:`avbench.estimators.likelihood.gmwm.parse_model`.
+    block : "auto" or int
+        Block size m for the exact block-mean likelihood (module docstring); 1 = the samples themselves.
+    max_blocks : int
+        For ``block="auto"``: target number of block means (default 50,000).
+    maxiter : int
+        Iterations of the L-BFGS optimiser (default 200).
+
+    Attributes
+    ----------
+    diagnostics_ : dict
+        ``std_err`` (pandas.Series like ``coefficients_``), ``params`` (sigma, Tc, ...), ``block``,
+        ``loglike``, ``converged``, ``start`` (the GMWM starting coefficients).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from noise_models import Gyro, AngleRandomWalk, RateRandomWalk
+    >>> g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5)])
+    >>> x = g.simulate(100_000, np.random.default_rng(3))
+    >>> est = MLE(model="WN+RW", block=1).fit(x, 0.1)
+    >>> bool(abs(est.coefficients_["N"] / 1e-3 - 1) < 5 * est.diagnostics_["std_err"]["N"] / 1e-3)
+    True
+    """
+
+    #: Kalman filter of the likelihood (:meth:`avbench.estimators.likelihood._mle_kernels.BlockMeanSystem.loglike`);
+    #: not a setting: the benchmark sets "exact_initial" on an instance to time the path of before
+    _loglike_method = "auto"
+
+    def __init__(self, *, model="WN+GM+RW", block="auto", max_blocks=50_000, maxiter=200):
+        self.model = model
+        self.block = block
+        self.max_blocks = max_blocks
+        self.maxiter = maxiter
+
+    def check_settings(self):
+        """Raise ValueError naming the first bad setting (no data needed; fit calls it, and study
+        configs call it instead of a trial fit); return the parsed latents."""
+        latents = parse_model(self.model)
+        bad = [lat for lat in latents if lat not in _ALLOWED]
+        if bad:
+            raise ValueError(f"model: the MLE supports latents {', '.join(_ALLOWED)}; got {', '.join(bad)}")
+        if not any(lat in latents for lat in ("QN", "WN", "GM", "RW")):
+            raise ValueError("model: expected at least one stochastic latent (QN, WN, GM or RW)")
+        if not (self.block == "auto" or (isinstance(self.block, (int, np.integer))
+                                         and not isinstance(self.block, bool) and self.block >= 1)):
+            raise ValueError(f"block: expected 'auto' or a positive integer, got {self.block!r}")
+        for name in ("max_blocks", "maxiter"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ValueError(f"{name}: expected a positive integer, got {v!r}")
+        return latents
+
+    def _fit(self, rate, dt):
+        latents = self.check_settings()
+        n = rate.size
+        m = max(1, math.ceil(n / self.max_blocks)) if self.block == "auto" else int(self.block)
+        if n // m < 16:
+            raise ValueError(f"block: {m} samples per block leave {n // m} block means; expected at least 16")
+        # the start is fitted on the scales the block means resolve (tau >= m dt)
+        # (diagonal weights: a start, not an estimate; the model-weighted GMWM costs seconds more)
+        start = GMWM(model="+".join(latents), min_m=_pow2_at_least(m), weighting="diagonal",
+                     n_starts=_START_TRIES)
+        start._assess = False  # the start's own poor-fit check is not used (the fit gets its own below)
+        start.fit(rate, dt)
+        sp = start.diagnostics_["params"]
+        if self.block == "auto" and "GM" in latents:
+            m = max(1, min(m, int(sp["GM.tc"] / (5 * dt))))
+        y = block_means(rate, m)
+        if y.size < 16:
+            raise ValueError(f"block: {m} samples per block leave {y.size} block means; expected at least 16")
+        from avbench.estimators.likelihood._mle_kernels import BlockMeanSystem
+
+        system = BlockMeanSystem(latents, m, dt)
+        scale = 1.0 / float(np.std(y) or 1.0)  # the filter runs on y * scale (see _mle_kernels)
+        x0 = _start_values(latents, sp, start.diagnostics_, dt)
+        fit = maximize_loglike(system, y, scale, x0, self.maxiter, self._loglike_method)
+        vals = system.values(fit["params"])
+        cov = fit["cov"]
+        # a non-positive variance (flat or non-concave likelihood, e.g. a term at zero) has no
+        # standard error: NaN, not 0
+        var = np.diag(cov) if np.all(np.isfinite(cov)) else np.full(len(vals), np.nan)
+        se_log = dict(zip(system.names, np.sqrt(np.where(var > 0, var, np.nan))))
+        from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA
+
+        coefs, std = {}, {}
+        for name, coef, cscale in (("log_Q", "Q", 1.0), ("log_N", "N", 1.0), ("log_sigma", "B", B_EQUIV_OVER_SIGMA), ("log_K", "K", 1.0)):
+            if name in vals:
+                coefs[coef] = cscale * vals[name]
+                std[coef] = coefs[coef] * se_log[name]
+        if "DR" in latents:
+            # the filter runs on scaled data: the slope state is in scaled units
+            a, P = fit["final_state"], fit["final_cov"]
+            coefs["R"] = abs(float(a[-1]) / scale)
+            std["R"] = float(math.sqrt(max(P[-1, -1], 0.0))) / scale
+        llf = fit["loglike"]
+        diag = {
+            "std_err": pd.Series(std, dtype=float).reindex(["Q", "N", "B", "K", "R"]),
+            "params": {k[4:]: v for k, v in vals.items()},
+            "block": m,
+            "loglike": llf + y.size * math.log(scale),
+            "converged": fit["converged"],
+            "start": start.coefficients_,
+        }
+        if not np.isfinite(llf):
+            diag["failure"] = "non-finite log-likelihood at the optimum"
+        else:
+            p = diag["params"]
+            names = {"QN": ("Q",), "WN": ("N",), "GM": ("sigma", "tc"), "RW": ("K",)}
+            values = [p[k] for lat in latents if lat in names for k in names[lat]]
+            if "DR" in latents:
+                values.append(coefs["R"])
+            gyro = build_gyro(latents, values, dt)
+            diag.update(assess_fit(rate, dt, gyro.avar, gyro, len(values), (m * dt, math.inf)))
+            diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
+        return coefs, {}, diag
+
+
+#: GM correlation times the GMWM start tries (GMWM's default is 6; the likelihood refines the start)
+_START_TRIES = 3
+
+
+def _pow2_at_least(m: int) -> int:
+    return 1 << max(0, math.ceil(math.log2(m)))
+
+
+def _start_values(latents, sp, gdiag, dt):
+    """log-parameters from the GMWM fit; a term GMWM set to 0 starts at 1 % of its largest value."""
+    avar, tau = gdiag["avar"], gdiag["tau"]
+    out = []
+    if "QN" in latents:
+        out.append(sp["QN.Q"] if sp["QN.Q"] > 0 else 0.01 * math.sqrt(avar[0] * tau[0] ** 2 / 3))
+    if "WN" in latents:
+        out.append(sp["WN.N"] if sp["WN.N"] > 0 else 0.01 * math.sqrt(avar[0] * tau[0]))
+    if "GM" in latents:
+        out += [sp["GM.sigma"], sp["GM.tc"]]
+    if "RW" in latents:
+        top = math.sqrt(np.max(3 * avar / tau))
+        out.append(max(sp["RW.K"], 0.01 * top))
+    return np.log(np.maximum(np.array(out, dtype=float), 1e-300))
+
+
+#: relative step of the central-difference score of the Hessian (statsmodels' ``_get_epsilon(x, 3)``)
+_EPS_GRAD = np.finfo(float).eps ** (1 / 3)
+#: relative step of the Hessian's outer differences (statsmodels ``approx_centered``: eps^(1/4)/2)
+_EPS_HESS = np.finfo(float).eps ** (1 / 4) / 2
+
+
+def _score(f, p, rel=_EPS_GRAD):
+    """Central-difference gradient of ``f`` at ``p`` (relative step ``rel``, at least ``rel * 0.1``)."""
+    h = rel * np.maximum(np.abs(p), 0.1)
+    g = np.empty(p.size)
+    for i in range(p.size):
+        e = np.zeros(p.size)
+        e[i] = h[i]
+        g[i] = (f(p + e) - f(p - e)) / (2 * h[i])
+    return g
+
+
+def observed_cov(loglike, p) -> np.ndarray:
+    """Inverse observed information of ``loglike`` at ``p``: the Hessian by central differences of
+    the central-difference score (statsmodels ``cov_type="approx"``, ``approx_centered=True``),
+    symmetrised; NaN where it is not finite."""
+    h = _EPS_HESS * np.maximum(np.abs(p), 0.1)
+    hess = np.empty((p.size, p.size))
+    for i in range(p.size):
+        e = np.zeros(p.size)
+        e[i] = h[i]
+        hess[i] = (_score(loglike, p + e) - _score(loglike, p - e)) / (2 * h[i])
+    hess = (hess + hess.T) / 2
+    try:
+        return -np.linalg.pinv(hess) if np.all(np.isfinite(hess)) else np.full(hess.shape, np.nan)
+    except np.linalg.LinAlgError:
+        return np.full(hess.shape, np.nan)
+
+
+def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
+    """Maximise the exact block-mean log-likelihood over the log-parameters (L-BFGS-B).
+
+    The objective is ``-loglike / nobs`` (as statsmodels' ``MLEModel.fit``) with a
+    central-difference gradient of the compiled likelihood and a tight tolerance (forward
+    differences, statsmodels' choice, leave ~sqrt(eps) of gradient noise that the likelihood's flat
+    directions turn into ~1e-4 relative parameter noise); the covariance of the
+    log-parameters is the inverse of the observed information, the Hessian by central
+    differences of the central-difference score (statsmodels ``cov_type="approx"``,
+    ``approx_centered=True``). Returns ``params``, ``cov``, ``loglike`` (scaled units),
+    ``converged``, ``final_state`` and ``final_cov`` (last filtered state and covariance).
+    ``method`` selects the Kalman filter (:meth:`BlockMeanSystem.loglike`; the filters give the same
+    likelihood to ~1e-14 relative, "exact_initial" is the slower path of before, kept for the tests
+    and the benchmark).
+    """
+    from scipy.optimize import minimize
+
+    nobs = y.size
+    y = np.ascontiguousarray(y, dtype=float)
+
+    def loglike(p):
+        with np.errstate(all="ignore"):
+            return system.loglike(y, p, scale, method=method)
+
+    def objective(p):
+        v = -loglike(p) / nobs
+        return v if np.isfinite(v) else 1e300
+
+    def gradient(p):
+        g = -_score(loglike, p) / nobs
+        return np.where(np.isfinite(g), g, 0.0)
+
+    res = minimize(objective, np.asarray(x0, dtype=float), jac=gradient, method="L-BFGS-B",
+                   options={"maxiter": int(maxiter), "gtol": 1e-8, "ftol": 1e-14})
+    # at this tolerance the line search may stop on the likelihood's own round-off (~1e-12
+    # relative): converged when the gradient per observation is small, as statsmodels' pgtol 1e-5
+    converged = bool(res.success or np.max(np.abs(res.jac)) < 1e-5)
+    p = res.x
+    cov = observed_cov(loglike, p)
+    a, P = np.empty(system.k), np.empty((system.k, system.k))
+    llf = system.loglike(y, p, scale, (a, P), method=method)
+    return {"params": p, "cov": cov, "loglike": float(llf), "converged": converged,
+            "final_state": a, "final_cov": P}

@@ -1,0 +1,96 @@
+"""Checks of what an estimator is handed: its record (:func:`check_record`) and the settings several
+estimators share (:func:`check_common_settings`: ``terms``, ``taus``, ``overlapping``).
+
+A leaf of the estimators package: the contract (:mod:`avbench.estimators.base`), the Allan-variance
+engine and every family import these checks from here, so that each is written once and none of
+them needs another to validate its input.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from avbench.noise_models.terms import _check_dt as check_dt
+from avbench.noise_models.units import COEFFICIENTS
+
+__all__ = ["DT_RANGE", "TAU_GRIDS", "check_common_settings", "check_dt", "check_record", "check_taus", "check_terms"]
+
+
+#: sample intervals an estimator accepts (1 ns .. ~11.6 days): beyond them tau**2 and tau**-2 in the
+#: Allan-variance model leave float64's comfortable range
+DT_RANGE = (1e-9, 1e6)
+
+
+def check_record(rate, dt) -> tuple[np.ndarray, float]:
+    """Validate a gyro record: 1-D, finite, at least 16 samples; ``dt`` finite and in :data:`DT_RANGE`."""
+    dt = check_dt(dt)
+    if not DT_RANGE[0] <= dt <= DT_RANGE[1]:
+        raise ValueError(
+            f"dt: expected a sample interval between {DT_RANGE[0]:g} s and {DT_RANGE[1]:g} s "
+            f"(a rate between {1 / DT_RANGE[1]:g} Hz and {1 / DT_RANGE[0]:g} Hz), got {dt!r} s"
+        )
+    arr = np.asarray(rate)
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"rate: expected numeric samples, got dtype {arr.dtype}")
+    if arr.ndim != 1:
+        raise ValueError(f"rate: expected a 1-D array of rate samples, got shape {arr.shape}")
+    if arr.size < 16:
+        raise ValueError(f"rate: expected at least 16 samples, got {arr.size}")
+    arr = arr.astype(np.float64, copy=False)
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"rate: {int(bad.sum())} non-finite sample(s) (NaN/inf), the first at index {first}")
+    return arr, dt
+
+
+TAU_GRIDS = ("octave", "decade", "all")
+
+
+def check_taus(taus) -> None:
+    """A ``taus`` setting must be one of :data:`TAU_GRIDS` or a non-empty 1-D array of positive seconds."""
+    if isinstance(taus, str):
+        if taus not in TAU_GRIDS:
+            raise ValueError(f"taus: expected one of {', '.join(TAU_GRIDS)} or an array of seconds, got {taus!r}")
+        return
+    ok = isinstance(taus, list | tuple | np.ndarray) and not any(isinstance(t, bool) for t in np.ravel(taus))
+    if ok:
+        try:
+            tau = np.asarray(taus, dtype=float)
+        except (TypeError, ValueError):
+            ok = False
+        else:
+            ok = tau.ndim == 1 and tau.size > 0 and bool(np.all(np.isfinite(tau))) and bool(np.all(tau > 0))
+    if not ok:
+        raise ValueError(
+            f"taus: expected one of {', '.join(TAU_GRIDS)} or a non-empty list of positive seconds, got {taus!r}"
+        )
+
+
+def check_terms(terms) -> tuple[str, ...]:
+    """Validate a collection of coefficient names; return them in canonical Q, N, B, K, R order."""
+    if not isinstance(terms, str | list | tuple):
+        raise ValueError(
+            f"terms: expected a string such as 'QNB' (a non-empty subset of {''.join(COEFFICIENTS)}), got {terms!r}"
+        )
+    given, terms = terms, list(terms)
+    bad = [t for t in terms if t not in COEFFICIENTS]
+    if bad or not terms or len(set(terms)) != len(terms):
+        raise ValueError(
+            f"terms: expected a non-empty subset of {', '.join(COEFFICIENTS)} without repeats, got {given!r}"
+        )
+    return tuple(c for c in COEFFICIENTS if c in terms)
+
+
+def check_common_settings(params: dict) -> None:
+    """Validate the settings several estimators share, wherever they appear.
+
+    ``terms``: a non-empty subset of QNBKR; ``taus``: "octave", "decade", "all" or a list of
+    positive seconds; ``overlapping``: a bool (a string such as "maybe" is refused, not read as true).
+    """
+    if "terms" in params:
+        check_terms(params["terms"])
+    if "taus" in params:
+        check_taus(params["taus"])
+    if "overlapping" in params and not isinstance(params["overlapping"], bool | np.bool_):
+        raise ValueError(f"overlapping: expected true or false, got {params['overlapping']!r}")

@@ -1,0 +1,21 @@
+"""From a user's recording to coefficients and a filter-ready yaml: the ``avbench estimate`` pipeline.
+
+One module per step, in the order the data flows:
+
+1. :mod:`~avbench.recordings.readers` -- a file (CSV/text, NPY/NPZ, ROS 1/ROS 2 bag, PX4 ULog) becomes
+   a :class:`~avbench.recordings.readers.Recording`: named channels in the file's own units, their
+   sensor (gyro/accel), the units the format defines (if any) and the time stamps (if any);
+2. :mod:`~avbench.recordings.timing` -- time stamps (or ``--fs``) become a
+   :class:`~avbench.recordings.timing.Timing`: the sample interval, its jitter, and the gaps, which
+   split the record into gap-free runs;
+3. :mod:`~avbench.recordings.sensors` -- channels in SI units (through :mod:`avbench.noise_models.units`, the
+   one units module), grouped by sensor and axis;
+4. :mod:`~avbench.recordings.fit` -- every estimator on every axis, gap-aware (clusters that straddle a
+   gap are left out: :func:`avbench.estimators.allan.variance.allan_variance_gaps`), failures kept as data, several
+   recordings pooled and tested for agreement;
+5. :mod:`~avbench.recordings.report` -- the JSON payload with explicit flags, the screen tables, and
+   :mod:`~avbench.recordings.filter_yaml` (Kalibr ``imu.yaml``, imu_utils) and
+   :mod:`~avbench.recordings.figure` (Allan deviation with each fitted term).
+
+:mod:`~avbench.recordings.estimate` is the command (``avbench estimate``) that strings them together.
+"""

@@ -1,0 +1,81 @@
+"""Step 5c: the Allan deviation of each axis with every method's fitted curve and each fitted term.
+
+One figure per sensor, one panel per axis: the overlapping octave ADEV (gap-aware) with its 68 %
+chi^2 bars, each method's model curve (dashed; "poor fit" in its label when flagged), and for the
+first method that fitted the terms' own lines -- Q: sqrt(3) Q / tau, N: N / sqrt(tau),
+B: sqrt(2 ln2 / pi) B, K: K sqrt(tau / 3), R: R tau / sqrt(2) (IEEE Std 952 Annex C) -- each
+labelled with its value in the display units.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from avbench.noise_models.units import DISPLAY_UNITS, SI_SAMPLE_UNIT, from_si
+
+__all__ = ["figure"]
+
+_TERM = {
+    "Q": lambda c, t: math.sqrt(3.0) * c / t,
+    "N": lambda c, t: c / np.sqrt(t),
+    "B": lambda c, t: math.sqrt(2 * math.log(2) / math.pi) * c * np.ones_like(t),
+    "K": lambda c, t: c * np.sqrt(t / 3.0),
+    "R": lambda c, t: c * t / math.sqrt(2.0),
+}
+
+
+def figure(sensor_record, axis_fits, avs, dt, title, flags):
+    """A matplotlib Figure for one sensor (``axis_fits``: axis -> method -> MethodFit; ``avs``: axis ->
+    (AllanResult of the record times ``scale``, ``scale``), see :func:`~avbench.recordings.fit.scaled_allan`;
+    ``flags``: axis -> method -> poor-fit flag). Deviations are drawn in SI units."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from avbench.recordings.fit import fitted_avar
+
+    sensor = sensor_record.sensor
+    units = DISPLAY_UNITS[sensor]
+    si = SI_SAMPLE_UNIT[sensor]
+    axes_names = list(sensor_record.axes)
+    fig, axs = plt.subplots(1, len(axes_names), figsize=(6.2 * len(axes_names), 5.0), squeeze=False)
+    for ax, name in zip(axs[0], axes_names):
+        av, scale = avs[name]
+        with np.errstate(invalid="ignore", over="ignore"):
+            lo, hi, adev = np.sqrt(av.ci_low) / scale, np.sqrt(av.ci_high) / scale, av.adev / scale
+        ax.errorbar(av.tau, adev, yerr=[adev - lo, hi - adev], fmt="o", ms=3, color="k",
+                    label="overlapping ADEV (68 % χ²)")
+        tau = np.unique(np.rint(np.logspace(0, np.log10(max(av.m.max(), 1)), 80)).astype(int)) * dt
+        terms_drawn = False
+        for i, (method, fit) in enumerate(axis_fits[name].items()):
+            if fit.estimator is None:
+                continue
+            with np.errstate(invalid="ignore", over="ignore"):
+                curve = fitted_avar(fit, tau, scaled=True) * (scale / fit.scale) ** 2
+            label = method + ("  (POOR FIT)" if flags.get(name, {}).get(method) else "")
+            if np.any(curve > 0):
+                ax.plot(tau, np.sqrt(np.where(curve > 0, curve, np.nan)) / scale, "--", color=f"C{i}", label=label)
+            if not terms_drawn:
+                coefs = fit.coefficients()
+                for j, (c, f) in enumerate(_TERM.items()):
+                    v = coefs[c]
+                    if math.isfinite(v) and v > 0:
+                        shown = from_si(c, v, units[c], sensor)
+                        ax.plot(tau, f(v, tau), ":", lw=1.2, color=f"C{j + 5}",
+                                label=f"{method} {c} = {shown:.4g} {units[c]}")
+                terms_drawn = True
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("τ (s)")
+        ax.set_ylabel(f"Allan deviation ({si})")
+        ax.set_title(f"{title} — {sensor} {name}", fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+        ymin, ymax = np.nanmin(lo[lo > 0]) if np.any(lo > 0) else None, np.nanmax(hi) if np.any(np.isfinite(hi)) else None
+        if ymin and ymax and math.isfinite(ymin) and math.isfinite(ymax):
+            ax.set_ylim(ymin / 3, ymax * 3)
+        ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,208 @@
+"""Step 4: fit every method to every axis, gap-aware, failures kept as data; pool recordings.
+
+* **Gaps.** Methods that work on the Allan variance (least squares, the practitioners' fits, GMWM)
+  see a gap-aware AV (:func:`avbench.estimators.allan.variance.skip_gaps`: clusters that straddle a gap are left out).
+  Methods that work on the samples themselves (likelihood, ARMA-EM, filters) cannot skip a gap: on a
+  record with gaps they are fitted to its longest gap-free run, and the result says so.
+* **Scale.** A record whose largest magnitude is far from 1 (say 1e-200 or 1e300 in SI) is multiplied
+  by a power of two before fitting and the coefficients divided by it after: every coefficient scales
+  linearly with the data, and a power of two changes no digit, so the estimates scale exactly.
+* **Failures.** A method that raises on this record is reported (its message, flag "failed") and
+  the other methods go on; its warnings are kept.
+* **Several recordings** (``--combine``) of one sensor are pooled as one record whose file
+  boundaries are gaps, and :func:`agreement` tests whether their Allan variances agree.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["MethodFit", "fit_axis", "fitted_avar", "agreement", "uses_allan_variance", "scaled_allan"]
+
+_SCALE_LIMIT = 2.0**40  # records within 2^-40..2^40 of unit RMS are fitted as they are (no copy)
+
+
+def uses_allan_variance(name: str) -> bool:
+    """True if estimator ``name`` sees the record only through its Allan variance (so gaps can be
+    skipped): the estimator class says so (:attr:`avbench.estimators.base.Estimator.uses_allan_variance`)."""
+    from avbench import estimators
+
+    return bool(estimators.estimator_class(name).uses_allan_variance)
+
+
+@dataclass
+class MethodFit:
+    """One method on one axis: the fitted estimator (None if it failed) and how it was run."""
+
+    name: str
+    estimator: object | None
+    scale: float  # the record was multiplied by this before fitting
+    seconds: float
+    error: str | None = None
+    run: tuple[int, int] | None = None  # (start, length) of the gap-free run used, None = whole record
+    warnings: list[str] = field(default_factory=list)
+
+    def coefficients(self) -> dict[str, float]:
+        """Q, N, B, K, R in SI (NaN where absent), with the scaling undone."""
+        from avbench.noise_models.units import COEFFICIENTS
+
+        if self.estimator is None:
+            return {c: math.nan for c in COEFFICIENTS}
+        c = self.estimator.coefficients_
+        return {k: float(c[k]) / self.scale for k in COEFFICIENTS}
+
+    def std_errors(self) -> dict[str, float] | None:
+        """Standard errors (SI) if the method gives them (``std_err_`` or ``diagnostics_["std_err"]``)."""
+        est = self.estimator
+        if est is None:
+            return None
+        se = getattr(est, "std_err_", None)
+        if se is None:
+            se = est.diagnostics_.get("std_err")
+        if se is None:
+            return None
+        try:
+            return {k: float(se[k]) / self.scale for k in se.index if math.isfinite(float(se[k]))}
+        except (AttributeError, TypeError, ValueError, KeyError):
+            return None
+
+    def intervals(self, level: float = 0.95) -> dict[str, tuple[float, float]] | None:
+        """Confidence intervals (SI) from the estimator's ``conf_int(level)`` if it has one."""
+        est = self.estimator
+        fn = getattr(est, "conf_int", None) if est is not None else None
+        if fn is None:
+            return None
+        try:
+            ci = fn(level) if level is not None else fn()
+            out = {}
+            for k in ci.index:
+                lo, hi = float(ci.loc[k].iloc[0]), float(ci.loc[k].iloc[1])
+                if math.isfinite(lo) and math.isfinite(hi):
+                    out[k] = (lo / self.scale, hi / self.scale)
+            return out
+        except Exception:  # an optional extra; never let it cost the coefficients
+            return None
+
+
+def scaled_allan(x, dt, starts):
+    """(gap-aware octave overlapping AV of ``x * scale``, scale): the curve at unit magnitude, so that
+    records of 1e300 or 1e-200 neither overflow nor underflow; divide AV by scale^2 (ADEV by scale)."""
+    from avbench.estimators.allan.variance import allan_variance_gaps
+
+    x = np.asarray(x)
+    scale = _scale_of(x)
+    return allan_variance_gaps(x * scale if scale != 1.0 else x, dt, starts, "octave"), scale
+
+
+def _scale_of(x) -> float:
+    """A power of two that brings the largest magnitude of ``x`` near 1, or 1.0 when it is already
+    within 2^+-40 (two passes, no copy; squares would over/underflow at the extremes)."""
+    if x.size == 0:
+        return 1.0
+    big = max(float(x.max()), -float(x.min()))
+    if big == 0 or not math.isfinite(big) or 1 / _SCALE_LIMIT <= big <= _SCALE_LIMIT:
+        return 1.0
+    return 2.0 ** (-math.frexp(big)[1])
+
+
+def fit_axis(x, dt, starts, methods, settings=None, progress=None) -> dict[str, MethodFit]:
+    """Fit each method in ``methods`` to the SI record ``x`` with gap-free runs starting at ``starts``.
+
+    ``settings`` maps a method name to its settings; ``progress`` (a tqdm bar or None) is advanced
+    once per method.
+    """
+    from avbench import estimators
+    from avbench.estimators.allan.variance import skip_gaps
+
+    settings = settings or {}
+    starts = np.asarray(starts, dtype=np.int64)
+    x = np.asarray(x)  # a plain ndarray (a memory map's view, no copy): estimators keep this very object
+    scale = _scale_of(x)
+    xs = x * scale if scale != 1.0 else x
+    out = {}
+    for name in methods:
+        t0 = time.perf_counter()
+        run = None
+        data = xs
+        if starts.size and not uses_allan_variance(name):
+            s0 = np.concatenate(([0], starts))
+            lengths = np.diff(np.append(s0, xs.size))
+            i = int(np.argmax(lengths))
+            run = (int(s0[i]), int(lengths[i]))
+            data = xs[run[0]: run[0] + run[1]]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                est = estimators.get(name, **settings.get(name, {}))
+                if starts.size and run is None:
+                    with skip_gaps(data, starts):
+                        est.fit(data, dt)
+                else:
+                    est.fit(data, dt)
+                err = None
+            except MemoryError:
+                raise
+            except Exception as e:  # one method failing on this record is a result, not a crash
+                est, err = None, f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"[:300]
+        fit = MethodFit(name, est, scale, time.perf_counter() - t0, err, run,
+                        sorted({f"{w.category.__name__}: {str(w.message).splitlines()[0][:200]}" for w in caught}))
+        out[name] = fit
+        if progress is not None:
+            progress.update(1)
+    return out
+
+
+def fitted_avar(fit: MethodFit, tau, scaled: bool = False) -> np.ndarray:
+    """The AV curve (SI, rad^2/s^2 or (m/s^2)^2) a fitted method stands for, as the estimator itself
+    gives it (:meth:`avbench.estimators.base.Estimator.model_avar`: the exact AV of its latent model
+    where it has one, else the five-term curve). With ``scaled`` the curve is that of the record as
+    fitted (times ``fit.scale``)."""
+    est = fit.estimator
+    if est is None:
+        return np.full(np.shape(tau), np.nan)
+    return est.model_avar(tau) / (1.0 if scaled else fit.scale**2)
+
+
+def agreement(records, dt, min_edf: float = 4.0) -> dict:
+    """Do several recordings of one sensor axis have the same Allan variance?
+
+    ``records`` is a list of ``(x, starts)``. At every octave tau that all of them reach with at least
+    ``min_edf`` degrees of freedom, the log-AVs are compared by the homogeneity statistic
+    ``sum_i (edf_i/2) (ln AV_i - mean)^2`` (weighted mean; ``Var ln AV ~ 2/edf``), ~ chi^2 with
+    ``R - 1`` degrees of freedom when they agree. The p-value returned is the smallest over tau times
+    the number of taus (Bonferroni; the taus are positively correlated, so this is conservative).
+    """
+    from scipy import stats
+
+    from avbench.estimators.allan.variance import allan_variance_gaps
+
+    avs = [allan_variance_gaps(x, dt, s, "octave") for x, s in records]
+    common = set(avs[0].m.tolist())
+    for a in avs[1:]:
+        common &= set(a.m.tolist())
+    rows = []
+    for m in sorted(common):
+        la, w = [], []
+        for a in avs:
+            i = int(np.flatnonzero(a.m == m)[0])
+            if not (a.edf[i] >= min_edf and a.avar[i] > 0):
+                break
+            la.append(math.log(a.avar[i]))
+            w.append(a.edf[i] / 2.0)
+        else:
+            la, w = np.array(la), np.array(w)
+            mean = float(np.sum(w * la) / np.sum(w))
+            T = float(np.sum(w * (la - mean) ** 2))
+            rows.append((m * dt, T, float(stats.chi2.sf(T, len(avs) - 1))))
+    if not rows:
+        return {"p_value": None, "agree": None, "n_taus": 0, "worst_tau_s": None,
+                "note": "no tau with enough clusters in every recording"}
+    worst = min(rows, key=lambda r: r[2])
+    p = min(1.0, worst[2] * len(rows))
+    return {"p_value": p, "agree": bool(p >= 0.01), "n_taus": len(rows), "worst_tau_s": worst[0],
+            "note": "chi^2 homogeneity of log AV per octave tau, Bonferroni over taus; agree = p >= 0.01"}

@@ -1,0 +1,552 @@
+"""Step 1: read a recording file into named channels, their sensor, their units and the time stamps.
+
+Formats (chosen by the file name):
+
+* text ``.csv .txt .dat .tsv`` -- comma, semicolon, tab or blank separated, ``#`` comments, an
+  optional header row (a first row none of whose cells is a number). Parsed by pandas' C engine
+  straight to float64 (``bench/`` measures it against a bare ``pandas.read_csv``). A blank line
+  between samples is an error (it is not silently dropped); so is a file that looks written with
+  decimal commas (``0,0123``) under a comma separator; with ``;``/tab/blank separators decimal commas
+  are read as such.
+* ``.npy`` -- 1-D, or 2-D samples x columns; memory-mapped, so a large record is not copied.
+* ``.npz`` -- the array ``data`` (or the only array), column names from ``columns``, time stamps from
+  ``t`` or ``time`` (seconds).
+* ROS 1 ``.bag`` and ROS 2 bag folders (``metadata.yaml`` with ``.db3``/``.mcap``) -- ``sensor_msgs/Imu``
+  messages of one topic through the ``rosbags`` package (``pip install avbench[ros]``): gyro x, y, z
+  from ``angular_velocity`` (rad/s) and accelerometer x, y, z from ``linear_acceleration`` (m/s^2),
+  units fixed by the message definition (REP 145), time from the header stamps (the bag's receive
+  times when every header stamp is zero).
+* PX4 ULog ``.ulg`` -- the ``sensor_combined`` topic through ``pyulog`` (``pip install avbench[px4]``):
+  ``gyro_rad[0..2]`` (rad/s), ``accelerometer_m_s2[0..2]`` (m/s^2), time from ``timestamp`` (us).
+
+For tables the channels are chosen with ``gyro``/``accel`` (names or 0-based indices); with neither, a
+single column is a gyro, and headers named like ``gyro_x``/``gx``/``wx`` and ``acc_x``/``ax`` are found.
+A column named ``t``, ``time``, ``timestamp`` or ``time_s`` (or chosen with ``time_column``) gives the
+time stamps. Every problem is a ``ValueError`` whose message starts with the file name.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from avbench.recordings import files as data_files
+
+__all__ = ["Channel", "Recording", "read_recording", "TEXT_SUFFIXES", "KNOWN_SUFFIXES"]
+
+TEXT_SUFFIXES = (".csv", ".txt", ".dat", ".tsv")
+KNOWN_SUFFIXES = (".npy", ".npz", *TEXT_SUFFIXES, ".bag", ".db3", ".mcap", ".ulg")
+_TIME_NAMES = {"t", "time", "timestamp", "time_s", "times", "t_s"}
+#: a unit written after the axis in a column name (``gyro_x_dps``, ``acc_x_g``): recognised for the axis
+#: label only -- the units still come from the format or the user, never from a name
+_UNIT_SUFFIX = r"(?:[_ .\-](?:dps|degs|deg_s|rps|rads|rad_s|g|mg|ug|mps2|ms2|m_s2))?"
+_GYRO_RE = re.compile(r"^(gyro|gyr|g|w|omega|wx|wy|wz|angular_velocity)[_ .\-\[]?([xyz012])\]?" + _UNIT_SUFFIX
+                      + r"$|gyro.*[_ .\-]?([xyz])$", re.I)
+_ACCEL_RE = re.compile(r"^(accel|acc|a|linear_acceleration|accelerometer)[_ .\-\[]?([xyz012])\]?" + _UNIT_SUFFIX
+                       + r"$|acc.*[_ .\-]?([xyz])$", re.I)
+_TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+
+
+@dataclass
+class Channel:
+    """One column of samples: ``sensor`` is "gyro" or "accel", ``unit`` the unit the format defines
+    (None when the file does not say), ``axis`` a short label (x, y, z or the column name)."""
+
+    name: str
+    sensor: str
+    axis: str
+    values: np.ndarray
+    unit: str | None = None
+
+
+@dataclass
+class Recording:
+    """What a reader found in a file (samples in the file's own units)."""
+
+    path: Path
+    format: str
+    channels: list[Channel]
+    time: np.ndarray | None = None  # seconds, one per sample
+    time_source: str | None = None  # e.g. "column 't'", "header stamps"
+    topic: str | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.channels[0].values.size) if self.channels else 0
+
+
+def _split(spec) -> list[str]:
+    if spec is None:
+        return []
+    if isinstance(spec, list | tuple):
+        return [str(s) for s in spec]
+    return [s.strip() for s in str(spec).split(",") if s.strip()]
+
+
+def _axis_label(name: str, sensor: str) -> str:
+    m = (_GYRO_RE if sensor == "gyro" else _ACCEL_RE).match(name)
+    if m:
+        letter = next((g for g in m.groups()[1:] if g), None)
+        if letter:
+            return {"0": "x", "1": "y", "2": "z"}.get(letter.lower(), letter.lower())
+    return name
+
+
+def _resolve(path, names: list[str], n_cols: int, spec: str, option: str) -> int:
+    if spec in names:
+        return names.index(spec)
+    try:
+        idx = int(spec)
+    except ValueError:
+        known = ", ".join(names) if names else f"indices 0..{n_cols - 1}"
+        raise ValueError(f"{path}: unknown column {spec!r} ({option}); expected one of {known}") from None
+    if not 0 <= idx < n_cols:
+        raise ValueError(f"{path}: column index {idx} out of range ({option}); expected 0..{n_cols - 1}")
+    return idx
+
+
+def _choose_columns(path, names: list[str], n_cols: int, gyro, accel, time_column):
+    """(time index or None, [(index, sensor)]) for a table with ``names`` (auto names if none)."""
+    shown = names if names else [f"column {i}" for i in range(n_cols)]
+    if time_column is not None and str(time_column).lower() == "none":
+        t_idx = None
+    elif time_column is not None:
+        t_idx = _resolve(path, names, n_cols, str(time_column), "--time")
+    else:
+        t_idx = next((i for i, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES), None)
+    picks = [(_resolve(path, names, n_cols, s, "--gyro/--column"), "gyro") for s in _split(gyro)]
+    picks += [(_resolve(path, names, n_cols, s, "--accel"), "accel") for s in _split(accel)]
+    if not picks:
+        rest = [i for i in range(n_cols) if i != t_idx]
+        if len(rest) == 1:
+            picks = [(rest[0], "gyro")]
+        else:
+            picks = [(i, "gyro") for i in rest if names and _GYRO_RE.match(names[i].strip())]
+            picks += [(i, "accel") for i in rest if names and _ACCEL_RE.match(names[i].strip())
+                      and not _GYRO_RE.match(names[i].strip())]
+            if not picks:
+                listed = ", ".join(shown[i] for i in rest)
+                raise ValueError(f"{path}: {len(rest)} columns ({listed}); choose them with --gyro COLS and/or "
+                                 "--accel COLS (or one with --column NAME|INDEX)")
+    idx = [i for i, _ in picks]
+    if len(set(idx)) != len(idx) or t_idx in idx:
+        raise ValueError(f"{path}: a column is chosen twice (--time/--gyro/--accel/--column)")
+    return t_idx, picks
+
+
+def _numeric(arr, path, what="data"):
+    arr = np.asarray(arr)
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"{path}: {what} is not numeric (dtype {arr.dtype}); expected samples")
+    return arr
+
+
+def _table_recording(path, fmt, arr, names, gyro, accel, time_column, time_units, time=None):
+    """A Recording from a 1-D or 2-D numeric array (columns are views: no copy)."""
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise ValueError(f"{path}: expected a 1-D record or a 2-D (samples x columns) table, got shape {arr.shape}")
+    if arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise ValueError(f"{path}: the record is empty")
+    names = names or []
+    t_idx, picks = _choose_columns(path, names, arr.shape[1], gyro, accel, time_column)
+    label = (lambda i: names[i]) if names else (lambda i: f"column {i}")
+    channels = [Channel(label(i), sensor, _axis_label(label(i), sensor) if names else
+                        ("x" if arr.shape[1] == 1 else str(i)), arr[:, i]) for i, sensor in picks]
+    rec = Recording(Path(path), fmt, channels)
+    if t_idx is not None:
+        rec.time = np.asarray(arr[:, t_idx], dtype=np.float64) * _time_scale(time_units)
+        rec.time_source = f"column {label(t_idx)!r} ({time_units})"
+    elif time is not None:
+        rec.time = np.asarray(time, dtype=np.float64) * _time_scale(time_units)
+        rec.time_source = f"array 't' ({time_units})"
+        if rec.time.shape != (arr.shape[0],):
+            raise ValueError(f"{path}: the time array has shape {rec.time.shape}; expected ({arr.shape[0]},), one per sample")
+    return rec
+
+
+def _time_scale(units) -> float:
+    try:
+        return _TIME_SCALE[units]
+    except KeyError:
+        raise ValueError(f"--time-units: expected one of {', '.join(_TIME_SCALE)}, got {units!r}") from None
+
+
+# -- text -----------------------------------------------------------------------------------------
+def _first_lines(path, k=20):
+    """(number of leading comment/blank lines, the first k data lines)."""
+    lead, lines = 0, []
+    try:
+        with open(path, encoding="utf-8", errors="strict") as fh:
+            for line in fh:
+                s = line.strip()
+                if not lines and (not s or s.startswith("#")):
+                    lead += 1
+                    continue
+                lines.append(s)
+                if len(lines) >= k:
+                    break
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text file (cannot decode as UTF-8)") from None
+    except OSError as e:
+        raise ValueError(f"{path}: cannot read ({e.strerror or e})") from None
+    if not lines:
+        raise ValueError(f"{path}: the file is empty")
+    return lead, lines
+
+
+_LEADING_ZERO_INT = re.compile(r"^[+-]?0\d+$")
+_INT = re.compile(r"^[+-]?\d+$")
+
+
+def _dialect(path, lines):
+    """(separator, decimal mark) of a text table from its first data lines."""
+    first = lines[0]
+    for sep in (";", "\t"):
+        if sep in first:
+            return sep, ("," if any("," in c for ln in lines[1:] or lines for c in ln.split(sep)) else ".")
+    if "," in first:
+        data = [ln for ln in lines if ln and not ln.startswith("#")]
+        cells = [c.strip() for ln in data[1:] or data for c in ln.split(",")]
+        if cells and all(_INT.match(c) for c in cells) and any(_LEADING_ZERO_INT.match(c) for c in cells):
+            raise ValueError(f"{path}: looks written with decimal commas ({data[-1]!r}); expected '.' as the decimal "
+                             "mark with ',' separators (or ';'/tab separated columns with decimal commas)")
+        return ",", "."
+    if any("," in c for ln in lines[1:] or lines for c in ln.split()):
+        return r"\s+", ","
+    return r"\s+", "."
+
+
+def _read_text(path, gyro, accel, time_column, time_units):
+    import pandas as pd
+
+    lead, lines = _first_lines(path)
+    sep, decimal = _dialect(path, lines)
+    cells = re.split(sep, lines[0]) if sep == r"\s+" else lines[0].split(sep)
+    header = data_files.is_header_row(cells)
+    names = [c.strip() for c in cells] if header else None
+    try:
+        df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=lead + int(header), comment="#",
+                         skip_blank_lines=False, engine="c", dtype=np.float64, names=names)
+    except pd.errors.EmptyDataError:
+        raise ValueError(f"{path}: a header but no samples" if header else f"{path}: the file is empty") from None
+    except (ValueError, pd.errors.ParserError) as e:
+        raise _explain_text_error(path, lead + int(header), sep, decimal, e) from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text file (cannot decode as UTF-8)") from None
+    except OSError as e:
+        raise ValueError(f"{path}: cannot read ({e.strerror or e})") from None
+    if df.shape[0] == 0:
+        raise ValueError(f"{path}: a header but no samples" if header else f"{path}: the file is empty")
+    df = _trailing_blank_rows(path, df, lead + int(header))
+    arr_cols = [df.iloc[:, i].to_numpy() for i in range(df.shape[1])]
+    nm = names or []
+    t_idx, picks = _choose_columns(path, nm, df.shape[1], gyro, accel, time_column)
+    label = (lambda i: nm[i]) if nm else (lambda i: f"column {i}")
+    channels = []
+    for i, sensor in picks:
+        axis = _axis_label(label(i), sensor) if nm else ("x" if df.shape[1] == 1 else str(i))
+        channels.append(Channel(label(i), sensor, axis, arr_cols[i]))
+    rec = Recording(Path(path), "text", channels)
+    for i in [t_idx, *[i for i, _ in picks]]:
+        if i is not None:
+            _blank_line_check(path, arr_cols[i], lead + int(header), label(i))
+    if t_idx is not None:
+        rec.time = arr_cols[t_idx] * _time_scale(time_units)
+        rec.time_source = f"column {label(t_idx)!r} ({time_units})"
+    return rec
+
+
+def _trailing_blank_rows(path, df, skip):
+    """Drop blank lines at the very end of the file (and only there)."""
+    nan_rows = df.isna().all(axis=1).to_numpy()
+    if not nan_rows[-1]:
+        return df
+    k = len(nan_rows) - np.argmin(nan_rows[::-1]) if not nan_rows.all() else 0
+    with open(path, encoding="utf-8") as fh:
+        tail = fh.read().splitlines()[skip + k:]
+    if all(not ln.strip() for ln in tail):
+        return df.iloc[:k]
+    return df
+
+
+def _blank_line_check(path, col, skip, label):
+    """Say *why* a column holds NaN where the file has a blank line (instead of a NaN sample)."""
+    bad = np.flatnonzero(np.isnan(col))
+    if bad.size == 0:
+        return
+    i = int(bad[0])
+    with open(path, encoding="utf-8") as fh:
+        for k, line in enumerate(fh):
+            if k == skip + i:
+                if not line.strip():
+                    raise ValueError(f"{path}: line {k + 1} is blank (sample {i} of {label}); expected one sample "
+                                     "per line -- remove the blank line or mark the gap with time stamps")
+                if line.strip().startswith("#"):
+                    raise ValueError(f"{path}: line {k + 1} is a comment between samples (sample {i} of {label}); "
+                                     "expected comments only before the data")
+                if "," in line or ";" in line or "\t" in line:
+                    raise ValueError(f"{path}: line {k + 1} has an empty field (sample {i} of {label}); "
+                                     "expected a number in every field")
+                break
+
+
+def _explain_text_error(path, skip, sep, decimal, err):
+    """A one-line message for a table pandas could not read as float64 (found by a slow re-read)."""
+    import pandas as pd
+
+    try:
+        df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=skip, comment="#",
+                         skip_blank_lines=False, engine="python", dtype=str)
+    except (pd.errors.ParserError, ValueError) as e:
+        return ValueError(f"{path}: cannot parse as a text table ({str(e).splitlines()[0][:200]})")
+    except UnicodeDecodeError:
+        return ValueError(f"{path}: not a text file (cannot decode as UTF-8)")
+    for j in range(df.shape[1]):
+        col = df.iloc[:, j]
+        vals = pd.to_numeric(col, errors="coerce")
+        bad = vals.isna() & col.notna() & (col.astype(str).str.strip().str.lower() != "nan")
+        if bad.any():
+            i = int(np.flatnonzero(bad.to_numpy())[0])
+            return ValueError(f"{path}: column {j} is not numeric (row {i}: {col.iloc[i]!r}); expected samples")
+    return ValueError(f"{path}: cannot parse as a text table ({str(err).splitlines()[0][:200]})")
+
+
+# -- NumPy ----------------------------------------------------------------------------------------
+def _read_npy(path, gyro, accel, time_column, time_units):
+    arr = _numeric(data_files.load_npy(path, mmap=True), path)
+    return _table_recording(path, "npy", arr, None, gyro, accel, time_column, time_units)
+
+
+def _read_npz(path, gyro, accel, time_column, time_units):
+    z = data_files.load_npz(path)
+    keys = list(z)
+    time_key = next((k for k in ("t", "time") if k in keys), None)
+    if "data" in keys:
+        arr = z["data"]
+    else:
+        arrays = [k for k in keys if k not in ("columns", "fs", time_key)]
+        if len(arrays) != 1:
+            raise ValueError(f"{path}: expected an array 'data' or a single array, found {keys}")
+        arr = z[arrays[0]]
+    arr = _numeric(arr, path)
+    names = None
+    if "columns" in keys:
+        c = z["columns"]
+        if c.ndim != 1:
+            raise ValueError(f"{path}: 'columns' is a {c.ndim}-d array; expected a 1-D array of column names")
+        n_cols = arr.shape[1] if arr.ndim == 2 else 1
+        if c.size != n_cols:
+            raise ValueError(f"{path}: 'columns' names {c.size} column(s) but the data has {n_cols}; "
+                             "expected one name per column")
+        names = [str(v) for v in c]
+    time = None
+    if time_key is not None and (time_column is None or str(time_column).lower() != "none"):
+        time = _numeric(z[time_key], path, f"'{time_key}'")
+    return _table_recording(path, "npz", arr, names, gyro, accel, time_column, time_units, time)
+
+
+# -- ROS bags ---------------------------------------------------------------------------------------
+_IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
+
+
+def _bag_path(path: Path) -> Path:
+    if path.is_dir() or path.suffix == ".bag":
+        return path
+    return path.parent  # a ROS 2 storage file: the bag is its folder
+
+
+def _read_bag(path, topic, progress):
+    try:
+        from rosbags.highlevel import AnyReader
+    except ImportError:
+        raise ValueError(f"{path}: reading ROS bags needs the 'rosbags' package; expected it installed "
+                         "(pip install 'avbench[ros]')") from None
+    from tqdm import tqdm
+
+    bag = _bag_path(Path(path))
+    try:
+        reader = AnyReader([bag])
+        reader.open()
+    except Exception as e:  # rosbags raises its own error classes for every kind of broken bag
+        raise ValueError(f"{path}: not a readable ROS bag ({str(e).splitlines()[0][:200] if str(e) else type(e).__name__})") from None
+    try:
+        imu = [c for c in reader.connections if c.msgtype in _IMU_TYPES]
+        topics = sorted({c.topic for c in imu})
+        if not topics:
+            found = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})) or "no topics"
+            raise ValueError(f"{path}: no sensor_msgs/Imu topic; found {found}")
+        if topic is None:
+            if len(topics) > 1:
+                raise ValueError(f"{path}: {len(topics)} sensor_msgs/Imu topics ({', '.join(topics)}); choose one with --topic")
+            topic = topics[0]
+        elif topic not in topics:
+            raise ValueError(f"--topic {topic!r}: not a sensor_msgs/Imu topic of {path}; expected one of {', '.join(topics)}")
+        conns = [c for c in imu if c.topic == topic]
+        n = sum(c.msgcount for c in conns)
+        out = np.empty((n, 6))
+        stamp = np.empty(n, dtype=np.int64)
+        recv = np.empty(n, dtype=np.int64)
+        ros1 = bag.suffix == ".bag"
+        k = 0
+        block: list = []
+
+        def flush():
+            nonlocal k
+            m = len(block)
+            fast = _decode_imu([raw for _, _, raw in block], ros1)
+            if fast is None or not _same_as_deserialized(reader, block[0], fast, ros1):
+                fast = _deserialize_imu(reader, block)
+            out[k:k + m], stamp[k:k + m] = fast
+            recv[k:k + m] = [t for _, t, _ in block]
+            k += m
+            block.clear()
+
+        with tqdm(total=n, desc=f"reading {topic}", unit="msg", disable=not progress, leave=False) as bar:
+            for item in reader.messages(connections=conns):
+                block.append(item)
+                if len(block) == 1 << 16:
+                    flush()
+                    bar.update(1 << 16)
+            if block:
+                flush()
+    finally:
+        reader.close()
+    out, stamp, recv = out[:k], stamp[:k], recv[:k]
+    if k == 0:
+        raise ValueError(f"{path}: topic {topic} holds no messages")
+    rec = Recording(Path(path), "ros1" if bag.suffix == ".bag" else "ros2", [], topic=topic)
+    if np.any(stamp != 0):
+        t, rec.time_source = stamp, "header stamps"
+    else:
+        t, rec.time_source = recv, "bag receive times (every header stamp is zero)"
+        rec.notes.append("header stamps are all zero; the bag's receive times are used")
+    order = np.argsort(t, kind="stable")
+    if np.any(order != np.arange(k)):
+        rec.notes.append("messages were not in time order; sorted by time stamp")
+        out, t = out[order], t[order]
+    rec.time = (t - t[0]).astype(np.float64) * 1e-9
+    for j, (sensor, axis) in enumerate([("gyro", "x"), ("gyro", "y"), ("gyro", "z"),
+                                        ("accel", "x"), ("accel", "y"), ("accel", "z")]):
+        unit = "rad/s" if sensor == "gyro" else "m/s^2"
+        field_name = "angular_velocity" if sensor == "gyro" else "linear_acceleration"
+        rec.channels.append(Channel(f"{field_name}.{axis}", sensor, axis, np.ascontiguousarray(out[:, j]), unit))
+    return rec
+
+
+def _deserialize_imu(reader, block):
+    """(values (m, 6), header stamps in ns) of sensor_msgs/Imu messages through rosbags' deserializer."""
+    vals = np.empty((len(block), 6))
+    st = np.empty(len(block), dtype=np.int64)
+    for i, (conn, _, raw) in enumerate(block):
+        msg = reader.deserialize(raw, conn.msgtype)
+        w, a = msg.angular_velocity, msg.linear_acceleration
+        vals[i] = (w.x, w.y, w.z, a.x, a.y, a.z)
+        st[i] = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+    return vals, st
+
+
+def _decode_imu(raws, ros1: bool):
+    """The same as :func:`_deserialize_imu`, vectorised over messages of one length (one frame_id
+    length), straight from the bytes: ROS 1 packs fields without padding; ROS 2 is CDR (4-byte
+    encapsulation header, little endian, float64 aligned to 8 from the end of that header). None when
+    the bytes are not laid out as expected; the caller then deserializes message by message."""
+    L = len(raws[0])
+    if any(len(r) != L for r in raws) or L < 16:
+        return None
+    first = raws[0]
+    if ros1:
+        pos = 16 + int.from_bytes(first[12:16], "little")
+        base = 0
+    else:
+        if first[:2] != b"\x00\x01":  # CDR little endian
+            return None
+        pos = 16 + int.from_bytes(first[12:16], "little")
+        base = 4
+        pos = base + -(-(pos - base) // 8) * 8
+    if L != pos + 37 * 8:  # orientation 4 + cov 9, angular velocity 3 + cov 9, acceleration 3 + cov 9
+        return None
+    buf = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), L)
+    ang, lin = pos + 13 * 8, pos + 25 * 8
+    vals = np.concatenate([np.ascontiguousarray(buf[:, ang:ang + 24]).view("<f8"),
+                           np.ascontiguousarray(buf[:, lin:lin + 24]).view("<f8")], axis=1)
+    off = 4 if ros1 else base  # ROS 1: seq (uint32) comes first; ROS 2: the stamp right after the CDR header
+    sec = np.ascontiguousarray(buf[:, off:off + 4]).view("<u4" if ros1 else "<i4")[:, 0].astype(np.int64)
+    nsec = np.ascontiguousarray(buf[:, off + 4:off + 8]).view("<u4")[:, 0].astype(np.int64)
+    return vals, sec * 1_000_000_000 + nsec
+
+
+def _same_as_deserialized(reader, item, fast, ros1) -> bool:
+    """Check the vectorised decoding against rosbags' deserializer on the block's first message."""
+    vals, st = _deserialize_imu(reader, [item])
+    return bool(np.array_equal(vals[0], fast[0][0]) and st[0] == fast[1][0])
+
+
+# -- PX4 ULog ---------------------------------------------------------------------------------------
+def _read_ulog(path, progress):
+    try:
+        from pyulog import ULog
+    except ImportError:
+        raise ValueError(f"{path}: reading PX4 ULog needs the 'pyulog' package; expected it installed "
+                         "(pip install 'avbench[px4]')") from None
+    try:
+        log = ULog(str(path), message_name_filter_list=["sensor_combined"])
+    except Exception as e:  # pyulog raises plain Exceptions for malformed logs
+        raise ValueError(f"{path}: not a readable PX4 ULog ({str(e).splitlines()[0][:200] if str(e) else type(e).__name__})") from None
+    sets = log.data_list  # only sensor_combined was read
+    if not sets:
+        raise ValueError(f"{path}: no sensor_combined topic in the log; expected PX4's combined IMU topic")
+    d = sets[0].data
+    need = [f"gyro_rad[{i}]" for i in range(3)] + [f"accelerometer_m_s2[{i}]" for i in range(3)]
+    missing = [k for k in need + ["timestamp"] if k not in d]
+    if missing:
+        raise ValueError(f"{path}: sensor_combined lacks {', '.join(missing)}")
+    rec = Recording(Path(path), "ulog", [], topic="sensor_combined", time_source="timestamp (us)")
+    t = np.asarray(d["timestamp"], dtype=np.int64)
+    rec.time = (t - t[0]).astype(np.float64) * 1e-6
+    for i, axis in enumerate("xyz"):
+        rec.channels.append(Channel(f"gyro_rad[{i}]", "gyro", axis, np.asarray(d[f"gyro_rad[{i}]"], dtype=np.float64), "rad/s"))
+    for i, axis in enumerate("xyz"):
+        rec.channels.append(Channel(f"accelerometer_m_s2[{i}]", "accel", axis,
+                                    np.asarray(d[f"accelerometer_m_s2[{i}]"], dtype=np.float64), "m/s^2"))
+    return rec
+
+
+# -- entry point ------------------------------------------------------------------------------------
+def read_recording(path, *, gyro=None, accel=None, time_column=None, time_units="s", topic=None,
+                   progress=False) -> Recording:
+    """Read ``path`` (any format of the module docstring) into a :class:`Recording`.
+
+    ``gyro``/``accel``: column names or indices (comma-separated string or list) of a table;
+    ``time_column``: the time column (``"none"`` to ignore one); ``time_units``: s, ms, us or ns;
+    ``topic``: the ``sensor_msgs/Imu`` topic of a bag.
+    """
+    p = Path(path)
+    is_bag = p.suffix.lower() in (".bag", ".db3", ".mcap") or (p.is_dir() and (p / "metadata.yaml").is_file())
+    if is_bag:
+        data_files.check_path_kind(p, allow_dir=True)
+        rec = _read_bag(p, topic, progress)
+    else:
+        p = data_files.check_file(p)
+        suffix = p.suffix.lower()
+        if suffix == ".npy":
+            rec = _read_npy(p, gyro, accel, time_column, time_units)
+        elif suffix == ".npz":
+            rec = _read_npz(p, gyro, accel, time_column, time_units)
+        elif suffix in TEXT_SUFFIXES:
+            rec = _read_text(p, gyro, accel, time_column, time_units)
+        elif suffix == ".ulg":
+            rec = _read_ulog(p, progress)
+        else:
+            raise ValueError(f"{p}: unknown file type {suffix!r}; expected one of {', '.join(KNOWN_SUFFIXES)} "
+                             "or a ROS 2 bag folder")
+    if topic is not None and rec.format not in ("ros1", "ros2"):
+        raise ValueError(f"--topic: {p} is not a ROS bag; expected --topic only with a bag")
+    if rec.n_samples == 0:
+        raise ValueError(f"{p}: the record is empty")
+    return rec

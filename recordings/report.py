@@ -1,0 +1,166 @@
+"""Step 5a: what the fits mean, per sensor, axis and method -- the JSON payload and the screen tables.
+
+Each coefficient carries a ``flag`` instead of an overloaded NaN:
+
+* ``"ok"`` -- a value (with ``std_err_si`` and ``conf_int_si`` where the method gives them);
+* ``"not modelled"`` -- the method's model has no such term;
+* ``"non-physical"`` -- the fit gave a value without physical meaning (e.g. a negative AV-model
+  weight); ``value`` is null;
+* ``"failed"`` -- the method failed on this record (``failure`` says why).
+
+Each method also says whether its model misses the AV curve (``poor_fit``, from the estimator's
+``diagnostics_["poor_fit"]`` when it provides one; null when it does not check), whether it was fitted
+on the longest gap-free run only (``fitted_on``), and the warnings it raised.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, TERM_NAMES, from_si, si_units
+
+__all__ = ["coefficient_flags", "poor_fit", "payload", "tables", "SCHEMA"]
+
+SCHEMA = "avbench-estimate/1"
+
+
+def _num(v):
+    return float(v) if v is not None and math.isfinite(v) else None
+
+
+def _jsonable(v):
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _jsonable(v.tolist())
+    if isinstance(v, bool | np.bool_):
+        return bool(v)
+    if isinstance(v, int | np.integer):
+        return int(v)
+    if isinstance(v, float | np.floating):
+        return _num(float(v))
+    if v is None or isinstance(v, str):
+        return v
+    return str(v)
+
+
+def poor_fit(fit):
+    """(flag, detail): flag True/False from ``diagnostics_["poor_fit"]``, None if the method does not check."""
+    est = fit.estimator
+    if est is None:
+        return None, None
+    pf = est.diagnostics_.get("poor_fit")
+    if pf is None:
+        return None, None
+    if isinstance(pf, dict):
+        flag = pf.get("poor_fit", pf.get("flag"))
+        return (bool(flag) if flag is not None else None), _jsonable(pf)
+    try:
+        return bool(pf), None
+    except (TypeError, ValueError):
+        return None, _jsonable(pf)
+
+
+def coefficient_flags(fit) -> dict[str, str]:
+    """``ok`` / ``not modelled`` / ``non-physical`` / ``failed`` for each of Q, N, B, K, R."""
+    if fit.estimator is None:
+        return {c: "failed" for c in COEFFICIENTS}
+    est = fit.estimator
+    coefs = est.coefficients_
+    nonphys = getattr(est, "nonphysical_", None)
+    failed = bool(est.diagnostics_.get("failure"))
+    out = {}
+    for c in COEFFICIENTS:
+        if math.isfinite(float(coefs[c])):
+            out[c] = "ok"
+        elif nonphys is not None and bool(nonphys.get(c, False)):
+            out[c] = "non-physical"
+        elif failed:
+            out[c] = "failed"
+        else:
+            out[c] = "not modelled"
+    return out
+
+
+def _method_entry(fit, sensor, n_samples):
+    units = DISPLAY_UNITS[sensor]
+    si = si_units(sensor)
+    coefs = fit.coefficients()
+    flags = coefficient_flags(fit)
+    se = fit.std_errors() or {}
+    ci = fit.intervals() or {}
+    entry = {}
+    for c in COEFFICIENTS:
+        v = coefs[c] if flags[c] == "ok" else math.nan
+        e = {"value": _num(from_si(c, v, units[c], sensor)), "unit": units[c], "si": _num(v), "si_unit": si[c],
+             "flag": flags[c]}
+        if c in se:
+            e["std_err_si"] = se[c]
+        if c in ci:
+            e["conf_int_si"] = list(ci[c])
+        entry[c] = e
+    flag, detail = poor_fit(fit)
+    failure = fit.error or (fit.estimator.diagnostics_.get("failure") if fit.estimator is not None else None)
+    out = {"coefficients": entry, "poor_fit": flag, "failure": failure or None, "warnings": fit.warnings,
+           "fitted_on": ("whole record" if fit.run is None else
+                         f"longest gap-free run: samples {fit.run[0]}..{fit.run[0] + fit.run[1] - 1} "
+                         f"({fit.run[1]} of {n_samples}); this method cannot skip gaps")}
+    if detail is not None:
+        out["poor_fit_detail"] = detail
+    if fit.estimator is not None:  # the chi^2-type check behind poor_fit, where the estimator reports it
+        for key in ("fit_stat", "fit_dof", "fit_pvalue", "fit_reference"):
+            if key in fit.estimator.diagnostics_:
+                out[key] = _jsonable(fit.estimator.diagnostics_[key])
+    return out
+
+
+def payload(sources, timing, sensors, fits, extra=None) -> dict:
+    """The JSON object of ``avbench estimate``.
+
+    ``sensors``: list of :class:`~avbench.recordings.sensors.SensorRecord`; ``fits``:
+    ``{sensor: {axis: {method: MethodFit}}}``.
+    """
+    out = {"schema": SCHEMA, "sources": [str(s) for s in sources], "timing": _jsonable(timing.to_dict()),
+           "sensors": {}}
+    for s in sensors:
+        axes = {}
+        for axis, x in s.axes.items():
+            axes[axis] = {"channel": s.names.get(axis, axis), "n_samples": int(x.size),
+                          "methods": {m: _method_entry(f, s.sensor, x.size) for m, f in fits[s.sensor][axis].items()}}
+        out["sensors"][s.sensor] = {"units_in": s.unit_in, "si_unit": s.si_unit, "terms": TERM_NAMES[s.sensor],
+                                    "axes": axes}
+    if extra:
+        out.update(_jsonable(extra))
+    return out
+
+
+def tables(data: dict) -> dict[str, pd.DataFrame]:
+    """One table per sensor: rows (axis, method), the coefficients in display units, and the flags."""
+    out = {}
+    for sensor, sd in data["sensors"].items():
+        rows, index = [], []
+        for axis, ad in sd["axes"].items():
+            for method, md in ad["methods"].items():
+                row = {}
+                notes = []
+                for c in COEFFICIENTS:
+                    e = md["coefficients"][c]
+                    row[f"{c} ({e['unit']})"] = e["value"] if e["value"] is not None else np.nan
+                    if e["flag"] == "non-physical":
+                        notes.append(f"{c} non-physical")
+                if md["failure"]:
+                    notes.append("failed")
+                if md["poor_fit"]:
+                    notes.append("POOR FIT")
+                if md["fitted_on"] != "whole record":
+                    notes.append("longest run only")
+                row["flags"] = "; ".join(notes)
+                rows.append(row)
+                index.append((axis, method))
+        out[sensor] = pd.DataFrame(rows, index=pd.MultiIndex.from_tuples(index, names=["axis", "method"]))
+    return out
