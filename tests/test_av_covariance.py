@@ -51,6 +51,7 @@ def test_cached_covariance_equals_the_direct_sum(q, n, b, k, tc, dt):
     again = av_covariance(g, M, 20_000)  # every pair from the cache
     ref = direct(g, M, 20_000)
     assert close(first, ref) and close(again, ref)
+    assert close(av_covariance(g, M, 20_000, reuse=False), ref)
 
 
 def test_a_term_without_psd_factor_is_integrated_every_time():
