@@ -83,3 +83,33 @@ def test_shapes_are_shared_across_coefficients_and_the_cache_is_bounded(monkeypa
 def test_deterministic_terms_add_nothing(terms):
     g = Gyro(dt=0.1, terms=terms)
     np.testing.assert_allclose(av_covariance(g, M, 10_000), direct(g, M, 10_000), rtol=1e-11, atol=0)
+
+
+# -- the fit check's tail: a poor fit does not pay for Imhof's integral --------------------------------
+from scipy import stats  # noqa: E402
+
+from avbench.estimators.allan import fit_check  # noqa: E402
+
+
+@settings(max_examples=40, deadline=None)
+@given(k=st.integers(1, 20), x=st.floats(0.1, 400.0))
+def test_chernoff_bound_holds_for_chi2(k, x):
+    assert fit_check.chernoff_bound(x, np.ones(k)) >= stats.chi2.sf(x, k) * (1 - 1e-9)
+
+
+@settings(max_examples=15, deadline=None)
+@given(w=st.lists(st.floats(0.05, 3.0), min_size=2, max_size=12), q=st.floats(1.5, 60.0))
+def test_skipping_the_integral_changes_nothing(w, q):
+    """Where the bound sends a poor fit past the integral, the answer is what integrating gave."""
+    w = np.array(w)
+    x = q * w.sum()
+    fast = fit_check.weighted_chi2_sf(x, w)
+    bound = fit_check.chernoff_bound(x, w)
+    assert fast <= bound * (1 + 1e-9) + 1e-14
+    real = fit_check.chernoff_bound
+    try:
+        fit_check.chernoff_bound = lambda *a: 1.0  # force the integral
+        slow = fit_check.weighted_chi2_sf(x, w)
+    finally:
+        fit_check.chernoff_bound = real
+    assert fast == slow  # skipped (bound below the floor) or the same path
