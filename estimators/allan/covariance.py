@@ -111,24 +111,32 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
     if parts:
         shapes = [u for _, u in parts]
         grid_key = (dt, m.tobytes(), n_grid)
-        keys, missing = {}, []
+        keys, found, missing = {}, {}, []
         for i in range(len(shapes)):
             for j in range(i, len(shapes)):
                 key = (grid_key, shapes[i], shapes[j])
                 keys[(i, j)] = key
-                if key in _PAIRS:
-                    _PAIRS.move_to_end(key)
-                else:
+                P = _PAIRS.get(key)
+                if P is None:
                     missing.append((i, j))
-        new = _pair_integrals(shapes, missing, m, dt, n_grid) if missing else {}
-        for (i, j), key in keys.items():
-            P = new[(i, j)] if (i, j) in new else _PAIRS[key]
-            out += ((1.0 if i == j else 2.0) * parts[i][0] * parts[j][0]) * P
+                else:
+                    found[(i, j)] = P
+                    try:
+                        _PAIRS.move_to_end(key)
+                    except KeyError:  # dropped meanwhile by another thread: found[] holds it
+                        pass
+        found.update(_pair_integrals(shapes, missing, m, dt, n_grid) if missing else {})
+        new = {p: found[p] for p in missing}
+        for (i, j) in keys:
+            out += ((1.0 if i == j else 2.0) * parts[i][0] * parts[j][0]) * found[(i, j)]
         for p, P in new.items():
             if _shared(shapes[p[0]]) and _shared(shapes[p[1]]):
                 _PAIRS[keys[p]] = P
         while len(_PAIRS) > CACHE_SIZE:
-            _PAIRS.popitem(last=False)
+            try:
+                _PAIRS.popitem(last=False)
+            except KeyError:
+                break
     return out / (2.0 * np.sqrt(np.outer(M, M)))
 
 
