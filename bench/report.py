@@ -43,10 +43,11 @@ LIMITS = {
     "lines and the checks (blank lines, NaN) on the float columns.",
     "estimate": "The record (memory-mapped, float64, not copied), one cumulative sum of it per AV (n + 1 values) "
     "and the estimators' own work arrays, plus ~300 MB of libraries (numpy, scipy, pandas, numba, matplotlib).",
-    "study": "The 4 LS fits of each replicate, now ~4x what they were when the target was met (13.0 s): each runs "
-    "the poor-fit check added since (issue 12), whose model covariance of the octave AV "
-    "(avbench.estimators.allan.covariance.av_covariance: the Haar filter gains on a grid of 8 points per cycle of the longest cluster) "
-    "is ~75 ms of a ~110 ms fit, measured with cProfile; then fresh-process imports and the report's figures.",
+    "study": "The 4 LS fits of each replicate on lv2015's grid (taus='all', non-overlapping: the AV at every cluster "
+    "size and an lstsq of 72 000 x 3 rows, six in wls_edf), then fresh-process imports and the report's figures. The "
+    "poor-fit check's model covariance, ~75 ms of a ~110 ms fit before issue 25, is now ~1 ms (per-pair integrals "
+    "kept per grid and record length, avbench.estimators.allan.covariance). A run at load ~10 (other sessions on the "
+    "2 cores) measures the machine, not the code.",
     "fit_cost": "The fit check's model covariance is a weighted sum of per-pair integrals of the terms' spectral shapes, "
     "kept per grid and record length (avbench.estimators.allan.covariance), ~1 ms after a study's first record. What is "
     "left is the fits' own work: on their default grid (taus='all', the non-overlapping AV at every cluster size) the "
