@@ -62,8 +62,8 @@ def _unit(rec, sensor, given):
 def plausibility(x, unit, sensor, name="samples", from_format=False) -> str | None:
     """A sentence if the largest magnitude of ``x`` (in ``unit``) is outside what a real ``sensor`` records
     (:data:`PLAUSIBLE_SI`, converted to ``unit``), saying what was expected; else None. A general rule
-    per declared unit, not a list of cases: 1e297 rad/s and counts of an ADC read as deg/s are both
-    flagged; so are samples that are all zero."""
+    per declared unit, not a list of cases (1e297 rad/s, 1e-12 rad/s written as deg/s, a record of
+    zeros). A wrong unit within the range (deg/s read as rad/s) is not detectable this way."""
     peak = float(np.max(np.abs(x))) if x.size else 0.0
     lo_si, hi_si = PLAUSIBLE_SI[sensor]
     per_unit = float(samples_to_si(1.0, unit, sensor))  # SI value of 1 unit
