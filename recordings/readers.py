@@ -3,7 +3,9 @@
 Formats (chosen by the file name):
 
 * text ``.csv .txt .dat .tsv`` -- comma, semicolon, tab or blank separated, ``#`` comments, an
-  optional header row (a first row none of whose cells is a number). Parsed by pandas' C engine
+  optional header row (a first row none of whose cells is a number). The separator is the one under
+  which the first data lines split into equally many numeric cells and the header into as many names
+  (:func:`_dialect`): a header's own spaces do not make columns. Parsed by pandas' C engine
   straight to float64 (``bench/`` measures it against a bare ``pandas.read_csv``). A blank line
   between samples is an error (it is not silently dropped); so is a file that looks written with
   decimal commas (``0,0123``) under a comma separator; with ``;``/tab/blank separators decimal commas
