@@ -56,7 +56,7 @@ def test_cached_covariance_equals_the_direct_sum(q, n, b, k, tc, dt):
 
 def test_a_term_without_psd_factor_is_integrated_every_time():
     """SecondOrderGaussMarkov keeps the default factor (1, self): right, never shared by equality."""
-    assert not covariance._shared(SecondOrderGaussMarkov(R=1e-6, w0=0.05))
+    assert not covariance._factor(SecondOrderGaussMarkov(R=1e-6, w0=0.05))[2]
     g1 = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), SecondOrderGaussMarkov(R=1e-6, w0=0.05)])
     g2 = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), SecondOrderGaussMarkov(R=3e-6, w0=0.05)])
     for g in (g1, g2, g1):
@@ -77,6 +77,20 @@ def test_shapes_are_shared_across_coefficients_and_the_cache_is_bounded(monkeypa
     av_covariance(gyro_of(1e-6, 1e-3, 1e-4, 1e-6, None, 0.1), M, 10_000)
     av_covariance(gyro_of(3e-6, 2e-3, 5e-4, 4e-6, None, 0.1), M, 20_000)  # other coefficients and length
     assert len(calls) == 3
+
+
+class RedWhite(AngleRandomWalk):
+    """A user's subclass that changes the spectrum but not psd_factor: never shared, never mis-scaled."""
+
+    def psd(self, f, dt):
+        return super().psd(f, dt) * (1.0 + np.asarray(f, float) * dt)
+
+
+def test_a_subclass_changing_psd_is_not_taken_for_its_base():
+    assert not covariance._factor(RedWhite(N=1e-3))[2]
+    for n in (1e-3, 2e-3):
+        g = Gyro(dt=0.1, terms=[RedWhite(N=n), Quantization(Q=1e-6)])
+        assert close(av_covariance(g, M, 10_000), direct(g, M, 10_000))
 
 
 @pytest.mark.parametrize("terms", [[RateRamp(R=1e-6)], [RateRamp(R=1e-6), AngleRandomWalk(N=1e-3)]])

@@ -47,13 +47,19 @@ def _haar_gain(m, w, s):
     return g
 
 
-def _shared(shape) -> bool:
-    """Whether a shape's integrals may be kept: its class says how its spectrum scales
-    (``psd_factor``), so equal unit shapes (``==``, by their parameters) have equal spectra. A term
-    with the default factor is integrated on every call."""
-    from avbench.noise_models.terms import NoiseTerm
+def _factor(term):
+    """``(c, unit, shared)``: the term's amplitude and unit shape (``psd_factor``), and whether the
+    shape's integrals may be kept (equal unit shapes, by ``==`` on their parameters, have equal
+    spectra). Only when the class that says how the spectrum scales is the class that defines the
+    spectrum: a subclass that changes ``psd`` without ``psd_factor``, or a term with the default factor,
+    is integrated on every call, as it is."""
+    def owner(name):
+        return next(k for k in type(term).__mro__ if name in k.__dict__)
 
-    return type(shape).psd_factor is not NoiseTerm.psd_factor
+    if owner("psd_factor") is not owner("psd"):
+        return 1.0, term, False
+    c, unit = term.psd_factor()
+    return float(c), unit, True
 
 
 def _grid_size(m, grid_per_cycle, max_grid) -> int:
@@ -105,11 +111,10 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
     if not reuse:
         return _direct(gyro, m, n_grid) / (2.0 * np.sqrt(np.outer(M, M)))
     dt = float(gyro.dt)
-    factors = [t.psd_factor() for t in gyro.terms]
-    parts = [(float(c), unit) for c, unit in factors if c != 0.0]
+    parts = [f for f in map(_factor, gyro.terms) if f[0] != 0.0]
     out = np.zeros((m.size, m.size))
     if parts:
-        shapes = [u for _, u in parts]
+        shapes = [u for _, u, _ in parts]
         grid_key = (dt, m.tobytes(), n_grid)
         keys, found, missing = {}, {}, []
         for i in range(len(shapes)):
@@ -130,7 +135,7 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
         for (i, j) in keys:
             out += ((1.0 if i == j else 2.0) * parts[i][0] * parts[j][0]) * found[(i, j)]
         for p, P in new.items():
-            if _shared(shapes[p[0]]) and _shared(shapes[p[1]]):
+            if parts[p[0]][2] and parts[p[1]][2]:
                 _PAIRS[keys[p]] = P
         while len(_PAIRS) > CACHE_SIZE:
             try:
