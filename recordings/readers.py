@@ -236,19 +236,23 @@ def _fitting_dialects(lines):
     out = []
     for sep in _SEPARATORS:
         cells = [_split_cells(ln, sep) for ln in rows]
-        header = data_files.is_header_row(cells[0])
-        data = cells[1:] if header else cells
-        if not data:
-            continue
-        k = len(data[0])
-        if any(len(c) != k for c in data) or (header and len(cells[0]) != k):
-            continue
-        marks = (".",) if sep == "," else (".", ",")
-        for decimal in marks:
+        for decimal in ((".",) if sep == "," else (".", ",")):
+            header = _is_header(cells[0], decimal)
+            data = cells[1:] if header else cells
+            if not data:
+                continue
+            k = len(data[0])
+            if any(len(c) != k for c in data) or (header and len(cells[0]) != k):
+                continue
             if all(_is_number(c, decimal) for row in data for c in row):
                 out.append((sep, decimal, k))
                 break
     return out
+
+
+def _is_header(cells, decimal) -> bool:
+    """A header row: none of its cells is a number (with this decimal mark, or as ``nan``/``inf``)."""
+    return data_files.is_header_row(cells) and not (decimal == "," and any(_is_number(c, ",") for c in cells))
 
 
 def _dialect(path, lines):
@@ -294,7 +298,7 @@ def _read_text(path, gyro, accel, time_column, time_units):
     lead, lines = _first_lines(path)
     sep, decimal = _dialect(path, lines)
     cells = _split_cells(lines[0], sep)
-    header = data_files.is_header_row(cells)
+    header = _is_header(cells, decimal)
     names = [c.strip() for c in cells] if header else None
     try:
         df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=lead + int(header), comment="#",

@@ -1,8 +1,9 @@
 """Edges by rule (issue 25): the text-table sniffer and the magnitude check, tested by property.
 
-* Any numeric table written with any of the separators the reader accepts, with or without a header
-  whose names hold spaces, brackets and slashes, reads back as the same columns (values equal to the
-  text written), whatever the header's own characters.
+* Any numeric table written with any of the separators the reader accepts (decimal commas where
+  ``,`` is not the separator), with or without a header whose names hold spaces, brackets and
+  slashes, reads back as the same columns (values equal to the text written), whatever the
+  header's own characters.
 * A record of absurd magnitude for its declared unit gets a note that names the unit and the
   expected range; any plausible record gets none, in every unit.
 """
@@ -49,16 +50,21 @@ def tables(draw):
         chars = NAME_CHARS if sep != "blank" else NAME_CHARS.filter(lambda c: c != " ")
         names = draw(st.lists(st.text(chars, min_size=1, max_size=14).map(str.strip).filter(_name),
                               min_size=k, max_size=k, unique=True))
-    return sep, values, names
+    decimal = draw(st.sampled_from([".", ","])) if sep != "," else "."
+    return sep, values, names, decimal
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(table=tables())
 def test_any_table_reads_back_as_written(tmp_path_factory, table):
-    sep_name, values, names = table
+    sep_name, values, names, decimal = table
+    # one unnamed column of decimal-comma numbers ("0,5") is a comma table of integers: ambiguous by
+    # nature (read as two columns, as any sniffer would); with a header or more columns it is not
+    assume(not (decimal == "," and values.shape[1] == 1 and names is None))
     sep = SEPARATORS[sep_name]
     path = tmp_path_factory.mktemp("t") / "rec.csv"
-    lines = ([sep.join(names)] if names else []) + [sep.join(repr(float(v)) for v in row) for row in values]
+    cell = (lambda v: repr(float(v)).replace(".", decimal))
+    lines = ([sep.join(names)] if names else []) + [sep.join(cell(v) for v in row) for row in values]
     path.write_text("\n".join(lines) + "\n")
     cols = names if names else [str(i) for i in range(values.shape[1])]
     rec = read_recording(path, gyro=",".join(cols) if values.shape[1] > 1 or names else None, time_column="none")
