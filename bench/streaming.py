@@ -6,7 +6,9 @@ warms the compiled kernels up on a short record, notes its RSS, then streams ``n
 and reports
 
 * ``peak_rss_mb`` -- the process's peak resident set (VmHWM of /proc/self/status, else
-  ``resource.getrusage``), imports included;
+  ``resource.getrusage``) up to the end of the stream, imports included;
+* ``peak_rss_with_readout_mb`` -- the same after reading ``coefficients_`` (a pandas Series: the
+  stream itself does not import pandas, ``pandas_imported_by_stream`` says so);
 * ``rss_after_imports_mb`` -- the peak before the stream started (libraries + warm-up);
 * ``traced_peak_mb`` -- the peak of memory allocated during the stream (``tracemalloc``, which
   sees NumPy's buffers): this is the part that would grow with n if anything kept the record;
@@ -59,7 +61,7 @@ def stream_record(n_samples: int, chunk_size: int = 1 << 18, dt: float = 1e-3, t
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
     g = streaming_gyro(dt, tau_max)
-    x0 = {c: float(g.coefficients[c]) for c in "NBK"}
+    x0 = {c: v for t in g.terms for c, v in t.coefficients().items()}  # (Gyro.coefficients is a pandas Series)
 
     def run(n):
         acc = StreamingAllan(dt)
@@ -81,6 +83,9 @@ def stream_record(n_samples: int, chunk_size: int = 1 << 18, dt: float = 1e-3, t
     tracemalloc.stop()
     av = acc.result()
     status = _proc_status()
+    stream_peak = rss_mb()
+    pandas_in_stream = "pandas" in sys.modules
+    shakf_n = float(kf.coefficients_["N"])  # the contract's pandas Series: pandas is imported here
     return {
         "n_samples": int(n_samples),
         "chunk_size": int(chunk_size),
@@ -88,13 +93,15 @@ def stream_record(n_samples: int, chunk_size: int = 1 << 18, dt: float = 1e-3, t
         "tau_max_s": tau_max,
         "seconds": secs,
         "samples_per_s": n_samples / secs,
-        "peak_rss_mb": rss_mb(),
+        "peak_rss_mb": stream_peak,
+        "peak_rss_with_readout_mb": rss_mb(),
+        "pandas_imported_by_stream": pandas_in_stream,
         "rss_after_imports_mb": base,
         "traced_peak_mb": traced_peak / 2**20,
         "rss_anon_end_mb": status.get("RssAnon", float("nan")),
         "rss_file_end_mb": status.get("RssFile", float("nan")),
         "n_taus": int(len(av)),
-        "shakf_N": float(kf.coefficients_["N"]),
+        "shakf_N": shakf_n,
         "true_N": x0["N"],
     }
 

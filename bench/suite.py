@@ -12,6 +12,8 @@ Every speed claim is a ratio against a baseline timed in the same loop:
 * ``AllanEngine`` -- non-overlapping octave AV and :class:`StreamingAllan` (scaling only).
 * ``EstimatorScaling`` -- every estimator's ``fit`` against n (linear cost), an ADIS16405-like
   100 Hz record (N, B, K), octave grids; larger n are skipped once a fit takes > ``budget_s``.
+* ``FitCost`` -- each curve fit with its poor-fit check, and GMWM, on lv2015's 4 h, 10 Hz record
+  against the octave AV of that record (the fit check's cost, issue 25).
 * ``OnlineKernels`` -- SHAKF / NEKF / ARMA-EM kernels against their plain-NumPy per-sample
   references (:mod:`avbench.bench.online_filters`, :mod:`avbench.bench.arma_em`).
 * ``StreamingMemory`` -- peak memory of Gyro.stream + StreamingAllan + SHAKF partial_fit, in a child
@@ -67,6 +69,7 @@ __all__ = [
     "FirstCall",
     "ReadRecording",
     "EstimateMemory",
+    "FitCost",
     "ALL",
 ]
 
@@ -401,6 +404,46 @@ def replicate_profile(study: str = "lv2015") -> dict:
         fits.append(time.perf_counter() - t1)
     return {"imports_s": imp, "config_s": t_cfg, "replicate_simulate_s": float(np.median(sims[1:])),
             "replicate_fits_s": float(np.median(fits[1:])), "replicates": cfg.replicates * len(cfg.gyros)}
+
+
+class FitCost:
+    """Curve fits with their poor-fit check, and GMWM, on a 4 h, 10 Hz record (lv2015's SRS2000,
+    144 000 samples) against the octave overlapping AV of that record (ratio = AV / fit; the target
+    is fit <= 20x the AV, i.e. ratio >= 0.05, for the least-squares family, and gmwm <= 0.3 s).
+    ``ls@octave`` rows use the overlapping octave grid (17 points); the others their defaults. The
+    fit check's model covariance is computed once per grid and record length (kept between fits, as
+    in a study's worker): the first fit of a setup is not timed."""
+
+    params = [["ols", "wls", "wls_edf", "ols@octave", "wls@octave", "wls_edf@octave", "nnls_rel", "log_fit",
+               "slope_lines", "gmwm"]]
+    quick_params = [["wls@octave", "nnls_rel"]]
+    param_names = ["estimator"]
+    repeats = 5
+    quick_repeats = 1
+    baselines = {"time_fit": ("baseline_octave_av", "overlapping octave AV of the record")}
+
+    def setup(self, estimator):
+        from avbench import estimators
+        from avbench.noise_models import presets
+
+        g = presets.get("SRS2000")
+        self.rate, self.dt = g.simulate(144_000, np.random.default_rng(25)), g.dt
+        name, _, grid = estimator.partition("@")
+        settings = {"taus": "octave", "overlapping": True} if grid == "octave" else {}
+        self.est = estimators.get(name, **settings)
+        _quiet_fit(self.est, self.rate, self.dt)  # kernels, the check's per-shape integrals
+        self.baseline_octave_av(estimator)
+
+    def time_fit(self, estimator):
+        _quiet_fit(self.est, self.rate, self.dt)
+
+    def baseline_octave_av(self, estimator):
+        from avbench.estimators.allan.variance import allan_variance
+
+        allan_variance(self.rate, self.dt, taus="octave", overlapping=True)
+
+    def teardown(self, estimator):
+        self.rate = None
 
 
 def _adis_record(n, seed=6):
@@ -759,15 +802,15 @@ class EstimateMemory:
         return estimate_peak(n)
 
 
-ALL = [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, OnlineKernels, OnlineDefaults,
-       MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy,
+ALL = [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, FitCost, OnlineKernels,
+       OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy,
        StartUp, FirstCall]
 
 
 def classes(quick: bool) -> list:
     """The benchmark classes of a run (``quick``: the CI subset on tiny sizes)."""
     if quick:
-        return [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, QuickOnlineKernels,
+        return [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, FitCost, QuickOnlineKernels,
                 OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording,
                 EstimateMemory, QuickStartUp, FirstCall]
     return ALL

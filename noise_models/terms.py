@@ -126,6 +126,15 @@ class NoiseTerm:
     def psd(self, f, dt) -> np.ndarray:
         raise NotImplementedError
 
+    def psd_factor(self) -> tuple[float, "NoiseTerm"]:
+        """``(c, unit)`` with ``self.psd(f, dt) == c * unit.psd(f, dt)`` for every f and dt: the
+        spectrum's amplitude and a term of the same spectral shape (``c = 0``: no random part). Spectral
+        integrals that are quadratic in the spectrum (the AV covariance,
+        :mod:`avbench.estimators.allan.covariance`) are then computed once per shape and weighted.
+        Default ``(1.0, self)`` (always right; a term whose spectrum scales with a coefficient
+        overrides it so that fits with different coefficients share the integrals)."""
+        return 1.0, self
+
     def stream(self, dt, rng: np.random.Generator) -> TermStream:
         raise NotImplementedError
 
@@ -189,6 +198,9 @@ class AngleRandomWalk(NoiseTerm):
     def __init__(self, N):
         self.N = as_si("N", N)
 
+    def psd_factor(self):
+        return self.N**2, AngleRandomWalk(N=1.0)
+
     def _params(self):
         return {"N": self.N}
 
@@ -236,6 +248,9 @@ class Quantization(NoiseTerm):
 
     def __init__(self, Q):
         self.Q = as_si("Q", Q)
+
+    def psd_factor(self):
+        return self.Q**2, Quantization(Q=1.0)
 
     def _params(self):
         return {"Q": self.Q}
@@ -285,6 +300,9 @@ class RateRandomWalk(NoiseTerm):
     def __init__(self, K):
         self.K = as_si("K", K)
 
+    def psd_factor(self):
+        return self.K**2, RateRandomWalk(K=1.0)
+
     def _params(self):
         return {"K": self.K}
 
@@ -329,6 +347,9 @@ class RateRamp(NoiseTerm):
 
     def __init__(self, R):
         self.R = as_si("R", R)
+
+    def psd_factor(self):
+        return 0.0, self  # deterministic: no spectrum
 
     def _params(self):
         return {"R": self.R}
@@ -454,6 +475,9 @@ class GaussMarkov(NoiseTerm):
     def from_bias_instability(cls, B, tau_peak) -> "GaussMarkov":
         """The GM whose AV peak equals the plateau (2 ln2/pi) B^2 at ``tau_peak`` seconds."""
         return cls(sigma=as_si("B", B) / B_EQUIV_OVER_SIGMA, tc=_positive("tau_peak", tau_peak) / GM_PEAK_TAU_OVER_TC)
+
+    def psd_factor(self):
+        return self.sigma**2, GaussMarkov(sigma=1.0, tc=self.tc)
 
     def _params(self):
         return {"sigma": self.sigma, "tc": self.tc}
@@ -617,6 +641,9 @@ class BiasInstability(NoiseTerm):
     def __init__(self, B, tau_max: float = 3600.0):
         self.B = as_si("B", B)
         self.tau_max = _positive("tau_max", tau_max)
+
+    def psd_factor(self):
+        return self.B**2, BiasInstability(B=1.0, tau_max=self.tau_max)
 
     def _params(self):
         return {"B": self.B, "tau_max": self.tau_max}

@@ -3,7 +3,9 @@
 Formats (chosen by the file name):
 
 * text ``.csv .txt .dat .tsv`` -- comma, semicolon, tab or blank separated, ``#`` comments, an
-  optional header row (a first row none of whose cells is a number). Parsed by pandas' C engine
+  optional header row (a first row none of whose cells is a number). The separator is the one under
+  which the first data lines split into equally many numeric cells and the header into as many names
+  (:func:`_dialect`): a header's own spaces do not make columns. Parsed by pandas' C engine
   straight to float64 (``bench/`` measures it against a bare ``pandas.read_csv``). A blank line
   between samples is an error (it is not silently dropped); so is a file that looks written with
   decimal commas (``0,0123``) under a comma separator; with ``;``/tab/blank separators decimal commas
@@ -204,22 +206,90 @@ _LEADING_ZERO_INT = re.compile(r"^[+-]?0\d+$")
 _INT = re.compile(r"^[+-]?\d+$")
 
 
+#: candidate separators, in the order of preference among those that fit (see :func:`_dialect`)
+_SEPARATORS = (";", "\t", ",", r"\s+")
+
+
+def _split_cells(line, sep):
+    return re.split(sep, line.strip()) if sep == r"\s+" else line.split(sep)
+
+
+def _is_number(cell, decimal) -> bool:
+    s = cell.strip()
+    if decimal == ",":
+        if "." in s:
+            return False
+        s = s.replace(",", ".")
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+def _fitting_dialects(lines):
+    """Every (separator, decimal mark, number of columns) under which the first lines are a table:
+    each data line splits into the same number k of numeric cells and a header row (a first row none of
+    whose cells is a number) into k names. The header's own structure decides with the data: a
+    one-column file whose header holds a space (``gyro x [deg/s]``) is one column, not two."""
+    rows = [ln for ln in lines if ln and not ln.startswith("#")]
+    out = []
+    for sep in _SEPARATORS:
+        cells = [_split_cells(ln, sep) for ln in rows]
+        for decimal in ((".",) if sep == "," else (".", ",")):
+            header = _is_header(cells[0], decimal)
+            data = cells[1:] if header else cells
+            if not data:
+                continue
+            k = len(data[0])
+            if any(len(c) != k for c in data) or (header and len(cells[0]) != k):
+                continue
+            if all(_is_number(c, decimal) for row in data for c in row):
+                out.append((sep, decimal, k))
+                break
+    return out
+
+
+def _is_header(cells, decimal) -> bool:
+    """A header row: none of its cells is a number (with this decimal mark, or as ``nan``/``inf``)."""
+    return data_files.is_header_row(cells) and not (decimal == "," and any(_is_number(c, ",") for c in cells))
+
+
 def _dialect(path, lines):
-    """(separator, decimal mark) of a text table from its first data lines."""
+    """(separator, decimal mark) of a text table from its first data lines.
+
+    The rule: the separators under which the first lines form a table (:func:`_fitting_dialects`),
+    the most columns first, then ``;``, tab, ``,``, blanks; a decimal comma only where ``,`` is not
+    the separator. A file that fits none (an empty field, a text cell) gets the reading of its first
+    line, so that pandas' error or the checks after it name the faulty line.
+    """
+    fits = _fitting_dialects(lines)
+    if fits:
+        k_max = max(k for _, _, k in fits)
+        sep, decimal, _ = next(f for f in fits if f[2] == k_max)
+        if sep == ",":
+            _decimal_comma_check(path, lines)
+        return sep, decimal
     first = lines[0]
     for sep in (";", "\t"):
         if sep in first:
             return sep, ("," if any("," in c for ln in lines[1:] or lines for c in ln.split(sep)) else ".")
     if "," in first:
-        data = [ln for ln in lines if ln and not ln.startswith("#")]
-        cells = [c.strip() for ln in data[1:] or data for c in ln.split(",")]
-        if cells and all(_INT.match(c) for c in cells) and any(_LEADING_ZERO_INT.match(c) for c in cells):
-            raise ValueError(f"{path}: looks written with decimal commas ({data[-1]!r}); expected '.' as the decimal "
-                             "mark with ',' separators (or ';'/tab separated columns with decimal commas)")
+        _decimal_comma_check(path, lines)
         return ",", "."
     if any("," in c for ln in lines[1:] or lines for c in ln.split()):
         return r"\s+", ","
     return r"\s+", "."
+
+
+def _decimal_comma_check(path, lines):
+    """Refuse a comma-separated table that looks written with decimal commas (every cell an integer,
+    some with a leading zero: ``0,0123``)."""
+    data = [ln for ln in lines if ln and not ln.startswith("#")]
+    cells = [c.strip() for ln in data[1:] or data for c in ln.split(",")]
+    if cells and all(_INT.match(c) for c in cells) and any(_LEADING_ZERO_INT.match(c) for c in cells):
+        raise ValueError(f"{path}: looks written with decimal commas ({data[-1]!r}); expected '.' as the decimal "
+                         "mark with ',' separators (or ';'/tab separated columns with decimal commas)")
 
 
 def _read_text(path, gyro, accel, time_column, time_units):
@@ -227,8 +297,8 @@ def _read_text(path, gyro, accel, time_column, time_units):
 
     lead, lines = _first_lines(path)
     sep, decimal = _dialect(path, lines)
-    cells = re.split(sep, lines[0]) if sep == r"\s+" else lines[0].split(sep)
-    header = data_files.is_header_row(cells)
+    cells = _split_cells(lines[0], sep)
+    header = _is_header(cells, decimal)
     names = [c.strip() for c in cells] if header else None
     try:
         df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=lead + int(header), comment="#",

@@ -119,7 +119,7 @@ import numpy as np
 from avbench.noise_models.gyro import Gyro
 
 __all__ = ["ALPHA", "MIN_CLUSTERS", "assess_fit", "assess_five_term", "fit_statistic",
-           "union_covariance", "refit_weights", "weighted_chi2_sf", "bootstrap_fit_check"]
+           "union_covariance", "refit_weights", "weighted_chi2_sf", "chernoff_bound", "bootstrap_fit_check"]
 
 #: significance level of the poor-fit flag
 ALPHA = 0.01
@@ -178,6 +178,11 @@ def weighted_chi2_sf(x, weights) -> float:
         return 0.0
     if x <= 0:
         return 1.0
+    if chernoff_bound(x, w) < 0.1 * IMHOF_FLOOR:
+        # the tail is surely below the floor, where the integral's value is not used: a poor fit does not
+        # pay for it (same result as integrating, then taking the two-moment tail)
+        a, nu = float(np.sum(w**2) / np.sum(w)), float(np.sum(w) ** 2 / np.sum(w**2))
+        return float(min(IMHOF_FLOOR, float(stats.chi2.sf(x / a, nu))))
 
     def phi(u):
         return 0.5 * float(np.sum(np.arctan(w * u)))
@@ -202,6 +207,29 @@ def weighted_chi2_sf(x, weights) -> float:
         a, nu = float(np.sum(w**2) / np.sum(w)), float(np.sum(w) ** 2 / np.sum(w**2))
         p = min(IMHOF_FLOOR, float(stats.chi2.sf(x / a, nu)))
     return float(min(max(p, 0.0), 1.0))
+
+
+def chernoff_bound(x, weights) -> float:
+    r"""Chernoff's upper bound on P(sum_i w_i Z_i^2 > x) (independent standard normal Z_i, w_i > 0):
+
+    .. math:: P \le \min_{0 < s < 1/(2 w_{max})} e^{-s x} \prod_i (1 - 2 s w_i)^{-1/2},
+
+    the moment generating function of the weighted chi^2 at its minimising s, found by bisection on
+    the increasing derivative :math:`-x + \sum_i w_i/(1 - 2 s w_i)`. 1 when x <= sum w (the mean)."""
+    w = np.asarray(weights, dtype=float)
+    if not x > float(w.sum()):
+        return 1.0
+    lo, hi = 0.0, 0.5 / float(w.max())
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if float(np.sum(w / (1.0 - 2.0 * mid * w))) > x:
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo <= 1e-15 * hi:
+            break
+    s = lo
+    return float(math.exp(min(0.0, -s * x - 0.5 * float(np.sum(np.log1p(-2.0 * s * w))))))
 
 
 def union_covariance(m_fit, m_check, cov_gyro, n_samples, cov_scale=1.0):

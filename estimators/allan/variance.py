@@ -23,7 +23,6 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
 from avbench.estimators.allan import _kernels
 from avbench.estimators.validation import check_record, check_taus
@@ -96,6 +95,8 @@ class AllanResult:
         return 2 * self.avar**2 / self.edf
 
     def to_frame(self) -> pd.DataFrame:
+        import pandas as pd
+
         return pd.DataFrame(
             {
                 "tau": self.tau,

@@ -338,7 +338,7 @@ class GMWM(Estimator):
                 best = sol
         steps = [best]
         if self.weighting == "model":
-            omega = av_covariance(build_gyro(latents, np.exp(best.x), dt, tau_fl), m, n) * cov_scale
+            omega = av_covariance(build_gyro(latents, np.exp(best.x), dt, tau_fl), m, n, reuse=False) * cov_scale
             Lc = np.tril(cho_factor(omega, lower=True)[0])
 
             def resid2(u):

@@ -49,7 +49,6 @@ import math
 import warnings
 
 import numpy as np
-import pandas as pd
 
 from avbench.estimators.online._kernels import FAILURES
 from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER, design_matrix
@@ -127,11 +126,35 @@ def _positive(name, value, *, integer=False, allow_zero=False):
     return int(value) if integer else float(value)
 
 
+def _published(name: str) -> property:
+    """A result attribute of an online filter, built from the filter's state when first read after
+    a ``partial_fit`` (its pandas Series and diagnostics are not rebuilt for every chunk: a stream
+    that never reads them between chunks does not even import pandas)."""
+
+    def get(self):
+        if self.__dict__.get("_stale"):
+            self._stale = False
+            self._publish()
+        try:
+            return self.__dict__["_published_" + name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def set(self, value):
+        self.__dict__["_published_" + name] = value
+
+    return property(get, set, doc=f"``{name}`` (see :class:`avbench.estimators.base.Estimator`)")
+
+
 class OnlineAVFilter(Estimator):
     """Base of the online filters: subclasses set ``_multitau`` and implement the kernel hooks."""
 
     online = True
     _multitau = False
+    coefficients_ = _published("coefficients_")
+    nonphysical_ = _published("nonphysical_")
+    std_err_ = _published("std_err_")
+    diagnostics_ = _published("diagnostics_")
 
     # -- hooks for subclasses ------------------------------------------------------------------
     def _filter_settings(self, nq: int) -> dict:  # pragma: no cover - abstract
@@ -292,6 +315,7 @@ class OnlineAVFilter(Estimator):
                 return self
             self._start(initial_guess(head, self._dt, self._cfg["terms"]))
             self._process(data)
+        self._stale = False
         self._publish()
         return self
 
@@ -315,7 +339,8 @@ class OnlineAVFilter(Estimator):
         elif dt != self._dt:
             raise ValueError(f"dt: expected the dt of the earlier chunks, {self._dt!r}, got {dt!r}")
         self._feed(arr)
-        self._publish()
+        self._stale = True  # results are built when read (_published)
+        self._warn_if_diverged(stacklevel=3)
         return self
 
     def current_coefficients(self) -> pd.Series:
@@ -336,6 +361,8 @@ class OnlineAVFilter(Estimator):
         return coefficient_series(vals), ""
 
     def _trajectory(self) -> pd.DataFrame:
+        import pandas as pd
+
         terms = list(self._cfg["terms"])
         if not self._traj:
             return pd.DataFrame(columns=terms, index=pd.Index([], name="sample", dtype=np.int64))
@@ -359,9 +386,17 @@ class OnlineAVFilter(Estimator):
                 diag["last_good"] = coefficient_series(dict(zip(self._cfg["terms"], last)))
             diag.update(self._filter_diagnostics())
         self._set_results(coefs.to_dict(), None, diag)
-        if failure and not getattr(self, "_warned", False):
+        self._warn_if_diverged(stacklevel=5)
+
+    def _warn_if_diverged(self, stacklevel=4) -> None:
+        """One DivergenceWarning, at the chunk where the kernel reported a failure."""
+        if not getattr(self, "_started", False) or getattr(self, "_warned", False):
+            return
+        code = int(self._istate[2])
+        if code:
             self._warned = True
-            warnings.warn(f"{self.name}: diverged at {failure}", DivergenceWarning, stacklevel=4)
+            failure = f"sample {int(self._istate[3])}: {FAILURES[code]}"
+            warnings.warn(f"{self.name}: diverged at {failure}", DivergenceWarning, stacklevel=stacklevel)
 
     def _fit(self, rate, dt):
         self._streaming = False

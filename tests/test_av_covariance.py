@@ -1,0 +1,129 @@
+"""The AV covariance's per-pair cache (avbench.estimators.allan.covariance): the weighted sum of kept
+per-shape integrals equals the direct midpoint sum of the squared total spectrum to round-off, for
+every term kind, on first and later calls, and for coefficients the cache has not seen."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from avbench.estimators.allan import covariance
+from avbench.estimators.allan.covariance import av_covariance
+from avbench.noise_models import (AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp,
+                                  RateRandomWalk, SecondOrderGaussMarkov)
+
+
+def direct(gyro, m, n_samples, grid_per_cycle=8, max_grid=1 << 21):
+    """The covariance as computed before the cache: one midpoint sum of |H_j|^2 |H_k|^2 S^2."""
+    m = np.asarray(m, dtype=float)
+    n_grid = int(min(max(grid_per_cycle * m.max(), 4096), max_grid))
+    w = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
+    S = gyro.psd(w / (2 * np.pi * gyro.dt)) / (2 * gyro.dt)
+    G = 4.0 * np.sin(0.5 * m[:, None] * w[None, :]) ** 4 / (m[:, None] ** 2 * np.sin(w / 2)[None, :] ** 2)
+    out = (G * S**2) @ G.T / n_grid
+    M = n_samples - 2 * m + 1
+    return out / (2.0 * np.sqrt(np.outer(M, M)))
+
+
+def close(a, b, rtol=1e-11):
+    """Equal to round-off relative to each entry's scale sqrt(b_ii b_jj)."""
+    d = np.sqrt(np.outer(np.diag(b), np.diag(b)))
+    return np.all(np.abs(a - b) <= rtol * d)
+
+
+def gyro_of(q, n, b, k, tc, dt):
+    terms = [Quantization(Q=q), AngleRandomWalk(N=n), BiasInstability(B=b, tau_max=3000 * dt), RateRandomWalk(K=k),
+             RateRamp(R=1e-7)]
+    if tc is not None:
+        terms[2] = GaussMarkov(sigma=b, tc=tc)
+    return Gyro(dt=dt, terms=terms)
+
+
+M = 2 ** np.arange(0, 10)
+
+
+@settings(max_examples=15, deadline=None)
+@given(q=st.floats(1e-7, 1e-4), n=st.floats(1e-5, 1e-2), b=st.floats(1e-6, 1e-3), k=st.floats(1e-7, 1e-4),
+       tc=st.one_of(st.none(), st.floats(0.05, 500.0)), dt=st.sampled_from([0.01, 0.1]))
+def test_cached_covariance_equals_the_direct_sum(q, n, b, k, tc, dt):
+    g = gyro_of(q, n, b, k, tc, dt)
+    first = av_covariance(g, M, 20_000)
+    again = av_covariance(g, M, 20_000)  # every pair from the cache
+    ref = direct(g, M, 20_000)
+    assert close(first, ref) and close(again, ref)
+    assert close(av_covariance(g, M, 20_000, reuse=False), ref)
+
+
+def test_a_term_without_psd_factor_is_integrated_every_time():
+    """SecondOrderGaussMarkov keeps the default factor (1, self): right, never shared by equality."""
+    assert not covariance._factor(SecondOrderGaussMarkov(R=1e-6, w0=0.05))[2]
+    g1 = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), SecondOrderGaussMarkov(R=1e-6, w0=0.05)])
+    g2 = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), SecondOrderGaussMarkov(R=3e-6, w0=0.05)])
+    for g in (g1, g2, g1):
+        assert close(av_covariance(g, M, 50_000), direct(g, M, 50_000))
+
+
+def test_shapes_are_shared_across_coefficients_and_the_cache_is_bounded(monkeypatch):
+    monkeypatch.setattr(covariance, "CACHE_SIZE", 6)
+    covariance._PAIRS.clear()
+    calls = []
+    real = covariance._pair_integrals
+    monkeypatch.setattr(covariance, "_pair_integrals", lambda *a: calls.append(list(a[1])) or real(*a))
+    for g in (gyro_of(1e-6, 1e-3, 1e-4, 1e-6, None, 0.1), gyro_of(3e-6, 2e-3, 5e-4, 4e-6, None, 0.1)):
+        assert close(av_covariance(g, M, 10_000), direct(g, M, 10_000))
+        assert len(covariance._PAIRS) <= 6
+    assert len(calls[0]) == 10 and len(calls[1]) == 4  # 4 random shapes: 10 pairs, 6 of them kept
+    monkeypatch.setattr(covariance, "CACHE_SIZE", 512)
+    av_covariance(gyro_of(1e-6, 1e-3, 1e-4, 1e-6, None, 0.1), M, 10_000)
+    av_covariance(gyro_of(3e-6, 2e-3, 5e-4, 4e-6, None, 0.1), M, 20_000)  # other coefficients and length
+    assert len(calls) == 3
+
+
+class RedWhite(AngleRandomWalk):
+    """A user's subclass that changes the spectrum but not psd_factor: never shared, never mis-scaled."""
+
+    def psd(self, f, dt):
+        return super().psd(f, dt) * (1.0 + np.asarray(f, float) * dt)
+
+
+def test_a_subclass_changing_psd_is_not_taken_for_its_base():
+    assert not covariance._factor(RedWhite(N=1e-3))[2]
+    for n in (1e-3, 2e-3):
+        g = Gyro(dt=0.1, terms=[RedWhite(N=n), Quantization(Q=1e-6)])
+        assert close(av_covariance(g, M, 10_000), direct(g, M, 10_000))
+
+
+@pytest.mark.parametrize("terms", [[RateRamp(R=1e-6)], [RateRamp(R=1e-6), AngleRandomWalk(N=1e-3)]])
+def test_deterministic_terms_add_nothing(terms):
+    g = Gyro(dt=0.1, terms=terms)
+    np.testing.assert_allclose(av_covariance(g, M, 10_000), direct(g, M, 10_000), rtol=1e-11, atol=0)
+
+
+# -- the fit check's tail: a poor fit does not pay for Imhof's integral --------------------------------
+from scipy import stats  # noqa: E402
+
+from avbench.estimators.allan import fit_check  # noqa: E402
+
+
+@settings(max_examples=40, deadline=None)
+@given(k=st.integers(1, 20), x=st.floats(0.1, 400.0))
+def test_chernoff_bound_holds_for_chi2(k, x):
+    assert fit_check.chernoff_bound(x, np.ones(k)) >= stats.chi2.sf(x, k) * (1 - 1e-9)
+
+
+@settings(max_examples=15, deadline=None)
+@given(w=st.lists(st.floats(0.05, 3.0), min_size=2, max_size=12), q=st.floats(1.5, 60.0))
+def test_skipping_the_integral_changes_nothing(w, q):
+    """Where the bound sends a poor fit past the integral, the answer is what integrating gave."""
+    w = np.array(w)
+    x = q * w.sum()
+    fast = fit_check.weighted_chi2_sf(x, w)
+    bound = fit_check.chernoff_bound(x, w)
+    assert fast <= bound * (1 + 1e-9) + 1e-14
+    real = fit_check.chernoff_bound
+    try:
+        fit_check.chernoff_bound = lambda *a: 1.0  # force the integral
+        slow = fit_check.weighted_chi2_sf(x, w)
+    finally:
+        fit_check.chernoff_bound = real
+    assert fast == slow  # skipped (bound below the floor) or the same path
