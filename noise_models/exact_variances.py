@@ -20,7 +20,10 @@ f(k) + f(l) + k g(l) + l g(k), which the two conditions on c cancel. Each noise 
 * quantization (x is white angle noise of std Q, shifted): G(d) = Q^2 [d = 0];
 * rate random walk (w_k = w_{k-1} + K sqrt(dt) n_k): Cov(x_k, x_l) = K^2 dt^3 [min^2-polynomial],
   which reduces to G(d) = K^2 dt^3 (|d|^3 - |d|) / 12;
-* rate ramp (deterministic, x_k = R dt^2 k^2 / 2 + linear): (c.x)^2 reduces to G(d) = R^2 dt^4 d^4 / 24.
+* rate ramp (deterministic): no covariance (G = 0) but a mean phase ``phase_mean(k, dt)`` =
+  R dt^2 k (k - 1) / 2, which adds (sum_a c_a E x_{p_a})^2 to E[q^2]. (Its square could be written
+  as G(d) = R^2 dt^4 d^4 / 24, but the sum of those quartic terms cancels to zero for the Hadamard
+  filter only at rounding level; the mean's sum on positions shifted to start at 0 is exact.)
 
 Checks (tests/test_deviations.py): with c = (1, -2, 1) at (0, m, 2m) the formula gives back every
 term's exact discrete Allan variance (``NoiseTerm.avar``), e.g. RRW: (8m^3 + 4m) K^2 dt^3 / 12 /
@@ -38,6 +41,7 @@ import numpy as np
 __all__ = [
     "gcov_from_autocovariance",
     "phase_gcov",
+    "phase_mean",
     "filter_expectation",
     "oavar",
     "ohvar",
@@ -84,6 +88,17 @@ def phase_gcov(terms, lags, dt) -> np.ndarray:
     return out
 
 
+def phase_mean(terms, k, dt) -> np.ndarray:
+    """Mean phase of a sum of terms at integer indices ``k`` (only deterministic terms have one)."""
+    terms = getattr(terms, "terms", terms)
+    out = np.zeros(np.shape(k))
+    for t in terms:
+        f = getattr(t, "phase_mean", None)
+        if f is not None:
+            out = out + f(k, dt)
+    return out
+
+
 def filter_expectation(terms, pos, coef, dt) -> np.ndarray:
     """E[(sum_a coef_a x_{pos_a})^2] for filters in the last axis of ``pos``/``coef`` (broadcast)."""
     pos = np.asarray(pos, dtype=np.int64)
@@ -92,7 +107,9 @@ def filter_expectation(terms, pos, coef, dt) -> np.ndarray:
     lag = np.abs(pos[..., :, None] - pos[..., None, :])
     uniq, inv = np.unique(lag, return_inverse=True)
     G = phase_gcov(terms, uniq, dt)[inv.reshape(lag.shape)]
-    return np.einsum("...a,...b,...ab->...", coef, coef, G)
+    shifted = pos - pos.min(axis=-1, keepdims=True)  # the filters cancel constant and linear phase
+    mean = np.sum(coef * phase_mean(terms, shifted, dt), axis=-1)
+    return np.einsum("...a,...b,...ab->...", coef, coef, G) + mean**2
 
 
 def _m(m) -> np.ndarray:
@@ -135,7 +152,11 @@ def mvar(terms, m, dt) -> np.ndarray:
     for mi in _m(m):
         A = mvar_filter_acf(int(mi))
         G = phase_gcov(terms, np.arange(A.size), dt)
-        E = A[0] * G[0] + 2 * np.dot(A[1:], G[1:])
+        c = np.zeros(3 * mi + 1)  # the phase filter box(m) * (1, -2, 1 at 0, m, 2m)
+        for s, a in ((0, 1.0), (mi, -2.0), (2 * mi, 1.0)):
+            c[s : s + mi] += a
+        mean = np.dot(c, phase_mean(terms, np.arange(c.size), dt))
+        E = A[0] * G[0] + 2 * np.dot(A[1:], G[1:]) + mean**2
         out.append(E / (2.0 * mi**2 * (mi * dt) ** 2))
     return np.array(out)
 

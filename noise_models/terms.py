@@ -369,8 +369,12 @@ class RateRamp(NoiseTerm):
         return _RampStream(_check_dt(dt), rng, self.R)
 
     def phase_gcov(self, lags, dt):
-        d = np.asarray(lags, dtype=float)
-        return self.R**2 * _check_dt(dt) ** 4 * d**4 / 24
+        return np.zeros(np.shape(lags))  # deterministic: no covariance, only a mean (phase_mean)
+
+    def phase_mean(self, k, dt):
+        """Phase (angle) x_k = dt sum_{j<k} R j dt = R dt^2 k (k - 1) / 2 (rad)."""
+        k = np.asarray(k, dtype=float)
+        return self.R * _check_dt(dt) ** 2 * k * (k - 1) / 2
 
 
 # --- first-order Gauss-Markov ----------------------------------------------------------------

@@ -41,6 +41,8 @@ Intervals: chi^2 with that edf, like the AV engine.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from avbench.estimators.allan import _deviation_kernels as _k
@@ -139,6 +141,7 @@ def _canonical_gcov(noise: str, d):
     raise ValueError(f"noise: expected white_pm, white_fm, flicker_fm or rw_fm, got {noise!r}")
 
 
+@functools.lru_cache(maxsize=4096)
 def edf_quadratic(kind: str, m: int, K: int, noise: str) -> float:
     """EDF 2 E[V]^2 / Var V of a stationary average of K squared phase filters (module docstring).
 
