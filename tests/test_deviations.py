@@ -30,7 +30,7 @@ def nbs_1000():
     return np.array(n, dtype=float) / 2147483647
 
 
-DATA = {"random": np.random.default_rng(7).standard_normal(2500), "nbs1000": nbs_1000()}
+DATA = {"random": np.random.default_rng(7).standard_normal(1200), "nbs1000": nbs_1000()}
 
 
 @pytest.mark.parametrize("data", sorted(DATA))
@@ -75,7 +75,7 @@ def all_terms():
     return [
         T.Quantization(2e-4),
         T.AngleRandomWalk(1e-3),
-        T.BiasInstability(1e-3),
+        T.BiasInstability(1e-3, tau_max=100.0),
         T.GaussMarkov(1e-3, 3.0),
         T.RateRandomWalk(3e-4),
         T.RateRamp(2e-5),
