@@ -63,9 +63,12 @@ def test_sp1065_published_1000_point_values(kind):
 @pytest.mark.parametrize("m", [1, 2, 3, 7, 50, 333])
 def test_kernels_equal_numpy_references(m):
     x, _, _ = phase_of(np.random.default_rng(m).standard_normal(1200), 0.1)
-    for name in ("ohvar", "mvar", "totvar"):
+    for name in ("ohvar", "mvar"):
         got, ref = getattr(K, f"{name}_sum")(x, m), getattr(K, f"{name}_sum_numpy")(x, m)
         assert got == pytest.approx(ref, rel=1e-12)
+    ms = np.array([1, m, 2 * m], dtype=np.int64)
+    for block in (7, 4096):
+        np.testing.assert_allclose(K.totvar_sums(x, ms, block), [K.totvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
     if m % 2 == 0 or m == 1:
         me = 2 * max(1, m // 2)
         assert K.theo1_sum(x, me) == pytest.approx(K.theo1_sum_numpy(x, me), rel=1e-12)
@@ -207,3 +210,11 @@ def test_answer_does_not_depend_on_the_unit():
         a, b = deviation(w, 0.1, kind), deviation(w * 180 / np.pi, 0.1, kind)
         np.testing.assert_allclose(b.avar, a.avar * (180 / np.pi) ** 2, rtol=1e-10)
         np.testing.assert_allclose(b.edf, a.edf)
+
+
+def test_values_only_skip_the_edf():
+    w = np.random.default_rng(4).standard_normal(700)
+    for kind in STATS:
+        a, b = deviation(w, 0.1, kind), deviation(w, 0.1, kind, edf=False)
+        np.testing.assert_array_equal(a.avar, b.avar)
+        assert np.all(np.isnan(b.edf)) and np.all(np.isfinite(a.edf))

@@ -9,6 +9,11 @@ squares that the statistic divides by its normaliser. The plain NumPy versions b
 import numpy as np
 from numba import njit
 
+#: start indices per block of the multi-tau total-variance kernel: the block of x and its copies at
+#: -m and +m for every m stay in cache while all m are visited. (Measured at 1e6 samples: 60 ms
+#: against 75-80 ms per-m for totvar; the same blocking made ohvar and mvar slower, so they run per m.)
+BLOCK = 4096
+
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
 def ohvar_sum(x, m):
@@ -61,27 +66,34 @@ def _reflected(x, j):
     return x[j]
 
 
-@njit(cache=True)
-def totvar_sum(x, m):
-    """sum_{i=1}^{N-2} (x*[i-m] - 2x[i] + x*[i+m])^2 with x* the doubly reflected phase (SP1065 eq. 25).
-
-    Reflection (0-based): x*[-j] = 2x[0] - x[j], x*[N-1+j] = 2x[N-1] - x[N-1-j]; m <= N - 2.
-    Only the first and last m terms read reflected points; the interior loop has no branch.
-    """
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def totvar_sums(x, ms, block=BLOCK):
+    """``totvar_sum`` for every m of ``ms``: the interior (no reflection) blocked, the ends apart."""
     N = x.size
-    acc = 0.0
-    lo = min(m, N - 1)
-    hi = max(lo, N - 1 - m)
-    for i in range(1, lo):
-        d = _reflected(x, i - m) - 2.0 * x[i] + _reflected(x, i + m)
-        acc += d * d
-    for i in range(lo, hi):
-        d = x[i - m] - 2.0 * x[i] + x[i + m]
-        acc += d * d
-    for i in range(max(hi, 1), N - 1):
-        d = _reflected(x, i - m) - 2.0 * x[i] + _reflected(x, i + m)
-        acc += d * d
-    return acc
+    out = np.zeros(ms.size)
+    for t in range(ms.size):
+        m = ms[t]
+        lo = min(m, N - 1)
+        hi = max(lo, N - 1 - m)
+        acc = 0.0
+        for i in range(1, lo):
+            d = _reflected(x, i - m) - 2.0 * x[i] + _reflected(x, i + m)
+            acc += d * d
+        for i in range(max(hi, 1), N - 1):
+            d = _reflected(x, i - m) - 2.0 * x[i] + _reflected(x, i + m)
+            acc += d * d
+        out[t] = acc
+    for b0 in range(0, N, block):
+        for t in range(ms.size):
+            m = ms[t]
+            lo = max(b0, min(m, N - 1))
+            hi = min(b0 + block, max(min(m, N - 1), N - 1 - m))
+            acc = 0.0
+            for i in range(lo, hi):
+                d = x[i - m] - 2.0 * x[i] + x[i + m]
+                acc += d * d
+            out[t] += acc
+    return out
 
 
 def totvar_sum_numpy(x, m):

@@ -55,8 +55,9 @@ from avbench.estimators.allan.variance import (
     cluster_sizes,
 )
 from avbench.estimators.validation import check_taus
+from avbench.noise_models.exact_variances import mvar_filter_acf
 
-__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic"]
+__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches"]
 
 #: the statistics
 KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "theo1")
@@ -127,6 +128,19 @@ def _filters(kind: str, m: int):
     raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
 
 
+def _single_filter_acf(kind: str, m: int) -> np.ndarray:
+    """Autocorrelation A(d), d = 0..span, of the one phase filter of oavar/totvar, ohvar, mvar/tvar (exact)."""
+    if kind in ("mvar", "tvar"):
+        return mvar_filter_acf(m)
+    pos, coef, _ = _filters(kind, m)
+    pos, coef = pos[0], coef[0]
+    A = np.zeros(int(pos.max() - pos.min()) + 1)
+    lag = pos[:, None] - pos[None, :]
+    keep = lag >= 0
+    np.add.at(A, lag[keep], (coef[:, None] * coef[None, :])[keep])
+    return A
+
+
 def _canonical_gcov(noise: str, d):
     d = np.abs(np.asarray(d, dtype=float))
     if noise == "white_pm":
@@ -153,31 +167,52 @@ def edf_quadratic(kind: str, m: int, K: int, noise: str) -> float:
     if K < 1:
         return 1.0
     if m > _M_PRIME and (noise != "white_pm" or kind == "theo1"):
-        mp = _M_PRIME if kind != "theo1" else _M_PRIME
-        return edf_quadratic(kind, mp, max(1, int(round(K * mp / m))), noise)
+        return edf_quadratic(kind, _M_PRIME, max(1, int(round(K * _M_PRIME / m))), noise)
+    if noise == "white_pm" and kind != "theo1":  # G = [d = 0]: rho is the filter's own autocorrelation
+        A = _single_filter_acf(kind, m)
+        kk = np.arange(min(A.size, K))
+        A = A[: kk.size]
+        var = 2.0 / K**2 * (K * A[0] ** 2 + 2 * np.sum((K - kk[1:]) * A[1:] ** 2))
+        return float(max(2 * A[0] ** 2 / var, 1.0))
+    E, total = _rho_squares(kind, m, noise, min(K - 1, _kmax(kind, m, noise)))
+    kk = np.arange(total.size)
+    var = 2.0 / K**2 * (K * total[0] + 2 * np.sum((K - kk[1:]) * total[1:]))
+    if not (var > 0):
+        return float(K)
+    return float(max(2 * E * E / var, 1.0))
+
+
+def _kmax(kind, m, noise):
+    span = int(_filters(kind, m)[0].max())
+    return 8 * span + 50 if noise == "flicker_fm" else span
+
+
+@functools.lru_cache(maxsize=256)
+def _rho_squares(kind: str, m: int, noise: str, kmax: int):
+    """(E[V], sum_{f,g} w_f w_g rho_fg(k)^2 for k = 0..kmax): the K-free part of the edf."""
     pos, coef, w = _filters(kind, m)
     P = int(pos.max()) + 1
     C = np.zeros((len(w), P))
     np.add.at(C, (np.arange(len(w))[:, None], pos), coef)
     L = 2 * P - 1
     Fc = np.fft.rfft(C, 2 * L)
-    # A_fg(d) = sum_a C_f[a] C_g[a + d], d = -(P-1)..P-1
+    # A_fg(d) = sum_a C_f[a] C_g[a + d], d = -(P-1)..P-1 (integer filters: rounded back to exact)
     A = np.fft.irfft(np.conj(Fc)[:, None, :] * Fc[None, :, :], 2 * L)
     A = np.concatenate((A[..., -(P - 1) :], A[..., :P]), axis=-1) if P > 1 else A[..., :1]
-    A = np.round(A, 9) if np.all(np.abs(C - np.rint(C)) == 0) else A  # integer filters: exact
-    span = P - 1
-    kmax = min(K - 1, 8 * span + 50 if noise == "flicker_fm" else span)
+    if np.all(C == np.rint(C)):
+        A = np.rint(A)
     d = np.arange(-(P - 1), P)
     lag = d[:, None] + np.arange(kmax + 1)[None, :]
     rho = A.reshape(-1, d.size) @ _canonical_gcov(noise, lag)  # (F*F, kmax+1)
     ww = (w[:, None] * w[None, :]).reshape(-1)
     E = float(np.dot(w, np.diagonal(rho[:, 0].reshape(len(w), len(w)))))
-    total = ww @ (rho * rho)
-    kk = np.arange(kmax + 1)
-    var = 2.0 / K**2 * (K * total[0] + 2 * np.sum((K - kk[1:]) * total[1:]))
-    if not (var > 0):
-        return float(K)
-    return float(max(2 * E * E / var, 1.0))
+    return E, ww @ (rho * rho)
+
+
+def clear_caches() -> None:
+    """Forget the cached edf computations (benchmarks time a cold call)."""
+    edf_quadratic.cache_clear()
+    _rho_squares.cache_clear()
 
 
 def _noise_kinds(rate, dt, m_av, n):
@@ -198,6 +233,7 @@ def deviation(
     noise="auto",
     confidence: float = 0.683,
     theo1_max_m: int | None = None,
+    edf: bool = True,
 ) -> AllanResult:
     """One statistic of the family (module docstring) with its edf and chi^2 interval.
 
@@ -217,6 +253,8 @@ def deviation(
         For the edf ("white_pm", "white_fm", "flicker_fm", "rw_fm"); "auto" reads it from the AV slope.
     theo1_max_m : int, optional
         Largest Theo1 m (its cost grows as N m / 2 per tau).
+    edf : bool
+        False: skip the noise identification and the edf (``edf`` NaN, no interval): the values only.
 
     Returns
     -------
@@ -229,8 +267,7 @@ def deviation(
         raise ValueError(f"kind: expected one of {', '.join(KINDS)} or {', '.join(DEVIATION_NAMES)}, got {kind!r}")
     check_taus(taus)
     if kind == "oavar":
-        r = allan_variance(rate, dt, taus, points_per_decade=points_per_decade, noise=noise, confidence=confidence)
-        return r
+        return allan_variance(rate, dt, taus, points_per_decade=points_per_decade, noise=noise, confidence=confidence)
     x, n, dt = phase_of(rate, dt)
     N = n + 1
     m = _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m)
@@ -249,13 +286,16 @@ def deviation(
             var = var * (mf * dt) ** 2 / 3.0
     elif kind == "totvar":
         K = np.full(m.size, N - 2)
-        sums = np.array([_k.totvar_sum(x, int(mi)) for mi in m])
+        sums = _k.totvar_sums(x, m)
         var = sums / (2.0 * (mf * dt) ** 2 * (N - 2))
     else:  # theo1
         K = N - m
         sums = np.array([_k.theo1_sum(x, int(mi)) for mi in m])
         var = sums / (0.75 * K * (mf * dt) ** 2)
     tau = mf * dt * (0.75 if kind == "theo1" else 1.0)
+    if not edf:
+        nan = np.full(m.size, np.nan)
+        return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), nan, nan, True, n, dt, confidence, kind=kind)
     if noise == "auto":
         m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
         table = _noise_kinds(np.asarray(rate, dtype=float), dt, m_av, n)
@@ -264,10 +304,9 @@ def deviation(
     else:
         kinds = list(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
     edf_kind = "oavar" if kind == "totvar" else kind
-    edf = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m, K, kinds)])
-    with np.errstate(divide="ignore"):
-        rel = 1.0 / np.sqrt(2.0 * edf)
-    return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), rel, edf, True, n, dt, confidence, kind=kind)
+    e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m, K, kinds)])
+    return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
+                       kind=kind)
 
 
 def deviations(rate, dt, kinds=("oavar", "ohvar", "mvar", "totvar", "theo1"), taus="octave", **kw) -> dict:
