@@ -25,7 +25,7 @@ def test_model_is_the_exact_hadamard_variance(term, coefs, m, rtol):
 
 def test_a_rate_ramp_changes_nothing():
     dt, n = 0.01, 200_000
-    g = [T.AngleRandomWalk(6.5e-4), T.BiasInstability(1.4e-4, tau_max=500.0), T.RateRandomWalk(5.5e-6)]
+    g = [T.AngleRandomWalk(6.5e-4), T.BiasInstability(1.4e-4, tau_max=500.0), T.RateRandomWalk(5e-5)]
     rng = np.random.default_rng(1)
     w = sum(t.simulate(n, dt, rng) for t in g)
     ramp = T.RateRamp(1e-6).simulate(n, dt, rng)
