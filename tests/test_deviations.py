@@ -218,3 +218,23 @@ def test_values_only_skip_the_edf():
         a, b = deviation(w, 0.1, kind), deviation(w, 0.1, kind, edf=False)
         np.testing.assert_array_equal(a.avar, b.avar)
         assert np.all(np.isnan(b.edf)) and np.all(np.isfinite(a.edf))
+
+
+def test_estimate_draws_and_tabulates_deviations(tmp_path, capsys):
+    import pandas as pd
+
+    from avbench.cli import main
+
+    f = tmp_path / "rec.npy"
+    np.save(f, np.random.default_rng(0).standard_normal(20_000) * 0.01)
+    out = tmp_path / "out"
+    assert main(["estimate", str(f), "--fs", "100", "--units", "deg/s", "--method", "nnls_rel", "--json",
+                 "--deviation", "oadev,ohdev,mdev,tdev,totdev,theo1", "--out", str(out)]) == 0
+    table = pd.read_csv(out / "rec_av.csv")
+    assert set(table["statistic"]) == {"oadev", "ohdev", "mdev", "tdev", "totdev", "theo1"}
+    x = np.load(f) * np.pi / 180
+    mine = table[table["statistic"] == "mdev"]
+    np.testing.assert_allclose(mine["avar"], deviation(x, 0.01, "mvar").avar, rtol=1e-12)
+    assert (out / "rec_gyro_av.png").stat().st_size > 0
+    assert main(["estimate", str(f), "--fs", "100", "--units", "deg/s", "--deviation", "adev2", "--out", str(out)]) != 0
+    assert "--deviation" in capsys.readouterr().err

@@ -201,9 +201,10 @@ def _rho_squares(kind: str, m: int, noise: str, kmax: int):
     A = np.concatenate((A[..., -(P - 1) :], A[..., :P]), axis=-1) if P > 1 else A[..., :1]
     if np.all(C == np.rint(C)):
         A = np.rint(A)
-    d = np.arange(-(P - 1), P)
-    lag = d[:, None] + np.arange(kmax + 1)[None, :]
-    rho = A.reshape(-1, d.size) @ _canonical_gcov(noise, lag)  # (F*F, kmax+1)
+    # rho(k) = sum_d A(d) G(k + d), d = -(P-1)..P-1: G once on the lags -(P-1)..kmax+P-1, then windows
+    G = _canonical_gcov(noise, np.arange(-(P - 1), kmax + P))
+    windows = np.lib.stride_tricks.sliding_window_view(G, 2 * P - 1)  # (kmax+1, 2P-1), row k: G(k-P+1..k+P-1)
+    rho = A.reshape(-1, 2 * P - 1) @ windows.T  # (F*F, kmax+1)
     ww = (w[:, None] * w[None, :]).reshape(-1)
     E = float(np.dot(w, np.diagonal(rho[:, 0].reshape(len(w), len(w)))))
     return E, ww @ (rho * rho)
