@@ -80,6 +80,7 @@ def all_terms():
         T.AngleRandomWalk(1e-3),
         T.BiasInstability(1e-3, tau_max=100.0),
         T.GaussMarkov(1e-3, 3.0),
+        T.SecondOrderGaussMarkov(1e-4, 0.2),
         T.RateRandomWalk(3e-4),
         T.RateRamp(2e-5),
     ]
