@@ -192,7 +192,7 @@ class Deviations:
     ``time_values`` times the values alone (``edf=False``).
     """
 
-    params = [["ohvar", "mvar", "totvar", "theo1"], SIZES[:3]]
+    params = [["ohvar", "mvar", "totvar", "theo1"], [1000, 3000, *SIZES[:3]]]
     quick_params = [["ohvar", "mvar", "totvar", "theo1"], [10**3, 10**4]]
     param_names = ["kind", "n"]
     repeats = 3
@@ -201,7 +201,7 @@ class Deviations:
                  "time_values": ("baseline_allantools", "allantools ohdev / mdev / totdev / theo1 (octave taus)")}
     ALLANTOOLS = {"ohvar": "ohdev", "mvar": "mdev", "totvar": "totdev", "theo1": "theo1"}
     #: Theo1: largest n timed (ours) and largest n given to allantools' pure-Python triple loop
-    THEO1_MAX_N = 10**5
+    THEO1_MAX_N = 10**4
     THEO1_ALLANTOOLS_MAX_N = 3000
 
     def repeats_for(self, *p):
