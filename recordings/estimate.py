@@ -129,8 +129,8 @@ def _check_args(args):
     return methods, settings, fm, parse_inflate(args.inflate)
 
 
-#: Theo1 costs (N - m) m / 2 terms per tau: its cluster sizes stop where the sum reaches this
-THEO1_BUDGET = 5e9
+#: the deviations' cluster sizes stop where the terms summed reach this (Theo1 costs (N - m) m / 2 per tau)
+DEVIATION_BUDGET = 5e9
 
 
 def _check_deviation(spec):
@@ -147,26 +147,13 @@ def _check_deviation(spec):
 
 
 def _deviations(x, dt, starts, names):
-    """{name: AllanResult} of one axis on its longest gap-free run (Theo1's m capped by THEO1_BUDGET)."""
+    """{name: AllanResult} of one axis on its longest gap-free run (cost capped by DEVIATION_BUDGET terms)."""
     from avbench.estimators.allan.deviations import deviation
 
     edges = np.concatenate(([0], np.asarray(starts, dtype=np.int64), [len(x)]))
     k = int(np.argmax(np.diff(edges)))
     run = np.asarray(x[edges[k] : edges[k + 1]], dtype=float)
-    n = run.size
-    out = {}
-    for name in names:
-        if name == "oadev":
-            continue  # drawn and tabulated from the gap-aware engine already
-        kw = {}
-        if name == "theo1":
-            m, cost = 2, 0.0
-            while 2 * m <= n and cost + (n - 2 * m) * m <= THEO1_BUDGET:
-                m *= 2
-                cost += (n - m) * m / 2
-            kw["theo1_max_m"] = m
-        out[name] = deviation(run, dt, name, "octave", **kw)
-    return out
+    return {name: deviation(run, dt, name, "octave", max_terms=DEVIATION_BUDGET) for name in names}
 
 
 def _load(args, progress):

@@ -239,3 +239,17 @@ def test_estimate_draws_and_tabulates_deviations(tmp_path, capsys):
     assert (out / "rec_gyro_av.png").stat().st_size > 0
     assert main(["estimate", str(f), "--fs", "100", "--units", "deg/s", "--deviation", "adev2", "--out", str(out)]) != 0
     assert "--deviation" in capsys.readouterr().err
+
+
+def test_max_terms_bounds_the_cost():
+    from avbench.estimators.allan.deviations import terms_per_tau
+
+    w = np.random.default_rng(6).standard_normal(3000)
+    full = deviation(w, 0.1, "theo1", edf=False)
+    budget = 2e6
+    cut = deviation(w, 0.1, "theo1", edf=False, max_terms=budget)
+    assert 0 < cut.m.size < full.m.size
+    np.testing.assert_array_equal(cut.avar, full.avar[: cut.m.size])
+    assert np.sum(terms_per_tau("theo1", cut.m, 3001)) <= budget < np.sum(terms_per_tau("theo1", full.m[: cut.m.size + 1], 3001))
+    with pytest.raises(ValueError, match="max_terms"):
+        deviation(w, 0.1, "theo1", max_terms=10)

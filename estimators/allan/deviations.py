@@ -61,7 +61,7 @@ from avbench.estimators.allan.variance import (
 from avbench.estimators.validation import check_taus
 from avbench.noise_models.exact_variances import mvar_filter_acf
 
-__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches"]
+__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches", "terms_per_tau"]
 
 #: the statistics
 KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "theo1")
@@ -111,6 +111,12 @@ def _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m):
         m = cluster_sizes(taus, 2 * top + 1, dt, points_per_decade)
         m = m[(m >= 1) & (m <= top)]
     return m.astype(np.int64)
+
+
+def terms_per_tau(kind: str, m, N: int) -> np.ndarray:
+    """Number of terms summed per cluster size (the cost of one value): (N - m) m / 2 for Theo1, ~N otherwise."""
+    m = np.asarray(m, dtype=float)
+    return (N - m) * m / 2 if kind == "theo1" else np.full(m.shape, float(N))
 
 
 def _filters(kind: str, m: int):
@@ -238,6 +244,7 @@ def deviation(
     noise="auto",
     confidence: float = 0.683,
     theo1_max_m: int | None = None,
+    max_terms: float | None = None,
     edf: bool = True,
 ) -> AllanResult:
     """One statistic of the family (module docstring) with its edf and chi^2 interval.
@@ -258,6 +265,9 @@ def deviation(
         For the edf ("white_pm", "white_fm", "flicker_fm", "rw_fm"); "auto" reads it from the AV slope.
     theo1_max_m : int, optional
         Largest Theo1 m (its cost grows as N m / 2 per tau).
+    max_terms : float, optional
+        Keep the cluster sizes, smallest first, while the total number of terms summed stays within
+        this budget (Theo1: (N - m) m / 2 per m; the others about N): a bound on the cost.
     edf : bool
         False: skip the noise identification and the edf (``edf`` NaN, no interval): the values only.
 
@@ -276,8 +286,11 @@ def deviation(
     x, n, dt = phase_of(rate, dt)
     N = n + 1
     m = _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m)
+    if max_terms is not None:
+        m = m[np.cumsum(terms_per_tau(kind, m, N)) <= float(max_terms)]
     if m.size == 0:
-        raise ValueError(f"taus: no cluster size of {kind} fits a record of {n} samples (N = {N} phases)")
+        raise ValueError(f"taus: no cluster size of {kind} fits a record of {n} samples (N = {N} phases)"
+                         + ("" if max_terms is None else f" within max_terms = {max_terms:g}"))
     mf = m.astype(float)
     if kind == "ohvar":
         K = N - 3 * m
