@@ -9,6 +9,8 @@ Every speed claim is a ratio against a baseline timed in the same loop:
   flicker (Kasdin-Walter) filter with ``tau_max`` = 1 h at 100 Hz (360 000 taps).
 * ``AllanOverlapping`` -- :func:`avbench.estimators.allan_variance` (overlapping, octave taus) against
   allantools ``oadev`` on the same data, values checked equal to 1e-10 relative.
+* ``Deviations`` -- Hadamard, modified, total and Theo1 variances
+  (:mod:`avbench.estimators.allan.deviations`) against allantools at octave taus, same values.
 * ``AllanEngine`` -- non-overlapping octave AV and :class:`StreamingAllan` (scaling only).
 * ``EstimatorScaling`` -- every estimator's ``fit`` against n (linear cost), an ADIS16405-like
   100 Hz record (N, B, K), octave grids; larger n are skipped once a fit takes > ``budget_s``.
@@ -54,6 +56,7 @@ import numpy as np
 __all__ = [
     "Generation",
     "AllanOverlapping",
+    "Deviations",
     "AllanEngine",
     "EstimatorScaling",
     "OnlineKernels",
@@ -179,6 +182,74 @@ class AllanOverlapping:
         allantools.oadev(self.x, rate=1.0, data_type="freq", taus="octave")
 
     def teardown(self, n):
+        self.x = None
+
+
+class Deviations:
+    """The deviation family at octave taus: avbench ``deviation`` vs allantools on the same data.
+
+    ``ohvar``/``mvar``/``totvar`` against ``ohdev``/``mdev``/``totdev`` up to 1e7; Theo1 (whose cost
+    is (N - m) m / 2 per tau by definition, O(N^2) over an octave grid reaching m ~ N) against
+    allantools' pure-Python ``theo1`` on small records only. Values checked equal to 1e-9. Each timed
+    call of ours includes the noise identification and the edf (its caches cleared every call);
+    ``time_values`` times the values alone (``edf=False``).
+    """
+
+    params = [["ohvar", "mvar", "totvar", "theo1"], [1000, 3000, *SIZES[:3]]]
+    quick_params = [["ohvar", "mvar", "totvar", "theo1"], [10**3, 10**4]]
+    param_names = ["kind", "n"]
+    repeats = 3
+    budget_s = 60.0
+    baselines = {"time_deviation": ("baseline_allantools", "allantools ohdev / mdev / totdev / theo1 (octave taus)"),
+                 "time_values": ("baseline_allantools", "allantools ohdev / mdev / totdev / theo1 (octave taus)")}
+    ALLANTOOLS = {"ohvar": "ohdev", "mvar": "mdev", "totvar": "totdev", "theo1": "theo1"}
+    #: Theo1: largest n timed (ours) and largest n given to allantools' pure-Python triple loop
+    THEO1_MAX_N = 10**4
+    THEO1_ALLANTOOLS_MAX_N = 3000
+
+    def repeats_for(self, *p):
+        return 3 if p[-1] < 10**7 else 1
+
+    def setup(self, kind, n):
+        from avbench.estimators.allan.deviations import deviation
+
+        if kind == "theo1" and n > self.THEO1_MAX_N:
+            raise NotImplementedError(f"theo1 costs O(n^2) over octave taus: not timed at n = {n}")
+        rng = np.random.default_rng(3)
+        self.x = rng.standard_normal(n) + np.cumsum(rng.standard_normal(n)) * 1e-3
+        deviation(self.x[:1000], 1.0, kind)  # compile
+        if self.baseline_allantools_available(kind, n) and n <= 10**5:
+            import allantools
+
+            ours = deviation(self.x, 1.0, kind, "octave")
+            _, dev, _, _ = getattr(allantools, self.ALLANTOOLS[kind])(self.x, rate=1.0, data_type="freq",
+                                                                       taus=ours.m.astype(float))
+            if not np.allclose(dev**2, ours.avar, rtol=1e-9, atol=0):
+                raise AssertionError(f"{kind} differs from allantools at n = {n}")
+
+    def time_deviation(self, kind, n):
+        from avbench.estimators.allan.deviations import clear_caches, deviation
+
+        clear_caches()
+        deviation(self.x, 1.0, kind, "octave")
+
+    def time_values(self, kind, n):
+        """The values alone (``edf=False``), which is all allantools computes."""
+        from avbench.estimators.allan.deviations import deviation
+
+        deviation(self.x, 1.0, kind, "octave", edf=False)
+
+    def baseline_allantools_available(self, kind, n):
+        return n <= (self.THEO1_ALLANTOOLS_MAX_N if kind == "theo1" else ALLANTOOLS_MAX_N)
+
+    def baseline_allantools(self, kind, n):
+        import allantools
+        from avbench.estimators.allan.deviations import _cluster_sizes
+
+        m = _cluster_sizes(kind, "octave", n, 1.0, 10, None)
+        getattr(allantools, self.ALLANTOOLS[kind])(self.x, rate=1.0, data_type="freq", taus=m.astype(float))
+
+    def teardown(self, kind, n):
         self.x = None
 
 
@@ -802,7 +873,7 @@ class EstimateMemory:
         return estimate_peak(n)
 
 
-ALL = [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, FitCost, OnlineKernels,
+ALL = [Generation, AllanOverlapping, Deviations, AllanEngine, AllanKernel, EstimatorScaling, FitCost, OnlineKernels,
        OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy,
        StartUp, FirstCall]
 
@@ -810,7 +881,8 @@ ALL = [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling,
 def classes(quick: bool) -> list:
     """The benchmark classes of a run (``quick``: the CI subset on tiny sizes)."""
     if quick:
-        return [Generation, AllanOverlapping, AllanEngine, AllanKernel, EstimatorScaling, FitCost, QuickOnlineKernels,
+        return [Generation, AllanOverlapping, Deviations, AllanEngine, AllanKernel, EstimatorScaling, FitCost,
+                QuickOnlineKernels,
                 OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording,
                 EstimateMemory, QuickStartUp, FirstCall]
     return ALL

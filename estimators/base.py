@@ -92,6 +92,7 @@ BUILTIN: dict[str, str] = {
     "slope_lines": "avbench.estimators.curve_fits.practitioners:SlopeLines",
     "wls": "avbench.estimators.curve_fits.least_squares:WLS",
     "wls_edf": "avbench.estimators.curve_fits.least_squares:EDFWeightedLS",
+    "wls_edf_hadamard": "avbench.estimators.curve_fits.hadamard:HadamardEDFWeightedLS",
     "whittle": "avbench.estimators.likelihood.whittle:Whittle",
 }
 

@@ -43,6 +43,7 @@ from typing import ClassVar
 import numpy as np
 
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
+from avbench.noise_models.exact_variances import gcov_from_autocovariance
 from avbench.noise_models.units import as_si
 
 __all__ = [
@@ -138,6 +139,16 @@ class NoiseTerm:
     def stream(self, dt, rng: np.random.Generator) -> TermStream:
         raise NotImplementedError
 
+    def phase_gcov(self, lags, dt) -> np.ndarray:
+        """Generalized covariance G(d) of the phase at integer lags (see ``noise_models.exact_variances``).
+
+        Default: from ``autocovariance(max_lag, dt)`` for a stationary term, G = -D/2.
+        """
+        lags = np.abs(np.asarray(lags, dtype=np.int64))
+        if not hasattr(self, "autocovariance"):
+            raise NotImplementedError(f"{type(self).__name__}: no phase_gcov and no autocovariance")
+        return gcov_from_autocovariance(self.autocovariance(int(lags.max()) if lags.size else 0, dt), lags, dt)
+
     def simulate(self, n: int, dt, rng: np.random.Generator) -> np.ndarray:
         """``n`` samples (rad/s) of this term alone."""
         return self.stream(_check_dt(dt), rng).next(_check_n(n))
@@ -217,6 +228,9 @@ class AngleRandomWalk(NoiseTerm):
     def stream(self, dt, rng):
         return _WhiteStream(_check_dt(dt), rng, self.N / math.sqrt(dt))
 
+    def phase_gcov(self, lags, dt):
+        return -(self.N**2) * _check_dt(dt) * np.abs(np.asarray(lags, dtype=float)) / 2
+
 
 class _QuantStream(TermStream):
     def __init__(self, dt, rng, Q):
@@ -268,6 +282,9 @@ class Quantization(NoiseTerm):
 
     def stream(self, dt, rng):
         return _QuantStream(_check_dt(dt), rng, self.Q)
+
+    def phase_gcov(self, lags, dt):
+        return np.where(np.asarray(lags) == 0, self.Q**2, 0.0)
 
 
 class _RRWStream(TermStream):
@@ -321,6 +338,10 @@ class RateRandomWalk(NoiseTerm):
     def stream(self, dt, rng):
         return _RRWStream(_check_dt(dt), rng, self.K)
 
+    def phase_gcov(self, lags, dt):
+        d = np.abs(np.asarray(lags, dtype=float))
+        return self.K**2 * _check_dt(dt) ** 3 * (d**3 - d) / 12
+
 
 class _RampStream(TermStream):
     def __init__(self, dt, rng, R):
@@ -367,6 +388,14 @@ class RateRamp(NoiseTerm):
 
     def stream(self, dt, rng):
         return _RampStream(_check_dt(dt), rng, self.R)
+
+    def phase_gcov(self, lags, dt):
+        return np.zeros(np.shape(lags))  # deterministic: no covariance, only a mean (phase_mean)
+
+    def phase_mean(self, k, dt):
+        """Phase (angle) x_k = dt sum_{j<k} R j dt = R dt^2 k (k - 1) / 2 (rad)."""
+        k = np.asarray(k, dtype=float)
+        return self.R * _check_dt(dt) ** 2 * k * (k - 1) / 2
 
 
 # --- first-order Gauss-Markov ----------------------------------------------------------------
@@ -495,6 +524,11 @@ class GaussMarkov(NoiseTerm):
 
     def autocovariance(self, lags, dt) -> np.ndarray:
         return self.sigma**2 * self.phi(dt) ** np.asarray(lags, dtype=float)
+
+    def phase_gcov(self, lags, dt):
+        lags = np.abs(np.asarray(lags, dtype=np.int64))
+        L = int(lags.max()) if lags.size else 0
+        return gcov_from_autocovariance(self.autocovariance(np.arange(L + 1), dt), lags, dt)
 
     def psd(self, f, dt):
         f, w = _omega_dt(f, dt)

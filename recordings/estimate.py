@@ -66,6 +66,9 @@ def add_parser(subparsers):
     s.add_argument("--filter-method", default=None, help="method whose N and K go into the yaml (default: the first of --method)")
     s.add_argument("--inflate", default=None, metavar="F|F_NOISE,F_WALK",
                    help="multiply the yaml's noise densities / random walks (default: no inflation)")
+    s.add_argument("--deviation", default=None, metavar="NAMES",
+                   help="also draw and tabulate these deviations on each axis (comma-separated: oadev, ohdev, mdev, "
+                        "tdev, totdev, theo1), on the longest gap-free run; rows of <stem>_av.csv by 'statistic'")
     s.add_argument("--json", action="store_true", help="print only the JSON object on stdout")
     s.add_argument("--out", default=".", help="output folder for the plots and tables (default: .)")
     s.add_argument("--title", default=None, help="plot title (default: the file name)")
@@ -122,7 +125,35 @@ def _check_args(args):
             parent = parent.parent
         if parent.exists() and not parent.is_dir():
             raise ValueError(f"--kalibr {args.kalibr!r}: {str(parent)!r} is not a folder; expected a file path")
+    args.deviation = _check_deviation(getattr(args, "deviation", None))
     return methods, settings, fm, parse_inflate(args.inflate)
+
+
+#: the deviations' cluster sizes stop where the terms summed reach this (Theo1 costs (N - m) m / 2 per tau)
+DEVIATION_BUDGET = 5e9
+
+
+def _check_deviation(spec):
+    """--deviation: a list of the deviation family's names (None when not given)."""
+    if spec is None:
+        return None
+    from avbench.estimators.allan.deviations import DEVIATION_NAMES
+
+    names = [n.strip() for n in str(spec).split(",") if n.strip()]
+    bad = [n for n in names if n not in DEVIATION_NAMES]
+    if bad or not names:
+        raise ValueError(f"--deviation: expected names among {', '.join(DEVIATION_NAMES)}, got {spec!r}")
+    return names
+
+
+def _deviations(x, dt, starts, names):
+    """{name: AllanResult} of one axis on its longest gap-free run (cost capped by DEVIATION_BUDGET terms)."""
+    from avbench.estimators.allan.deviations import deviation
+
+    edges = np.concatenate(([0], np.asarray(starts, dtype=np.int64), [len(x)]))
+    k = int(np.argmax(np.diff(edges)))
+    run = np.asarray(x[edges[k] : edges[k + 1]], dtype=float)
+    return {name: deviation(run, dt, name, "octave", max_terms=DEVIATION_BUDGET) for name in names}
 
 
 def _load(args, progress):
@@ -220,7 +251,7 @@ def run(args) -> int:
         data["filter_yaml"] = {"method": filter_method, "inflate": list(inflate),
                                "values_si": {k: v for k, (v, _) in values.items()}}
     tables = report.tables(data)
-    av_rows, figs = [], []
+    av_rows, figs, devs = [], [], {}
     for s in sensors:
         avs = {}
         for a, x in s.axes.items():
@@ -231,9 +262,21 @@ def run(args) -> int:
                 for col in ("avar", "ci_low", "ci_high"):
                     frame[col] = frame[col] / scale / scale  # may overflow to inf for a record of 1e300: adev does not
                 frame["adev"] = frame["adev"] / scale
-            av_rows.append(frame.assign(sensor=s.sensor, axis=a, unit=f"avar ({s.si_unit})^2, adev {s.si_unit}"))
+            frame = frame.assign(sensor=s.sensor, axis=a, unit=f"avar ({s.si_unit})^2, adev {s.si_unit}")
+            if args.deviation:
+                devs.setdefault(s.sensor, {})[a] = _deviations(x, dt, timing.starts, args.deviation)
+                frame.insert(0, "statistic", "oadev")
+                for name, r in devs[s.sensor][a].items():
+                    if r.kind == "avar":
+                        continue  # oadev: the engine's rows above
+                    f = r.to_frame()  # column "adev" holds the statistic's deviation
+                    unit = f"{s.si_unit.split('/')[0]}" if r.kind == "tvar" else s.si_unit
+                    av_rows.append(f.assign(statistic=name, sensor=s.sensor, axis=a,
+                                            unit=f"variance ({unit})^2, deviation {unit}")[["statistic", *f.columns, "sensor", "axis", "unit"]])
+            av_rows.append(frame)
         flags = {a: {m: data["sensors"][s.sensor]["axes"][a]["methods"][m]["poor_fit"] for m in methods} for a in s.axes}
-        figs.append((s.sensor, figure.figure(s, fits[s.sensor], avs, dt, args.title or rec.path.name, flags)))
+        figs.append((s.sensor, figure.figure(s, fits[s.sensor], avs, dt, args.title or rec.path.name, flags,
+                                             deviations=devs.get(s.sensor))))
 
     import io
 

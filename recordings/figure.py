@@ -26,10 +26,12 @@ _TERM = {
 }
 
 
-def figure(sensor_record, axis_fits, avs, dt, title, flags):
+def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
     """A matplotlib Figure for one sensor (``axis_fits``: axis -> method -> MethodFit; ``avs``: axis ->
     (AllanResult of the record times ``scale``, ``scale``), see :func:`~avbench.recordings.fit.scaled_allan`;
-    ``flags``: axis -> method -> poor-fit flag). Deviations are drawn in SI units."""
+    ``flags``: axis -> method -> poor-fit flag; ``deviations``: axis -> name -> AllanResult of the
+    deviation family, drawn as lines with their 68 % chi^2 band, TDEV excepted, which is an angle).
+    Deviations are drawn in SI units."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -67,6 +69,12 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags):
                         ax.plot(tau, f(v, tau), ":", lw=1.2, color=f"C{j + 5}",
                                 label=f"{method} {c} = {shown:.4g} {units[c]}")
                 terms_drawn = True
+        for k, (dname, r) in enumerate((deviations or {}).get(name, {}).items()):
+            if r.kind in ("tvar", "avar"):
+                continue  # TDEV is an angle (another unit); OADEV is the points above
+            with np.errstate(invalid="ignore"):
+                ax.plot(r.tau, r.deviation, "-", marker=".", lw=1, color=f"C{(k + 3) % 10}", label=dname.upper())
+                ax.fill_between(r.tau, np.sqrt(r.ci_low), np.sqrt(r.ci_high), color=f"C{(k + 3) % 10}", alpha=0.12)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("τ (s)")

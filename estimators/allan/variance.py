@@ -76,9 +76,17 @@ class AllanResult:
     n_samples: int
     dt: float
     confidence: float = 0.683
+    #: the statistic held in ``avar``: "avar"/"oavar" here; "ohvar", "mvar", "tvar", "totvar",
+    #: "theo1" from :func:`avbench.estimators.allan.deviations.deviation` (one result type for all)
+    kind: str = "avar"
 
     @property
     def adev(self) -> np.ndarray:
+        return np.sqrt(self.avar)
+
+    @property
+    def deviation(self) -> np.ndarray:
+        """Square root of the statistic (rad/s; tvar: rad)."""
         return np.sqrt(self.avar)
 
     @property

@@ -198,7 +198,8 @@ def edf_of_rows(av, X, beta, terms):
     return level, edf
 
 
-def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask) -> pd.Series:
+def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask, *, level_edf=None,
+               beta_scale=None) -> pd.Series:
     """Standard errors of a least-squares AV-curve fit (sandwich with the EDF covariance of the AV).
 
     .. math::
@@ -218,12 +219,14 @@ def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask) -> p
     two taus per octave (median ratio of consecutive cluster sizes below 1.5, e.g. ``taus="all"``):
     neighbouring AV values there are almost perfectly correlated and a diagonal covariance would
     be wrong by orders of magnitude (use ``Estimator.bootstrap``).
+    ``level_edf`` (level, edf) and ``beta_scale`` (beta_c = k_c c^2) replace the AV's for a fit of
+    another variance (the Hadamard fit).
     """
     out = pd.Series(math.nan, index=list(COEFFICIENTS), dtype=float)
     m = np.asarray(av.m, dtype=float)[mask]
     if m.size < 2 or np.median(m[1:] / m[:-1]) < 1.5:
         return out
-    level, edf = edf_of_rows(av, X, beta, terms)
+    level, edf = edf_of_rows(av, X, beta, terms) if level_edf is None else level_edf
     var = (2 * level**2 / edf)[mask]
     w = np.ones(var.size) if row_scale is None else np.asarray(row_scale, dtype=float)
     Xm = X[mask]
@@ -231,9 +234,9 @@ def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask) -> p
     norms[norms == 0] = 1.0
     A = np.linalg.pinv(Xm * w[:, None] / norms) * w[None, :] / norms[:, None]
     cov = (A * var[None, :]) @ A.T
-    coefs, _ = coefficients_from_beta(beta, terms)
+    scales = BETA_SCALE if beta_scale is None else beta_scale
     for j, c in enumerate(terms):
-        v = coefs[c]
+        v = math.sqrt(beta[j] / scales[c]) if np.isfinite(beta[j]) and beta[j] >= 0 else math.nan
         if np.isfinite(v) and v > 0 and cov[j, j] >= 0:
-            out[c] = math.sqrt(cov[j, j]) / (2 * BETA_SCALE[c] * v)
+            out[c] = math.sqrt(cov[j, j]) / (2 * scales[c] * v)
     return out

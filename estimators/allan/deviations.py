@@ -1,0 +1,333 @@
+"""The variance family beside the Allan variance: Hadamard, modified, time, total and Theo1.
+
+All are computed on the phase (angle) record x of the rate record w: x_0 = 0,
+x_k = dt * sum_{j<k} (w_j - mean w), N = n + 1 phase points (allantools ``frequency2phase``; the
+mean removal changes none of the statistics, whose filters cancel constants and linear phase).
+Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
+
+* ``ohvar`` overlapping Hadamard variance, SP1065 eq. 20:
+  1/(6 tau^2 (N-3m)) sum_{i=1}^{N-3m} (x_{i+3m} - 3x_{i+2m} + 3x_{i+m} - x_i)^2.
+  A third difference: blind to a constant rate and to a linear rate ramp (R).
+* ``mvar`` modified Allan variance, SP1065 eq. 14:
+  1/(2 m^2 tau^2 (N-3m+1)) sum_{j=1}^{N-3m+1} [sum_{i=j}^{j+m-1} (x_{i+2m} - 2x_{i+m} + x_i)]^2.
+* ``tvar`` time variance (here an angle variance, rad^2), SP1065 eq. 15: tau^2/3 * mvar.
+* ``totvar`` total variance, SP1065 eq. 25: 1/(2 tau^2 (N-2)) sum_{i=2}^{N-1} (x*_{i-m} - 2x*_i + x*_{i+m})^2
+  on the doubly reflected phase x*_{1-j} = 2x_1 - x_{1+j}, x*_{N+j} = 2x_N - x_{N-j}; m <= (N-1)/2.
+  SP1065's published 1000-point TOTDEV values are of this "doubly reflected" form (its p. 108).
+* ``theo1`` Theo1, SP1065 eq. 30, m even, 10 <= m <= N-1 in SP1065 (here every even m >= 2, as
+  allantools, so that the two agree on the same m):
+  1/(0.75 (N-m) (m dt)^2) sum_{i=1}^{N-m} sum_{d=0}^{m/2-1} [(x_i - x_{i-d+m/2}) + (x_{i+m} - x_{i+d+m/2})]^2 / (m/2-d),
+  reported at tau = 0.75 m dt (SP1065: "Theo1 at tau = 0.75 m tau0"; allantools labels it m dt).
+  Cost: (N - m) m / 2 terms per m (the definition, compiled), so Theo1 over an octave grid reaching
+  m ~ N is O(N^2): ``theo1_max_m`` bounds it. Not used: expanding the square into lagged products
+  (one FFT for the cross-correlations of x_i + x_{i+m} with x, prefix sums for the squares) leaves
+  O(m^2 / 2) edge corrections for the x_{i+m/2-d} x_{i+m/2+d} products, so it is no cheaper at the
+  long m that dominate, and it subtracts sums of squared phases (~ N) to get squared increments
+  (~ m), losing ~log10(N/m) digits -- beyond the 1e-9 agreement with allantools at N = 1e6.
+* ``oavar`` the overlapping AV of :func:`~avbench.estimators.allan.variance.allan_variance`.
+
+Equivalent degrees of freedom. Each statistic (bar totvar) is V = (1/K) sum_i sum_f w_f q_{i,f}^2, a
+stationary average of squared phase filters. For Gaussian noise with phase generalized covariance G
+its edf is exactly 2 E[V]^2 / Var V with
+Var V = (2/K^2) sum_{|k|<K} (K - |k|) sum_{f,g} w_f w_g rho_fg(k)^2, rho_fg(k) = sum_{a,b} c_fa c_gb G(k + p_gb - p_fa),
+which is the computation of Greenhall & Riley (2003, "Uncertainty of stability variances based on
+finite differences", the algorithm SP1065 §5.3 defers to) carried out with the power-law G of the
+noise type identified at that tau (white PM: G = [d=0]; white FM: -|d|/2; flicker FM: d^2 ln|d|;
+random-walk FM: (|d|^3 - |d|)/12, the exact discrete RRW). The noise type is read from the local
+slope of the overlapping AV, as ``allan_variance`` does. For long filters of the scale-free types
+(white, flicker, random-walk FM) the edf is evaluated at m' = 64 with K' = K m'/m (Greenhall's
+"m' = infinity" limit); for Theo1 under white PM this scaling is an approximation that
+underestimates the edf (wider intervals) when m > 64. The total variance is given the edf of the
+overlapping AV filter over its N - 2 terms (the reflected ends taken as if stationary): an
+approximation, measured in tests/test_deviations.py against the ensemble variance.
+Intervals: chi^2 with that edf, like the AV engine.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from avbench.estimators.allan import _deviation_kernels as _k
+from avbench.estimators.allan import _kernels
+from avbench.estimators.allan.variance import (
+    AllanResult,
+    _checked_record_and_mean,
+    _noise_from_slope,
+    allan_variance,
+    cluster_sizes,
+)
+from avbench.estimators.validation import check_taus
+from avbench.noise_models.exact_variances import mvar_filter_acf
+
+__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches", "terms_per_tau"]
+
+#: the statistics
+KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "theo1")
+#: names users type (allantools' deviations) -> kind
+DEVIATION_NAMES = {
+    "oadev": "oavar",
+    "ohdev": "ohvar",
+    "hdev": "ohvar",
+    "mdev": "mvar",
+    "tdev": "tvar",
+    "totdev": "totvar",
+    "theo1": "theo1",
+}
+_M_PRIME = 64
+
+
+def phase_of(rate, dt):
+    """(phase x with x[0] = 0 and N = n + 1 points, n, dt) of a rate record (mean removed)."""
+    rate, dt, mean = _checked_record_and_mean(rate, dt)
+    S = _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1))
+    S *= dt
+    return S, rate.size, dt
+
+
+def _max_m(kind: str, N: int) -> int:
+    return {
+        "oavar": (N - 1) // 2,
+        "ohvar": (N - 1) // 3,
+        "mvar": (N + 1) // 3 - 1 if (N + 1) % 3 == 0 else (N + 1) // 3,
+        "tvar": (N + 1) // 3,
+        "totvar": (N - 1) // 2,
+        "theo1": N - 1,
+    }[kind]
+
+
+def _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m):
+    N = n + 1
+    top = _max_m(kind, N)
+    if kind == "theo1":
+        top = min(top, theo1_max_m) if theo1_max_m else top
+        if isinstance(taus, str):
+            m = cluster_sizes(taus, 2 * (top + 1), dt, points_per_decade)
+        else:
+            m = np.rint(np.asarray(taus, dtype=float) / (0.75 * dt)).astype(np.int64)
+        m = np.unique(m[(m % 2 == 0) & (m >= 2) & (m <= top)])
+    else:
+        m = cluster_sizes(taus, 2 * top + 1, dt, points_per_decade)
+        m = m[(m >= 1) & (m <= top)]
+    return m.astype(np.int64)
+
+
+def terms_per_tau(kind: str, m, N: int) -> np.ndarray:
+    """Number of terms summed per cluster size (the cost of one value): (N - m) m / 2 for Theo1, ~N otherwise."""
+    m = np.asarray(m, dtype=float)
+    return (N - m) * m / 2 if kind == "theo1" else np.full(m.shape, float(N))
+
+
+def _filters(kind: str, m: int):
+    """(positions (F, P), coefficients (F, P), weights (F,)) of the phase filters of one statistic."""
+    if kind in ("oavar", "totvar"):
+        return np.array([[0, m, 2 * m]]), np.array([[1.0, -2.0, 1.0]]), np.ones(1)
+    if kind == "ohvar":
+        return np.array([[0, m, 2 * m, 3 * m]]), np.array([[-1.0, 3.0, -3.0, 1.0]]), np.ones(1)
+    if kind in ("mvar", "tvar"):
+        c = np.zeros(3 * m + 1)  # box(m) * (1, -2, 1 at 0, m, 2m): the phase filter of one MVAR term
+        for s, a in ((0, 1.0), (m, -2.0), (2 * m, 1.0)):
+            c[s : s + m] += a
+        return np.arange(3 * m + 1)[None, :], c[None, :], np.ones(1)
+    if kind == "theo1":
+        h = m // 2
+        d = np.arange(h)
+        pos = np.stack([0 * d, h - d, np.full(h, m), h + d], axis=-1)
+        return pos, np.tile([1.0, -1.0, 1.0, -1.0], (h, 1)), 1.0 / (h - d)
+    raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
+
+
+def _single_filter_acf(kind: str, m: int) -> np.ndarray:
+    """Autocorrelation A(d), d = 0..span, of the one phase filter of oavar/totvar, ohvar, mvar/tvar (exact)."""
+    if kind in ("mvar", "tvar"):
+        return mvar_filter_acf(m)
+    pos, coef, _ = _filters(kind, m)
+    pos, coef = pos[0], coef[0]
+    A = np.zeros(int(pos.max() - pos.min()) + 1)
+    lag = pos[:, None] - pos[None, :]
+    keep = lag >= 0
+    np.add.at(A, lag[keep], (coef[:, None] * coef[None, :])[keep])
+    return A
+
+
+def _canonical_gcov(noise: str, d):
+    d = np.abs(np.asarray(d, dtype=float))
+    if noise == "white_pm":
+        return (d == 0).astype(float)
+    if noise == "white_fm":
+        return -d / 2
+    if noise == "flicker_fm":
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(d > 0, d * d * np.log(np.where(d > 0, d, 1.0)), 0.0)
+    if noise == "rw_fm":
+        return (d**3 - d) / 12
+    raise ValueError(f"noise: expected white_pm, white_fm, flicker_fm or rw_fm, got {noise!r}")
+
+
+@functools.lru_cache(maxsize=4096)
+def edf_quadratic(kind: str, m: int, K: int, noise: str) -> float:
+    """EDF 2 E[V]^2 / Var V of a stationary average of K squared phase filters (module docstring).
+
+    rho_fg(k) = sum_d A_fg(d) G(k + d) with A_fg the cross-correlation of filters f and g; for the
+    white, white-FM and random-walk-FM G, rho vanishes beyond the filter span (the filters cancel
+    constants and linear phase), for flicker FM it decays as k^-2 and is summed to 8 spans.
+    """
+    m, K = int(m), int(K)
+    if K < 1:
+        return 1.0
+    if m > _M_PRIME and (noise != "white_pm" or kind == "theo1"):
+        return edf_quadratic(kind, _M_PRIME, max(1, int(round(K * _M_PRIME / m))), noise)
+    if noise == "white_pm" and kind != "theo1":  # G = [d = 0]: rho is the filter's own autocorrelation
+        A = _single_filter_acf(kind, m)
+        kk = np.arange(min(A.size, K))
+        A = A[: kk.size]
+        var = 2.0 / K**2 * (K * A[0] ** 2 + 2 * np.sum((K - kk[1:]) * A[1:] ** 2))
+        return float(max(2 * A[0] ** 2 / var, 1.0))
+    E, total = _rho_squares(kind, m, noise, min(K - 1, _kmax(kind, m, noise)))
+    kk = np.arange(total.size)
+    var = 2.0 / K**2 * (K * total[0] + 2 * np.sum((K - kk[1:]) * total[1:]))
+    if not (var > 0):
+        return float(K)
+    return float(max(2 * E * E / var, 1.0))
+
+
+def _kmax(kind, m, noise):
+    span = int(_filters(kind, m)[0].max())
+    return 8 * span + 50 if noise == "flicker_fm" else span
+
+
+@functools.lru_cache(maxsize=256)
+def _rho_squares(kind: str, m: int, noise: str, kmax: int):
+    """(E[V], sum_{f,g} w_f w_g rho_fg(k)^2 for k = 0..kmax): the K-free part of the edf."""
+    pos, coef, w = _filters(kind, m)
+    P = int(pos.max()) + 1
+    C = np.zeros((len(w), P))
+    np.add.at(C, (np.arange(len(w))[:, None], pos), coef)
+    L = 2 * P - 1
+    Fc = np.fft.rfft(C, 2 * L)
+    # A_fg(d) = sum_a C_f[a] C_g[a + d], d = -(P-1)..P-1 (integer filters: rounded back to exact)
+    A = np.fft.irfft(np.conj(Fc)[:, None, :] * Fc[None, :, :], 2 * L)
+    A = np.concatenate((A[..., -(P - 1) :], A[..., :P]), axis=-1) if P > 1 else A[..., :1]
+    if np.all(C == np.rint(C)):
+        A = np.rint(A)
+    # rho(k) = sum_d A(d) G(k + d), d = -(P-1)..P-1: G once on the lags -(P-1)..kmax+P-1, then windows
+    G = _canonical_gcov(noise, np.arange(-(P - 1), kmax + P))
+    windows = np.lib.stride_tricks.sliding_window_view(G, 2 * P - 1)  # (kmax+1, 2P-1), row k: G(k-P+1..k+P-1)
+    rho = A.reshape(-1, 2 * P - 1) @ windows.T  # (F*F, kmax+1)
+    ww = (w[:, None] * w[None, :]).reshape(-1)
+    E = float(np.dot(w, np.diagonal(rho[:, 0].reshape(len(w), len(w)))))
+    return E, ww @ (rho * rho)
+
+
+def clear_caches() -> None:
+    """Forget the cached edf computations (benchmarks time a cold call)."""
+    edf_quadratic.cache_clear()
+    _rho_squares.cache_clear()
+
+
+def _noise_kinds(rate, dt, m_av, n):
+    """Noise type per m from the overlapping AV slope (as allan_variance), m beyond n/2 take the last."""
+    mm = np.unique(np.clip(m_av, 1, n // 2))
+    av = allan_variance(rate, dt, taus=mm * dt, noise="white_fm")
+    kinds = _noise_from_slope(av.tau, av.avar, av.J)
+    return dict(zip(av.m.tolist(), kinds))
+
+
+def deviation(
+    rate,
+    dt,
+    kind: str = "ohvar",
+    taus="octave",
+    *,
+    points_per_decade: int = 10,
+    noise="auto",
+    confidence: float = 0.683,
+    theo1_max_m: int | None = None,
+    max_terms: float | None = None,
+    edf: bool = True,
+) -> AllanResult:
+    """One statistic of the family (module docstring) with its edf and chi^2 interval.
+
+    Parameters
+    ----------
+    rate : array_like
+        Rate samples (rad/s), 1-D, finite. (Angle data: pass ``np.diff(angle) / dt``.)
+    dt : float
+        Sample interval (s).
+    kind : str
+        "oavar", "ohvar", "mvar", "tvar", "totvar", "theo1", or a deviation name of allantools
+        ("oadev", "ohdev", "mdev", "tdev", "totdev", "theo1").
+    taus : "octave", "decade", "all" or array of seconds
+        As :func:`~avbench.estimators.allan.variance.allan_variance`; each statistic keeps the m its
+        definition allows (ohvar, mvar: m <= N/3; totvar: m <= (N-1)/2; theo1: even m <= N-1, tau = 0.75 m dt).
+    noise : "auto" or a noise type name
+        For the edf ("white_pm", "white_fm", "flicker_fm", "rw_fm"); "auto" reads it from the AV slope.
+    theo1_max_m : int, optional
+        Largest Theo1 m (its cost grows as N m / 2 per tau).
+    max_terms : float, optional
+        Keep the cluster sizes, smallest first, while the total number of terms summed stays within
+        this budget (Theo1: (N - m) m / 2 per m; the others about N): a bound on the cost.
+    edf : bool
+        False: skip the noise identification and the edf (``edf`` NaN, no interval): the values only.
+
+    Returns
+    -------
+    AllanResult
+        ``kind`` names the statistic; ``avar`` holds its variance (rad^2/s^2; tvar: rad^2),
+        ``deviation`` its square root; ``J`` the number of terms averaged; ``edf``, ``ci_low``, ``ci_high``.
+    """
+    kind = DEVIATION_NAMES.get(kind, kind)
+    if kind not in KINDS:
+        raise ValueError(f"kind: expected one of {', '.join(KINDS)} or {', '.join(DEVIATION_NAMES)}, got {kind!r}")
+    check_taus(taus)
+    if kind == "oavar":
+        return allan_variance(rate, dt, taus, points_per_decade=points_per_decade, noise=noise, confidence=confidence)
+    x, n, dt = phase_of(rate, dt)
+    N = n + 1
+    m = _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m)
+    if max_terms is not None:
+        m = m[np.cumsum(terms_per_tau(kind, m, N)) <= float(max_terms)]
+    if m.size == 0:
+        raise ValueError(f"taus: no cluster size of {kind} fits a record of {n} samples (N = {N} phases)"
+                         + ("" if max_terms is None else f" within max_terms = {max_terms:g}"))
+    mf = m.astype(float)
+    if kind == "ohvar":
+        K = N - 3 * m
+        sums = np.array([_k.ohvar_sum(x, int(mi)) for mi in m])
+        var = sums / (6.0 * (mf * dt) ** 2 * K)
+    elif kind in ("mvar", "tvar"):
+        K = N - 3 * m + 1
+        sums = np.array([_k.mvar_sum(x, int(mi)) for mi in m])
+        var = sums / (2.0 * mf * mf * (mf * dt) ** 2 * K)
+        if kind == "tvar":
+            var = var * (mf * dt) ** 2 / 3.0
+    elif kind == "totvar":
+        K = np.full(m.size, N - 2)
+        sums = _k.totvar_sums(x, m)
+        var = sums / (2.0 * (mf * dt) ** 2 * (N - 2))
+    else:  # theo1
+        K = N - m
+        sums = np.array([_k.theo1_sum(x, int(mi)) for mi in m])
+        var = sums / (0.75 * K * (mf * dt) ** 2)
+    tau = mf * dt * (0.75 if kind == "theo1" else 1.0)
+    if not edf:
+        nan = np.full(m.size, np.nan)
+        return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), nan, nan, True, n, dt, confidence, kind=kind)
+    if noise == "auto":
+        m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
+        table = _noise_kinds(np.asarray(rate, dtype=float), dt, m_av, n)
+        keys = np.array(sorted(table))
+        kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
+    else:
+        kinds = list(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
+    edf_kind = "oavar" if kind == "totvar" else kind
+    e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m, K, kinds)])
+    return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
+                       kind=kind)
+
+
+def deviations(rate, dt, kinds=("oavar", "ohvar", "mvar", "totvar", "theo1"), taus="octave", **kw) -> dict:
+    """{kind: AllanResult} for several statistics of one record."""
+    return {DEVIATION_NAMES.get(k, k): deviation(rate, dt, k, taus, **kw) for k in kinds}
+
