@@ -48,6 +48,13 @@ state-space processes: its theoretical AV is the exact discrete curve of the Kas
 generator, :class:`avbench.noise_models.BiasInstability`, with filter memory ``tau_max`` = twice the record
 as in the presets, so that the plateau holds to the longest usable tau), ``RW`` rate random walk (K),
 ``DR`` deterministic drift / rate ramp (R). ``GM`` and ``FL`` are alternatives for B (not both).
+Two latents of real sensors (beyond Guerrier et al. 2013): ``FW`` white rate noise seen through the
+sensor's first-order low-pass filter (N, tf; :class:`avbench.noise_models.FilteredWhiteNoise` with
+``tc=tf``: the first octaves below the white line are modelled instead of dropped), an alternative
+to ``WN`` (not both); ``SN`` sinusoidal noise (amplitude A, frequency f0;
+:class:`avbench.noise_models.Sinusoidal`, IEEE Std 952-1997 Annex C), which reports no coefficient.
+The AV covariance (weights, standard errors) is computed from the model spectrum, in which the
+sinusoid's line does not appear: where it dominates the curve its weights are too large.
 Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts.
 """
 
@@ -79,8 +86,10 @@ LATENTS = {
     "FL": (("B",), "B"),
     "RW": (("K",), "K"),
     "DR": (("R",), "R"),
+    "FW": (("N", "tf"), "N"),
+    "SN": (("A", "f0"), None),
 }
-_ORDER = ("QN", "WN", "GM", "FL", "RW", "DR")
+_ORDER = ("QN", "WN", "FW", "GM", "FL", "RW", "DR", "SN")
 
 
 class WaveletVariance(NamedTuple):
@@ -114,10 +123,11 @@ def parse_model(model) -> tuple[str, ...]:
     else:
         parts = None
     if (not parts or any(p not in LATENTS for p in parts) or len(set(parts)) != len(parts)
-            or {"GM", "FL"} <= set(parts)):
+            or {"GM", "FL"} <= set(parts) or {"WN", "FW"} <= set(parts)):
         raise ValueError(
             f"model: expected latent names from {', '.join(_ORDER)} joined by '+' (e.g. 'WN+GM+RW') "
-            f"or a list of them, without repeats and not both GM and FL (two models of B); got {model!r}"
+            f"or a list of them, without repeats, not both GM and FL (two models of B) and not both WN and FW "
+            f"(two models of N); got {model!r}"
         )
     return tuple(p for p in _ORDER if p in parts)
 
@@ -127,7 +137,7 @@ def build_gyro(latents, values, dt, flicker_tau_max=None):
 
     ``flicker_tau_max``: the filter memory of a flicker latent "FL" (required with it)."""
     from avbench.noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp
-    from avbench.noise_models import RateRandomWalk
+    from avbench.noise_models import FilteredWhiteNoise, RateRandomWalk, Sinusoidal
 
     it = iter(values)
     terms = []
@@ -145,6 +155,12 @@ def build_gyro(latents, values, dt, flicker_tau_max=None):
             terms.append(RateRandomWalk(K=next(it)))
         elif lat == "DR":
             terms.append(RateRamp(R=next(it)))
+        elif lat == "FW":
+            N, tf = next(it), next(it)
+            terms.append(FilteredWhiteNoise(N=N, tc=tf))
+        elif lat == "SN":
+            A, f0 = next(it), next(it)
+            terms.append(Sinusoidal(amplitude=A, frequency=f0))
     return Gyro(dt=dt, terms=terms)
 
 
@@ -392,10 +408,12 @@ def _bounds(latents, tau, avar, dt, T):
     for lat in latents:
         if lat == "QN":
             top = math.sqrt(np.max(avar * tau**2) / 3)
-        elif lat == "WN":
+        elif lat in ("WN", "FW"):
             top = math.sqrt(np.max(avar * tau))
         elif lat == "GM":
             top = math.sqrt(np.max(avar) / 0.38)
+        elif lat == "SN":
+            top = math.sqrt(np.max(avar) / 0.525)  # the sinusoid's AV peaks at 0.525 A^2
         elif lat == "FL":
             top = math.sqrt(np.max(avar) / PLATEAU)
         elif lat == "RW":
@@ -407,6 +425,12 @@ def _bounds(latents, tau, avar, dt, T):
         if lat == "GM":
             lo.append(math.log(max(dt, tau[0])))  # a GM faster than the shortest scale fitted is not resolved
             hi.append(math.log(10 * T))
+        elif lat == "FW":  # the filter's time constant: from far below dt to a few shortest taus
+            lo.append(math.log(dt / 100))
+            hi.append(math.log(max(dt, tau[0]) * 16))
+        elif lat == "SN":  # a frequency the fitted taus see: peak 0.371 / f0 inside the tau range
+            lo.append(math.log(0.371 / tau[-1]))
+            hi.append(math.log(0.5 / dt))
     return np.array(lo), np.array(hi)
 
 
@@ -418,8 +442,12 @@ def _starts(latents, tau, avar, n_starts, lo, hi):
             base.append([math.sqrt(avar[0] * tau[0] ** 2 / 3) / 2])
         elif lat == "WN":
             base.append([math.sqrt(avar[0] * tau[0]) / 2])
+        elif lat == "FW":
+            base.append([math.sqrt(np.max(avar * tau)), tau[0] / 4])
         elif lat == "GM":
             base.append([None, None])
+        elif lat == "SN":
+            base.append(["SN", "SN"])
         elif lat == "FL":
             base.append([math.sqrt(np.min(avar) / PLATEAU) / 2])
         elif lat == "RW":
@@ -427,16 +455,32 @@ def _starts(latents, tau, avar, n_starts, lo, hi):
         else:
             base.append([math.sqrt(2 * avar[-1] / tau[-1] ** 2) / 4])
     flat = [v for b in base for v in b]
-    if "GM" not in latents:
-        return [np.log(np.array(flat, dtype=float))]
-    j = [i for i, v in enumerate(flat) if v is None][0]
-    out = []
-    for tc in np.geomspace(max(tau[0], 2 * math.exp(lo[j + 1])), tau[-1] / 2, n_starts):
-        peak = np.interp(math.log(1.89 * tc), np.log(tau), avar)
-        vals = list(flat)
-        vals[j], vals[j + 1] = math.sqrt(peak / 0.38) / 2, tc
-        out.append(np.log(np.array(vals, dtype=float)))
-    return out
+    out = [flat]
+    if "GM" in latents:
+        j = [i for i, v in enumerate(flat) if v is None][0]
+        out = []
+        for tc in np.geomspace(max(tau[0], 2 * math.exp(lo[j + 1])), tau[-1] / 2, n_starts):
+            peak = np.interp(math.log(1.89 * tc), np.log(tau), avar)
+            vals = list(flat)
+            vals[j], vals[j + 1] = math.sqrt(peak / 0.38) / 2, tc
+            out.append(vals)
+    if "SN" in latents:
+        # the sinusoid: started at the three strongest bumps of the curve (AV over the geometric mean
+        # of its neighbours), its peak tau = 0.371 / f0 there, its peak AV 0.525 A^2 half the bump
+        j = flat.index("SN")
+        bump = np.full(tau.size, -np.inf)
+        if tau.size >= 3:
+            bump[1:-1] = np.log(avar[1:-1]) - 0.5 * (np.log(avar[:-2]) + np.log(avar[2:]))
+        order = [i for i in np.argsort(-bump)[:3] if np.isfinite(bump[i])] or [0]
+        with_sn = []
+        for vals in out:
+            for i in order:
+                f0 = min(max(0.371 / tau[i], math.exp(lo[j + 1]) * 1.01), math.exp(hi[j + 1]) / 1.01)
+                v = list(vals)
+                v[j], v[j + 1] = math.sqrt(avar[i] / 0.525) / 2, f0
+                with_sn.append(v)
+        out = with_sn
+    return [np.log(np.array(v, dtype=float)) for v in out]
 
 
 #: a parameter whose Jacobian column is below this fraction of the largest is taken as unidentified
@@ -475,7 +519,8 @@ def _report(latents, values, jac, at_floor):
         if at_floor[i]:
             v = 0.0  # the term is not needed: its scale ran to the lower bound
         scale = B_EQUIV_OVER_SIGMA if lat == "GM" else 1.0
-        coefs[coef] = scale * v
-        std[coef] = scale * v * s
+        if coef is not None:  # the sinusoid reports no IEEE coefficient (its params do)
+            coefs[coef] = scale * v
+            std[coef] = scale * v * s
         i += len(names)
     return coefs, pd.Series(std, dtype=float).reindex(["Q", "N", "B", "K", "R"]), params
