@@ -144,3 +144,16 @@ def test_streaming_and_config_names():
 def test_bad_input(make, msg):
     with pytest.raises(ValueError, match=msg):
         make()
+
+
+def test_crlb_of_the_real_sensor_terms():
+    """A FIR filter has no shape parameter: N's bound is white noise's, 1/sqrt(2n) relative; a
+    first-order low-pass adds its tc (the bound can only grow); a sinusoid is left out."""
+    from avbench.estimators.likelihood.crlb import crlb
+
+    n = 5000
+    white = crlb(Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3)]), n)["N"]
+    assert crlb(Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, length=4)]), n)["N"] == pytest.approx(white, rel=1e-9)
+    assert crlb(Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, tc=0.03)]), n)["N"] > white * 1.01
+    with_sine = crlb(Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), Sinusoidal(1e-3, 0.5)]), n)
+    assert with_sine["N"] == pytest.approx(white, rel=1e-12)
