@@ -27,7 +27,11 @@ code. Writes to ``--out``:
 Same sensor, same conditions: the runs share their true coefficients (to the extent the sensor is
 stationary between runs), so the spread of a method's estimates across runs, against the standard
 error it claims, is the one test of honesty real data give. ``--methods`` picks the methods,
-``--skip-slow`` leaves out the MLE (about 25 s per axis).
+``--skip-slow`` leaves out the MLE (about 25 s per axis). ``--slices`` runs instead the default
+methods of ``avbench estimate`` on the first 30- and 60-minute slices (``--per-run`` for more) of the ADIS gyro axes
+(the records robotics users make) and writes ``slices.csv`` (N, B, in range or not, flags) and
+``slices.md`` (per method and length: share of slices with N in 1.9-3.0 deg/sqrt(h) and B in
+15-80 deg/h, and values outside with no flag).
 """
 
 from __future__ import annotations
@@ -108,6 +112,59 @@ def fit_all(data: Path, methods) -> pd.DataFrame:
                 f"{c}={from_si(c, coefs[c], units[c], sensor):.4g}" for c in COEFFICIENTS)
                 + f" poor_fit={d.get('poor_fit')}" if fit.error is None else f"failed ({fit.error})"), flush=True)
     return pd.DataFrame(rows)
+
+
+#: the short records robotics users make: non-overlapping slices of these lengths (minutes)
+SLICE_MINUTES = (30, 60)
+#: plausible gyro values on the ADIS16405 (issue 24's check: the six full runs agree on N 2.3-2.6
+#: deg/sqrt(h) and B 36-48 deg/h; the datasheet says 3 and 25)
+SLICE_N_RANGE, SLICE_B_RANGE = (1.9, 3.0), (15.0, 80.0)
+
+
+def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1) -> pd.DataFrame:
+    """The given methods on the first ``per_run`` non-overlapping ``minutes``-long slices of every ADIS
+    gyro axis (the first: a user's record starts when the sensor is switched on).
+
+    One row per record x axis x length x slice x method: N (deg/sqrt(h)), B (deg/h), whether each lies
+    in :data:`SLICE_N_RANGE` / :data:`SLICE_B_RANGE`, the coefficient flags and the poor-fit flag,
+    and ``unflagged_outside``: a value outside its range with neither flag (what must not happen).
+    """
+    from avbench.noise_models.units import from_si
+    from avbench.recordings.fit import fit_axis
+    from avbench.recordings.report import coefficient_flags
+
+    rows = []
+    for rec, sensor, axis, x, timing in _records(data):
+        if _GROUP[rec] != "adis16405" or sensor != "gyro":
+            continue
+        for mins in minutes:
+            n = int(round(mins * 60 / timing.dt))
+            for k in range(min(per_run, x.size // n)):
+                part = np.asarray(x[k * n:(k + 1) * n])
+                starts = timing.starts[(timing.starts > k * n) & (timing.starts < (k + 1) * n)] - k * n
+                for name, fit in fit_axis(part, timing.dt, starts, methods).items():
+                    d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
+                    c, flags = fit.coefficients(), coefficient_flags(fit)
+                    N = from_si("N", c["N"], "deg/sqrt(h)")
+                    B = from_si("B", c["B"], "deg/h")
+                    poor = bool(d.get("poor_fit", False)) or fit.error is not None
+                    n_in = bool(SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1])
+                    b_in = bool(SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1])
+                    rows.append({"record": rec, "axis": axis, "minutes": mins, "slice": k, "method": name,
+                                 "N": _round(N), "B": _round(B), "N_in_range": n_in, "B_in_range": b_in,
+                                 "N_flag": flags["N"], "B_flag": flags["B"], "poor_fit": poor,
+                                 "fit_pvalue": _round(d.get("fit_pvalue", math.nan)),
+                                 "unflagged_outside": bool(((not n_in and flags["N"] == "ok") or
+                                                            (not b_in and flags["B"] == "ok")) and not poor)})
+                    print(f"{rec} {axis} {mins} min #{k} {name}: N={N:.3g} B={B:.3g} poor_fit={poor}", flush=True)
+    return pd.DataFrame(rows)
+
+
+def slice_summary(df: pd.DataFrame) -> pd.DataFrame:
+    """Per method and slice length: records, share with N and B both in range, unflagged outside."""
+    g = df.assign(both=df.N_in_range & df.B_in_range).groupby(["method", "minutes"], sort=False)
+    return pd.DataFrame({"records": g.size(), "in_range_pct": (100 * g["both"].mean()).round(1),
+                         "poor_fit": g["poor_fit"].sum(), "unflagged_outside": g["unflagged_outside"].sum()}).reset_index()
 
 
 def consistency(df: pd.DataFrame) -> pd.DataFrame:
@@ -193,6 +250,10 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-slow", action="store_true", help="leave out the MLE")
     ap.add_argument("--tables-only", action="store_true",
                     help="do not fit: rebuild the consistency table and figures from OUT/coefficients.csv")
+    ap.add_argument("--slices", action="store_true",
+                    help="instead: the default methods (or --methods) on 30- and 60-minute slices of the ADIS gyro "
+                         "axes; writes OUT/slices.csv and OUT/slices.md")
+    ap.add_argument("--per-run", type=int, default=1, help="with --slices: slices of each length per run (default 1)")
     args = ap.parse_args(argv)
     if not args.data:
         raise SystemExit(f"real_runs: give --data DIR (the folder of the recordings) or set {DATA_ENV}")
@@ -202,6 +263,14 @@ def main(argv=None) -> int:
         raise SystemExit(f"real_runs: no recordings found under {data} "
                          f"(expected {RECORDS[0][2]} ... or {RECORDS[-1][2]})")
     out.mkdir(parents=True, exist_ok=True)
+    if args.slices:
+        from avbench.estimators.base import DEFAULT_METHODS
+
+        chosen = methods if args.methods != ",".join(METHODS) else list(DEFAULT_METHODS)
+        sl = slices(data, chosen, per_run=args.per_run)
+        sl.to_csv(out / "slices.csv", index=False)
+        (out / "slices.md").write_text(_markdown(slice_summary(sl)))
+        return 0
     if args.tables_only:
         df = pd.read_csv(out / "coefficients.csv")
     else:

@@ -78,6 +78,10 @@ __all__ = ["GMWM", "LATENTS", "WaveletVariance", "parse_model", "build_gyro"]
 #: level of the difference-in-J test that drops a shortest scale (``min_m="auto"``)
 SCALE_TEST_LEVEL = 0.001
 
+#: a Gauss-Markov term whose AV peak (1.8926 Tc) lies less than this factor above the shortest tau
+#: fitted (three octaves) shapes the first octaves -- the sensor's filter -- and does not resolve B
+GM_RESOLVED_PEAK_FACTOR = 8.0
+
 #: latent name -> (parameters, coefficient reported)
 LATENTS = {
     "QN": (("Q",), "Q"),
@@ -298,6 +302,8 @@ class GMWM(Estimator):
             diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
             return best["coefs"], {}, diag
+        if "GM" in latents:
+            _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable)
         gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
         model_avar = gyro.avar
         if gain_all is not None and "WN" in latents:
@@ -382,6 +388,40 @@ class GMWM(Estimator):
         if not best.success:
             diag["failure"] = f"least_squares: {best.message}"
         return {"coefs": coefs, "J_stat": diag["J_stat"], "diag": diag}
+
+
+def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable):
+    """B not resolved when the Gauss-Markov term peaks within the first three octaves fitted.
+
+    Such a GM shapes the first octaves (short records at 100 Hz: the sensor's filter; 30-minute ADIS
+    slices gave B = 200 deg/h from Tc = 0.04 s) and says nothing about bias instability. Then
+    ``diagnostics_["unresolved"] = {"B": (0, upper)}``, with the upper bound any bias term obeys: the
+    AV at every tau is at least the plateau (2 ln2 / pi) B^2, so B <= sqrt(min_tau AV_97.5%(tau) /
+    plateau), the chi^2 upper 97.5 % limit of the AV at the tau where it is smallest; and an
+    :class:`~avbench.estimators.base.IdentifiabilityWarning` says so. The coefficient keeps its value
+    (the fitted model), the report flags it ``not resolved`` and shows the interval.
+    """
+    import warnings
+
+    from scipy.stats import chi2
+
+    from avbench.estimators.base import IdentifiabilityWarning
+    from avbench.noise_models.terms import GM_PEAK_TAU_OVER_TC
+
+    tc = diag["values"][_param_index(latents, "GM") + 1]
+    peak = GM_PEAK_TAU_OVER_TC * tc
+    if peak >= GM_RESOLVED_PEAK_FACTOR * diag["tau"][0]:
+        return
+    ok = usable & (edf_all > 0)
+    upper_av = avar_all[ok] * edf_all[ok] / chi2.ppf(0.025, edf_all[ok])
+    upper = float(math.sqrt(np.min(upper_av) / PLATEAU))
+    diag["unresolved"] = {"B": (0.0, upper)}
+    warnings.warn(
+        f"B not resolved: the Gauss-Markov term peaks at tau = {peak:.3g} s, within three octaves of the shortest "
+        f"tau fitted ({diag['tau'][0]:.3g} s), where the sensor's filter shapes the curve; bias instability "
+        f"B <= {upper:.3g} (SI, the 97.5 % upper limit of the smallest AV read as a plateau)",
+        IdentifiabilityWarning, stacklevel=3,
+    )
 
 
 def _param_index(latents, name):
