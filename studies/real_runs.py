@@ -31,7 +31,9 @@ error it claims, is the one test of honesty real data give. ``--methods`` picks 
 methods of ``avbench estimate`` on the first 30- and 60-minute slices (``--per-run`` for more) of the ADIS gyro axes
 (the records robotics users make) and writes ``slices.csv`` (N, B, in range or not, flags) and
 ``slices.md`` (per method and length: share of slices with N in 1.9-3.0 deg/sqrt(h) and B in
-15-80 deg/h, and values outside with no flag).
+15-80 deg/h, and values outside with no flag). ``--lines`` writes ``lines.csv`` / ``lines.md``: the
+strongest spectral line of each axis in 0.3-3 Hz (frequency, amplitude, prominence): the
+accelerometers' AV bump.
 """
 
 from __future__ import annotations
@@ -121,7 +123,7 @@ SLICE_MINUTES = (30, 60)
 SLICE_N_RANGE, SLICE_B_RANGE = (1.9, 3.0), (15.0, 80.0)
 
 
-def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1) -> pd.DataFrame:
+def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, settings=None) -> pd.DataFrame:
     """The given methods on the first ``per_run`` non-overlapping ``minutes``-long slices of every ADIS
     gyro axis (the first: a user's record starts when the sensor is switched on).
 
@@ -142,7 +144,7 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1) -> pd.D
             for k in range(min(per_run, x.size // n)):
                 part = np.asarray(x[k * n:(k + 1) * n])
                 starts = timing.starts[(timing.starts > k * n) & (timing.starts < (k + 1) * n)] - k * n
-                for name, fit in fit_axis(part, timing.dt, starts, methods).items():
+                for name, fit in fit_axis(part, timing.dt, starts, methods, settings).items():
                     d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
                     c, flags = fit.coefficients(), coefficient_flags(fit)
                     N = from_si("N", c["N"], "deg/sqrt(h)")
@@ -157,6 +159,38 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1) -> pd.D
                                  "unflagged_outside": bool(((not n_in and flags["N"] == "ok") or
                                                             (not b_in and flags["B"] == "ok")) and not poor)})
                     print(f"{rec} {axis} {mins} min #{k} {name}: N={N:.3g} B={B:.3g} poor_fit={poor}", flush=True)
+    return pd.DataFrame(rows)
+
+
+def spectral_lines(data: Path, band=(0.3, 3.0)) -> pd.DataFrame:
+    """The strongest spectral line of every axis in ``band`` (Hz): the accelerometers' AV bump.
+
+    Periodogram of the whole record (Hann window, mean removed); the line's frequency is the peak,
+    its variance the periodogram's excess over the median of the neighbouring +-0.01-0.05 Hz summed
+    over +-0.004 Hz (at least 3 and 6-30 frequency bins on short records), its amplitude A = sqrt(2 variance) (a sinusoid A sin(2 pi f0 t) has variance A^2/2),
+    and ``prominence`` the peak over that median (a broadband spectrum gives a few).
+    """
+    from avbench.noise_models.units import DISPLAY_UNITS, from_si
+
+    rows = []
+    for rec, sensor, axis, x, timing in _records(data):
+        if timing.starts.size:
+            continue  # a record with gaps: not one periodogram
+        x = np.asarray(x, dtype=float) - np.mean(x)
+        w = np.hanning(x.size)
+        P = np.abs(np.fft.rfft(x * w)) ** 2
+        f = np.fft.rfftfreq(x.size, timing.dt)
+        inband = np.flatnonzero((f >= band[0]) & (f <= band[1]))
+        k = inband[np.argmax(P[inband])]
+        df = 1.0 / (x.size * timing.dt)  # frequency resolution: the windows hold at least a few bins
+        near = (np.abs(f - f[k]) > max(0.01, 6 * df)) & (np.abs(f - f[k]) < max(0.05, 30 * df))
+        bg = float(np.median(P[near]))
+        line = np.abs(f - f[k]) < max(0.004, 3 * df)
+        var = max(0.0, float((P[line] - bg).sum())) * 2.0 / (x.size * float(np.sum(w * w)))
+        unit = DISPLAY_UNITS[sensor]["B"]
+        rows.append({"record": rec, "sensor": sensor, "axis": axis, "f0_hz": _round(float(f[k])),
+                     "amplitude": _round(from_si("B", math.sqrt(2 * var), unit, sensor)), "unit": unit,
+                     "prominence": _round(float(P[k] / bg))})
     return pd.DataFrame(rows)
 
 
@@ -254,6 +288,8 @@ def main(argv=None) -> int:
                     help="instead: the default methods (or --methods) on 30- and 60-minute slices of the ADIS gyro "
                          "axes; writes OUT/slices.csv and OUT/slices.md")
     ap.add_argument("--per-run", type=int, default=1, help="with --slices: slices of each length per run (default 1)")
+    ap.add_argument("--lines", action="store_true",
+                    help="instead: the strongest spectral line of each axis in 0.3-3 Hz (OUT/lines.csv)")
     args = ap.parse_args(argv)
     if not args.data:
         raise SystemExit(f"real_runs: give --data DIR (the folder of the recordings) or set {DATA_ENV}")
@@ -263,6 +299,11 @@ def main(argv=None) -> int:
         raise SystemExit(f"real_runs: no recordings found under {data} "
                          f"(expected {RECORDS[0][2]} ... or {RECORDS[-1][2]})")
     out.mkdir(parents=True, exist_ok=True)
+    if args.lines:
+        lines = spectral_lines(data)
+        lines.to_csv(out / "lines.csv", index=False)
+        (out / "lines.md").write_text(_markdown(lines))
+        return 0
     if args.slices:
         from avbench.estimators.base import DEFAULT_METHODS
 
