@@ -21,6 +21,9 @@ code. Writes to ``--out``:
 ``consistency.csv`` / ``consistency.md``  per ADIS sensor, axis, method and coefficient: mean over the
                       six runs, run-to-run standard deviation, the method's own median standard
                       error, their ratio, the number of runs with a value, and of poor fits;
+``between_runs.csv`` / ``between_runs.md``  per ADIS sensor, axis, method with standard errors and
+                      coefficient N, B, K: the random-effects between-run SD with its 95 % interval,
+                      over the median SE, and the ``--inflate auto`` factor (:func:`between_runs`);
 ``adis16405_<sensor>_<axis>.png``  the six runs' Allan deviations with the median ``nnls_rel`` curve;
 ``mtig_cont_imu1_gyro_x.png``      the MTi-G curve with its ``nnls_rel`` fit.
 
@@ -224,6 +227,30 @@ def consistency(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def between_runs(df: pd.DataFrame) -> pd.DataFrame:
+    """Per ADIS sensor, axis, method and coefficient: the between-run spread of the six runs by random
+    effects (:func:`avbench.recordings.fit.random_effects`, DerSimonian & Laird 1986, as
+    ``avbench estimate --combine``), for methods that give standard errors: the between-run SD tau
+    with its 95 % Q-profile interval, the mean, tau over the median within-run SE, and the
+    ``--inflate auto`` factor (95 % prediction limit of a new run over the mean)."""
+    from avbench.recordings.fit import random_effects
+
+    adis = df[df.record.map(_GROUP) == "adis16405"]
+    out = []
+    for (sensor, axis, method, coef), g in adis.groupby(["sensor", "axis", "method", "coefficient"], sort=False):
+        y, se = g["value"].to_numpy(dtype=float), g["std_err"].to_numpy(dtype=float)
+        ok = np.isfinite(y) & np.isfinite(se) & (se > 0)
+        if ok.sum() < 3 or coef not in ("N", "B", "K"):
+            continue
+        r = random_effects(y[ok], se[ok])
+        out.append({"sensor": sensor, "axis": axis, "method": method, "coefficient": coef, "unit": g["unit"].iloc[0],
+                    "n_runs": r["k"], "mean": _round(r["mean"]), "tau": _round(r["tau"]),
+                    "tau_low": _round(r["tau_ci"][0]), "tau_high": _round(r["tau_ci"][1]),
+                    "tau_over_se": _round(r["tau"] / float(np.median(se[ok]))),
+                    "inflate_auto": _round(max(1.0, r["prediction"][1] / r["mean"])) if r["mean"] > 0 else math.nan})
+    return pd.DataFrame(out)
+
+
 def _markdown(df: pd.DataFrame) -> str:
     """A plain markdown table (no optional dependency)."""
     def cell(v):
@@ -323,6 +350,9 @@ def main(argv=None) -> int:
         df.to_csv(out / "coefficients.csv", index=False)
     cons = consistency(df)
     cons.to_csv(out / "consistency.csv", index=False)
+    br = between_runs(df)
+    br.to_csv(out / "between_runs.csv", index=False)
+    (out / "between_runs.md").write_text(_markdown(br))
     (out / "consistency.md").write_text(_markdown(cons))
     _figures(data, df, out)
     return 0
