@@ -82,15 +82,13 @@ def test_defaults_on_real_accelerometers_plausible_or_flagged(name):
 def test_defaults_on_short_real_records_plausible_or_flagged(minutes):
     """The records robotics users make: the first 30 / 60 minutes of ADIS run 1. Every default
     method gives N in 1.9-3.0 deg/sqrt(h) and B in 15-80 deg/h, or flags what is outside (B "not
-    resolved" with its interval, or a poor fit); ``gmwm_filtered``, the first (it fills the yaml),
-    gives plausible values on all three axes (results/real/slices.md: 35 of the 36 first slices of
-    the six runs)."""
+    resolved" with its interval, or a poor fit). The share in range over the six runs is measured by
+    ``real_runs --slices`` (results/real/slices.md), not asserted here."""
     from avbench.recordings.fit import fit_axis
     from avbench.recordings.report import coefficient_flags
     from avbench.studies.real_runs import SLICE_B_RANGE, SLICE_N_RANGE
 
     n = minutes * 60 * 100
-    first_ok = 0
     for sensor, axis, x in _axes(ADIS, "deg/s", "g"):
         if sensor != "gyro":
             continue
@@ -102,6 +100,3 @@ def test_defaults_on_short_real_records_plausible_or_flagged(minutes):
             inside = SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1] and SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1]
             flagged = fit.estimator.diagnostics_.get("poor_fit") or "not resolved" in flags.values()
             assert inside or flagged, (axis, name, N, B)
-            if name == DEFAULT_METHODS[0]:
-                first_ok += inside
-    assert first_ok == 3
