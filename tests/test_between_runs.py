@@ -22,7 +22,7 @@ def test_q_profile_interval_covers_the_between_run_sd(tau):
     within-run errors); the prediction interval covers a new run's true value (mu + u_new, what a
     filter should assume; not its noisy estimate) at about 95 %."""
     rng = np.random.default_rng(int(10 * tau) + 1)
-    R, k = 1500, 6
+    R, k = 1000, 6
     cover = pred = 0
     for _ in range(R):
         se = rng.uniform(0.5, 1.5, k)
@@ -68,7 +68,7 @@ def test_combine_reports_between_run_spread_and_inflates_the_yaml(tmp_path, caps
     between-run SD of N is found with an interval that holds the truth, and ``--inflate auto``
     multiplies the yaml's noise density by the prediction limit over the mean."""
     rng = np.random.default_rng(24)
-    n, dt, N0, K = 60_000, 0.01, 1e-3 * math.sqrt(0.01), 2e-6
+    n, dt, N0, K = 40_000, 0.01, 1e-3 * math.sqrt(0.01), 2e-6
     Ns = N0 * np.exp(0.25 * rng.standard_normal(6))
     files = []
     for i, N in enumerate(Ns):
