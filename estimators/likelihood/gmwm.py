@@ -505,13 +505,13 @@ def _starts(latents, tau, avar, n_starts, lo, hi):
             vals[j], vals[j + 1] = math.sqrt(peak / 0.38) / 2, tc
             out.append(vals)
     if "SN" in latents:
-        # the sinusoid: started at the three strongest bumps of the curve (AV over the geometric mean
+        # the sinusoid: started at the eight strongest bumps of the curve (AV over the geometric mean
         # of its neighbours), its peak tau = 0.371 / f0 there, its peak AV 0.525 A^2 half the bump
         j = flat.index("SN")
         bump = np.full(tau.size, -np.inf)
         if tau.size >= 3:
             bump[1:-1] = np.log(avar[1:-1]) - 0.5 * (np.log(avar[:-2]) + np.log(avar[2:]))
-        order = [i for i in np.argsort(-bump)[:3] if np.isfinite(bump[i])] or [0]
+        order = [i for i in np.argsort(-bump)[:8] if np.isfinite(bump[i])] or [0]
         with_sn = []
         for vals in out:
             for i in order:
