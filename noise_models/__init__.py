@@ -21,17 +21,20 @@ from avbench.noise_models.gyro import Gyro  # noqa: E402
 from avbench.noise_models.terms import (  # noqa: E402
     AngleRandomWalk,
     BiasInstability,
+    FilteredWhiteNoise,
     GaussMarkov,
     NoiseTerm,
     Quantization,
     RateRamp,
     RateRandomWalk,
     SecondOrderGaussMarkov,
+    Sinusoidal,
 )
 
 __all__ = [
     "AngleRandomWalk",
     "BiasInstability",
+    "FilteredWhiteNoise",
     "GaussMarkov",
     "Gyro",
     "NoiseTerm",
@@ -39,6 +42,7 @@ __all__ = [
     "RateRamp",
     "RateRandomWalk",
     "SecondOrderGaussMarkov",
+    "Sinusoidal",
     "presets",
     "units",
     "TERM_TYPES",
@@ -51,11 +55,13 @@ TERM_TYPES = {
     for cls in (
         AngleRandomWalk,
         BiasInstability,
+        FilteredWhiteNoise,
         GaussMarkov,
         Quantization,
         RateRamp,
         RateRandomWalk,
         SecondOrderGaussMarkov,
+        Sinusoidal,
     )
 }
 

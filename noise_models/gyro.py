@@ -49,7 +49,8 @@ class Gyro:
     dt : float
         Sample interval in seconds.
     terms : sequence of NoiseTerm
-        At most one term per IEEE coefficient (e.g. not two terms both reporting B).
+        At most one term per IEEE coefficient (e.g. not two terms both reporting B); terms that
+        report none (e.g. :class:`~avbench.noise_models.terms.Sinusoidal`) may repeat.
     name : str, optional
         A label (presets set it).
 
@@ -82,7 +83,7 @@ class Gyro:
         for t in terms:
             if not isinstance(t, NoiseTerm):
                 raise ValueError(f"terms: expected NoiseTerm instances, got {t!r}")
-            if t.coefficient in seen:
+            if t.coefficient is not None and t.coefficient in seen:
                 raise ValueError(
                     f"terms: {seen[t.coefficient]!r} and {t!r} both report coefficient "
                     f"{t.coefficient}; use at most one term per coefficient"

@@ -31,6 +31,10 @@ GaussMarkov(sigma,tc)  x_k = phi x_{k-1} + sigma sqrt(1-phi^2) n_k   closed form
 BiasInstability(B)     Kasdin & Walter (1992) 1/f FIR, Q_d = B^2    from the exact autocovariance
 SecondOrderGaussMarkov exact discretisation of Miao et al. 2015,    from the exact autocovariance
                        eq. 8
+Sinusoidal(A, f0)      A sin(2 pi f0 k dt + phi), phi uniform       A^2 sin^4(m w/2) / (m^2 sin^2(w/2)),
+                       (IEEE Std 952-1997, Annex C)                 w = 2 pi f0 dt
+FilteredWhiteNoise(N)  white noise N through the sensor's low-pass  N^2/tau - 3 C2 / m^2 (FIR, m >= L);
+                       (moving average, FIR or first-order IIR)     the GM form (first-order IIR)
 =====================  ==========================================  =======================================
 """
 
@@ -56,6 +60,8 @@ __all__ = [
     "GaussMarkov",
     "BiasInstability",
     "SecondOrderGaussMarkov",
+    "Sinusoidal",
+    "FilteredWhiteNoise",
     "GM_PEAK_TAU_OVER_TC",
     "GM_PEAK_ADEV_OVER_SIGMA",
     "B_EQUIV_OVER_SIGMA",
@@ -135,6 +141,10 @@ class NoiseTerm:
         Default ``(1.0, self)`` (always right; a term whose spectrum scales with a coefficient
         overrides it so that fits with different coefficients share the integrals)."""
         return 1.0, self
+
+    def spectral_lines(self, dt) -> list[tuple[float, float]]:
+        """Spectral lines [(frequency Hz, variance)] beside :meth:`psd` (none but for sinusoids)."""
+        return []
 
     def stream(self, dt, rng: np.random.Generator) -> TermStream:
         raise NotImplementedError
@@ -859,3 +869,235 @@ class SecondOrderGaussMarkov(NoiseTerm):
         A, Qd, P = self.discretise(dt)
         chol = np.linalg.cholesky(Qd + 1e-300 * np.eye(2))
         return _SOGMStream(dt, rng, np.ascontiguousarray(A), chol, P)
+
+
+# --- sinusoidal noise (IEEE Std 952-1997, Annex C) ------------------------------------------
+
+
+class _SineStream(TermStream):
+    def __init__(self, dt, rng, amplitude, frequency):
+        super().__init__(dt, rng)
+        self.amplitude = amplitude
+        self.w = 2 * math.pi * frequency * dt
+        self.phase = rng.uniform(0.0, 2 * math.pi)  # random phase: a stationary process
+        self.k = 0
+
+    def next(self, n):
+        # each sample from its absolute index: the same values however the record is cut
+        k = np.arange(self.k, self.k + n, dtype=float)
+        self.k += n
+        out = np.sin(self.w * k + self.phase)
+        out *= self.amplitude
+        return out
+
+
+class Sinusoidal(NoiseTerm):
+    """Sinusoidal rate noise of IEEE Std 952-1997, Annex C: w_k = A sin(2 pi f0 k dt + phi).
+
+    The phase phi is uniform on [0, 2 pi) (drawn once per record), which makes the sequence
+    stationary with autocovariance r(k) = (A^2 / 2) cos(omega k), omega = 2 pi f0 dt.
+
+    Exact discrete AV. The mean of m samples of cos(omega k + phi) is the real part of
+    e^{i phi} D with |D| = |sin(m omega / 2)| / (m |sin(omega / 2)|); consecutive cluster means
+    differ by a phase shift of m omega, |e^{i m omega} - 1| = 2 |sin(m omega / 2)|, so
+
+    .. math:: \\sigma^2(m) = A^2 \\frac{\\sin^4(m\\omega/2)}{m^2 \\sin^2(\\omega/2)}.
+
+    As dt -> 0 at fixed tau = m dt (sin(omega/2) -> pi f0 dt) this is IEEE 952's continuous form,
+    Omega_0^2 (sin^2(pi f0 tau) / (pi f0 tau))^2 with Omega_0 = A (Annex C, sinusoidal noise). The AV
+    peaks at tau = 0.371 / f0 and is zero at every whole number of periods.
+
+    The term reports no IEEE coefficient (``coefficients()`` is empty); its parameters are
+    ``amplitude`` (rad/s) and ``frequency`` (Hz). Its spectrum is a line: :meth:`psd` is zero at
+    every frequency but f0 and :meth:`spectral_lines` gives the line's power A^2 / 2.
+
+    Parameters
+    ----------
+    amplitude : float or (value, unit)
+        Amplitude A of the rate (rad/s, or e.g. ``(50, "deg/h")``).
+    frequency : float
+        Frequency f0 in Hz; at most the Nyquist frequency 1/(2 dt) of the sampling it is used at
+        (a higher frequency would alias, and is refused).
+    """
+
+    coefficient = None
+
+    def __init__(self, amplitude, frequency):
+        self.amplitude = as_si("B", amplitude)  # a rate, like B
+        if self.amplitude == 0:
+            raise ValueError("amplitude: expected a positive amplitude, got 0")
+        self.frequency = _positive("frequency", frequency)
+
+    def _params(self):
+        return {"amplitude": self.amplitude, "frequency": self.frequency}
+
+    def _omega(self, dt) -> float:
+        dt = _check_dt(dt)
+        if self.frequency > 0.5 / dt * (1 + 1e-12):
+            raise ValueError(
+                f"frequency: {self.frequency} Hz is above the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
+                "of this sampling; expected a frequency the samples resolve"
+            )
+        return 2 * math.pi * self.frequency * dt
+
+    def autocovariance(self, lags, dt) -> np.ndarray:
+        return 0.5 * self.amplitude**2 * np.cos(self._omega(dt) * np.asarray(lags, dtype=float))
+
+    def avar(self, m, dt):
+        m = check_m(m).astype(float)
+        w = self._omega(dt)
+        return self.amplitude**2 * np.sin(m * w / 2) ** 4 / (m**2 * math.sin(w / 2) ** 2)
+
+    def spectral_lines(self, dt) -> list[tuple[float, float]]:
+        """[(f0, power)]: the line's frequency (Hz) and the variance it carries, A^2 / 2."""
+        self._omega(dt)
+        return [(self.frequency, 0.5 * self.amplitude**2)]
+
+    def psd(self, f, dt):
+        """Zero: the spectrum is the line of :meth:`spectral_lines` (a Dirac delta at f0)."""
+        self._omega(dt)
+        f, _ = _omega_dt(f, dt)
+        return np.zeros_like(f)
+
+    def stream(self, dt, rng):
+        dt = _check_dt(dt)
+        self._omega(dt)
+        return _SineStream(dt, rng, self.amplitude, self.frequency)
+
+
+# --- white noise through the sensor's front-end filter ----------------------------------------
+
+
+def _boxcar_taps(length: int) -> np.ndarray:
+    return np.full(length, 1.0 / length)
+
+
+class FilteredWhiteNoise(NoiseTerm):
+    """White rate noise (angle random walk N) seen through the sensor's own low-pass filter.
+
+    Real sensors filter before they sample: a MEMS IMU averages its internal samples (a moving
+    average or Bartlett window before decimation), an IIR low-pass, a FIR set by a register. The
+    white noise then reaches the output as y = h * e, e white with variance N^2 / dt, through a
+    filter with unit DC gain (sum h = 1): the long-tau AV is still N^2 / tau, and the first octaves
+    lie below the white-noise line. Exactly one filter, in output samples:
+
+    ``length=L``
+        a moving average of L samples (h = 1/L, ..., 1/L);
+    ``taps=h``
+        any FIR (normalised here to unit DC gain);
+    ``tc=T``
+        a first-order low-pass y_k = a y_{k-1} + (1 - a) e_k, a = exp(-dt / T).
+
+    Exact discrete AV. For a FIR with autocovariance r(i) = (N^2 / dt) sum_j h_j h_{j+i} (zero for
+    i >= L) and m >= L, 4V(m) - V(2m) = 2 m S - 6 C2 with S = sum over all lags of r = N^2 / dt and
+    C2 = sum_{i>=1} i r(i), hence
+
+    .. math:: \\sigma^2(m) = \\frac{N^2}{\\tau} - \\frac{3 C_2}{m^2},
+
+    a *negative* 3 Q^2 / tau^2 term (Q^2 = -C2 dt^2): why a five-term fit reads a filter as negative
+    quantization. The moving average: C2 = (N^2 / dt)(L^2 - 1) / (6 L), so
+    AV = (N^2 / tau)(1 - (L^2 - 1) / (2 L m)), continuous limit (N^2 / tau)(1 - T / (2 tau)) with
+    T = L dt. All m (also m < L) come from the autocovariance (``exact_avar``). The first-order
+    low-pass is a Gauss-Markov sequence with sigma^2 = (N^2 / dt)(1 - a) / (1 + a) and phi = a
+    (the closed form of :class:`GaussMarkov`); its continuous limit (dt -> 0 at fixed T) is
+    (N^2 / tau)[1 - (T / (2 tau))(3 - 4 e^{-tau/T} + e^{-2 tau/T})].
+
+    The filter acts here on the white noise only: on the slow terms (B, K, R) its effect is of
+    relative order (T / tau)^2 and negligible at the taus where they show.
+
+    Parameters
+    ----------
+    N : float or (value, unit)
+        Angle random walk coefficient (the white noise before the filter; SI rad/sqrt(s)).
+    length, taps, tc :
+        The filter (exactly one), see above.
+    """
+
+    coefficient = "N"
+
+    def __init__(self, N, *, length=None, taps=None, tc=None):
+        self.N = as_si("N", N)
+        given = [k for k, v in (("length", length), ("taps", taps), ("tc", tc)) if v is not None]
+        if len(given) != 1:
+            raise ValueError(
+                f"FilteredWhiteNoise: expected exactly one filter (length=L, taps=[...] or tc=T), got {given or 'none'}"
+            )
+        self.length = self.taps = self.tc = None
+        if length is not None:
+            if isinstance(length, bool) or not isinstance(length, int | np.integer) or length < 1:
+                raise ValueError(f"length: expected a positive integer number of samples, got {length!r}")
+            self.length = int(length)
+        elif taps is not None:
+            h = np.asarray(taps, dtype=float)
+            if h.ndim != 1 or h.size == 0 or not np.all(np.isfinite(h)) or abs(h.sum()) < 1e-12:
+                raise ValueError(f"taps: expected a finite 1-D FIR with non-zero sum (its DC gain), got {taps!r}")
+            self.taps = tuple(float(v) for v in h / h.sum())
+        else:
+            self.tc = _positive("tc", tc)
+
+    def _params(self):
+        return {"N": self.N, "length": self.length, "taps": self.taps, "tc": self.tc}
+
+    def coefficients(self):
+        return {"N": self.N}
+
+    def impulse_response(self) -> np.ndarray | None:
+        """The FIR (unit DC gain), or None for the first-order low-pass."""
+        if self.length is not None:
+            return _boxcar_taps(self.length)
+        return None if self.taps is None else np.array(self.taps)
+
+    def _gauss_markov(self, dt) -> GaussMarkov:
+        """The first-order low-pass of white noise as the Gauss-Markov sequence it is."""
+        a = math.exp(-_check_dt(dt) / self.tc)
+        return GaussMarkov(sigma=math.sqrt(self.N**2 / dt * (1 - a) / (1 + a)), tc=self.tc)
+
+    def autocovariance(self, max_lag: int, dt) -> np.ndarray:
+        """r(0..max_lag) of the filtered sequence (exact)."""
+        dt = _check_dt(dt)
+        lags = np.arange(int(max_lag) + 1)
+        h = self.impulse_response()
+        if h is None:
+            return self._gauss_markov(dt).autocovariance(lags, dt)
+        full = np.correlate(h, h, mode="full")[len(h) - 1 :]  # sum_j h_j h_{j+i}, i = 0..L-1
+        out = np.zeros(len(lags))
+        k = min(len(full), len(out))
+        out[:k] = full[:k]
+        return self.N**2 / dt * out
+
+    def avar(self, m, dt):
+        m = check_m(m)
+        dt = _check_dt(dt)
+        if self.impulse_response() is None:
+            return self._gauss_markov(dt).avar(m, dt)
+        h = self.impulse_response()
+        r = self.autocovariance(len(h), dt)
+        out = np.empty(len(m))
+        small = m < len(h)
+        if np.any(small):
+            out[small] = avar_from_autocovariance(r, m[small])
+        if np.any(~small):  # the closed form above (m >= L): no sums of length 2m
+            c2 = float(np.dot(np.arange(1, len(r)), r[1:]))
+            mb = m[~small].astype(float)
+            out[~small] = self.N**2 / (mb * dt) - 3 * c2 / mb**2
+        return out
+
+    def gain2(self, f, dt) -> np.ndarray:
+        """|H(e^{i 2 pi f dt})|^2, the filter's power gain (1 at f = 0)."""
+        f, w = _omega_dt(f, dt)
+        h = self.impulse_response()
+        if h is None:
+            a = math.exp(-dt / self.tc)
+            return (1 - a) ** 2 / (1 - 2 * a * np.cos(w) + a * a)
+        H = np.exp(-1j * np.outer(w, np.arange(len(h)))) @ h
+        return np.abs(H) ** 2
+
+    def psd(self, f, dt):
+        return 2 * self.N**2 * self.gain2(f, dt)
+
+    def stream(self, dt, rng):
+        dt = _check_dt(dt)
+        h = self.impulse_response()
+        if h is None:
+            return self._gauss_markov(dt).stream(dt, rng)
+        return _FIRStream(dt, rng, np.ascontiguousarray(h), self.N / math.sqrt(dt))

@@ -7,6 +7,7 @@ avbench estimate rec.csv --units deg/s --method wls,gmwm          # one gyro col
 avbench estimate log.csv --time t --gyro gx,gy,gz --accel ax,ay,az --units deg/s --accel-units g
 avbench estimate rec.npy --fs 200 --units rad/s --json > coefs.json
 avbench estimate run1.npz run2.npz --combine --fs 100 --units rad/s   # several runs, one fit
+avbench estimate run*.npz --combine --inflate auto --kalibr imu.yaml  # + between-run spread, yaml inflated by it
 
 The pipeline (``studies/recordings/``): read the file (CSV/text, NPY/NPZ, ROS 1/2 bag, PX4 ULog) ->
 time stamps, jitter and gaps (``--fs`` only when the file has no time stamps, else a check) -> SI
@@ -59,13 +60,16 @@ def add_parser(subparsers):
                         "avbench.estimators.base.DEFAULT_METHODS)")
     s.add_argument("--set", action="append", default=[], metavar="METHOD.KEY=VALUE",
                    help="an estimator setting, e.g. gmwm.model=QN+WN+GM+RW (VALUE read as JSON if it parses)")
-    s.add_argument("--combine", action="store_true", help="pool several recordings of one sensor in one fit (and test that they agree)")
+    s.add_argument("--combine", action="store_true",
+                   help="pool several recordings of one sensor in one fit, test that they agree, and report the "
+                        "between-run spread of each coefficient (the --filter-method fitted to each run alone; random effects)")
     s.add_argument("--kalibr", default=None, metavar="FILE", help="also write a Kalibr imu.yaml to FILE")
     s.add_argument("--format", default=None, choices=["kalibr", "allan_variance_ros"],
                    help="also write <stem>_imu.yaml in --out in this style")
     s.add_argument("--filter-method", default=None, help="method whose N and K go into the yaml (default: the first of --method)")
-    s.add_argument("--inflate", default=None, metavar="F|F_NOISE,F_WALK",
-                   help="multiply the yaml's noise densities / random walks (default: no inflation)")
+    s.add_argument("--inflate", default=None, metavar="F|F_NOISE,F_WALK|auto",
+                   help="multiply the yaml's noise densities / random walks (default: no inflation); 'auto' (with --combine "
+                        "and >= 3 recordings): by the between-run spread's 95 %% prediction limit over the mean")
     s.add_argument("--deviation", default=None, metavar="NAMES",
                    help="also draw and tabulate these deviations on each axis (comma-separated: oadev, ohdev, mdev, "
                         "tdev, totdev, theo1), on the longest gap-free run; rows of <stem>_av.csv by 'statistic'")
@@ -113,6 +117,10 @@ def _check_args(args):
         raise ValueError("--column: give either --column or --gyro, not both")
     if len(args.file) > 1 and not args.combine:
         raise ValueError(f"{len(args.file)} files given; expected one recording, or --combine to pool recordings of one sensor")
+    inflate = parse_inflate(args.inflate)
+    if inflate == "auto" and not (args.combine and len(args.file) >= 3):
+        raise ValueError(f"--inflate auto: derives the factors from the spread between recordings; expected --combine "
+                         f"with at least 3 recordings of one sensor, got {len(args.file)} file(s)")
     fm = args.filter_method or methods[0]
     if fm not in methods:
         raise ValueError(f"--filter-method {fm!r}: not among --method {', '.join(methods)}")
@@ -126,7 +134,7 @@ def _check_args(args):
         if parent.exists() and not parent.is_dir():
             raise ValueError(f"--kalibr {args.kalibr!r}: {str(parent)!r} is not a folder; expected a file path")
     args.deviation = _check_deviation(getattr(args, "deviation", None))
-    return methods, settings, fm, parse_inflate(args.inflate)
+    return methods, settings, fm, inflate
 
 
 #: the deviations' cluster sizes stop where the terms summed reach this (Theo1 costs (N - m) m / 2 per tau)
@@ -212,7 +220,7 @@ def run(args) -> int:
 
     from avbench.outputs import atomic_write_bytes, atomic_write_text, prepare_out_dir
     from avbench.recordings import figure, filter_yaml, report
-    from avbench.recordings.fit import agreement, fit_axis, scaled_allan
+    from avbench.recordings.fit import agreement, auto_inflation, between_runs, fit_axis, scaled_allan
 
     methods, settings, filter_method, inflate = _check_args(args)
     progress = not args.no_progress and sys.stderr.isatty()
@@ -239,6 +247,25 @@ def run(args) -> int:
         for s_i, s in enumerate(sensors):
             extra["combine"][s.sensor] = {
                 a: agreement([(np.asarray(sl[s_i].axes[a]), t.starts) for _, t, sl in loaded], dt) for a in s.axes}
+        # the between-run spread: the filter method on each recording alone, random effects per coefficient
+        extra["between_runs"] = {"method": filter_method, "sensors": {}}
+        with tqdm(total=sum(len(s.axes) for s in sensors) * len(loaded), desc="each run alone", unit="fit",
+                  disable=not progress, leave=False) as bar_:
+            for s_i, s in enumerate(sensors):
+                extra["between_runs"]["sensors"][s.sensor] = {
+                    a: between_runs([fit_axis(np.asarray(sl[s_i].axes[a]), dt, t.starts, [filter_method],
+                                              {filter_method: settings.get(filter_method, {})}, bar_)
+                                     for _, t, sl in loaded], filter_method) for a in s.axes}
+    if inflate == "auto":
+        from avbench.recordings.filter_yaml import KEYS
+
+        inflate = {}
+        for (sensor, coef), key in KEYS.items():
+            per_axis = extra["between_runs"]["sensors"].get(sensor, {})
+            fs_ = [auto_inflation(sp, coef) for sp in per_axis.values()]
+            fs_ = [f for f in fs_ if f is not None]
+            inflate[key] = max(fs_) if fs_ else 1.0
+        extra["between_runs"]["inflate"] = inflate
     data = report.payload([r.path for r, _, _ in loaded], timing, sensors, fits, extra)
 
     # everything that can refuse is checked before anything is written
@@ -248,7 +275,7 @@ def run(args) -> int:
         style = args.format or "kalibr"
         yaml_text = filter_yaml.kalibr_yaml(values, timing.fs, rec.topic, filter_method,
                                             [r.path for r, _, _ in loaded], inflate, style)
-        data["filter_yaml"] = {"method": filter_method, "inflate": list(inflate),
+        data["filter_yaml"] = {"method": filter_method, "inflate": dict(inflate) if isinstance(inflate, dict) else list(inflate),
                                "values_si": {k: v for k, (v, _) in values.items()}}
     tables = report.tables(data)
     av_rows, figs, devs = [], [], {}
@@ -340,3 +367,30 @@ def _print_summary(data, tables, timing, fits, rec):
                 verdict = "agree" if a["agree"] else ("DISAGREE" if a["agree"] is not None else "not testable")
                 p = f"p = {a['p_value']:.3g}" if a["p_value"] is not None else a["note"]
                 print(f"# recordings {verdict} on {sensor} {axis} ({p})")
+    if "between_runs" in data:
+        _print_between_runs(data)
+
+
+def _print_between_runs(data):
+    from avbench.noise_models.units import DISPLAY_UNITS, from_si
+
+    br = data["between_runs"]
+    print(f"\n## between-run spread ({br['method']} on each recording alone; random effects, DerSimonian & Laird 1986)")
+    for sensor, per_axis in br["sensors"].items():
+        for axis, per_coef in per_axis.items():
+            for c, r in per_coef.items():
+                if r["tau"] is None:
+                    continue
+                unit = DISPLAY_UNITS[sensor][c]
+
+                def d(v):
+                    return from_si(c, v, unit, sensor)
+
+                lo, hi = r["tau_ci"]
+                pred = (f"; a new run: {d(r['prediction'][0]):.4g} to {d(r['prediction'][1]):.4g}"
+                        if r["prediction"] is not None else "")
+                cv = f" (CV {100 * r['cv']:.3g} %)" if r["cv"] is not None else ""
+                print(f"# {sensor} {axis} {c}: mean {d(r['mean']):.4g} +- {d(r['mean_se']):.2g} {unit} over {r['k']} runs; "
+                      f"between-run SD {d(r['tau']):.3g}{cv}, 95 % interval {d(lo):.3g} to {d(hi):.3g}{pred}")
+    if "inflate" in br:
+        print("# --inflate auto: " + ", ".join(f"{k} x {v:.3g}" for k, v in br["inflate"].items()))

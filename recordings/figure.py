@@ -4,7 +4,10 @@ One figure per sensor, one panel per axis: the overlapping octave ADEV (gap-awar
 chi^2 bars, each method's model curve (dashed; "poor fit" in its label when flagged), and for the
 first method that fitted the terms' own lines -- Q: sqrt(3) Q / tau, N: N / sqrt(tau),
 B: sqrt(2 ln2 / pi) B, K: K sqrt(tau / 3), R: R tau / sqrt(2) (IEEE Std 952 Annex C) -- each
-labelled with its value in the display units.
+labelled with its value in the display units. Under each panel, the residuals of every method's
+fit check (:mod:`avbench.estimators.allan.fit_check`): z per tau, the decorrelated standardised
+residual of the AV against the method's model (``diagnostics_["fit_check"]["z"]``; about N(0, 1)
+where the model holds), with the +-2 band: where a flagged fit misses the curve, and by how much.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import numpy as np
 
 from avbench.noise_models.units import DISPLAY_UNITS, SI_SAMPLE_UNIT, from_si
 
-__all__ = ["figure"]
+__all__ = ["figure", "residuals"]
 
 _TERM = {
     "Q": lambda c, t: math.sqrt(3.0) * c / t,
@@ -43,8 +46,9 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
     units = DISPLAY_UNITS[sensor]
     si = SI_SAMPLE_UNIT[sensor]
     axes_names = list(sensor_record.axes)
-    fig, axs = plt.subplots(1, len(axes_names), figsize=(6.2 * len(axes_names), 5.0), squeeze=False)
-    for ax, name in zip(axs[0], axes_names):
+    fig, axs = plt.subplots(2, len(axes_names), figsize=(6.2 * len(axes_names), 6.6), squeeze=False,
+                            sharex="col", gridspec_kw={"height_ratios": [3.0, 1.1]})
+    for ax, rax, name in zip(axs[0], axs[1], axes_names):
         av, scale = avs[name]
         with np.errstate(invalid="ignore", over="ignore"):
             lo, hi, adev = np.sqrt(av.ci_low) / scale, np.sqrt(av.ci_high) / scale, av.adev / scale
@@ -75,9 +79,18 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
             with np.errstate(invalid="ignore"):
                 ax.plot(r.tau, r.deviation, "-", marker=".", lw=1, color=f"C{(k + 3) % 10}", label=dname.upper())
                 ax.fill_between(r.tau, np.sqrt(r.ci_low), np.sqrt(r.ci_high), color=f"C{(k + 3) % 10}", alpha=0.12)
+        for i, (method, fit) in enumerate(axis_fits[name].items()):
+            r = residuals(fit)
+            if r is not None:
+                rax.plot(r[0], r[1], "o-", ms=3, lw=0.8, color=f"C{i}", label=method)
+        rax.axhspan(-2, 2, color="0.9", zorder=0)
+        rax.axhline(0, color="0.5", lw=0.8)
+        rax.set_xscale("log")
+        rax.set_xlabel("τ (s)")
+        rax.set_ylabel("fit check z")
+        rax.grid(True, which="both", alpha=0.3)
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("τ (s)")
         ax.set_ylabel(f"Allan deviation ({si})")
         ax.set_title(f"{title} — {sensor} {name}", fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
@@ -87,3 +100,15 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
         ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
     return fig
+
+
+def residuals(fit):
+    """(tau, z) of a fitted method's poor-fit check, or None when it has none (failed, or a method
+    without the check)."""
+    est = fit.estimator
+    check = None if est is None else getattr(est, "diagnostics_", {}).get("fit_check")
+    if not check or "z" not in check:
+        return None
+    tau, z = np.asarray(check["tau"], float), np.asarray(check["z"], float)
+    ok = np.isfinite(z)
+    return (tau[ok], z[ok]) if ok.any() else None

@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["MethodFit", "fit_axis", "fitted_avar", "agreement", "uses_allan_variance", "scaled_allan"]
+__all__ = ["MethodFit", "fit_axis", "fitted_avar", "agreement", "uses_allan_variance", "scaled_allan",
+           "random_effects", "between_runs", "auto_inflation"]
 
 _SCALE_LIMIT = 2.0**40  # records within 2^-40..2^40 of unit RMS are fitted as they are (no copy)
 
@@ -206,3 +207,114 @@ def agreement(records, dt, min_edf: float = 4.0) -> dict:
     p = min(1.0, worst[2] * len(rows))
     return {"p_value": p, "agree": bool(p >= 0.01), "n_taus": len(rows), "worst_tau_s": worst[0],
             "note": "chi^2 homogeneity of log AV per octave tau, Bonferroni over taus; agree = p >= 0.01"}
+
+
+def random_effects(y, se, level: float = 0.95) -> dict:
+    """Between-run spread of one coefficient measured on k runs: DerSimonian & Laird (1986).
+
+    Model: y_i = mu + u_i + e_i, u_i ~ N(0, tau^2) (the sensor differs from run to run),
+    e_i ~ N(0, s_i^2) (the run's own sampling error, ``se``). DerSimonian & Laird's moment estimate
+    (their eq. 8 with w_i = 1/s_i^2):
+
+    .. math:: \\hat\\tau^2 = \\max\\Big(0, \\frac{Q - (k-1)}{\\sum w_i - \\sum w_i^2 / \\sum w_i}\\Big),
+              \\quad Q = \\sum w_i (y_i - \\bar y_w)^2,
+
+    the random-effects mean mu with weights 1/(s_i^2 + tau^2) and its standard error, the interval
+    of tau^2 by the Q-profile method (Viechtbauer 2007: the tau^2 at which the generalised
+    Q(tau^2) = sum (y_i - mu(tau^2))^2 / (s_i^2 + tau^2) equals the chi^2_{k-1} quantiles), and
+    the prediction interval of a new run's value, mu +- t_{k-2} sqrt(tau^2 + SE(mu)^2) (Higgins,
+    Thompson & Spiegelhalter 2009, eq. 12). Needs k >= 2 (k >= 3 for the prediction interval).
+    Where a run has no standard error (or one of zero) the spread is the runs' plain SD with a
+    chi^2 interval: it then includes each run's own sampling error.
+    """
+    from scipy import optimize, stats
+
+    y = np.asarray(y, dtype=float)
+    se = np.asarray(se, dtype=float)
+    ok = np.isfinite(y)
+    y, se = y[ok], se[ok]
+    k = int(y.size)
+    out = {"k": k, "mean": None, "mean_se": None, "tau": None, "tau_ci": None, "cv": None, "Q": None,
+           "p_heterogeneity": None, "prediction": None, "method": None, "level": level}
+    if k < 2:
+        out["method"] = "fewer than 2 runs with a value"
+        return out
+    a = (1 - level) / 2
+    if not np.all(np.isfinite(se) & (se > 0)):
+        mu, sd = float(y.mean()), float(y.std(ddof=1))
+        lo = sd * math.sqrt((k - 1) / stats.chi2.ppf(1 - a, k - 1))
+        hi = sd * math.sqrt((k - 1) / stats.chi2.ppf(a, k - 1))
+        out.update(mean=mu, mean_se=sd / math.sqrt(k), tau=sd, tau_ci=(lo, hi),
+                   method="SD of the runs (no within-run standard errors): includes the sampling error")
+        pred_sd = sd * math.sqrt(1 + 1 / k)
+    else:
+        v = se**2
+        w = 1 / v
+        yw = float(np.sum(w * y) / np.sum(w))
+        Q = float(np.sum(w * (y - yw) ** 2))
+        tau2 = max(0.0, (Q - (k - 1)) / (np.sum(w) - np.sum(w**2) / np.sum(w)))
+
+        def mu_of(t2):
+            ws = 1 / (v + t2)
+            return float(np.sum(ws * y) / np.sum(ws)), float(1 / math.sqrt(np.sum(ws)))
+
+        def qgen(t2):
+            m, _ = mu_of(t2)
+            return float(np.sum((y - m) ** 2 / (v + t2)))
+
+        def root(target):  # Q_gen decreases in tau^2 from Q_gen(0) = Q
+            if qgen(0.0) <= target:
+                return 0.0
+            hi = max(tau2, float(np.var(y)), float(v.max())) * 4 + 1e-300
+            while qgen(hi) > target:
+                hi *= 4
+            return float(optimize.brentq(lambda t: qgen(t) - target, 0.0, hi, xtol=1e-14 * hi, rtol=1e-12))
+
+        lo2, hi2 = root(stats.chi2.ppf(1 - a, k - 1)), root(stats.chi2.ppf(a, k - 1))
+        mu, mu_se = mu_of(tau2)
+        out.update(mean=mu, mean_se=mu_se, tau=math.sqrt(tau2), tau_ci=(math.sqrt(lo2), math.sqrt(hi2)), Q=Q,
+                   p_heterogeneity=float(stats.chi2.sf(Q, k - 1)),
+                   method="DerSimonian-Laird random effects; tau interval by Q-profile")
+        pred_sd = math.sqrt(tau2 + mu_se**2)
+    if out["mean"]:
+        out["cv"] = out["tau"] / abs(out["mean"])
+    if k >= 3:
+        t = float(stats.t.ppf(1 - a, k - 2))
+        out["prediction"] = (out["mean"] - t * pred_sd, out["mean"] + t * pred_sd)
+    return out
+
+
+def between_runs(per_run: list[dict[str, MethodFit]], method: str, level: float = 0.95) -> dict:
+    """Per coefficient, :func:`random_effects` of ``method``'s estimates on each run separately.
+
+    ``per_run``: one ``{method: MethodFit}`` per recording (the same axis). Runs where the method
+    failed or gives no value for a coefficient are left out of that coefficient.
+    """
+    from avbench.noise_models.units import COEFFICIENTS
+
+    out = {}
+    for c in COEFFICIENTS:
+        ys, ss = [], []
+        for fits in per_run:
+            f = fits[method]
+            v = f.coefficients()[c]
+            if not math.isfinite(v):
+                continue
+            se = (f.std_errors() or {}).get(c, math.nan)
+            ys.append(v)
+            ss.append(se)
+        out[c] = random_effects(ys, ss, level)
+    return out
+
+
+def auto_inflation(spread: dict, coefficient: str, level: float = 0.95) -> float | None:
+    """The factor by which a filter value should exceed the pooled estimate to cover the next run.
+
+    The upper end of the one-sided ``level`` prediction interval of a new run's value divided by
+    the random-effects mean (both from :func:`random_effects` at two-sided level 2 level - 1).
+    None when there are fewer than 3 runs or no positive mean.
+    """
+    r = spread[coefficient]
+    if r["prediction"] is None or not r["mean"] or r["mean"] <= 0:
+        return None
+    return max(1.0, r["prediction"][1] / r["mean"])

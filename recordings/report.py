@@ -3,6 +3,9 @@
 Each coefficient carries a ``flag`` instead of an overloaded NaN:
 
 * ``"ok"`` -- a value (with ``std_err_si`` and ``conf_int_si`` where the method gives them);
+* ``"not resolved"`` -- the record does not determine it (the estimator says so, with an interval:
+  ``interval_si``; ``value`` is null and the fitted value is in ``fitted_si``), e.g. GMWM's B when its
+  Gauss-Markov term sits at the sensor's filter;
 * ``"not modelled"`` -- the method's model has no such term;
 * ``"non-physical"`` -- the fit gave a value without physical meaning (e.g. a negative AV-model
   weight); ``value`` is null;
@@ -67,16 +70,21 @@ def poor_fit(fit):
 
 
 def coefficient_flags(fit) -> dict[str, str]:
-    """``ok`` / ``not modelled`` / ``non-physical`` / ``failed`` for each of Q, N, B, K, R."""
+    """``ok`` / ``not resolved`` / ``not modelled`` / ``non-physical`` / ``failed`` for each of Q, N, B, K, R
+    (``not resolved``: the estimator says, in ``diagnostics_["unresolved"]``, that the record does not
+    determine it, with an interval)."""
     if fit.estimator is None:
         return {c: "failed" for c in COEFFICIENTS}
     est = fit.estimator
     coefs = est.coefficients_
     nonphys = getattr(est, "nonphysical_", None)
     failed = bool(est.diagnostics_.get("failure"))
+    unresolved = est.diagnostics_.get("unresolved") or {}
     out = {}
     for c in COEFFICIENTS:
-        if math.isfinite(float(coefs[c])):
+        if c in unresolved:
+            out[c] = "not resolved"
+        elif math.isfinite(float(coefs[c])):
             out[c] = "ok"
         elif nonphys is not None and bool(nonphys.get(c, False)):
             out[c] = "non-physical"
@@ -103,6 +111,9 @@ def _method_entry(fit, sensor, n_samples):
             e["std_err_si"] = se[c]
         if c in ci:
             e["conf_int_si"] = list(ci[c])
+        if flags[c] == "not resolved":  # the interval the record allows, and the fitted value beside it
+            e["interval_si"] = [float(v) / fit.scale for v in fit.estimator.diagnostics_["unresolved"][c]]
+            e["fitted_si"] = _num(coefs[c])
         entry[c] = e
     flag, detail = poor_fit(fit)
     failure = fit.error or (fit.estimator.diagnostics_.get("failure") if fit.estimator is not None else None)
@@ -153,6 +164,9 @@ def tables(data: dict) -> dict[str, pd.DataFrame]:
                     row[f"{c} ({e['unit']})"] = e["value"] if e["value"] is not None else np.nan
                     if e["flag"] == "non-physical":
                         notes.append(f"{c} non-physical")
+                    elif e["flag"] == "not resolved":
+                        hi = from_si(c, e["interval_si"][1], e["unit"], sensor)
+                        notes.append(f"{c} not resolved (<= {hi:.3g})")
                 if md["failure"]:
                     notes.append("failed")
                 if md["poor_fit"]:

@@ -21,13 +21,22 @@ code. Writes to ``--out``:
 ``consistency.csv`` / ``consistency.md``  per ADIS sensor, axis, method and coefficient: mean over the
                       six runs, run-to-run standard deviation, the method's own median standard
                       error, their ratio, the number of runs with a value, and of poor fits;
+``between_runs.csv`` / ``between_runs.md``  per ADIS sensor, axis, method with standard errors and
+                      coefficient N, B, K: the random-effects between-run SD with its 95 % interval,
+                      over the median SE, and the ``--inflate auto`` factor (:func:`between_runs`);
 ``adis16405_<sensor>_<axis>.png``  the six runs' Allan deviations with the median ``nnls_rel`` curve;
 ``mtig_cont_imu1_gyro_x.png``      the MTi-G curve with its ``nnls_rel`` fit.
 
 Same sensor, same conditions: the runs share their true coefficients (to the extent the sensor is
 stationary between runs), so the spread of a method's estimates across runs, against the standard
 error it claims, is the one test of honesty real data give. ``--methods`` picks the methods,
-``--skip-slow`` leaves out the MLE (about 25 s per axis).
+``--skip-slow`` leaves out the MLE (about 25 s per axis). ``--slices`` runs instead the default
+methods of ``avbench estimate`` on the first 30- and 60-minute slices (``--per-run`` for more) of the ADIS gyro axes
+(the records robotics users make) and writes ``slices.csv`` (N, B, in range or not, flags) and
+``slices.md`` (per method and length: share of slices with N in 1.9-3.0 deg/sqrt(h) and B in
+15-80 deg/h, and values outside with no flag). ``--lines`` writes ``lines.csv`` / ``lines.md``: the
+strongest spectral line of each axis in 0.3-3 Hz (frequency, amplitude, prominence): the
+accelerometers' AV bump.
 """
 
 from __future__ import annotations
@@ -45,8 +54,8 @@ import pandas as pd
 RECORDS = [(f"adis_16405_imu{i}", "adis16405", f"adis16405-calgary/adis_16405_imu{i}.npz", "deg/s", "g", 100.0)
            for i in range(1, 7)]
 RECORDS += [("mtig_cont_imu1", "mtig_cont_imu1", "mtig-cont-imu1/cont_imu1.npz", "rad/s", None, 100.0)]
-METHODS = ["ols", "ols_trimmed", "wls", "wls_edf", "slope_lines", "log_fit", "nnls_rel", "gmwm", "gmwm_robust",
-           "gmwm_despiked", "mle"]
+METHODS = ["ols", "ols_trimmed", "wls", "wls_edf", "slope_lines", "log_fit", "nnls_rel", "gmwm", "gmwm_filtered",
+           "gmwm_robust", "gmwm_despiked", "mle"]
 SIG = 5  # significant digits of the committed numbers
 #: the environment variable that says where the (optional, licensed) recordings are
 DATA_ENV = "AVBENCH_REAL_DATA"
@@ -110,6 +119,95 @@ def fit_all(data: Path, methods) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: the short records robotics users make: non-overlapping slices of these lengths (minutes)
+SLICE_MINUTES = (30, 60)
+#: plausible gyro values on the ADIS16405 (issue 24's check: the six full runs agree on N 2.3-2.6
+#: deg/sqrt(h) and B 36-48 deg/h; the datasheet says 3 and 25)
+SLICE_N_RANGE, SLICE_B_RANGE = (1.9, 3.0), (15.0, 80.0)
+
+
+def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, settings=None) -> pd.DataFrame:
+    """The given methods on the first ``per_run`` non-overlapping ``minutes``-long slices of every ADIS
+    gyro axis (the first: a user's record starts when the sensor is switched on).
+
+    One row per record x axis x length x slice x method: N (deg/sqrt(h)), B (deg/h), whether each lies
+    in :data:`SLICE_N_RANGE` / :data:`SLICE_B_RANGE`, the coefficient flags and the poor-fit flag,
+    and ``unflagged_outside``: a value outside its range with neither flag (what must not happen).
+    """
+    from avbench.noise_models.units import from_si
+    from avbench.recordings.fit import fit_axis
+    from avbench.recordings.report import coefficient_flags
+
+    rows = []
+    for rec, sensor, axis, x, timing in _records(data):
+        if _GROUP[rec] != "adis16405" or sensor != "gyro":
+            continue
+        for mins in minutes:
+            n = int(round(mins * 60 / timing.dt))
+            for k in range(min(per_run, x.size // n)):
+                part = np.asarray(x[k * n:(k + 1) * n])
+                starts = timing.starts[(timing.starts > k * n) & (timing.starts < (k + 1) * n)] - k * n
+                for name, fit in fit_axis(part, timing.dt, starts, methods, settings).items():
+                    d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
+                    c, flags = fit.coefficients(), coefficient_flags(fit)
+                    N = from_si("N", c["N"], "deg/sqrt(h)")
+                    B = from_si("B", c["B"], "deg/h")
+                    poor = bool(d.get("poor_fit", False)) or fit.error is not None
+                    n_in = bool(SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1])
+                    b_in = bool(SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1])
+                    rows.append({"record": rec, "axis": axis, "minutes": mins, "slice": k, "method": name,
+                                 "N": _round(N), "B": _round(B), "N_in_range": n_in, "B_in_range": b_in,
+                                 "N_flag": flags["N"], "B_flag": flags["B"], "poor_fit": poor,
+                                 "fit_pvalue": _round(d.get("fit_pvalue", math.nan)),
+                                 "unflagged_outside": bool(((not n_in and flags["N"] == "ok") or
+                                                            (not b_in and flags["B"] == "ok")) and not poor)})
+                    print(f"{rec} {axis} {mins} min #{k} {name}: N={N:.3g} B={B:.3g} poor_fit={poor}", flush=True)
+    return pd.DataFrame(rows)
+
+
+def spectral_lines(data: Path, band=(0.3, 3.0)) -> pd.DataFrame:
+    """The strongest spectral line of every axis in ``band`` (Hz): the accelerometers' AV bump.
+
+    Periodogram of the whole record (Hann window, mean removed); the line's frequency is the peak,
+    its variance the periodogram's excess over the median of the neighbouring +-0.01-0.05 Hz summed
+    over +-0.004 Hz (at least 3 and 6-30 frequency bins on short records), its amplitude A = sqrt(2 variance) (a sinusoid A sin(2 pi f0 t) has variance A^2/2),
+    and ``prominence`` the peak over that median (a broadband spectrum gives a few).
+    """
+    from avbench.noise_models.units import DISPLAY_UNITS, from_si
+
+    rows = []
+    for rec, sensor, axis, x, timing in _records(data):
+        if timing.starts.size:
+            continue  # a record with gaps: not one periodogram
+        x = np.asarray(x, dtype=float) - np.mean(x)
+        w = np.hanning(x.size)
+        P = np.abs(np.fft.rfft(x * w)) ** 2
+        f = np.fft.rfftfreq(x.size, timing.dt)
+        inband = np.flatnonzero((f >= band[0]) & (f <= band[1]))
+        k = inband[np.argmax(P[inband])]
+        df = 1.0 / (x.size * timing.dt)  # frequency resolution: the windows hold at least a few bins
+        near = (np.abs(f - f[k]) > max(0.01, 6 * df)) & (np.abs(f - f[k]) < max(0.05, 30 * df))
+        bg = float(np.median(P[near]))
+        line = np.abs(f - f[k]) < max(0.004, 3 * df)
+        var = max(0.0, float((P[line] - bg).sum())) * 2.0 / (x.size * float(np.sum(w * w)))
+        unit = DISPLAY_UNITS[sensor]["B"]
+        rows.append({"record": rec, "sensor": sensor, "axis": axis, "f0_hz": _round(float(f[k])),
+                     "amplitude": _round(from_si("B", math.sqrt(2 * var), unit, sensor)), "unit": unit,
+                     "prominence": _round(float(P[k] / bg))})
+    return pd.DataFrame(rows)
+
+
+def slice_summary(df: pd.DataFrame) -> pd.DataFrame:
+    """Per method and slice length: records, share with N and B both in range, share in range or
+    flagged "not resolved" (an interval instead of a value), poor fits, values outside unflagged."""
+    both = df.N_in_range & df.B_in_range
+    answered = (df.N_in_range | (df.N_flag == "not resolved")) & (df.B_in_range | (df.B_flag == "not resolved"))
+    g = df.assign(both=both, answered=answered).groupby(["method", "minutes"], sort=False)
+    return pd.DataFrame({"records": g.size(), "in_range_pct": (100 * g["both"].mean()).round(1),
+                         "in_range_or_not_resolved_pct": (100 * g["answered"].mean()).round(1),
+                         "poor_fit": g["poor_fit"].sum(), "unflagged_outside": g["unflagged_outside"].sum()}).reset_index()
+
+
 def consistency(df: pd.DataFrame) -> pd.DataFrame:
     """Run-to-run spread of each method's estimates on the six ADIS runs (module docstring)."""
     adis = df[df.record.map(_GROUP) == "adis16405"]
@@ -126,6 +224,30 @@ def consistency(df: pd.DataFrame) -> pd.DataFrame:
                     "cv_pct": _round(100 * sd / abs(np.mean(v[ok]))) if np.mean(v[ok]) != 0 else math.nan,
                     "median_se": _round(se), "sd_over_se": _round(sd / se) if se and np.isfinite(se) else math.nan,
                     "poor_fits": int(g.drop_duplicates("record")["poor_fit"].sum())})
+    return pd.DataFrame(out)
+
+
+def between_runs(df: pd.DataFrame) -> pd.DataFrame:
+    """Per ADIS sensor, axis, method and coefficient: the between-run spread of the six runs by random
+    effects (:func:`avbench.recordings.fit.random_effects`, DerSimonian & Laird 1986, as
+    ``avbench estimate --combine``), for methods that give standard errors: the between-run SD tau
+    with its 95 % Q-profile interval, the mean, tau over the median within-run SE, and the
+    ``--inflate auto`` factor (95 % prediction limit of a new run over the mean)."""
+    from avbench.recordings.fit import random_effects
+
+    adis = df[df.record.map(_GROUP) == "adis16405"]
+    out = []
+    for (sensor, axis, method, coef), g in adis.groupby(["sensor", "axis", "method", "coefficient"], sort=False):
+        y, se = g["value"].to_numpy(dtype=float), g["std_err"].to_numpy(dtype=float)
+        ok = np.isfinite(y) & np.isfinite(se) & (se > 0)
+        if ok.sum() < 3 or coef not in ("N", "B", "K"):
+            continue
+        r = random_effects(y[ok], se[ok])
+        out.append({"sensor": sensor, "axis": axis, "method": method, "coefficient": coef, "unit": g["unit"].iloc[0],
+                    "n_runs": r["k"], "mean": _round(r["mean"]), "tau": _round(r["tau"]),
+                    "tau_low": _round(r["tau_ci"][0]), "tau_high": _round(r["tau_ci"][1]),
+                    "tau_over_se": _round(r["tau"] / float(np.median(se[ok]))),
+                    "inflate_auto": _round(max(1.0, r["prediction"][1] / r["mean"])) if r["mean"] > 0 else math.nan})
     return pd.DataFrame(out)
 
 
@@ -193,6 +315,12 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-slow", action="store_true", help="leave out the MLE")
     ap.add_argument("--tables-only", action="store_true",
                     help="do not fit: rebuild the consistency table and figures from OUT/coefficients.csv")
+    ap.add_argument("--slices", action="store_true",
+                    help="instead: the default methods (or --methods) on 30- and 60-minute slices of the ADIS gyro "
+                         "axes; writes OUT/slices.csv and OUT/slices.md")
+    ap.add_argument("--per-run", type=int, default=1, help="with --slices: slices of each length per run (default 1)")
+    ap.add_argument("--lines", action="store_true",
+                    help="instead: the strongest spectral line of each axis in 0.3-3 Hz (OUT/lines.csv)")
     args = ap.parse_args(argv)
     if not args.data:
         raise SystemExit(f"real_runs: give --data DIR (the folder of the recordings) or set {DATA_ENV}")
@@ -202,6 +330,19 @@ def main(argv=None) -> int:
         raise SystemExit(f"real_runs: no recordings found under {data} "
                          f"(expected {RECORDS[0][2]} ... or {RECORDS[-1][2]})")
     out.mkdir(parents=True, exist_ok=True)
+    if args.lines:
+        lines = spectral_lines(data)
+        lines.to_csv(out / "lines.csv", index=False)
+        (out / "lines.md").write_text(_markdown(lines))
+        return 0
+    if args.slices:
+        from avbench.estimators.base import DEFAULT_METHODS
+
+        chosen = methods if args.methods != ",".join(METHODS) else list(DEFAULT_METHODS)
+        sl = slices(data, chosen, per_run=args.per_run)
+        sl.to_csv(out / "slices.csv", index=False)
+        (out / "slices.md").write_text(_markdown(slice_summary(sl)))
+        return 0
     if args.tables_only:
         df = pd.read_csv(out / "coefficients.csv")
     else:
@@ -209,6 +350,9 @@ def main(argv=None) -> int:
         df.to_csv(out / "coefficients.csv", index=False)
     cons = consistency(df)
     cons.to_csv(out / "consistency.csv", index=False)
+    br = between_runs(df)
+    br.to_csv(out / "between_runs.csv", index=False)
+    (out / "between_runs.md").write_text(_markdown(br))
     (out / "consistency.md").write_text(_markdown(cons))
     _figures(data, df, out)
     return 0

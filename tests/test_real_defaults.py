@@ -74,3 +74,29 @@ def test_defaults_on_real_accelerometers_plausible_or_flagged(name):
         b = from_si("B", est.coefficients_["B"], "ug", "accel")
         assert white / 2 < n < 2 * white, (axis, n, white)
         assert (plateau / 2 < b < 2 * plateau) or est.diagnostics_["poor_fit"], (axis, b, plateau)
+
+
+@pytest.mark.slow
+@_needs_adis
+@pytest.mark.parametrize("minutes", [30, 60])
+def test_defaults_on_short_real_records_plausible_or_flagged(minutes):
+    """The records robotics users make: the first 30 / 60 minutes of ADIS run 1. Every default
+    method gives N in 1.9-3.0 deg/sqrt(h) and B in 15-80 deg/h, or flags what is outside (B "not
+    resolved" with its interval, or a poor fit). The share in range over the six runs is measured by
+    ``real_runs --slices`` (results/real/slices.md), not asserted here."""
+    from avbench.recordings.fit import fit_axis
+    from avbench.recordings.report import coefficient_flags
+    from avbench.studies.real_runs import SLICE_B_RANGE, SLICE_N_RANGE
+
+    n = minutes * 60 * 100
+    for sensor, axis, x in _axes(ADIS, "deg/s", "g"):
+        if sensor != "gyro":
+            continue
+        fits = fit_axis(np.asarray(x[:n]), 0.01, np.empty(0, dtype=np.int64), DEFAULT_METHODS)
+        for name, fit in fits.items():
+            c, flags = fit.coefficients(), coefficient_flags(fit)
+            N = from_si("N", c["N"], "deg/sqrt(h)")
+            B = from_si("B", c["B"], "deg/h")
+            inside = SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1] and SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1]
+            flagged = fit.estimator.diagnostics_.get("poor_fit") or "not resolved" in flags.values()
+            assert inside or flagged, (axis, name, N, B)

@@ -111,3 +111,29 @@ def test_tables_only_rebuilds_the_same_table(layout, tmp_path):
 def test_no_recordings_is_a_clear_error(tmp_path):
     with pytest.raises(SystemExit, match="no recordings found"):
         real_runs.main(["--data", str(tmp_path), "--out", str(tmp_path / "o")])
+
+
+def test_slices_and_spectral_lines(layout, tmp_path):
+    """--slices: the methods on slices, N and B judged against the plausible ranges, nothing outside
+    unflagged counted; --lines: an injected 0.55 Hz sinusoid of 800 ug is found with its amplitude."""
+    root, _ = layout
+    sl = real_runs.slices(root, ["nnls_rel"], minutes=(1,), per_run=2)
+    assert len(sl) == 2 * 3 * 2 and set(sl["minutes"]) == {1}  # 2 runs x 3 gyro axes x 2 slices
+    # the generated gyros have N = 2, 3, 4 deg/sqrt(h): 4 lies outside 1.9-3.0
+    assert not sl[sl.axis == "z"]["N_in_range"].any()
+    summary = real_runs.slice_summary(sl)
+    assert summary["records"].sum() == len(sl)
+    # the sinusoid
+    data = tmp_path / "lines"
+    (data / "adis16405-calgary").mkdir(parents=True)
+    rng = np.random.default_rng(5)
+    t = np.arange(N_SAMPLES) * DT
+    cols = [rng.normal(0, 0.01, N_SAMPLES) for _ in range(3)]
+    cols += [rng.normal(0, 1e-3, N_SAMPLES) + (800e-6 * np.sin(2 * np.pi * 0.55 * t + 1.0) if k == 0 else 0)
+             for k in range(3)]
+    np.savez(data / "adis16405-calgary" / "adis_16405_imu1.npz", data=np.column_stack(cols), fs=100.0,
+             columns=np.array(COLUMNS))
+    lines = real_runs.spectral_lines(data).set_index(["sensor", "axis"])
+    acc_x = lines.loc[("accel", "x")]
+    assert acc_x["f0_hz"] == pytest.approx(0.55, abs=0.005) and acc_x["amplitude"] == pytest.approx(800, rel=0.1)
+    assert acc_x["prominence"] > 10 * lines.loc[("accel", "y")]["prominence"]

@@ -29,7 +29,13 @@ Gauss-Markov (sigma, Tc)       :math:`\\sigma^2(1-\\phi^2)/(1-2\\phi\\cos\\omega
 flicker bias instability (B)   :math:`B^2/|2\\sin(\\omega/2)|` (Kasdin & Walter 1992, alpha = 1)
 2nd-order Gauss-Markov (R, w0) the spectrum of the exactly discretised process (Miao et al.
                                2015, eq. 8), from its autocovariance
+filtered white (N; tc)         :math:`(N^2/\Delta t)\,|H(\omega)|^2` (the sensor's filter, unit DC gain;
+                               a moving average or FIR has no shape parameter, so N's bound is
+                               that of white noise, 1/sqrt(2n) relative)
 =============================  ==============================================================
+
+A sinusoid (IEEE 952 Annex C) is a spectral line, not a density: it is left out, and the other
+coefficients are bounded as if it were known (valid, possibly loose, lower bounds, as for the ramp).
 
 The bound is parameterised in the coefficients themselves; nuisance parameters (Tc, w0) are
 estimated jointly (they enter the information matrix and are then marginalised by the inverse).
@@ -80,13 +86,15 @@ def _components(gyro) -> tuple[list[_Component], set[str]]:
         if type(term).__name__ == "RateRamp":
             unbounded.add("R")  # deterministic: no spectrum (module docstring)
             continue
+        if term.spectral_lines(gyro.dt):
+            continue  # a sinusoid: a line, not a spectral density; the others bounded as if it were known
         params = term._params()
         coef = term.coefficient
         scale_key = coef if coef in params else "sigma"
         if scale_key not in params:
             raise ValueError(f"crlb: cannot find the scale parameter of {term!r}")
         free = {scale_key: params[scale_key]}
-        free.update({k: params[k] for k in _SHAPE_PARAMS if k in params})
+        free.update({k: params[k] for k in _SHAPE_PARAMS if params.get(k) is not None})
         value = term.coefficients().get(coef, math.nan) if coef else math.nan
         comps.append(_Component(term, free, coef, value / params[scale_key] if coef else 1.0))
     return comps, unbounded

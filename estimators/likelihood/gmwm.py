@@ -48,6 +48,13 @@ state-space processes: its theoretical AV is the exact discrete curve of the Kas
 generator, :class:`avbench.noise_models.BiasInstability`, with filter memory ``tau_max`` = twice the record
 as in the presets, so that the plateau holds to the longest usable tau), ``RW`` rate random walk (K),
 ``DR`` deterministic drift / rate ramp (R). ``GM`` and ``FL`` are alternatives for B (not both).
+Two latents of real sensors (beyond Guerrier et al. 2013): ``FW`` white rate noise seen through the
+sensor's first-order low-pass filter (N, tf; :class:`avbench.noise_models.FilteredWhiteNoise` with
+``tc=tf``: the first octaves below the white line are modelled instead of dropped), an alternative
+to ``WN`` (not both); ``SN`` sinusoidal noise (amplitude A, frequency f0;
+:class:`avbench.noise_models.Sinusoidal`, IEEE Std 952-1997 Annex C), which reports no coefficient.
+The AV covariance (weights, standard errors) is computed from the model spectrum, in which the
+sinusoid's line does not appear: where it dominates the curve its weights are too large.
 Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts.
 """
 
@@ -66,10 +73,14 @@ from avbench.estimators.base import Estimator, register
 from avbench.estimators.allan.covariance import av_covariance
 from avbench.estimators.allan.fit_check import assess_fit
 
-__all__ = ["GMWM", "LATENTS", "WaveletVariance", "parse_model", "build_gyro"]
+__all__ = ["GMWM", "GMWMFiltered", "LATENTS", "WaveletVariance", "parse_model", "build_gyro"]
 
 #: level of the difference-in-J test that drops a shortest scale (``min_m="auto"``)
 SCALE_TEST_LEVEL = 0.001
+
+#: a Gauss-Markov term whose AV peak (1.8926 Tc) lies less than this factor above the shortest tau
+#: fitted (three octaves) shapes the first octaves -- the sensor's filter -- and does not resolve B
+GM_RESOLVED_PEAK_FACTOR = 8.0
 
 #: latent name -> (parameters, coefficient reported)
 LATENTS = {
@@ -79,8 +90,10 @@ LATENTS = {
     "FL": (("B",), "B"),
     "RW": (("K",), "K"),
     "DR": (("R",), "R"),
+    "FW": (("N", "tf"), "N"),
+    "SN": (("A", "f0"), None),
 }
-_ORDER = ("QN", "WN", "GM", "FL", "RW", "DR")
+_ORDER = ("QN", "WN", "FW", "GM", "FL", "RW", "DR", "SN")
 
 
 class WaveletVariance(NamedTuple):
@@ -114,10 +127,11 @@ def parse_model(model) -> tuple[str, ...]:
     else:
         parts = None
     if (not parts or any(p not in LATENTS for p in parts) or len(set(parts)) != len(parts)
-            or {"GM", "FL"} <= set(parts)):
+            or {"GM", "FL"} <= set(parts) or {"WN", "FW"} <= set(parts)):
         raise ValueError(
             f"model: expected latent names from {', '.join(_ORDER)} joined by '+' (e.g. 'WN+GM+RW') "
-            f"or a list of them, without repeats and not both GM and FL (two models of B); got {model!r}"
+            f"or a list of them, without repeats, not both GM and FL (two models of B) and not both WN and FW "
+            f"(two models of N); got {model!r}"
         )
     return tuple(p for p in _ORDER if p in parts)
 
@@ -127,7 +141,7 @@ def build_gyro(latents, values, dt, flicker_tau_max=None):
 
     ``flicker_tau_max``: the filter memory of a flicker latent "FL" (required with it)."""
     from avbench.noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp
-    from avbench.noise_models import RateRandomWalk
+    from avbench.noise_models import FilteredWhiteNoise, RateRandomWalk, Sinusoidal
 
     it = iter(values)
     terms = []
@@ -145,6 +159,12 @@ def build_gyro(latents, values, dt, flicker_tau_max=None):
             terms.append(RateRandomWalk(K=next(it)))
         elif lat == "DR":
             terms.append(RateRamp(R=next(it)))
+        elif lat == "FW":
+            N, tf = next(it), next(it)
+            terms.append(FilteredWhiteNoise(N=N, tc=tf))
+        elif lat == "SN":
+            A, f0 = next(it), next(it)
+            terms.append(Sinusoidal(amplitude=A, frequency=f0))
     return Gyro(dt=dt, terms=terms)
 
 
@@ -282,6 +302,8 @@ class GMWM(Estimator):
             diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
             return best["coefs"], {}, diag
+        if "GM" in latents:
+            _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable)
         gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
         model_avar = gyro.avar
         if gain_all is not None and "WN" in latents:
@@ -368,6 +390,40 @@ class GMWM(Estimator):
         return {"coefs": coefs, "J_stat": diag["J_stat"], "diag": diag}
 
 
+def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable):
+    """B not resolved when the Gauss-Markov term peaks within the first three octaves fitted.
+
+    Such a GM shapes the first octaves (short records at 100 Hz: the sensor's filter; 30-minute ADIS
+    slices gave B = 200 deg/h from Tc = 0.04 s) and says nothing about bias instability. Then
+    ``diagnostics_["unresolved"] = {"B": (0, upper)}``, with the upper bound any bias term obeys: the
+    AV at every tau is at least the plateau (2 ln2 / pi) B^2, so B <= sqrt(min_tau AV_97.5%(tau) /
+    plateau), the chi^2 upper 97.5 % limit of the AV at the tau where it is smallest; and an
+    :class:`~avbench.estimators.base.IdentifiabilityWarning` says so. The coefficient keeps its value
+    (the fitted model), the report flags it ``not resolved`` and shows the interval.
+    """
+    import warnings
+
+    from scipy.stats import chi2
+
+    from avbench.estimators.base import IdentifiabilityWarning
+    from avbench.noise_models.terms import GM_PEAK_TAU_OVER_TC
+
+    tc = diag["values"][_param_index(latents, "GM") + 1]
+    peak = GM_PEAK_TAU_OVER_TC * tc
+    if peak >= GM_RESOLVED_PEAK_FACTOR * diag["tau"][0]:
+        return
+    ok = usable & (edf_all > 0)
+    upper_av = avar_all[ok] * edf_all[ok] / chi2.ppf(0.025, edf_all[ok])
+    upper = float(math.sqrt(np.min(upper_av) / PLATEAU))
+    diag["unresolved"] = {"B": (0.0, upper)}
+    warnings.warn(
+        f"B not resolved: the Gauss-Markov term peaks at tau = {peak:.3g} s, within three octaves of the shortest "
+        f"tau fitted ({diag['tau'][0]:.3g} s), where the sensor's filter shapes the curve; bias instability "
+        f"B <= {upper:.3g} (SI, the 97.5 % upper limit of the smallest AV read as a plateau)",
+        IdentifiabilityWarning, stacklevel=3,
+    )
+
+
 def _param_index(latents, name):
     """Index of the first parameter of latent ``name`` in the flat parameter vector."""
     i = 0
@@ -392,10 +448,12 @@ def _bounds(latents, tau, avar, dt, T):
     for lat in latents:
         if lat == "QN":
             top = math.sqrt(np.max(avar * tau**2) / 3)
-        elif lat == "WN":
+        elif lat in ("WN", "FW"):
             top = math.sqrt(np.max(avar * tau))
         elif lat == "GM":
             top = math.sqrt(np.max(avar) / 0.38)
+        elif lat == "SN":
+            top = math.sqrt(np.max(avar) / 0.525)  # the sinusoid's AV peaks at 0.525 A^2
         elif lat == "FL":
             top = math.sqrt(np.max(avar) / PLATEAU)
         elif lat == "RW":
@@ -407,6 +465,12 @@ def _bounds(latents, tau, avar, dt, T):
         if lat == "GM":
             lo.append(math.log(max(dt, tau[0])))  # a GM faster than the shortest scale fitted is not resolved
             hi.append(math.log(10 * T))
+        elif lat == "FW":  # the filter's time constant: from far below dt to a few shortest taus
+            lo.append(math.log(dt / 100))
+            hi.append(math.log(max(dt, tau[0]) * 16))
+        elif lat == "SN":  # a frequency the fitted taus see: peak 0.371 / f0 inside the tau range
+            lo.append(math.log(0.371 / tau[-1]))
+            hi.append(math.log(0.5 / dt))
     return np.array(lo), np.array(hi)
 
 
@@ -418,8 +482,12 @@ def _starts(latents, tau, avar, n_starts, lo, hi):
             base.append([math.sqrt(avar[0] * tau[0] ** 2 / 3) / 2])
         elif lat == "WN":
             base.append([math.sqrt(avar[0] * tau[0]) / 2])
+        elif lat == "FW":
+            base.append([math.sqrt(np.max(avar * tau)), tau[0] / 4])
         elif lat == "GM":
             base.append([None, None])
+        elif lat == "SN":
+            base.append(["SN", "SN"])
         elif lat == "FL":
             base.append([math.sqrt(np.min(avar) / PLATEAU) / 2])
         elif lat == "RW":
@@ -427,16 +495,32 @@ def _starts(latents, tau, avar, n_starts, lo, hi):
         else:
             base.append([math.sqrt(2 * avar[-1] / tau[-1] ** 2) / 4])
     flat = [v for b in base for v in b]
-    if "GM" not in latents:
-        return [np.log(np.array(flat, dtype=float))]
-    j = [i for i, v in enumerate(flat) if v is None][0]
-    out = []
-    for tc in np.geomspace(max(tau[0], 2 * math.exp(lo[j + 1])), tau[-1] / 2, n_starts):
-        peak = np.interp(math.log(1.89 * tc), np.log(tau), avar)
-        vals = list(flat)
-        vals[j], vals[j + 1] = math.sqrt(peak / 0.38) / 2, tc
-        out.append(np.log(np.array(vals, dtype=float)))
-    return out
+    out = [flat]
+    if "GM" in latents:
+        j = [i for i, v in enumerate(flat) if v is None][0]
+        out = []
+        for tc in np.geomspace(max(tau[0], 2 * math.exp(lo[j + 1])), tau[-1] / 2, n_starts):
+            peak = np.interp(math.log(1.89 * tc), np.log(tau), avar)
+            vals = list(flat)
+            vals[j], vals[j + 1] = math.sqrt(peak / 0.38) / 2, tc
+            out.append(vals)
+    if "SN" in latents:
+        # the sinusoid: started at the eight strongest bumps of the curve (AV over the geometric mean
+        # of its neighbours), its peak tau = 0.371 / f0 there, its peak AV 0.525 A^2 half the bump
+        j = flat.index("SN")
+        bump = np.full(tau.size, -np.inf)
+        if tau.size >= 3:
+            bump[1:-1] = np.log(avar[1:-1]) - 0.5 * (np.log(avar[:-2]) + np.log(avar[2:]))
+        order = [i for i in np.argsort(-bump)[:8] if np.isfinite(bump[i])] or [0]
+        with_sn = []
+        for vals in out:
+            for i in order:
+                f0 = min(max(0.371 / tau[i], math.exp(lo[j + 1]) * 1.01), math.exp(hi[j + 1]) / 1.01)
+                v = list(vals)
+                v[j], v[j + 1] = math.sqrt(avar[i] / 0.525) / 2, f0
+                with_sn.append(v)
+        out = with_sn
+    return [np.log(np.array(v, dtype=float)) for v in out]
 
 
 #: a parameter whose Jacobian column is below this fraction of the largest is taken as unidentified
@@ -475,7 +559,27 @@ def _report(latents, values, jac, at_floor):
         if at_floor[i]:
             v = 0.0  # the term is not needed: its scale ran to the lower bound
         scale = B_EQUIV_OVER_SIGMA if lat == "GM" else 1.0
-        coefs[coef] = scale * v
-        std[coef] = scale * v * s
+        if coef is not None:  # the sinusoid reports no IEEE coefficient (its params do)
+            coefs[coef] = scale * v
+            std[coef] = scale * v * s
         i += len(names)
     return coefs, pd.Series(std, dtype=float).reindex(["Q", "N", "B", "K", "R"]), params
+
+
+@register("gmwm_filtered")
+class GMWMFiltered(GMWM):
+    """GMWM whose white noise passes through the sensor's own low-pass filter (default model
+    ``FW+GM+RW``; beyond Guerrier et al. 2013).
+
+    Real IMUs filter before they sample: the first octaves of their AV lie below the white-noise
+    line (ADIS16405: 20-40 %). :class:`GMWM` copes by dropping those scales (``min_m="auto"``), and
+    on short records its Gauss-Markov term then takes what is left of the filter's shape (30-minute
+    ADIS slices: B = 160-250 deg/h, now flagged "not resolved"). The ``FW`` latent
+    (:class:`avbench.noise_models.FilteredWhiteNoise` with a first-order low-pass, time constant
+    ``tf``) models the filter, so the scales are kept and the Gauss-Markov term is left to the bias
+    instability (results/real/README.md: N and B plausible on 35 of the 36 first 30/60-minute ADIS
+    gyro slices, the one exception flagged). Settings as :class:`GMWM`.
+    """
+
+    def __init__(self, *, model="FW+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6):
+        super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting, n_starts=n_starts)

@@ -1,0 +1,26 @@
+"""The `avbench estimate` figure: an ADEV panel per axis, and under it the fit check's z per tau."""
+
+import numpy as np
+
+from avbench.noise_models import AngleRandomWalk, Gyro, RateRandomWalk, Sinusoidal
+from avbench.recordings import figure
+from avbench.recordings.fit import fit_axis, scaled_allan
+from avbench.recordings.sensors import SensorRecord
+
+
+def test_residual_panels_show_each_methods_z():
+    dt = 0.01
+    g = Gyro(dt=dt, terms=[AngleRandomWalk(N=1e-4), Sinusoidal(3e-3, 0.6), RateRandomWalk(K=2e-6)])
+    x = g.simulate(100_000, np.random.default_rng(0))
+    starts = np.empty(0, dtype=np.int64)
+    fits = fit_axis(x, dt, starts, ["gmwm"], {"gmwm": {"model": "WN+RW"}})
+    fits_sn = fit_axis(x, dt, starts, ["gmwm"], {"gmwm": {"model": "WN+RW+SN", "min_m": 1}})
+    tau, z = figure.residuals(fits["gmwm"])
+    tau_sn, z_sn = figure.residuals(fits_sn["gmwm"])
+    assert tau.size >= 5 and np.max(np.abs(z)) > 4  # the bump the model lacks shows in z ...
+    assert np.max(np.abs(z_sn)) < 4  # ... and is gone with the sinusoid
+    rec = SensorRecord("gyro", "rad/s", {"x": x}, {"x": "x"})
+    fig = figure.figure(rec, {"x": fits}, {"x": scaled_allan(x, dt, starts)}, dt, "t", {"x": {"gmwm": True}})
+    top, bottom = fig.axes[0], fig.axes[1]
+    assert top.get_yscale() == "log" and bottom.get_ylabel() == "fit check z"
+    assert len(bottom.lines) >= 1 and np.allclose(bottom.lines[0].get_ydata(), z)
