@@ -29,7 +29,7 @@ Gauss-Markov (sigma, Tc)       :math:`\\sigma^2(1-\\phi^2)/(1-2\\phi\\cos\\omega
 flicker bias instability (B)   :math:`B^2/|2\\sin(\\omega/2)|` (Kasdin & Walter 1992, alpha = 1)
 2nd-order Gauss-Markov (R, w0) the spectrum of the exactly discretised process (Miao et al.
                                2015, eq. 8), from its autocovariance
-filtered white (N; tc)         :math:`(N^2/\Delta t)\,|H(\omega)|^2` (the sensor's filter, unit DC gain;
+filtered white (N; tc)         :math:`(N^2/\\Delta t)\\,|H(\\omega)|^2` (the sensor's filter, unit DC gain;
                                a moving average or FIR has no shape parameter, so N's bound is
                                that of white noise, 1/sqrt(2n) relative)
 =============================  ==============================================================
