@@ -93,6 +93,7 @@ BUILTIN: dict[str, str] = {
     "wls": "avbench.estimators.curve_fits.least_squares:WLS",
     "wls_edf": "avbench.estimators.curve_fits.least_squares:EDFWeightedLS",
     "whittle": "avbench.estimators.likelihood.whittle:Whittle",
+    "whittle_debiased": "avbench.estimators.likelihood.whittle:WhittleDebiased",
 }
 
 #: The methods to run on a user's recording when none are named (``avbench estimate``): methods
