@@ -43,6 +43,7 @@ seed = {seed}
 replicates = 1
 duration_s = {record}
 block_size = 1
+figure_gyros = ["g000", "g001"]
 
 [[estimators]]
 name = "whittle_debiased"
