@@ -79,9 +79,9 @@ relative CRLB std below ~0.1 to be kept 90 % of the time; with the 5 % LR test b
 De-biased likelihood (setting ``spectrum="debiased"``)
 ------------------------------------------------------
 Sykulski, Olhede, Guillaumin, Lilly & Early (2019), "The de-biased Whittle likelihood", Biometrika
-106(2), 251-266: replace :math:`S(\\omega_k)` in :math:`\\ell` by the expected periodogram of a record
+106(2) (arXiv 1605.06718): replace :math:`S(\\omega_k)` in :math:`\\ell` by the expected periodogram of a record
 of n samples, :math:`\\bar I_k = E[I_k] = \\sum_{|\\tau|<n}(1-|\\tau|/n)c(\\tau)e^{-i\\omega_k\\tau}`
-(their eq. 7 for the sample spacing 1), computed by one FFT from each term's autocovariance
+(the sample spacing 1), computed by one FFT from each term's autocovariance
 (:func:`_expected_periodogram`; the model stays linear in the variances, so scoring, REML and the
 information are unchanged). This removes the leakage bias of the raw periodogram (for flicker,
 :math:`E[I_1]` is ~15-20 % above :math:`S(\\omega_1)`) at no loss of the O(n log n) cost. Choices where
@@ -139,8 +139,8 @@ Reading / where it is not exact
   Terms forced where they are absent (``terms="QNBKR"`` on a gyro without Q or K) sit on that
   boundary too, and cost more: their estimates are >= 0 and take power from their neighbours.
   Also, the expected periodogram of 1/f noise exceeds its spectrum at the lowest ordinates (+15-20 %
-  at k = 1, ~1/k after; the leakage of a spectrum singular at 0) which the likelihood ignores; the
-  debiased Whittle likelihood of Sykulski et al. (2019) would use the expected periodogram instead.
+  at k = 1, ~1/k after; the leakage of a spectrum singular at 0) which the plain likelihood ignores;
+  ``spectrum="debiased"`` uses the expected periodogram instead (above).
 * Selection: BIC is consistent for the true set as n grows; intervals after selection ignore the
   selection step (post-selection inference), which is why dropped terms keep the full model's upper
   bound. Near the detection limit this is not enough (a dropped B lets K and N absorb its power, and
@@ -184,7 +184,7 @@ def _basis(coef: str, f: np.ndarray, dt: float, tc: float | None = None) -> np.n
 def _expected_periodogram(coef: str, n: int, dt: float, tc: float | None = None) -> np.ndarray:
     """Expected periodogram :math:`E[I_k]`, k = 1..n//2, of one term with unit coefficient, for a
     record of ``n`` samples: the de-biased Whittle likelihood's replacement of the spectrum
-    (Sykulski et al. 2019, Biometrika 106(2), eq. 4 / Prop. 1),
+    (Sykulski et al. 2019, Biometrika 106(2); arXiv 1605.06718),
 
     .. math:: E[I_k] = 2\\,\\mathrm{Re}\\sum_{\\tau=0}^{n-1} \\big(1-\\tfrac{\\tau}{n}\\big)
         c(\\tau)e^{-i\\omega_k\\tau} - c(0),
