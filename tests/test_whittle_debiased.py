@@ -161,3 +161,37 @@ def test_coverage_without_the_true_terms_slow():
     _check_coverage(hits)
     # and not wildly conservative: at least 90 % - 3 binomial std
     assert np.all(hits[:, :3].mean(axis=0) >= 0.95 - 3 * math.sqrt(0.05 * 0.95 / 400))
+
+
+def _fit_check_rates(g, R, n, seed, spectrum="debiased"):
+    p = []
+    for s in np.random.SeedSequence(seed).spawn(R):
+        e = estimators.get("whittle", select=False, spectrum=spectrum).fit(g.simulate(n, np.random.default_rng(s)), DT)
+        assert e.diagnostics_["poor_fit"] == (e.diagnostics_["fit_pvalue"] < 0.01)
+        p.append(e.diagnostics_["fit_pvalue"])
+    return np.array(p)
+
+
+def _check_false_alarms(p):
+    """With the right model the p-values are ~uniform: flags at 1 % and 5 % within their binomial 99.9 % points."""
+    R = p.size
+    assert np.sum(p < 0.01) <= stats.binom.ppf(0.999, R, 0.01)
+    assert np.sum(p < 0.05) <= stats.binom.ppf(0.999, R, 0.05)
+
+
+def test_fit_check_false_alarms_and_power_small():
+    n = 20_000
+    _check_false_alarms(_fit_check_rates(_gyro(n), R=20, n=n, seed=71))
+    # a Gauss-Markov bias read as flicker: flagged at 1 % in about half the records of 20 000 samples
+    from avbench.noise_models import GaussMarkov
+
+    wrong = Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=1e-3, tc=20.0)])
+    p = _fit_check_rates(wrong, R=20, n=n, seed=72)
+    assert np.sum(p < 0.01) > stats.binom.ppf(0.999, 20, 0.01)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("spectrum", ["debiased", "plain"])
+def test_fit_check_false_alarms_slow(spectrum):
+    n = 72_000
+    _check_false_alarms(_fit_check_rates(_gyro(n), R=300, n=n, seed=73, spectrum=spectrum))

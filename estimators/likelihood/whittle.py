@@ -518,6 +518,51 @@ def _zero_bounds(wf, fit, kept, terms, coefs, se):
     return {"zero_upper": pd.Series(up, dtype=float), "zero_upper_power": pd.Series(power, dtype=float)}
 
 
+#: poor-fit level of the spectral fit check (as :data:`avbench.estimators.allan.fit_check.ALPHA`)
+FIT_ALPHA = 0.01
+#: log-spaced frequency bins of the spectral fit check
+FIT_BINS = 32
+
+
+def spectral_fit_check(wf: WhittleFit, fit: dict, n_params: int, alpha: float = FIT_ALPHA, n_bins: int = FIT_BINS):
+    """Goodness of fit of a Whittle fit: the periodogram normalised by the fitted model.
+
+    Under the model the ordinates :math:`r_k = I_k / \\bar S_k` (``\\bar S`` the spectrum, or the
+    expected periodogram with ``spectrum="debiased"``; ``I`` after the trend regression) are
+    approximately independent Exp(1) (Brockwell & Davis 1991, Thm 10.3.2). In each of ``n_bins``
+    log-spaced bins of :math:`m_b` ordinates (k < n/2), :math:`2\\sum r_k \\sim \\chi^2_{2m_b}`;
+    its probability transform to a normal score :math:`z_b` makes the bins comparable whatever their
+    size (a one-ordinate bin is as skewed as an exponential), and
+    :math:`T = \\sum_b z_b^2 \\approx \\chi^2_{B - p}` with p the fitted parameters (the variances,
+    a Gauss-Markov Tc, the trend slope). A model that misses a bump, a missing term or the wrong
+    shape leaves a run of bins off 1: ``poor_fit`` is ``p < alpha``. The false-alarm rate and power
+    are measured in ``tests/test_whittle_debiased.py`` (the binomial tolerance of the level).
+
+    Returns the ``diagnostics_`` entries ``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``,
+    ``fit_reference`` and ``fit_check`` (``f`` bin centres (Hz), ``ratio`` the binned means of
+    :math:`r_k`, ``z``, ``alpha``)."""
+    from scipy import stats
+
+    S = np.asarray(fit["a"], dtype=float) @ wf._matrix(fit["comps"], fit["tc"])
+    beta = fit["detail"]["beta"]
+    r = (wf.X2 - 2 * beta * wf.GX + beta**2 * wf.G2) / wf.n / S
+    K = r.size - (1 if wf.n % 2 == 0 else 0)  # the Nyquist ordinate (chi^2_1 / 2) is left out
+    r = r[:K]
+    edges = np.unique(np.geomspace(1, K + 1, n_bins + 1).astype(int)) - 1
+    m = np.diff(edges).astype(float)
+    sums = np.add.reduceat(r, edges[:-1])
+    cdf = stats.chi2.cdf(2 * sums, 2 * m)
+    sf = stats.chi2.sf(2 * sums, 2 * m)
+    z = np.where(cdf < 0.5, stats.norm.ppf(np.maximum(cdf, 1e-300)), -stats.norm.ppf(np.maximum(sf, 1e-300)))
+    stat = float(np.sum(z**2))
+    dof = max(int(m.size - n_params), 1)
+    pval = float(stats.chi2.sf(stat, dof))
+    f = np.sqrt(wf.f[edges[:-1]] * wf.f[edges[1:] - 1])
+    return {"poor_fit": bool(pval < alpha), "fit_stat": stat, "fit_dof": dof, "fit_pvalue": pval,
+            "fit_reference": "chi2 of binned normalised periodogram",
+            "fit_check": {"f": f, "ratio": sums / m, "z": z, "alpha": alpha}}
+
+
 def _chibar2_pvalue(lr: float) -> float:
     """p-value of a likelihood-ratio statistic for one variance on the boundary 0: the null law is
     :math:`\\tfrac12\\chi^2_0 + \\tfrac12\\chi^2_1` (Self & Liang 1987, JASA 82, Case 5), so
@@ -838,6 +883,8 @@ class Whittle(Estimator):
             crit = np.array([bic(f) for f in fulls.values()])
             wts = np.exp(-(crit - crit.min()) / 2)
             diag["bias_weights"] = dict(zip(fulls, (wts / wts.sum()).tolist()))
+        n_params = sum(2 if c == "GM" else 1 for c in kept) + 1
+        diag.update(spectral_fit_check(wf, chosen, n_params))
         if self.intervals == "profile":
             diag.update(self._evidence(wf, full, coefs, se, ramp_z2, "R" in terms))
         if not chosen["converged"]:
