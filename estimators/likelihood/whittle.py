@@ -590,8 +590,10 @@ def profile_evidence(wf: WhittleFit, full: dict, level: float = 0.95, tol: float
       :math:`\\tfrac12 + \\tfrac{\\text{level}}2` (conservative, never below level). The interval
       is valid without knowing which terms are present: every candidate stays in the model.
 
-    Bounds are found in :math:`\\log a_j` by bracketing and bisection to ``tol`` (relative, on the
-    variance), each profile point a fit of the other terms warm-started from the previous one.
+    Bounds are found in :math:`\\log a_j` by bracketing and regula falsi on the signed likelihood root
+    until it is within 0.01 of :math:`\\sqrt{\\chi^2_{1,\\text{level}}}` (or the bracket is narrower
+    than ``tol`` Wald standard errors of :math:`\\log a_j`), each profile point a fit of the other
+    terms warm-started from the previous one.
     Returns ``{term: dict(lr, p_value, estimate, lower, upper)}`` in normalised variance units, and
     the best log-likelihood seen (a profile fit that beats the full fit replaces it)."""
     from scipy import stats
@@ -666,7 +668,7 @@ def profile_evidence(wf: WhittleFit, full: dict, level: float = 0.95, tol: float
                 return u_out
             side = 0
             for _ in range(30):
-                if abs(u_out - u_in) < tol:
+                if abs(u_out - u_in) < tol * su:  # relative to the interval's own scale
                     break
                 u_new = (u_in * f_out - u_out * f_in) / (f_out - f_in)
                 f_new = r_of(u_new)
