@@ -91,26 +91,29 @@ def test_every_term_reported_with_its_interval_and_evidence():
     assert not np.allclose(e.conf_int(0.9).loc["N"].to_numpy(), ci.loc["N"].to_numpy())
 
 
-def test_profile_bound_is_where_the_likelihood_ratio_reaches_its_quantile():
-    """At the upper bound of B the profile likelihood ratio is chi^2_1(0.95) (to the root's tolerance)."""
+@pytest.mark.parametrize("debiased", [True, False])
+def test_profile_bounds_are_where_the_likelihood_ratio_reaches_its_quantile(debiased):
+    """At every non-zero bound of every term (a well-resolved N, whose interval is a fraction of a
+    per cent, as well as B and K) the profile likelihood ratio is chi^2_1(0.95), to the root's
+    tolerance on the signed root (0.01, plus the refit's own); a zero lower bound has LR(0) <= it."""
     from avbench.estimators.likelihood.whittle import WhittleFit, profile_evidence, whittle_fit
 
-    n = 20_000
+    n = 100_000
     x = _gyro(n).simulate(n, np.random.default_rng(5))
-    wf = WhittleFit(x, DT, debiased=True)
+    wf = WhittleFit(x, DT, debiased=debiased)
     full = whittle_fit(wf, ["N", "B", "K"])
     ev, best = profile_evidence(wf, full)
-    i = full["comps"].index("B")
-    assert ev["B"]["upper"] > full["a"][i]
-    for bound in ("upper", "lower"):
-        if ev["B"][bound] == 0.0:  # the boundary: 0 is inside the interval, LR(0) <= the quantile
-            assert ev["B"]["lr"] <= stats.chi2.ppf(0.95, 1)
-            continue
-        a = full["a"].copy()
-        a[i] = ev["B"][bound]
-        r = wf.fit(full["comps"], a, None, np.full(3, -np.inf), fixed=i)
-        lr = 2 * (best - r[2])
-        assert abs(math.sqrt(lr) - math.sqrt(stats.chi2.ppf(0.95, 1))) < 0.03
+    root_q = math.sqrt(stats.chi2.ppf(0.95, 1))
+    for i, c in enumerate(full["comps"]):
+        assert ev[c]["upper"] > full["a"][i]
+        for bound in ("upper", "lower"):
+            if ev[c][bound] == 0.0:
+                assert ev[c]["lr"] <= stats.chi2.ppf(0.95, 1)
+                continue
+            a = full["a"].copy()
+            a[i] = ev[c][bound]
+            r = wf.fit(full["comps"], a, None, np.full(3, -np.inf), fixed=i, tol=1e-10)
+            assert abs(math.sqrt(max(2 * (best - r[2]), 0.0)) - root_q) < 0.03, (c, bound)
 
 
 def test_answer_does_not_depend_on_the_unit():
