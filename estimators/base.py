@@ -95,6 +95,7 @@ BUILTIN: dict[str, str] = {
     "wls_edf": "avbench.estimators.curve_fits.least_squares:EDFWeightedLS",
     "wls_edf_hadamard": "avbench.estimators.curve_fits.hadamard:HadamardEDFWeightedLS",
     "whittle": "avbench.estimators.likelihood.whittle:Whittle",
+    "whittle_debiased": "avbench.estimators.likelihood.whittle:WhittleDebiased",
 }
 
 #: The methods to run on a user's recording when none are named (``avbench estimate``): methods

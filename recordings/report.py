@@ -25,7 +25,7 @@ import pandas as pd
 
 from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, TERM_NAMES, from_si, si_units
 
-__all__ = ["coefficient_flags", "poor_fit", "payload", "tables", "SCHEMA"]
+__all__ = ["coefficient_flags", "poor_fit", "payload", "tables", "term_evidence", "zero_notes", "SCHEMA"]
 
 SCHEMA = "avbench-estimate/1"
 
@@ -95,6 +95,59 @@ def coefficient_flags(fit) -> dict[str, str]:
     return out
 
 
+def _pvalue_text(p):
+    if p is None or not math.isfinite(p):
+        return "p = ?"
+    if p < 1e-6:
+        return "p < 1e-6"
+    return f"p = {p:.2g}"
+
+
+def term_evidence(fit, sensor) -> dict[str, dict]:
+    """Each term's evidence where the estimator reports it (``diagnostics_["evidence"]``, e.g.
+    ``whittle_debiased``): the likelihood ratio of dropping the term, its boundary-corrected p-value,
+    whether it is resolved at 5 %, the interval's bounds (display units) and a one-line reading
+    ("present, p < 1e-6" / "not resolved, upper 95 % bound 0.31 deg/h"). Empty otherwise."""
+    est = fit.estimator
+    ev = None if est is None else est.diagnostics_.get("evidence")
+    if ev is None:
+        return {}
+    units = DISPLAY_UNITS[sensor]
+    level = float(est.diagnostics_.get("evidence_level", 0.95))
+    out = {}
+    for c in ev.index:
+        p = _num(float(ev.loc[c, "p_value"]))
+        up = _num(from_si(c, float(ev.loc[c, "upper"]), units[c], sensor))
+        low = _num(from_si(c, float(ev.loc[c, "lower"]), units[c], sensor))
+        present = bool(ev.loc[c, "present"])
+        if present:
+            reading = f"present, {_pvalue_text(p)}"
+        else:
+            bound = "?" if up is None else f"{up:.3g}"
+            reading = f"not resolved ({_pvalue_text(p)}), upper {100 * level:g} % bound {bound} {units[c]}"
+        out[c] = {"lr": _num(float(ev.loc[c, "lr"])), "p_value": p, "present": present, "lower": low,
+                  "upper": up, "level": level, "reading": reading}
+    return out
+
+
+def zero_notes(md: dict, sensor: str) -> list[str]:
+    """Screen notes for a method's coefficients: every term that is not clearly present (reported
+    as 0, or not resolved by its evidence) with its upper bound and evidence, so that no coefficient
+    is shown as 0 without them."""
+    notes = []
+    for c in COEFFICIENTS:
+        e = md["coefficients"][c]
+        ev = e.get("evidence")
+        if ev is not None and not ev["present"]:
+            notes.append(f"{c}: {ev['reading']}")
+        elif e["flag"] == "ok" and e["value"] == 0.0:
+            ci = e.get("conf_int_si")
+            up = None if ci is None or ci[1] is None else _num(from_si(c, ci[1], e["unit"], sensor))
+            notes.append(f"{c}: 0, upper 95 % bound {up:.3g} {e['unit']} (no evidence reported)" if up is not None
+                         else f"{c}: 0 with no interval (no evidence reported)")
+    return notes
+
+
 def _method_entry(fit, sensor, n_samples):
     units = DISPLAY_UNITS[sensor]
     si = si_units(sensor)
@@ -115,6 +168,8 @@ def _method_entry(fit, sensor, n_samples):
             e["interval_si"] = [float(v) / fit.scale for v in fit.estimator.diagnostics_["unresolved"][c]]
             e["fitted_si"] = _num(coefs[c])
         entry[c] = e
+    for c, ev in term_evidence(fit, sensor).items():
+        entry[c]["evidence"] = ev
     flag, detail = poor_fit(fit)
     failure = fit.error or (fit.estimator.diagnostics_.get("failure") if fit.estimator is not None else None)
     out = {"coefficients": entry, "poor_fit": flag, "failure": failure or None, "warnings": fit.warnings,
@@ -167,6 +222,7 @@ def tables(data: dict) -> dict[str, pd.DataFrame]:
                     elif e["flag"] == "not resolved":
                         hi = from_si(c, e["interval_si"][1], e["unit"], sensor)
                         notes.append(f"{c} not resolved (<= {hi:.3g})")
+                notes.extend(zero_notes(md, sensor))
                 if md["failure"]:
                     notes.append("failed")
                 if md["poor_fit"]:

@@ -173,3 +173,28 @@ def test_combine_pools_recordings_and_tests_agreement(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["combine"]["gyro"]["x"]["agree"] is False
     assert main(["estimate", str(tmp_path / "a.npz"), str(tmp_path / "b.npz"), "--fs", "100", "--units", "rad/s"]) == 2
     assert "expected one recording, or --combine" in capsys.readouterr().err
+
+
+def test_no_coefficient_is_a_bare_zero(tmp_path, record, capsys):
+    """Every term reported 0 (or not resolved) carries its upper bound and, where the method gives
+    it, its evidence, on screen and in JSON (issue 23)."""
+    f = tmp_path / "r.npy"
+    np.save(f, record[:30_000])
+    assert main(["estimate", str(f), "--fs", "100", "--units", "rad/s", "--method", "whittle_debiased,whittle",
+                 "--json", "--out", str(tmp_path)]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    ev = {c: _coef(payload, "whittle_debiased", c)["evidence"] for c in "QNBKR"}
+    assert ev["N"]["present"] and ev["N"]["reading"].startswith("present, p < 1e-6")
+    for c, e in ev.items():
+        assert e["upper"] is not None and 0 <= e["p_value"] <= 1
+        if not e["present"]:
+            assert "upper 95 % bound" in e["reading"]
+    from avbench.recordings.report import tables
+
+    table = tables(payload)["gyro"]
+    for method in ("whittle_debiased", "whittle"):
+        row = table.xs(method, level="method").iloc[0]
+        for c in "QNBKR":
+            value = row[f"{c} ({_coef(payload, method, c)['unit']})"]
+            if value == 0:
+                assert f"{c}: " in row["flags"] and "upper 95 % bound" in row["flags"].split(f"{c}: ", 1)[1]

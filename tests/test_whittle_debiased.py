@@ -1,0 +1,200 @@
+"""De-biased Whittle likelihood, profile-likelihood intervals and per-term evidence (issue 23)."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from scipy import stats
+
+from avbench import estimators
+from avbench.estimators.likelihood.whittle import _chibar2_pvalue, _expected_periodogram
+from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, RateRandomWalk
+
+DT = 0.1
+
+
+def _toeplitz_expected_periodogram(c, n):
+    """E[I_k] = (1/n) sum_{s,t} c(|s-t|) e^{-i w_k (s-t)} by the double sum (the definition)."""
+    k = np.arange(1, n // 2 + 1)
+    s = np.arange(n)
+    lag = np.abs(s[:, None] - s[None, :])
+    C = c[lag]
+    E = np.exp(-2j * np.pi * np.outer(k, s) / n)
+    return np.real(np.einsum("ks,st,kt->k", E, C, np.conj(E))) / n
+
+
+@pytest.mark.parametrize("n", [64, 65])
+@pytest.mark.parametrize("coef", ["Q", "GM", "B"])
+def test_expected_periodogram_is_the_double_sum(coef, n):
+    from scipy.special import digamma
+
+    tau = np.arange(n, dtype=float)
+    if coef == "Q":
+        c = np.zeros(n)
+        c[0], c[1] = 2 / DT**2, -1 / DT**2
+    elif coef == "GM":
+        c = np.exp(-tau * DT / 1.7)
+    else:  # ideal flicker: -variogram (plus any constant: the Fejer kernel vanishes at k >= 1)
+        c = 5.0 - (digamma(tau + 0.5) - digamma(0.5)) / math.pi
+    got = _expected_periodogram(coef, n, DT, 1.7 if coef == "GM" else None)
+    np.testing.assert_allclose(got, _toeplitz_expected_periodogram(c, n), rtol=1e-10, atol=1e-12 * np.max(np.abs(got)))
+
+
+def test_expected_periodogram_of_flicker_matches_simulation():
+    """The flicker generator's mean periodogram (tau_max >> record) at the lowest ordinates is the
+    expected periodogram, not the 1/f spectrum (which is ~20 % low at k = 1). 400 records:
+    each ordinate's mean has relative std 1/20; the mean over k = 1..4 of the ratio 1/40."""
+    n, R = 512, 400
+    g = Gyro(dt=DT, terms=[BiasInstability(B=1.0, tau_max=10 * n * DT)])
+    rng = np.random.default_rng(7)
+    acc = np.zeros(n // 2)
+    for _ in range(R):
+        acc += np.abs(np.fft.rfft(g.simulate(n, rng))[1:]) ** 2 / n
+    acc /= R
+    ratio = acc[:4] / _expected_periodogram("B", n, DT)[:4]
+    assert abs(ratio.mean() - 1) < 3.5 / math.sqrt(4 * R)
+
+
+@given(st.floats(min_value=0.0, max_value=200.0))
+@settings(max_examples=50, deadline=None)
+def test_chibar2_pvalue_is_half_the_chi2_tail(lr):
+    p = _chibar2_pvalue(lr)
+    if lr == 0:
+        assert p == 1.0
+    else:
+        assert p == pytest.approx(0.5 * stats.chi2.sf(lr, 1), rel=1e-12, abs=1e-300)
+        assert 0 <= p <= 0.5
+
+
+def _gyro(n, K=True):
+    terms = [AngleRandomWalk(N=1e-3), BiasInstability(B=2e-4, tau_max=2 * n * DT)]
+    if K:
+        terms.append(RateRandomWalk(K=3e-5))
+    return Gyro(dt=DT, terms=terms)
+
+
+def test_every_term_reported_with_its_interval_and_evidence():
+    n = 20_000
+    g = _gyro(n, K=False)
+    e = estimators.get("whittle_debiased").fit(g.simulate(n, np.random.default_rng(3)), DT)
+    ev = e.diagnostics_["evidence"]
+    ci = e.conf_int()
+    assert set(ev.index) == set("QNBKR")
+    for c in "QNBKR":
+        assert np.isfinite(e.coefficients_[c]) and np.isfinite(ci.loc[c, "upper"])
+        assert ci.loc[c, "lower"] <= e.coefficients_[c] <= ci.loc[c, "upper"]
+        assert 0 <= ev.loc[c, "p_value"] <= 1
+    assert ci.loc["N", "lower"] > 0 and ev.loc["N", "p_value"] < 1e-6 and bool(ev.loc["N", "present"])
+    # the profile bounds are the intervals conf_int gives at 95 %; other levels fall back to Wald
+    np.testing.assert_allclose(ci.loc[list(ev.index)].to_numpy(), ev[["lower", "upper"]].to_numpy())
+    assert not np.allclose(e.conf_int(0.9).loc["N"].to_numpy(), ci.loc["N"].to_numpy())
+
+
+@pytest.mark.parametrize("debiased", [True, False])
+def test_profile_bounds_are_where_the_likelihood_ratio_reaches_its_quantile(debiased):
+    """At every non-zero bound of every term (a well-resolved N, whose interval is a fraction of a
+    per cent, as well as B and K) the profile likelihood ratio is chi^2_1(0.95), to the root's
+    tolerance on the signed root (0.01, plus the refit's own); a zero lower bound has LR(0) <= it."""
+    from avbench.estimators.likelihood.whittle import WhittleFit, profile_evidence, whittle_fit
+
+    n = 100_000
+    x = _gyro(n).simulate(n, np.random.default_rng(5))
+    wf = WhittleFit(x, DT, debiased=debiased)
+    full = whittle_fit(wf, ["N", "B", "K"])
+    ev, best = profile_evidence(wf, full)
+    root_q = math.sqrt(stats.chi2.ppf(0.95, 1))
+    for i, c in enumerate(full["comps"]):
+        assert ev[c]["upper"] > full["a"][i]
+        for bound in ("upper", "lower"):
+            if ev[c][bound] == 0.0:
+                assert ev[c]["lr"] <= stats.chi2.ppf(0.95, 1)
+                continue
+            a = full["a"].copy()
+            a[i] = ev[c][bound]
+            r = wf.fit(full["comps"], a, None, np.full(3, -np.inf), fixed=i, tol=1e-10)
+            assert abs(math.sqrt(max(2 * (best - r[2]), 0.0)) - root_q) < 0.03, (c, bound)
+
+
+def test_answer_does_not_depend_on_the_unit():
+    n = 20_000
+    x = _gyro(n).simulate(n, np.random.default_rng(11))
+    a = estimators.get("whittle_debiased").fit(x, DT)
+    b = estimators.get("whittle_debiased").fit(x * (180 / math.pi), DT)
+    for c in "NBK":
+        assert b.coefficients_[c] == pytest.approx(a.coefficients_[c] * 180 / math.pi, rel=1e-4, abs=1e-12)
+        assert b.conf_int().loc[c, "upper"] == pytest.approx(a.conf_int().loc[c, "upper"] * 180 / math.pi, rel=2e-3)
+
+
+@pytest.mark.parametrize("bad", [dict(spectrum="tapered"), dict(intervals="bayes")])
+def test_bad_settings_are_clear_errors(bad):
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        estimators.get("whittle_debiased", **bad).fit(np.random.default_rng(0).standard_normal(1000), DT)
+
+
+def _coverage(R, n, seed):
+    """Per replicate: does the 95 % interval hold N, B, K (present) and 0 for Q (absent)?"""
+    g = _gyro(n)
+    truth = g.coefficients
+    hits = []
+    for s in np.random.SeedSequence(seed).spawn(R):
+        e = estimators.get("whittle_debiased", terms="QNBK").fit(g.simulate(n, np.random.default_rng(s)), DT)
+        ci = e.conf_int()
+        row = [ci.loc[c, "lower"] <= truth[c] <= ci.loc[c, "upper"] for c in "NBK"]
+        row.append(ci.loc["Q", "lower"] == 0.0)
+        hits.append(row)
+    return np.array(hits)
+
+
+def _check_coverage(hits):
+    """Each column's misses are Binomial(R, <= 0.05): fail past the 99.9 % point of that law."""
+    R = hits.shape[0]
+    limit = stats.binom.ppf(0.999, R, 0.05)
+    misses = R - hits.sum(axis=0)
+    assert np.all(misses <= limit), (misses, limit)
+
+
+def test_coverage_without_the_true_terms_small():
+    _check_coverage(_coverage(R=12, n=7_200, seed=230))
+
+
+@pytest.mark.slow
+def test_coverage_without_the_true_terms_slow():
+    hits = _coverage(R=400, n=72_000, seed=231)
+    _check_coverage(hits)
+    # and not wildly conservative: at least 90 % - 3 binomial std
+    assert np.all(hits[:, :3].mean(axis=0) >= 0.95 - 3 * math.sqrt(0.05 * 0.95 / 400))
+
+
+def _fit_check_rates(g, R, n, seed, spectrum="debiased"):
+    p = []
+    for s in np.random.SeedSequence(seed).spawn(R):
+        e = estimators.get("whittle", select=False, spectrum=spectrum).fit(g.simulate(n, np.random.default_rng(s)), DT)
+        assert e.diagnostics_["poor_fit"] == (e.diagnostics_["fit_pvalue"] < 0.01)
+        p.append(e.diagnostics_["fit_pvalue"])
+    return np.array(p)
+
+
+def _check_false_alarms(p):
+    """With the right model the p-values are ~uniform: flags at 1 % and 5 % within their binomial 99.9 % points."""
+    R = p.size
+    assert np.sum(p < 0.01) <= stats.binom.ppf(0.999, R, 0.01)
+    assert np.sum(p < 0.05) <= stats.binom.ppf(0.999, R, 0.05)
+
+
+def test_fit_check_false_alarms_and_power_small():
+    n = 20_000
+    _check_false_alarms(_fit_check_rates(_gyro(n), R=20, n=n, seed=71))
+    # a Gauss-Markov bias read as flicker: flagged at 1 % in about half the records of 20 000 samples
+    from avbench.noise_models import GaussMarkov
+
+    wrong = Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=1e-3, tc=20.0)])
+    p = _fit_check_rates(wrong, R=20, n=n, seed=72)
+    assert np.sum(p < 0.01) > stats.binom.ppf(0.999, 20, 0.01)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("spectrum", ["debiased", "plain"])
+def test_fit_check_false_alarms_slow(spectrum):
+    n = 72_000
+    _check_false_alarms(_fit_check_rates(_gyro(n), R=300, n=n, seed=73, spectrum=spectrum))
