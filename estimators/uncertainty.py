@@ -47,7 +47,7 @@ from scipy import stats
 
 from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["interval", "parametric_bootstrap", "zero_quantile"]
+__all__ = ["interval", "parametric_bootstrap", "refits", "zero_quantile"]
 
 
 #: above this relative standard error the log-scale interval is not used (exp(z se/c) explodes when
@@ -97,6 +97,27 @@ def zero_quantile(level, conservative, se, coefs) -> float:
     return float(_z(level, conservative, int((np.isfinite(c) & np.isfinite(s) & (c > 0)).sum())))
 
 
+def refits(estimator, n_samples: int, dt: float, n_draws: int, seed=0):
+    """Clones of a fitted ``estimator``, each fitted to one of ``n_draws`` records of ``n_samples``
+    simulated from its coefficients with the exact generators (the five-term model,
+    :meth:`avbench.noise_models.Gyro.from_coefficients`, flicker memory twice the record); a refit
+    that raises is a missing draw (as in the studies). The parametric bootstraps of the standard
+    errors (:func:`parametric_bootstrap`) and of the fit check
+    (:func:`avbench.estimators.allan.fit_check.bootstrap_fit_check`) iterate over them."""
+    from avbench.noise_models import Gyro
+
+    g = Gyro.from_coefficients(estimator.coefficients_, dt, flicker_tau_max=2 * n_samples * dt)
+    if g is None:
+        raise ValueError("bootstrap: the fit gave no positive coefficient to simulate from")
+    for ss in np.random.SeedSequence(seed).spawn(int(n_draws)):
+        e = estimator.clone()
+        try:
+            e.fit(g.simulate(int(n_samples), np.random.default_rng(ss)), dt)
+        except Exception:  # a failed refit is a missing draw
+            continue
+        yield e
+
+
 def parametric_bootstrap(estimator, n_samples: int, dt: float, n_draws: int = 20, seed=0) -> pd.Series:
     """Standard errors (SI) by refitting ``n_draws`` records simulated from the fitted model.
 
@@ -106,19 +127,7 @@ def parametric_bootstrap(estimator, n_samples: int, dt: float, n_draws: int = 20
     """
     if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 3:
         raise ValueError(f"n_draws: expected an integer >= 3, got {n_draws!r}")
-    from avbench.noise_models import Gyro
-
-    g = Gyro.from_coefficients(estimator.coefficients_, dt, flicker_tau_max=2 * n_samples * dt)
-    if g is None:
-        raise ValueError("bootstrap: the fit gave no positive coefficient to simulate from")
-    draws = []
-    for ss in np.random.SeedSequence(seed).spawn(int(n_draws)):
-        e = estimator.clone()
-        try:
-            e.fit(g.simulate(n_samples, np.random.default_rng(ss)), dt)
-        except Exception:  # a failed refit is a missing draw, as in the studies
-            continue
-        draws.append(e.coefficients_.to_numpy(dtype=float))
+    draws = [e.coefficients_.to_numpy(dtype=float) for e in refits(estimator, n_samples, dt, n_draws, seed)]
     arr = np.array(draws) if draws else np.full((0, len(COEFFICIENTS)), np.nan)
     out = {}
     for j, c in enumerate(COEFFICIENTS):

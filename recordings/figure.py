@@ -103,11 +103,11 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
 
 
 def residuals(fit):
-    """(tau, z) of a fitted method's poor-fit check, or None when it has none (failed, or a method
-    without the check)."""
+    """(tau, z) of a fitted method's poor-fit check, or None when it has none (failed, a method
+    without the check, or a check that is not made per tau: whittle's bins frequencies)."""
     est = fit.estimator
     check = None if est is None else getattr(est, "diagnostics_", {}).get("fit_check")
-    if not check or "z" not in check:
+    if not check or "z" not in check or "tau" not in check:
         return None
     tau, z = np.asarray(check["tau"], float), np.asarray(check["z"], float)
     ok = np.isfinite(z)

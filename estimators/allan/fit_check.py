@@ -416,16 +416,10 @@ def bootstrap_fit_check(estimator, n_samples: int, dt: float, n_draws: int = 199
     T = d.get("fit_stat")
     if T is None or not np.isfinite(T):
         return estimator
-    g = Gyro.from_coefficients(estimator.coefficients_, dt, flicker_tau_max=2 * n_samples * dt)
-    if g is None:
-        raise ValueError("bootstrap: the fit gave no positive coefficient to simulate from")
+    from avbench.estimators.uncertainty import refits
+
     stats_ = []
-    for ss in np.random.SeedSequence(seed).spawn(int(n_draws)):
-        e = estimator.clone()
-        try:
-            e.fit(g.simulate(int(n_samples), np.random.default_rng(ss)), dt)
-        except Exception:  # a failed refit is a missing draw, as in the bootstrap of the standard errors
-            continue
+    for e in refits(estimator, int(n_samples), dt, n_draws, seed):
         t = e.diagnostics_.get("fit_stat")
         if t is not None and not np.isnan(t):
             stats_.append(float(t))
