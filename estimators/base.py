@@ -225,6 +225,11 @@ class Estimator:
     #: record with gaps they are fitted to all of it, the clusters straddling a gap left out
     #: (``avbench.estimators.allan.variance.skip_gaps``); False: fitted to the longest gap-free run.
     uses_allan_variance: ClassVar[bool] = False
+    #: True for estimators whose answer is an iterative optimiser's (or a nonlinear filter's) end
+    #: point, where BLAS/LAPACK and the CPU's vector width change the last bits of each step and the
+    #: iteration carries them beyond 1e-8 relative: a study's rows of such an estimator regenerate on
+    #: another machine only to a small share of their replicate spread (tests/test_regeneration.py).
+    round_off_amplified: ClassVar[bool] = False
 
     # -- parameters (scikit-learn style) -------------------------------------------------------
     @classmethod

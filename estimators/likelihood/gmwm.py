@@ -221,6 +221,7 @@ class GMWM(Estimator):
     >>> bool(abs(est.coefficients_["N"] / 1e-3 - 1) < 0.05)
     True
     """
+    round_off_amplified = True  # an optimiser's end point (Estimator.round_off_amplified)
 
     uses_allan_variance = True
 

@@ -141,6 +141,7 @@ class MLE(Estimator):
     >>> bool(abs(est.coefficients_["N"] / 1e-3 - 1) < 5 * est.diagnostics_["std_err"]["N"] / 1e-3)
     True
     """
+    round_off_amplified = True  # an optimiser's end point (Estimator.round_off_amplified)
 
     #: Kalman filter of the likelihood (:meth:`avbench.estimators.likelihood._mle_kernels.BlockMeanSystem.loglike`);
     #: not a setting: the benchmark sets "exact_initial" on an instance to time the path of before

@@ -56,6 +56,10 @@ __all__ = ["Nekf", "NekfMultitau"]
 
 
 class _NekfBase(OnlineAVFilter):
+    #: a nonlinear filter whose recursion carries last-bit differences (BLAS, the CPU's vector width
+    #: in compiled kernels) to O(1) changes on some gyros (Estimator.round_off_amplified)
+    round_off_amplified = True
+
     def _filter_settings(self, nq):
         p = _positive("p", self.p, integer=True)
         if not isinstance(self.seed, int | np.integer) or isinstance(self.seed, bool):
