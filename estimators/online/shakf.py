@@ -63,6 +63,10 @@ def _adapt_flags(adapt) -> int:
 
 
 class _ShakfBase(OnlineAVFilter):
+    #: an adaptive filter's end point: last-bit differences of the kernels move it by ~1e-5 relative
+    #: (Estimator.round_off_amplified)
+    round_off_amplified = True
+
     def _filter_settings(self, nq):
         b = self.b
         if isinstance(b, bool) or not isinstance(b, int | float | np.number) or not 0.0 <= b <= 1.0:
