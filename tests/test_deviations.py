@@ -63,15 +63,30 @@ def test_sp1065_published_1000_point_values(kind):
 @pytest.mark.parametrize("m", [1, 2, 3, 7, 50, 333])
 def test_kernels_equal_numpy_references(m):
     x, _, _ = phase_of(np.random.default_rng(m).standard_normal(1200), 0.1)
-    for name in ("ohvar", "mvar"):
-        got, ref = getattr(K, f"{name}_sum")(x, m), getattr(K, f"{name}_sum_numpy")(x, m)
-        assert got == pytest.approx(ref, rel=1e-12)
+    ms = np.array([1, m, 2 * m], dtype=np.int64)
+    ms = ms[3 * ms < x.size]
+    for block in (7, 4096, x.size):
+        np.testing.assert_allclose(K.ohvar_sums(x, ms, block), [K.ohvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
+    for block in (3, 2048):  # the four-lane path (record >= 8m + 64 terms) and the one-lane path
+        for mi in ms:
+            assert K.mvar_sum(x, int(mi), block) == pytest.approx(K.mvar_sum_numpy(x, int(mi)), rel=1e-11)
+    np.testing.assert_allclose(K.mvar_sums(x, ms), [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
     ms = np.array([1, m, 2 * m], dtype=np.int64)
     for block in (7, 4096):
         np.testing.assert_allclose(K.totvar_sums(x, ms, block), [K.totvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
     if m % 2 == 0 or m == 1:
         me = 2 * max(1, m // 2)
         assert K.theo1_sum(x, me) == pytest.approx(K.theo1_sum_numpy(x, me), rel=1e-12)
+
+
+def test_octave_box_sum_mvar_equals_reference():
+    x, _, _ = phase_of(np.random.default_rng(3).standard_normal(3000), 0.1)
+    for ms in ([1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 999], [4, 64, 512], [2]):
+        ms = np.array(ms, dtype=np.int64)
+        octave = K._powers_of_two_increasing(ms)
+        assert octave == bool(np.all((ms & (ms - 1)) == 0))
+        got = K.mvar_sums_octave(x, ms) if octave else K.mvar_sums(x, ms)
+        np.testing.assert_allclose(got, [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
 
 
 def all_terms():

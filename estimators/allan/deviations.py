@@ -78,12 +78,21 @@ DEVIATION_NAMES = {
 _M_PRIME = 64
 
 
+def _sample_phase(rate, dt):
+    """(S, n, dt): S[0] = 0, S[k] = sum of the first k mean-removed rate samples (the phase in units of dt).
+
+    Every statistic is a sum of squared filters of the phase x = dt S divided by (tau^2 = m^2 dt^2)
+    times a count, so it is computed on S with m^2 in place of tau^2: one pass fewer than scaling.
+    """
+    rate, dt, mean = _checked_record_and_mean(rate, dt)
+    return _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1)), rate.size, dt
+
+
 def phase_of(rate, dt):
     """(phase x with x[0] = 0 and N = n + 1 points, n, dt) of a rate record (mean removed)."""
-    rate, dt, mean = _checked_record_and_mean(rate, dt)
-    S = _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1))
+    S, n, dt = _sample_phase(rate, dt)
     S *= dt
-    return S, rate.size, dt
+    return S, n, dt
 
 
 def _max_m(kind: str, N: int) -> int:
@@ -226,12 +235,16 @@ def clear_caches() -> None:
     _rho_squares.cache_clear()
 
 
-def _noise_kinds(rate, dt, m_av, n):
-    """Noise type per m from the overlapping AV slope (as allan_variance), m beyond n/2 take the last."""
-    mm = np.unique(np.clip(m_av, 1, n // 2))
-    av = allan_variance(rate, dt, taus=mm * dt, noise="white_fm")
-    kinds = _noise_from_slope(av.tau, av.avar, av.J)
-    return dict(zip(av.m.tolist(), kinds))
+def _noise_kinds(S, dt, m_av, n):
+    """Noise type per m from the overlapping AV slope (as allan_variance), m beyond n/2 take the last.
+
+    The AV is computed from the same cumulative sum S (``_sample_phase``) as ``allan_variance`` does.
+    """
+    mm = np.unique(np.clip(m_av, 1, n // 2)).astype(np.int64)
+    mf = mm.astype(float)
+    av = _kernels.oavar_sums(S, mm) / (2.0 * mf * mf * (n - 2 * mf + 1))
+    kinds = _noise_from_slope(mf * dt, av, n // mm)
+    return dict(zip(mm.tolist(), kinds))
 
 
 def deviation(
@@ -283,7 +296,7 @@ def deviation(
     check_taus(taus)
     if kind == "oavar":
         return allan_variance(rate, dt, taus, points_per_decade=points_per_decade, noise=noise, confidence=confidence)
-    x, n, dt = phase_of(rate, dt)
+    x, n, dt = _sample_phase(rate, dt)  # the phase in units of dt: tau^2 -> m^2 below
     N = n + 1
     m = _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m)
     if max_terms is not None:
@@ -294,29 +307,29 @@ def deviation(
     mf = m.astype(float)
     if kind == "ohvar":
         K = N - 3 * m
-        sums = np.array([_k.ohvar_sum(x, int(mi)) for mi in m])
-        var = sums / (6.0 * (mf * dt) ** 2 * K)
+        sums = _k.ohvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
+        var = sums / (6.0 * mf * mf * K)
     elif kind in ("mvar", "tvar"):
         K = N - 3 * m + 1
-        sums = np.array([_k.mvar_sum(x, int(mi)) for mi in m])
-        var = sums / (2.0 * mf * mf * (mf * dt) ** 2 * K)
+        sums = _k.mvar_sums(x, m)
+        var = sums / (2.0 * mf**4 * K)
         if kind == "tvar":
             var = var * (mf * dt) ** 2 / 3.0
     elif kind == "totvar":
         K = np.full(m.size, N - 2)
-        sums = _k.totvar_sums(x, m)
-        var = sums / (2.0 * (mf * dt) ** 2 * (N - 2))
+        sums = _k.totvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
+        var = sums / (2.0 * mf * mf * (N - 2))
     else:  # theo1
         K = N - m
         sums = np.array([_k.theo1_sum(x, int(mi)) for mi in m])
-        var = sums / (0.75 * K * (mf * dt) ** 2)
+        var = sums / (0.75 * K * mf * mf)
     tau = mf * dt * (0.75 if kind == "theo1" else 1.0)
     if not edf:
         nan = np.full(m.size, np.nan)
         return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), nan, nan, True, n, dt, confidence, kind=kind)
     if noise == "auto":
         m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
-        table = _noise_kinds(np.asarray(rate, dtype=float), dt, m_av, n)
+        table = _noise_kinds(x, dt, m_av, n)
         keys = np.array(sorted(table))
         kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
     else:
