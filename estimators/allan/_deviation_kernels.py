@@ -322,3 +322,68 @@ def theo1_sum_numpy(x, m):
         v = x[i] - x[i - d + h] + x[i + m] - x[i + d + h]
         acc += np.sum(v * v) / (h - d)
     return float(acc)
+
+
+@njit(cache=True)
+def total_window_sums(v, m, phase):
+    """sum over the windows n of (1/6m) sum_{j<6m} (A_j - 2A_{j+m} + A_{j+2m})^2 (MTOTVAR, HTOTVAR).
+
+    Each window is 3m points of ``v`` (phase for MTOTVAR, ``phase=True``; rate for HTOTVAR); a linear
+    trend is removed with the half-average slope (``exact_variances._half_average_slope``: halves
+    of floor(3m/2) points, the middle one skipped when 3m is odd), the result is extended by
+    uninverted even reflection to 9m points, and A_j is the mean of m points from j (SP1065 eqs. 27,
+    29). The three running window sums are updated by one point each per j (Stable32's MTC.c, as
+    allantools). For the rate the trend is taken about the window's middle (a constant shift, which
+    the second differences cancel). Cost 9m + 6m per window: O(N m) per m.
+    """
+    W = 3 * m
+    nwin = v.size - W + 1
+    h1 = W // 2
+    h2 = (W + 1) // 2
+    dist = 0.5 * W if W % 2 == 0 else 0.5 * (W - 1) + 1.0
+    centre = 0.0 if phase else float(h1)
+    star = np.empty(9 * m)
+    x0 = np.empty(W)
+    total = 0.0
+    for n in range(nwin):
+        s1 = 0.0
+        for i in range(h1):
+            s1 += v[n + i]
+        s2 = 0.0
+        for i in range(h2, W):
+            s2 += v[n + i]
+        slope = (s2 / (W - h2) - s1 / h1) / dist
+        for i in range(W):
+            x0[i] = v[n + i] - slope * (i - centre)
+        for i in range(W):
+            star[W - 1 - i] = x0[i]
+            star[W + i] = x0[i]
+            star[3 * W - 1 - i] = x0[i]
+        a1 = 0.0
+        a2 = 0.0
+        a3 = 0.0
+        for i in range(m):
+            a1 += star[i]
+            a2 += star[m + i]
+            a3 += star[2 * m + i]
+        acc = 0.0
+        for j in range(6 * m):
+            if j > 0:
+                a1 += star[j + m - 1] - star[j - 1]
+                a2 += star[j + 2 * m - 1] - star[m + j - 1]
+                a3 += star[j + 3 * m - 1] - star[2 * m + j - 1]
+            d = (a1 - 2.0 * a2 + a3) / m
+            acc += d * d
+        total += acc / (6.0 * m)
+    return total
+
+
+def total_window_sums_numpy(v, m, phase):
+    """The reference: each window's 6m filters as a matrix (``exact_variances.total_window_filters``)."""
+    from avbench.noise_models.exact_variances import total_window_filters
+
+    W = 3 * m
+    C = total_window_filters("mtotvar", m)  # on the window's own points (phase or rate alike)
+    win = np.lib.stride_tricks.sliding_window_view(np.asarray(v, dtype=float), W)
+    q = win @ C.T
+    return float(np.sum(q * q) / (6.0 * m))

@@ -59,12 +59,12 @@ from avbench.estimators.allan.variance import (
     cluster_sizes,
 )
 from avbench.estimators.validation import check_taus
-from avbench.noise_models.exact_variances import mvar_filter_acf
+from avbench.noise_models.exact_variances import mvar_filter_acf, total_window_filters
 
 __all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches", "terms_per_tau"]
 
 #: the statistics
-KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "theo1")
+KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
 #: names users type (allantools' deviations) -> kind
 DEVIATION_NAMES = {
     "oadev": "oavar",
@@ -73,9 +73,17 @@ DEVIATION_NAMES = {
     "mdev": "mvar",
     "tdev": "tvar",
     "totdev": "totvar",
+    "mtotdev": "mtotvar",
+    "htotdev": "htotvar",
     "theo1": "theo1",
+    "theobr": "theobr",
 }
 _M_PRIME = 64
+#: statistics made of several filters per term, and the m' their scale-free edf is evaluated at (the
+#: F x F filter cross-correlations cost F^2 P: 6m filters of 3m points for the total variances)
+_MULTI_FILTER = {"theo1": _M_PRIME, "theobr": _M_PRIME, "mtotvar": 16, "htotvar": 16}
+#: the Theo1 values TheoBR's bias ratio needs are refused beyond this many terms (see ``deviation``)
+THEOBR_MAX_TERMS = 5e9
 
 
 def _sample_phase(rate, dt):
@@ -102,14 +110,17 @@ def _max_m(kind: str, N: int) -> int:
         "mvar": (N + 1) // 3 - 1 if (N + 1) % 3 == 0 else (N + 1) // 3,
         "tvar": (N + 1) // 3,
         "totvar": (N - 1) // 2,
+        "mtotvar": (N - 1) // 3,  # at least two windows of 3m phases (allantools drops one)
+        "htotvar": (N - 2) // 3,  # at least two windows of 3m rates
         "theo1": N - 1,
+        "theobr": N - 1,
     }[kind]
 
 
 def _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m):
     N = n + 1
     top = _max_m(kind, N)
-    if kind == "theo1":
+    if kind in ("theo1", "theobr"):
         top = min(top, theo1_max_m) if theo1_max_m else top
         if isinstance(taus, str):
             m = cluster_sizes(taus, 2 * (top + 1), dt, points_per_decade)
@@ -123,9 +134,26 @@ def _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m):
 
 
 def terms_per_tau(kind: str, m, N: int) -> np.ndarray:
-    """Number of terms summed per cluster size (the cost of one value): (N - m) m / 2 for Theo1, ~N otherwise."""
+    """Number of terms summed per cluster size (the cost of one value).
+
+    (N - m) m / 2 for Theo1 and TheoBR; (N - 3m + 1) 15m for the modified and Hadamard total
+    variances (9m reflected points and 6m running sums per window); ~N otherwise.
+    """
     m = np.asarray(m, dtype=float)
-    return (N - m) * m / 2 if kind == "theo1" else np.full(m.shape, float(N))
+    if kind in ("theo1", "theobr"):
+        return (N - m) * m / 2
+    if kind in ("mtotvar", "htotvar"):
+        return np.maximum(N - 3 * m + 1, 1) * 15 * m
+    return np.full(m.shape, float(N))
+
+
+def theobr_bias_sizes(N: int):
+    """(AV m = 9 + 3i, Theo1 m = 12 + 4i), i = 0..k, k = floor(0.1 N/3 - 3): TheoBR's bias ratio (SP1065)."""
+    k = int(np.floor(0.1 * N / 3 - 3))
+    if k < 0:
+        raise ValueError(f"theobr: needs a record of N >= 90 phase points (k = floor(0.1 N/3 - 3) >= 0), got N = {N}")
+    i = np.arange(k + 1, dtype=np.int64)
+    return 9 + 3 * i, 12 + 4 * i
 
 
 def _filters(kind: str, m: int):
@@ -139,11 +167,16 @@ def _filters(kind: str, m: int):
         for s, a in ((0, 1.0), (m, -2.0), (2 * m, 1.0)):
             c[s : s + m] += a
         return np.arange(3 * m + 1)[None, :], c[None, :], np.ones(1)
-    if kind == "theo1":
+    if kind in ("theo1", "theobr"):
         h = m // 2
         d = np.arange(h)
         pos = np.stack([0 * d, h - d, np.full(h, m), h + d], axis=-1)
         return pos, np.tile([1.0, -1.0, 1.0, -1.0], (h, 1)), 1.0 / (h - d)
+    if kind in ("mtotvar", "htotvar"):
+        if kind == "htotvar" and m == 1:  # the overlapping Hadamard variance stands in at m = 1
+            return _filters("ohvar", 1)
+        C = total_window_filters(kind, m)
+        return np.broadcast_to(np.arange(C.shape[1]), C.shape), C, np.ones(C.shape[0])
     raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
 
 
@@ -185,9 +218,10 @@ def edf_quadratic(kind: str, m: int, K: int, noise: str) -> float:
     m, K = int(m), int(K)
     if K < 1:
         return 1.0
-    if m > _M_PRIME and (noise != "white_pm" or kind == "theo1"):
-        return edf_quadratic(kind, _M_PRIME, max(1, int(round(K * _M_PRIME / m))), noise)
-    if noise == "white_pm" and kind != "theo1":  # G = [d = 0]: rho is the filter's own autocorrelation
+    mp = _MULTI_FILTER.get(kind, _M_PRIME)
+    if m > mp and (noise != "white_pm" or kind in _MULTI_FILTER):
+        return edf_quadratic(kind, mp, max(1, int(round(K * mp / m))), noise)
+    if noise == "white_pm" and kind not in _MULTI_FILTER:  # G = [d = 0]: rho is the filter's own autocorrelation
         A = _single_filter_acf(kind, m)
         kk = np.arange(min(A.size, K))
         A = A[: kk.size]
@@ -319,11 +353,25 @@ def deviation(
         K = np.full(m.size, N - 2)
         sums = _k.totvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
         var = sums / (2.0 * mf * mf * (N - 2))
-    else:  # theo1
+    elif kind == "mtotvar":
+        K = N - 3 * m + 1
+        sums = np.array([_k.total_window_sums(x, int(mi), True) for mi in m])
+        var = sums / (2.0 * mf * mf * K)
+    elif kind == "htotvar":
+        y = np.ascontiguousarray(rate, dtype=float)  # a constant rate survives the detrending, not the differences
+        K = n - 3 * m + 1
+        sums = np.array([_k.total_window_sums(y, int(mi), False) if mi > 1 else np.nan for mi in m])
+        var = sums / (6.0 * K)
+        if m[0] == 1:  # SP1065 / Stable32: the overlapping Hadamard variance at m = 1
+            K[0] = N - 3
+            var[0] = _k.ohvar_sums(x, m[:1])[0] / (6.0 * K[0])
+    else:  # theo1, theobr
         K = N - m
         sums = np.array([_k.theo1_sum(x, int(mi)) for mi in m])
         var = sums / (0.75 * K * mf * mf)
-    tau = mf * dt * (0.75 if kind == "theo1" else 1.0)
+        if kind == "theobr":
+            var = var * _theobr_ratio(x, N)
+    tau = mf * dt * (0.75 if kind in ("theo1", "theobr") else 1.0)
     if not edf:
         nan = np.full(m.size, np.nan)
         return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), nan, nan, True, n, dt, confidence, kind=kind)
@@ -334,10 +382,26 @@ def deviation(
         kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
     else:
         kinds = list(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
-    edf_kind = "oavar" if kind == "totvar" else kind
+    edf_kind = {"totvar": "oavar", "theobr": "theo1"}.get(kind, kind)
     e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m, K, kinds)])
     return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
                        kind=kind)
+
+
+def _theobr_ratio(S, N):
+    """1/(k+1) sum_i AV(9 + 3i) / Theo1(12 + 4i) on the unit phase S (Howe & Tasset 2004; SP1065)."""
+    m_av, m_th = theobr_bias_sizes(N)
+    cost = float(np.sum(terms_per_tau("theo1", m_th, N)))
+    if cost > THEOBR_MAX_TERMS:
+        raise ValueError(
+            f"theobr: its bias ratio needs Theo1 at {m_th.size} cluster sizes up to m = {m_th[-1]} "
+            f"({cost:.2g} terms, beyond THEOBR_MAX_TERMS = {THEOBR_MAX_TERMS:.2g}): a record of N = {N} phases "
+            "is too long for it (Theo1 costs (N - m) m / 2 per m); use theo1 or a shorter record")
+    mf = m_av.astype(float)
+    av = _kernels.oavar_sums(S, m_av) / (2.0 * mf * mf * (N - 2 * mf))
+    mt = m_th.astype(float)
+    th = np.array([_k.theo1_sum(S, int(mi)) for mi in m_th]) / (0.75 * (N - mt) * mt * mt)
+    return float(np.mean(av / th))
 
 
 def deviations(rate, dt, kinds=("oavar", "ohvar", "mvar", "totvar", "theo1"), taus="octave", **kw) -> dict:
