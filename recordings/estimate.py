@@ -72,7 +72,8 @@ def add_parser(subparsers):
                         "and >= 3 recordings): by the between-run spread's 95 %% prediction limit over the mean")
     s.add_argument("--deviation", default=None, metavar="NAMES",
                    help="also draw and tabulate these deviations on each axis (comma-separated: oadev, ohdev, mdev, "
-                        "tdev, totdev, theo1), on the longest gap-free run; rows of <stem>_av.csv by 'statistic'")
+                        "tdev, totdev, mtotdev, htotdev, theo1, theobr), on the longest gap-free run; rows of "
+                        "<stem>_av.csv by 'statistic' (alone: avbench deviations FILE)")
     s.add_argument("--json", action="store_true", help="print only the JSON object on stdout")
     s.add_argument("--out", default=".", help="output folder for the plots and tables (default: .)")
     s.add_argument("--title", default=None, help="plot title (default: the file name)")
@@ -154,14 +155,14 @@ def _check_deviation(spec):
     return names
 
 
-def _deviations(x, dt, starts, names):
+def _deviations(x, dt, starts, names, taus="octave"):
     """{name: AllanResult} of one axis on its longest gap-free run (cost capped by DEVIATION_BUDGET terms)."""
     from avbench.estimators.allan.deviations import deviation
 
     edges = np.concatenate(([0], np.asarray(starts, dtype=np.int64), [len(x)]))
     k = int(np.argmax(np.diff(edges)))
     run = np.asarray(x[edges[k] : edges[k + 1]], dtype=float)
-    return {name: deviation(run, dt, name, "octave", max_terms=DEVIATION_BUDGET) for name in names}
+    return {name: deviation(run, dt, name, taus, max_terms=DEVIATION_BUDGET) for name in names}
 
 
 def _load(args, progress):

@@ -325,3 +325,28 @@ def test_max_terms_bounds_the_cost():
     assert np.sum(terms_per_tau("theo1", cut.m, 3001)) <= budget < np.sum(terms_per_tau("theo1", full.m[: cut.m.size + 1], 3001))
     with pytest.raises(ValueError, match="max_terms"):
         deviation(w, 0.1, "theo1", max_terms=10)
+
+
+def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
+    import pandas as pd
+
+    from avbench.cli import main
+
+    f = tmp_path / "rec.npy"
+    np.save(f, np.random.default_rng(1).standard_normal(4000) * 0.01)
+    out = tmp_path / "out"
+    assert main(["deviations", str(f), "--fs", "100", "--units", "deg/s", "--deviation", "oadev,ohdev,mtotdev,tdev",
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "ohdev" in printed and "mtotdev" in printed
+    table = pd.read_csv(out / "rec_deviations.csv")
+    assert list(dict.fromkeys(table["statistic"])) == ["oadev", "ohdev", "mtotdev", "tdev"]
+    x = np.load(f) * np.pi / 180
+    for name, kind in (("ohdev", "ohvar"), ("mtotdev", "mtotvar")):
+        np.testing.assert_allclose(table.loc[table["statistic"] == name, "avar"], deviation(x, 0.01, kind).avar, rtol=1e-12)
+    assert (table.loc[table["statistic"] == "tdev", "unit"] == "variance (rad)^2, deviation rad").all()
+    assert (out / "rec_gyro_deviations.png").stat().st_size > 0
+    assert main(["deviations", str(f), "--fs", "100", "--units", "deg/s", "--deviation", "hdev2", "--out", str(out)]) == 2
+    assert "--deviation" in capsys.readouterr().err
+    assert main(["deviations", str(f), "--fs", "100", "--units", "deg/s", "--sensor", "accel", "--out", str(out)]) == 2
+    assert "--sensor accel" in capsys.readouterr().err
