@@ -63,20 +63,31 @@ def test_sp1065_published_1000_point_values(kind):
     np.testing.assert_allclose(r.deviation, PUBLISHED[kind], rtol=1e-6)
 
 
+def _av_sum(x, m):
+    k = max(x.size - 2 * m, 0)
+    return float(np.sum((x[2 * m : 2 * m + k] - 2 * x[m : m + k] + x[:k]) ** 2))
+
+
 @pytest.mark.parametrize("m", [1, 2, 3, 7, 50, 333])
 def test_kernels_equal_numpy_references(m):
     x, _, _ = phase_of(np.random.default_rng(m).standard_normal(1200), 0.1)
     ms = np.array([1, m, 2 * m], dtype=np.int64)
     ms = ms[3 * ms < x.size]
+    av_ref = [_av_sum(x, int(mi)) for mi in ms]
     for block in (7, 4096, x.size):
-        np.testing.assert_allclose(K.ohvar_sums(x, ms, block), [K.ohvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
+        h, a = K.ohvar_sums(x, ms, block)
+        np.testing.assert_allclose(h, [K.ohvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
+        np.testing.assert_allclose(a, av_ref, rtol=1e-12)
     for block in (3, 2048):  # the four-lane path (record >= 8m + 64 terms) and the one-lane path
         for mi in ms:
             assert K.mvar_sum(x, int(mi), block) == pytest.approx(K.mvar_sum_numpy(x, int(mi)), rel=1e-11)
     np.testing.assert_allclose(K.mvar_sums(x, ms), [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
     ms = np.array([1, m, 2 * m], dtype=np.int64)
+    av_ref = [_av_sum(x, int(mi)) for mi in ms]
     for block in (7, 4096):
-        np.testing.assert_allclose(K.totvar_sums(x, ms, block), [K.totvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
+        tot, a = K.totvar_sums(x, ms, block)
+        np.testing.assert_allclose(tot, [K.totvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
+        np.testing.assert_allclose(a, av_ref, rtol=1e-12)
     if m % 2 == 0 or m == 1:
         me = 2 * max(1, m // 2)
         assert K.theo1_sum(x, me) == pytest.approx(K.theo1_sum_numpy(x, me), rel=1e-12)

@@ -42,22 +42,49 @@ def _ssq_third(a, b, c, d):
     return acc
 
 
+@njit(cache=True, fastmath=_FM, inline="always")
+def _ssq_third_and_second(a, b, c, d):
+    """(sum_k (a - 3b + 3c - d)^2, sum_k (b - 2c + d)^2) over equal-length slices: one read for both."""
+    acc3 = 0.0
+    acc2 = 0.0
+    for k in range(a.size):
+        v = a[k] - 3.0 * b[k] + 3.0 * c[k] - d[k]
+        w = b[k] - 2.0 * c[k] + d[k]
+        acc3 += v * v
+        acc2 += w * w
+    return acc3, acc2
+
+
 @njit(cache=True, fastmath=_FM)
 def ohvar_sums(x, ms, block=BLOCK):
-    """sum_{i=0}^{N-3m-1} (x[i+3m] - 3x[i+2m] + 3x[i+m] - x[i])^2 for every m of ``ms`` (SP1065 eq. 20)."""
+    """(Hadamard, Allan) sums for every m of ``ms`` in one blocked pass.
+
+    Hadamard: sum_{i=0}^{N-3m-1} (x[i+3m] - 3x[i+2m] + 3x[i+m] - x[i])^2 (SP1065 eq. 20); Allan:
+    sum_{i=0}^{N-2m-1} (x[i+2m] - 2x[i+m] + x[i])^2 (the overlapping AV's, read from the same slices;
+    the noise identification of the edf uses it), its last m terms apart.
+    """
     N = x.size
     out = np.zeros(ms.size)
+    av = np.zeros(ms.size)
     if ms.size == 0:
-        return out
+        return out, av
     kmax = N - 3 * ms.min()
     for b0 in range(0, kmax, block):
         for t in range(ms.size):
             m = ms[t]
             b1 = min(b0 + block, N - 3 * m)
             if b1 > b0:
-                out[t] += _ssq_third(x[b0 + 3 * m : b1 + 3 * m], x[b0 + 2 * m : b1 + 2 * m], x[b0 + m : b1 + m],
-                                     x[b0:b1])
-    return out
+                h, a = _ssq_third_and_second(x[b0 + 3 * m : b1 + 3 * m], x[b0 + 2 * m : b1 + 2 * m],
+                                             x[b0 + m : b1 + m], x[b0:b1])
+                out[t] += h
+                av[t] += a
+    for t in range(ms.size):
+        m = ms[t]
+        lo = max(N - 3 * m, 0)
+        hi = N - 2 * m
+        if hi > lo:
+            av[t] += _ssq_second(x[lo + 2 * m : hi + 2 * m], x[lo + m : hi + m], x[lo:hi])
+    return out, av
 
 
 def ohvar_sum_numpy(x, m):
@@ -250,16 +277,19 @@ def _reflected(x, j):
 
 @njit(cache=True, fastmath=_FM)
 def totvar_sums(x, ms, block=BLOCK):
-    """sum_{i=1}^{N-2} (x*[i-m] - 2x[i] + x*[i+m])^2 on the doubly reflected x* (SP1065 eq. 25), every m.
+    """(total, Allan) sums for every m: sum_{i=1}^{N-2} (x*[i-m] - 2x[i] + x*[i+m])^2 on the doubly
+    reflected x* (SP1065 eq. 25), and its interior part (no reflection: m <= i <= N-1-m), which is
+    exactly the overlapping AV's sum of the N - 2m second differences.
 
-    The interior (no reflection: m <= i <= N-1-m) blocked over i; the 2(m - 1) reflected ends apart.
+    The interior blocked over i; the 2(m - 1) reflected ends apart.
     """
     N = x.size
     out = np.zeros(ms.size)
+    av = np.zeros(ms.size)
     for t in range(ms.size):
         m = ms[t]
         lo = min(m, N - 1)
-        hi = max(lo, N - 1 - m)
+        hi = max(lo, N - m)  # the interior is m <= i <= N-1-m: N - 2m terms
         acc = 0.0
         for i in range(1, lo):
             d = _reflected(x, i - m) - 2.0 * x[i] + _reflected(x, i + m)
@@ -272,10 +302,10 @@ def totvar_sums(x, ms, block=BLOCK):
         for t in range(ms.size):
             m = ms[t]
             lo = max(b0, min(m, N - 1))
-            hi = min(b0 + block, max(min(m, N - 1), N - 1 - m))
+            hi = min(b0 + block, max(min(m, N - 1), N - m))
             if hi > lo:
-                out[t] += _ssq_second(x[lo + m : hi + m], x[lo:hi], x[lo - m : hi - m])
-    return out
+                av[t] += _ssq_second(x[lo + m : hi + m], x[lo:hi], x[lo - m : hi - m])
+    return out + av, av
 
 
 def totvar_sum_numpy(x, m):

@@ -269,14 +269,19 @@ def clear_caches() -> None:
     _rho_squares.cache_clear()
 
 
-def _noise_kinds(S, dt, m_av, n):
+def _noise_kinds(S, dt, m_av, n, av_sums=None):
     """Noise type per m from the overlapping AV slope (as allan_variance), m beyond n/2 take the last.
 
-    The AV is computed from the same cumulative sum S (``_sample_phase``) as ``allan_variance`` does.
+    The AV is computed from the same cumulative sum S (``_sample_phase``) as ``allan_variance`` does,
+    unless ``av_sums`` ({m: sum of squared second differences}) already holds every m needed.
     """
     mm = np.unique(np.clip(m_av, 1, n // 2)).astype(np.int64)
     mf = mm.astype(float)
-    av = _kernels.oavar_sums(S, mm) / (2.0 * mf * mf * (n - 2 * mf + 1))
+    if av_sums is not None and all(int(k) in av_sums for k in mm):
+        sums = np.array([av_sums[int(k)] for k in mm])
+    else:
+        sums = _kernels.oavar_sums(S, mm)
+    av = sums / (2.0 * mf * mf * (n - 2 * mf + 1))
     kinds = _noise_from_slope(mf * dt, av, n // mm)
     return dict(zip(mm.tolist(), kinds))
 
@@ -339,9 +344,10 @@ def deviation(
         raise ValueError(f"taus: no cluster size of {kind} fits a record of {n} samples (N = {N} phases)"
                          + ("" if max_terms is None else f" within max_terms = {max_terms:g}"))
     mf = m.astype(float)
+    av_sums = None  # the AV's sums where a kernel gives them on the way (for the noise identification)
     if kind == "ohvar":
         K = N - 3 * m
-        sums = _k.ohvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
+        sums, av_sums = _k.ohvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
         var = sums / (6.0 * mf * mf * K)
     elif kind in ("mvar", "tvar"):
         K = N - 3 * m + 1
@@ -351,7 +357,7 @@ def deviation(
             var = var * (mf * dt) ** 2 / 3.0
     elif kind == "totvar":
         K = np.full(m.size, N - 2)
-        sums = _k.totvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
+        sums, av_sums = _k.totvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
         var = sums / (2.0 * mf * mf * (N - 2))
     elif kind == "mtotvar":
         K = N - 3 * m + 1
@@ -364,7 +370,7 @@ def deviation(
         var = sums / (6.0 * K)
         if m[0] == 1:  # SP1065 / Stable32: the overlapping Hadamard variance at m = 1
             K[0] = N - 3
-            var[0] = _k.ohvar_sums(x, m[:1])[0] / (6.0 * K[0])
+            var[0] = _k.ohvar_sums(x, m[:1])[0][0] / (6.0 * K[0])
     else:  # theo1, theobr
         K = N - m
         sums = np.array([_k.theo1_sum(x, int(mi)) for mi in m])
@@ -377,7 +383,7 @@ def deviation(
         return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), nan, nan, True, n, dt, confidence, kind=kind)
     if noise == "auto":
         m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
-        table = _noise_kinds(x, dt, m_av, n)
+        table = _noise_kinds(x, dt, m_av, n, None if av_sums is None else dict(zip(m.tolist(), av_sums)))
         keys = np.array(sorted(table))
         kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
     else:
