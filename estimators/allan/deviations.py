@@ -1,4 +1,5 @@
-"""The variance family beside the Allan variance: Hadamard, modified, time, total and Theo1.
+"""The variance family beside the Allan variance: Hadamard, modified, time, total (plain, modified,
+Hadamard), Theo1 and TheoBR.
 
 All are computed on the phase (angle) record x of the rate record w: x_0 = 0,
 x_k = dt * sum_{j<k} (w_j - mean w), N = n + 1 phase points (allantools ``frequency2phase``; the
@@ -14,16 +15,40 @@ Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
 * ``totvar`` total variance, SP1065 eq. 25: 1/(2 tau^2 (N-2)) sum_{i=2}^{N-1} (x*_{i-m} - 2x*_i + x*_{i+m})^2
   on the doubly reflected phase x*_{1-j} = 2x_1 - x_{1+j}, x*_{N+j} = 2x_N - x_{N-j}; m <= (N-1)/2.
   SP1065's published 1000-point TOTDEV values are of this "doubly reflected" form (its p. 108).
+* ``mtotvar`` modified total variance, SP1065 eq. 27 (Howe & Vernotte 1999):
+  1/(2 m^2 tau^2 (N-3m+1)) sum_{n=1}^{N-3m+1} (1/6m) sum_{i=n-3m}^{n+3m-1} [z#_i(m)]^2: each of the N-3m+1
+  windows of 3m phases has its linear trend removed (slope from the means of its two halves, the
+  middle point skipped when 3m is odd: Stable32 and allantools), is extended by uninverted even
+  reflection to 9m points, and z# is the MVAR inner sum on it (6m terms). m <= (N-1)/3.
+* ``htotvar`` Hadamard total variance, SP1065 eq. 29 (Howe et al. 2001): 1/(6 (n-3m+1)) sum over the
+  n-3m+1 windows of 3m *rate* samples of (1/6m) sum_{j<6m} (ybar_j - 2 ybar_{j+m} + ybar_{j+2m})^2,
+  ybar the m-point averages of the window with its rate drift removed the same way and reflected
+  the same way (a third difference of the phase). Blind to a constant rate and to a ramp. At
+  m = 1 the overlapping Hadamard variance stands in (Riley: "for best consistency"; Stable32,
+  allantools). m <= (N-2)/3.
+  MTOTVAR and HTOTVAR cost 9m + 6m per window, O(N m) per m (O(N^2) over octaves): a compiled loop
+  per window (running sums as Stable32's MTC.c); ``max_terms`` bounds it. SP1065 divides them by
+  noise-dependent bias factors in its plots (e.g. MTOT: 0.94 white PM ... 0.69 RW FM); they are
+  not applied here (as allantools): ``noise_models.exact_variances`` gives the exact expectation of
+  the statistic as defined, for every noise term, which is what the tests and fits compare with.
 * ``theo1`` Theo1, SP1065 eq. 30, m even, 10 <= m <= N-1 in SP1065 (here every even m >= 2, as
   allantools, so that the two agree on the same m):
   1/(0.75 (N-m) (m dt)^2) sum_{i=1}^{N-m} sum_{d=0}^{m/2-1} [(x_i - x_{i-d+m/2}) + (x_{i+m} - x_{i+d+m/2})]^2 / (m/2-d),
   reported at tau = 0.75 m dt (SP1065: "Theo1 at tau = 0.75 m tau0"; allantools labels it m dt).
-  Cost: (N - m) m / 2 terms per m (the definition, compiled), so Theo1 over an octave grid reaching
-  m ~ N is O(N^2): ``theo1_max_m`` bounds it. Not used: expanding the square into lagged products
+  Cost: (N - m) m / 2 terms per m (the definition, one SIMD pass per lag d: ~0.3-1 ns per term, 6x
+  the previous scalar loop at n = 1e4), so Theo1 over an octave grid reaching m ~ N is O(N^2):
+  ``theo1_max_m`` bounds it. No exact fast form is used: expanding the square into lagged products
   (one FFT for the cross-correlations of x_i + x_{i+m} with x, prefix sums for the squares) leaves
   O(m^2 / 2) edge corrections for the x_{i+m/2-d} x_{i+m/2+d} products, so it is no cheaper at the
   long m that dominate, and it subtracts sums of squared phases (~ N) to get squared increments
-  (~ m), losing ~log10(N/m) digits -- beyond the 1e-9 agreement with allantools at N = 1e6.
+  (~ m), losing ~log10(N/m) digits -- beyond the 1e-9 agreement with allantools at N = 1e6. The
+  fast TheoBR of Taylor & Howe (2010) decimates the phase before Theo1 at long tau: a different
+  statistic (an approximation), not implemented.
+* ``theobr`` bias-removed Theo1 (Howe & Tasset 2004; SP1065 §5.2.12):
+  TheoBR(m) = [1/(k+1) sum_{i=0}^{k} OAVAR(m = 9+3i) / Theo1(m = 12+4i)] Theo1(m), k = floor(0.1 N/3 - 3)
+  (N >= 90 phases), at tau = 0.75 m dt. The ratio needs Theo1 at k + 1 ~ N/30 sizes up to m ~ 0.13 N:
+  O(N^3) work, refused beyond ``THEOBR_MAX_TERMS`` (about N = 1.7e4) with an error saying so. Its
+  edf is taken as Theo1's (the ratio averages k + 1 values; its own spread is not counted).
 * ``oavar`` the overlapping AV of :func:`~avbench.estimators.allan.variance.allan_variance`.
 
 Equivalent degrees of freedom. Each statistic (bar totvar) is V = (1/K) sum_i sum_f w_f q_{i,f}^2, a
@@ -39,8 +64,16 @@ slope of the overlapping AV, as ``allan_variance`` does. For long filters of the
 "m' = infinity" limit); for Theo1 under white PM this scaling is an approximation that
 underestimates the edf (wider intervals) when m > 64. The total variance is given the edf of the
 overlapping AV filter over its N - 2 terms (the reflected ends taken as if stationary): an
-approximation, measured in tests/test_deviations.py against the ensemble variance.
-Intervals: chi^2 with that edf, like the AV engine.
+approximation, measured in tests/test_deviations.py against the ensemble variance. MTOTVAR and
+HTOTVAR are exactly of the quadratic form above (per window, 6m filters of 3m (+1) phases whose
+coefficients come from ``noise_models.exact_variances.total_window_filters``: detrending and
+reflection are linear), so their edf is exact for their filters, with m' = 16 for the scale-free
+limit (the F x F cross-correlations of 6m filters cost F^2 P). Intervals: chi^2 with that edf, like
+the AV engine.
+
+Cost (``python -m avbench.bench --only Deviations``): every statistic is computed on the unscaled
+cumulative sum S (x = dt S; tau^2 -> m^2), one pass to make it; the compiled passes are described
+in :mod:`~avbench.estimators.allan._deviation_kernels`.
 """
 
 from __future__ import annotations
@@ -308,18 +341,21 @@ def deviation(
     dt : float
         Sample interval (s).
     kind : str
-        "oavar", "ohvar", "mvar", "tvar", "totvar", "theo1", or a deviation name of allantools
-        ("oadev", "ohdev", "mdev", "tdev", "totdev", "theo1").
+        One of ``KINDS`` ("oavar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1",
+        "theobr"), or a deviation name (``DEVIATION_NAMES``: "oadev", "ohdev", "hdev", "mdev", "tdev",
+        "totdev", "mtotdev", "htotdev", "theo1", "theobr").
     taus : "octave", "decade", "all" or array of seconds
         As :func:`~avbench.estimators.allan.variance.allan_variance`; each statistic keeps the m its
         definition allows (ohvar, mvar: m <= N/3; totvar: m <= (N-1)/2; theo1: even m <= N-1, tau = 0.75 m dt).
     noise : "auto" or a noise type name
         For the edf ("white_pm", "white_fm", "flicker_fm", "rw_fm"); "auto" reads it from the AV slope.
     theo1_max_m : int, optional
-        Largest Theo1 m (its cost grows as N m / 2 per tau).
+        Largest Theo1 (TheoBR) m (its cost grows as N m / 2 per tau).
     max_terms : float, optional
         Keep the cluster sizes, smallest first, while the total number of terms summed stays within
-        this budget (Theo1: (N - m) m / 2 per m; the others about N): a bound on the cost.
+        this budget (``terms_per_tau``: Theo1, TheoBR (N - m) m / 2 per m; MTOTVAR, HTOTVAR
+        15 m (N - 3m + 1); the others about N): a bound on the cost. TheoBR's bias ratio has its own
+        bound, ``THEOBR_MAX_TERMS``.
     edf : bool
         False: skip the noise identification and the edf (``edf`` NaN, no interval): the values only.
 
