@@ -11,6 +11,7 @@ avbench run my_study.toml --jobs 2               # your own study file
 avbench check-estimator my_estimator.py:MyEstimator   # does it keep the estimator contract?
 avbench table results/lv2015 --latex             # re-print a finished study's table
 avbench estimate rec.csv --fs 100 --units deg/s --method wls,gmwm   # your own recording
+avbench deviations rec.csv --fs 100 --units deg/s  # its ADEV, HDEV, MDEV, TOTDEV, Theo1, ... with intervals
 """
 
 from __future__ import annotations
