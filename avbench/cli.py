@@ -335,7 +335,7 @@ def cmd_deviations(args) -> int:
 
     from avbench.outputs import atomic_write_bytes, atomic_write_text, prepare_out_dir
     from avbench.recordings import figure
-    from avbench.recordings.estimate import _check_deviation, _deviations, _load
+    from avbench.recordings.estimate import _check_deviation, _check_deviations_feasible, _deviations, _load
     from avbench.recordings.timing import check_fs
 
     check_fs(args.fs)
@@ -347,6 +347,7 @@ def cmd_deviations(args) -> int:
     sensors = [s for s in sensors if args.sensor in (None, s.sensor)]
     if not sensors:
         raise ValueError(f"--sensor {args.sensor}: {rec.path} has no {args.sensor} channels")
+    _check_deviations_feasible(names, timing.n_samples, timing.starts)
     stem = (rec.path.stem or rec.path.name) + (f"_{args.column}" if args.column is not None else "")
     outputs = [f"{stem}_deviations.csv"] + [f"{stem}_{s.sensor}_deviations.png" for s in sensors]
     out = prepare_out_dir(args.out, "--out", outputs)

@@ -361,3 +361,8 @@ def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
     assert "--deviation" in capsys.readouterr().err
     assert main(["deviations", str(f), "--fs", "100", "--units", "deg/s", "--sensor", "accel", "--out", str(out)]) == 2
     assert "--sensor accel" in capsys.readouterr().err
+    long = tmp_path / "long.npy"  # TheoBR's bias ratio is refused up front on a long record, naming why
+    np.save(long, np.zeros(20_000))
+    assert main(["deviations", str(long), "--fs", "100", "--units", "deg/s", "--deviation", "theobr",
+                 "--out", str(tmp_path / "o2")]) == 2
+    assert "theobr" in capsys.readouterr().err and not (tmp_path / "o2" / "long_deviations.csv").exists()

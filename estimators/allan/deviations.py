@@ -94,7 +94,8 @@ from avbench.estimators.allan.variance import (
 from avbench.estimators.validation import check_taus
 from avbench.noise_models.exact_variances import mvar_filter_acf, total_window_filters
 
-__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches", "terms_per_tau"]
+__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches", "terms_per_tau",
+           "theobr_bias_sizes", "check_feasible"]
 
 #: the statistics
 KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
@@ -430,15 +431,25 @@ def deviation(
                        kind=kind)
 
 
-def _theobr_ratio(S, N):
-    """1/(k+1) sum_i AV(9 + 3i) / Theo1(12 + 4i) on the unit phase S (Howe & Tasset 2004; SP1065)."""
+def check_feasible(kinds, n: int) -> None:
+    """Raise ValueError, before any work, for a statistic a record of ``n`` samples cannot have at a
+    bounded cost: TheoBR, whose bias ratio needs Theo1 at ~N/30 cluster sizes (``THEOBR_MAX_TERMS``)."""
+    if "theobr" not in {DEVIATION_NAMES.get(k, k) for k in kinds}:
+        return
+    N = int(n) + 1
     m_av, m_th = theobr_bias_sizes(N)
     cost = float(np.sum(terms_per_tau("theo1", m_th, N)))
     if cost > THEOBR_MAX_TERMS:
         raise ValueError(
             f"theobr: its bias ratio needs Theo1 at {m_th.size} cluster sizes up to m = {m_th[-1]} "
-            f"({cost:.2g} terms, beyond THEOBR_MAX_TERMS = {THEOBR_MAX_TERMS:.2g}): a record of N = {N} phases "
+            f"({cost:.2g} terms, beyond THEOBR_MAX_TERMS = {THEOBR_MAX_TERMS:.2g}): a record of {n} samples "
             "is too long for it (Theo1 costs (N - m) m / 2 per m); use theo1 or a shorter record")
+
+
+def _theobr_ratio(S, N):
+    """1/(k+1) sum_i AV(9 + 3i) / Theo1(12 + 4i) on the unit phase S (Howe & Tasset 2004; SP1065)."""
+    check_feasible(["theobr"], N - 1)
+    m_av, m_th = theobr_bias_sizes(N)
     mf = m_av.astype(float)
     av = _kernels.oavar_sums(S, m_av) / (2.0 * mf * mf * (N - 2 * mf))
     mt = m_th.astype(float)
