@@ -90,7 +90,8 @@ def test_kernels_equal_numpy_references(m):
         np.testing.assert_allclose(a, av_ref, rtol=1e-12)
     if m % 2 == 0 or m == 1:
         me = 2 * max(1, m // 2)
-        assert K.theo1_sum(x, me) == pytest.approx(K.theo1_sum_numpy(x, me), rel=1e-12)
+        for block in (5, K.THEO1_BLOCK, x.size):
+            assert K.theo1_sum(x, me, block) == pytest.approx(K.theo1_sum_numpy(x, me), rel=1e-12)
 
 
 def test_octave_box_sum_mvar_equals_reference():

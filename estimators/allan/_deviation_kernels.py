@@ -17,7 +17,8 @@ Performance notes (``python -m avbench.bench --only Deviations``; serial, no thr
   other grids it is a running sum (a sequential chain) split into four independent lanes over
   quarters of the record, each started from its own directly summed window and fed by blocks of
   third differences computed as SIMD (``mvar_sum``);
-* Theo1 is its definition, (N - m) m / 2 terms per m, as one SIMD pass per lag d.
+* Theo1 is its definition, (N - m) m / 2 terms per m: one SIMD pass per lag d over each block of
+  start indices (the pair sums x[i] + x[i+m] formed once).
 """
 
 import numpy as np
@@ -318,28 +319,38 @@ def totvar_sum_numpy(x, m):
 
 
 @njit(cache=True, fastmath=_FM, inline="always")
-def _ssq_four(a, b, c, d):
-    """sum_k (a[k] - b[k] + c[k] - d[k])^2 over equal-length slices."""
+def _ssq_less_two(a, b, e):
+    """sum_k (a[k] - b[k] - e[k])^2 over equal-length slices."""
     acc = 0.0
     for k in range(a.size):
-        v = a[k] - b[k] + c[k] - d[k]
+        v = a[k] - b[k] - e[k]
         acc += v * v
     return acc
 
 
+#: start indices per block of ``theo1_sum``: the block and its m/2 shifted copies stay in cache
+THEO1_BLOCK = 1024
+
+
 @njit(cache=True, fastmath=_FM)
-def theo1_sum(x, m):
+def theo1_sum(x, m, block=THEO1_BLOCK):
     """sum_{i=0}^{N-m-1} sum_{d=0}^{m/2-1} [(x[i] - x[i-d+m/2]) + (x[i+m] - x[i+d+m/2])]^2 / (m/2 - d).
 
-    SP1065 eq. 30, m even: its definition, (N - m) m / 2 terms, one SIMD pass over i per lag d.
+    SP1065 eq. 30, m even: its definition, (N - m) m / 2 terms. The pair sums a[i] = x[i] + x[i+m]
+    are formed once; then for each block of i every lag d is one SIMD pass of (a - x[i+m/2-d] -
+    x[i+m/2+d])^2 over the block, whose slices stay in cache from one d to the next (measured 1.5-1.9x
+    faster than one pass over the record per d, at n = 1e4 and 1e5).
     """
     h = m // 2
     K = x.size - m
-    a = x[:K]
-    c = x[m : m + K]
+    a = x[:K] + x[m : m + K]
     acc = 0.0
-    for d in range(h):
-        acc += _ssq_four(a, x[h - d : h - d + K], c, x[h + d : h + d + K]) / (h - d)
+    for i0 in range(0, K, block):
+        i1 = min(i0 + block, K)
+        part = 0.0
+        for d in range(h):
+            part += _ssq_less_two(a[i0:i1], x[i0 + h - d : i1 + h - d], x[i0 + h + d : i1 + h + d]) / (h - d)
+        acc += part
     return acc
 
 

@@ -35,8 +35,9 @@ Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
   allantools, so that the two agree on the same m):
   1/(0.75 (N-m) (m dt)^2) sum_{i=1}^{N-m} sum_{d=0}^{m/2-1} [(x_i - x_{i-d+m/2}) + (x_{i+m} - x_{i+d+m/2})]^2 / (m/2-d),
   reported at tau = 0.75 m dt (SP1065: "Theo1 at tau = 0.75 m tau0"; allantools labels it m dt).
-  Cost: (N - m) m / 2 terms per m (the definition, one SIMD pass per lag d: ~0.3-1 ns per term, 6x
-  the previous scalar loop at n = 1e4), so Theo1 over an octave grid reaching m ~ N is O(N^2):
+  Cost: (N - m) m / 2 terms per m (the definition: SIMD passes per lag d over cache-sized blocks of
+  start indices, about 10x the previous scalar loop at n = 1e4), so Theo1 over an octave grid
+  reaching m ~ N is O(N^2):
   ``theo1_max_m`` bounds it. No exact fast form is used: expanding the square into lagged products
   (one FFT for the cross-correlations of x_i + x_{i+m} with x, prefix sums for the squares) leaves
   O(m^2 / 2) edge corrections for the x_{i+m/2-d} x_{i+m/2+d} products, so it is no cheaper at the
