@@ -402,7 +402,8 @@ def deviation(
         sums = np.array([_k.total_window_sums(x, int(mi), True) for mi in m])
         var = sums / (2.0 * mf * mf * K)
     elif kind == "htotvar":
-        y = np.ascontiguousarray(rate, dtype=float)  # a constant rate survives the detrending, not the differences
+        y = np.asarray(rate, dtype=float)
+        y = y - np.mean(y)  # cancelled by the differences, but a large bias would cost digits there
         K = n - 3 * m + 1
         sums = np.array([_k.total_window_sums(y, int(mi), False) if mi > 1 else np.nan for mi in m])
         var = sums / (6.0 * K)
