@@ -11,6 +11,7 @@ avbench run my_study.toml --jobs 2               # your own study file
 avbench check-estimator my_estimator.py:MyEstimator   # does it keep the estimator contract?
 avbench table results/lv2015 --latex             # re-print a finished study's table
 avbench estimate rec.csv --fs 100 --units deg/s --method wls,gmwm   # your own recording
+avbench deviations rec.csv --fs 100 --units deg/s  # its ADEV, HDEV, MDEV, TOTDEV, Theo1, ... with intervals
 """
 
 from __future__ import annotations
@@ -289,6 +290,100 @@ def cmd_table(args) -> int:
 # -- parser -------------------------------------------------------------------------------------
 
 
+#: ``avbench deviations``: the statistics drawn when --deviation is not given
+DEVIATIONS_DEFAULT = "oadev,ohdev,mdev,totdev,htotdev,theo1"
+
+
+def _add_deviations_parser(sub) -> None:
+    """``avbench deviations FILE``: the reading options of ``avbench estimate``, then the statistics."""
+    s = sub.add_parser(
+        "deviations", help="the deviation family (ADEV, HDEV, MDEV, TOTDEV, Theo1, ...) of a recording, with intervals",
+        description="Overlapping Allan, Hadamard, modified, time, total (plain, modified, Hadamard), Theo1 and TheoBR "
+                    "deviations of every axis of a recording, each with its edf and chi^2 interval "
+                    "(avbench.estimators.allan.deviations), on each axis' longest gap-free run. Writes "
+                    "<stem>_deviations.csv (one row per statistic, axis and tau: the columns of avbench estimate's "
+                    "<stem>_av.csv) and <stem>_<sensor>_deviations.png, and prints the deviations per axis.",
+        epilog="examples:\n  avbench deviations rec.npy --fs 100 --units deg/s\n"
+               "  avbench deviations imu.bag --sensor gyro --deviation oadev,ohdev,theobr --taus decade --out devs",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("file", help="a recording: .npy .npz .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
+    s.add_argument("--fs", type=float, default=None, help="sample rate in Hz (needed when the file has no time stamps)")
+    s.add_argument("--units", default=None, help="gyro sample units when the format does not say: rad/s, deg/s, deg/h, mrad/s")
+    s.add_argument("--accel-units", default=None, help="accelerometer sample units when the format does not say")
+    s.add_argument("--column", default=None, help="one gyro column of a table: name or 0-based index")
+    s.add_argument("--gyro", default=None, help="gyro columns of a table, comma-separated names or indices")
+    s.add_argument("--accel", default=None, help="accelerometer columns of a table, comma-separated")
+    s.add_argument("--time", default=None, help="time column of a table (default: one named t/time/timestamp; 'none')")
+    s.add_argument("--time-units", default="s", choices=["s", "ms", "us", "ns"], help="units of the time column")
+    s.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
+    s.add_argument("--sensor", default=None, choices=["gyro", "accel"], help="only this sensor (default: every one in the file)")
+    s.add_argument("--deviation", default=DEVIATIONS_DEFAULT, metavar="NAMES",
+                   help=f"comma-separated: oadev, ohdev, mdev, tdev, totdev, mtotdev, htotdev, theo1, theobr "
+                        f"(default {DEVIATIONS_DEFAULT})")
+    s.add_argument("--taus", default="octave", choices=["octave", "decade"], help="tau grid (default octave)")
+    s.add_argument("--out", default=".", help="output folder (default: .)")
+    s.add_argument("--title", default=None, help="plot title (default: the file name)")
+    s.add_argument("--no-progress", action="store_true", help="no progress bars")
+    s.set_defaults(func=cmd_deviations)
+
+
+def cmd_deviations(args) -> int:
+    """``avbench deviations FILE``: read like ``avbench estimate`` (its ``_load``), compute, write CSV and plot."""
+    import io
+
+    import pandas as pd
+
+    from avbench.outputs import atomic_write_bytes, atomic_write_text, prepare_out_dir
+    from avbench.recordings import figure
+    from avbench.recordings.estimate import _check_deviation, _check_deviations_feasible, _deviations, _load
+    from avbench.recordings.timing import check_fs
+
+    check_fs(args.fs)
+    names = _check_deviation(args.deviation)
+    if args.column is not None and args.gyro is not None:
+        raise ValueError("--column: give either --column or --gyro, not both")
+    args.file = [args.file]
+    ((rec, timing, sensors),) = _load(args, not args.no_progress and sys.stderr.isatty())
+    sensors = [s for s in sensors if args.sensor in (None, s.sensor)]
+    if not sensors:
+        raise ValueError(f"--sensor {args.sensor}: {rec.path} has no {args.sensor} channels")
+    _check_deviations_feasible(names, timing.n_samples, timing.starts)
+    stem = (rec.path.stem or rec.path.name) + (f"_{args.column}" if args.column is not None else "")
+    outputs = [f"{stem}_deviations.csv"] + [f"{stem}_{s.sensor}_deviations.png" for s in sensors]
+    out = prepare_out_dir(args.out, "--out", outputs)
+    rows, figs = [], []
+    for s in sensors:
+        devs = {a: _deviations(x, timing.dt, timing.starts, names, args.taus) for a, x in s.axes.items()}
+        for a, d in devs.items():
+            for name, r in d.items():
+                unit = s.si_unit.split("/")[0] if r.kind == "tvar" else s.si_unit
+                f = r.to_frame()  # column "adev" holds the statistic's deviation
+                rows.append(f.assign(statistic=name, sensor=s.sensor, axis=a,
+                                     unit=f"variance ({unit})^2, deviation {unit}")[["statistic", *f.columns, "sensor", "axis", "unit"]])
+        confidence = next(iter(next(iter(devs.values())).values())).confidence
+        figs.append((s.sensor, figure.deviations_figure(s.sensor, s.si_unit, devs, args.title or rec.path.name, confidence)))
+    table = pd.concat(rows, ignore_index=True)
+
+    import matplotlib.pyplot as plt
+
+    for sensor, fig in figs:
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        atomic_write_bytes(out / f"{stem}_{sensor}_deviations.png", buf.getvalue())
+    atomic_write_text(out / f"{stem}_deviations.csv", table.to_csv(index=False))
+    print(f"# {rec.path.name}: {timing.n_samples} samples at {1 / timing.dt:.6g} Hz; deviations on each axis' longest "
+          f"gap-free run, SI units (TDEV in rad or m/s), 'edf' the equivalent degrees of freedom")
+    for (sensor, axis), g in table.groupby(["sensor", "axis"], sort=False):
+        wide = g.assign(tau=g["tau"].map(lambda t: float(f"{t:.4g}"))).pivot_table(
+            index="tau", columns="statistic", values="adev", sort=True)[list(dict.fromkeys(g["statistic"]))]
+        print(f"\n## {sensor} {axis}")
+        with pd.option_context("display.float_format", "{:.4g}".format, "display.width", 160):
+            print(wide.to_string(na_rep="-"))
+    print(f"\n# wrote {', '.join(outputs)} in {out}")
+    return 0
+
+
 #: the one-line help of ``avbench estimate`` in the list of commands (as in avbench.recordings.estimate.add_parser)
 ESTIMATE_HELP = "fit the noise coefficients of a static IMU recording"
 
@@ -365,6 +460,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
         estimate.add_parser(sub)
     else:  # the same entry in the list of commands, without importing it
         sub.add_parser("estimate", help=ESTIMATE_HELP)
+    _add_deviations_parser(sub)
     try:
         import avbench.bench.__main__ as bench_main
         bench_main.add_parser(sub)

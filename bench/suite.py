@@ -188,24 +188,31 @@ class AllanOverlapping:
 class Deviations:
     """The deviation family at octave taus: avbench ``deviation`` vs allantools on the same data.
 
-    ``ohvar``/``mvar``/``totvar`` against ``ohdev``/``mdev``/``totdev`` up to 1e7; Theo1 (whose cost
-    is (N - m) m / 2 per tau by definition, O(N^2) over an octave grid reaching m ~ N) against
-    allantools' pure-Python ``theo1`` on small records only. Values checked equal to 1e-9. Each timed
-    call of ours includes the noise identification and the edf (its caches cleared every call);
-    ``time_values`` times the values alone (``edf=False``).
+    ``ohvar``/``mvar``/``totvar`` against ``ohdev``/``mdev``/``totdev`` up to 1e6; Theo1 (whose cost
+    is (N - m) m / 2 per tau by definition, O(N^2) over an octave grid reaching m ~ N) and the
+    modified and Hadamard total variances (15 m per window of 3m points, O(N^2) over an octave grid
+    reaching m ~ N/3) against allantools' pure-Python ``theo1``/``mtotdev``/``htotdev`` on small
+    records only. Values checked equal to 1e-9. Each timed call of ours includes the noise
+    identification and the edf (its caches cleared every call); ``time_values`` times the values
+    alone (``edf=False``). The sizes give the scaling in n.
     """
 
-    params = [["ohvar", "mvar", "totvar", "theo1"], [1000, 3000, *SIZES[:3]]]
+    KINDS = ["ohvar", "mvar", "totvar", "theo1", "mtotvar", "htotvar"]
+    params = [KINDS, [1000, 3000, *SIZES[:3]]]
+    #: the smoke run leaves out MTOT/HTOT, whose allantools baselines take ~10 s at 1000 samples
     quick_params = [["ohvar", "mvar", "totvar", "theo1"], [10**3, 10**4]]
     param_names = ["kind", "n"]
     repeats = 3
     budget_s = 60.0
-    baselines = {"time_deviation": ("baseline_allantools", "allantools ohdev / mdev / totdev / theo1 (octave taus)"),
-                 "time_values": ("baseline_allantools", "allantools ohdev / mdev / totdev / theo1 (octave taus)")}
-    ALLANTOOLS = {"ohvar": "ohdev", "mvar": "mdev", "totvar": "totdev", "theo1": "theo1"}
-    #: Theo1: largest n timed (ours) and largest n given to allantools' pure-Python triple loop
-    THEO1_MAX_N = 10**4
-    THEO1_ALLANTOOLS_MAX_N = 3000
+    baselines = {"time_deviation": ("baseline_allantools", "allantools ohdev / mdev / totdev / theo1 / mtotdev / htotdev "
+                                                           "(octave taus)"),
+                 "time_values": ("baseline_allantools", "allantools ohdev / mdev / totdev / theo1 / mtotdev / htotdev "
+                                                        "(octave taus)")}
+    ALLANTOOLS = {"ohvar": "ohdev", "mvar": "mdev", "totvar": "totdev", "theo1": "theo1", "mtotvar": "mtotdev",
+                  "htotvar": "htotdev"}
+    #: the O(N^2)-over-octaves statistics: largest n timed (ours) and largest n given to allantools' pure-Python loops
+    QUADRATIC_MAX_N = {"theo1": 10**4, "mtotvar": 10**4, "htotvar": 10**4}
+    QUADRATIC_ALLANTOOLS_MAX_N = {"theo1": 3000, "mtotvar": 1000, "htotvar": 1000}
 
     def repeats_for(self, *p):
         return 3 if p[-1] < 10**7 else 1
@@ -213,8 +220,8 @@ class Deviations:
     def setup(self, kind, n):
         from avbench.estimators.allan.deviations import deviation
 
-        if kind == "theo1" and n > self.THEO1_MAX_N:
-            raise NotImplementedError(f"theo1 costs O(n^2) over octave taus: not timed at n = {n}")
+        if n > self.QUADRATIC_MAX_N.get(kind, n):
+            raise NotImplementedError(f"{kind} costs O(n^2) over octave taus: not timed at n = {n}")
         rng = np.random.default_rng(3)
         self.x = rng.standard_normal(n) + np.cumsum(rng.standard_normal(n)) * 1e-3
         deviation(self.x[:1000], 1.0, kind)  # compile
@@ -240,7 +247,7 @@ class Deviations:
         deviation(self.x, 1.0, kind, "octave", edf=False)
 
     def baseline_allantools_available(self, kind, n):
-        return n <= (self.THEO1_ALLANTOOLS_MAX_N if kind == "theo1" else ALLANTOOLS_MAX_N)
+        return n <= self.QUADRATIC_ALLANTOOLS_MAX_N.get(kind, ALLANTOOLS_MAX_N)
 
     def baseline_allantools(self, kind, n):
         import allantools

@@ -49,6 +49,10 @@ __all__ = [
     "tvar",
     "totvar",
     "theo1",
+    "total_window_filters",
+    "mtotvar",
+    "htotvar",
+    "theobr",
     "KINDS",
 ]
 
@@ -224,6 +228,101 @@ def theo1(terms, m, dt) -> np.ndarray:
     return np.array(out)
 
 
+def _half_average_slope(W: int) -> np.ndarray:
+    """Row a with a @ v = the slope of v (per sample) from the means of its two halves (SP1065 MTOT/HTOT).
+
+    W = 3m points: halves of floor(W/2) points at both ends (the middle point skipped when W is
+    odd), their means a distance W/2 (W even) or (W - 1)/2 + 1 (W odd) apart -- as Stable32 and
+    allantools ``calc_mtotdev_phase`` / ``calc_htotdev_freq``.
+    """
+    h1, h2 = W // 2, (W + 1) // 2
+    dist = 0.5 * W if W % 2 == 0 else 0.5 * (W - 1) + 1
+    a = np.zeros(W)
+    a[:h1] = -1.0 / h1
+    a[h2:] = 1.0 / (W - h2)
+    return a / dist
+
+
+def total_window_filters(kind: str, m: int) -> np.ndarray:
+    """The 6m phase filters (rows, over the window's points) of one window of MTOTVAR or HTOTVAR.
+
+    ``mtotvar`` (SP1065 eq. 27; Howe & Vernotte 1999): the window is 3m phase points; a linear
+    trend (slope from the half averages, ``_half_average_slope``) is removed, the result x0 is
+    extended by uninverted even reflection to 9m points (x0 reversed, x0, x0 reversed) and the 6m
+    terms are second differences of m-point averages, (A_j - 2A_{j+m} + A_{j+2m}), j < 6m. Rows:
+    3m columns (phase x_n .. x_{n+3m-1}).
+
+    ``htotvar`` (SP1065 eq. 29; Howe, Beard, Greenhall, Vernotte, Riley 2001): the same on 3m rate
+    (frequency) samples, whose linear drift is removed; written on the 3m + 1 phase points
+    (y_k = x_{k+1} - x_k, unit sample time), so a constant rate and a rate ramp give 0.
+    """
+    W = 3 * m
+    T = np.eye(W) - np.outer(np.arange(W), _half_average_slope(W))  # detrend
+    R = np.concatenate((np.eye(W)[::-1], np.eye(W), np.eye(W)[::-1]))  # 9m x 3m: uninverted even reflection
+    Q = np.zeros((6 * m, 9 * m))  # second differences of m-point averages
+    for j in range(6 * m):
+        Q[j, j : j + m] += 1.0 / m
+        Q[j, j + m : j + 2 * m] -= 2.0 / m
+        Q[j, j + 2 * m : j + 3 * m] += 1.0 / m
+    C = Q @ R @ T
+    if kind == "mtotvar":
+        return C
+    if kind == "htotvar":
+        D = np.zeros((W, W + 1))  # y_k = x_{k+1} - x_k
+        D[np.arange(W), np.arange(W)] = -1.0
+        D[np.arange(W), np.arange(W) + 1] = 1.0
+        return C @ D
+    raise ValueError(f"kind: expected 'mtotvar' or 'htotvar', got {kind!r}")
+
+
+def _window_expectation(terms, C, dt) -> float:
+    """sum_j E[(C_j . x)^2] over the rows of C (positions 0..P-1 of the phase)."""
+    P = C.shape[1]
+    pos = np.broadcast_to(np.arange(P), C.shape)
+    return float(np.sum(filter_expectation(terms, pos, C, dt)))
+
+
+def mtotvar(terms, m, dt) -> np.ndarray:
+    """Modified total variance, SP1065 eq. 27: E[(1/6m) sum_j (C_j x)^2] / (2 tau^2) (stationary in n).
+
+    m = 1 included (its window of 3 points is reflected like every other).
+    """
+    return np.array([_window_expectation(terms, total_window_filters("mtotvar", int(mi)), dt) / (6 * mi)
+                     / (2 * (mi * dt) ** 2) for mi in _m(m)])
+
+
+def htotvar(terms, m, dt) -> np.ndarray:
+    """Hadamard total variance, SP1065 eq. 29: E[(1/6m) sum_j (C_j y)^2] / 6 on the rate y (stationary in n).
+
+    At m = 1 the overlapping Hadamard variance stands in (Riley's "for best consistency", as
+    Stable32 and allantools do).
+    """
+    out = []
+    for mi in _m(m):
+        if mi == 1:
+            out.append(float(ohvar(terms, [1], dt)[0]))
+            continue
+        C = total_window_filters("htotvar", int(mi)) / dt
+        out.append(_window_expectation(terms, C, dt) / (6 * mi) / 6)
+    return np.array(out)
+
+
+def theobr(terms, m, n: int, dt) -> np.ndarray:
+    """First-order value of TheoBR (Howe & Tasset 2004; SP1065 eq. 31) for a record of n rate samples.
+
+    TheoBR(m) = [1/(k+1) sum_{i=0}^{k} AV(9 + 3i) / Theo1(12 + 4i)] Theo1(m), k = floor(0.1 N/3 - 3),
+    N = n + 1 phases; here with every variance replaced by its exact expectation (the expectation of
+    a ratio differs from the ratio of expectations by O(1/edf) of the Theo1 values in it).
+    """
+    N = int(n) + 1
+    k = int(np.floor(0.1 * N / 3 - 3))
+    if k < 0:
+        raise ValueError(f"theobr: needs N >= 90 phase points (k = floor(0.1 N/3 - 3) >= 0), got N = {N}")
+    i = np.arange(k + 1)
+    ratio = np.mean(oavar(terms, 9 + 3 * i, dt) / theo1(terms, 12 + 4 * i, dt))
+    return ratio * theo1(terms, m, dt)
+
+
 #: kind -> callable(terms, m, n, dt): the exact expected value of each statistic
 KINDS = {
     "oavar": lambda t, m, n, dt: oavar(t, m, dt),
@@ -232,4 +331,7 @@ KINDS = {
     "tvar": lambda t, m, n, dt: tvar(t, m, dt),
     "totvar": lambda t, m, n, dt: totvar(t, m, n, dt),
     "theo1": lambda t, m, n, dt: theo1(t, m, dt),
+    "mtotvar": lambda t, m, n, dt: mtotvar(t, m, dt),
+    "htotvar": lambda t, m, n, dt: htotvar(t, m, dt),
+    "theobr": theobr,
 }

@@ -72,7 +72,8 @@ def add_parser(subparsers):
                         "and >= 3 recordings): by the between-run spread's 95 %% prediction limit over the mean")
     s.add_argument("--deviation", default=None, metavar="NAMES",
                    help="also draw and tabulate these deviations on each axis (comma-separated: oadev, ohdev, mdev, "
-                        "tdev, totdev, theo1), on the longest gap-free run; rows of <stem>_av.csv by 'statistic'")
+                        "tdev, totdev, mtotdev, htotdev, theo1, theobr), on the longest gap-free run; rows of "
+                        "<stem>_av.csv by 'statistic' (alone: avbench deviations FILE)")
     s.add_argument("--json", action="store_true", help="print only the JSON object on stdout")
     s.add_argument("--out", default=".", help="output folder for the plots and tables (default: .)")
     s.add_argument("--title", default=None, help="plot title (default: the file name)")
@@ -154,14 +155,32 @@ def _check_deviation(spec):
     return names
 
 
-def _deviations(x, dt, starts, names):
+def _longest_run(n, starts):
+    """(start, stop) of the longest gap-free run of a record of ``n`` samples."""
+    edges = np.concatenate(([0], np.asarray(starts, dtype=np.int64), [n]))
+    k = int(np.argmax(np.diff(edges)))
+    return int(edges[k]), int(edges[k + 1])
+
+
+def _check_deviations_feasible(names, n, starts):
+    """--deviation: refuse, before any fit, a statistic the longest run is too long for (TheoBR)."""
+    if names:
+        from avbench.estimators.allan.deviations import check_feasible
+
+        a, b = _longest_run(n, starts)
+        try:
+            check_feasible(names, b - a)
+        except ValueError as e:
+            raise ValueError(f"--deviation: {e}") from None
+
+
+def _deviations(x, dt, starts, names, taus="octave"):
     """{name: AllanResult} of one axis on its longest gap-free run (cost capped by DEVIATION_BUDGET terms)."""
     from avbench.estimators.allan.deviations import deviation
 
-    edges = np.concatenate(([0], np.asarray(starts, dtype=np.int64), [len(x)]))
-    k = int(np.argmax(np.diff(edges)))
-    run = np.asarray(x[edges[k] : edges[k + 1]], dtype=float)
-    return {name: deviation(run, dt, name, "octave", max_terms=DEVIATION_BUDGET) for name in names}
+    a, b = _longest_run(len(x), starts)
+    run = np.asarray(x[a:b], dtype=float)
+    return {name: deviation(run, dt, name, taus, max_terms=DEVIATION_BUDGET) for name in names}
 
 
 def _load(args, progress):
@@ -235,6 +254,7 @@ def run(args) -> int:
         ("_combined" if len(loaded) > 1 else "")
     out = prepare_out_dir(args.out, "--out", _outputs(stem, sensors, args))
     dt = timing.dt
+    _check_deviations_feasible(args.deviation, timing.n_samples, timing.starts)
 
     n_fits = sum(len(s.axes) for s in sensors) * len(methods)
     fits: dict = {}

@@ -18,7 +18,7 @@ import numpy as np
 
 from avbench.noise_models.units import DISPLAY_UNITS, SI_SAMPLE_UNIT, from_si
 
-__all__ = ["figure", "residuals"]
+__all__ = ["figure", "residuals", "deviations_figure"]
 
 _TERM = {
     "Q": lambda c, t: math.sqrt(3.0) * c / t,
@@ -73,12 +73,7 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
                         ax.plot(tau, f(v, tau), ":", lw=1.2, color=f"C{j + 5}",
                                 label=f"{method} {c} = {shown:.4g} {units[c]}")
                 terms_drawn = True
-        for k, (dname, r) in enumerate((deviations or {}).get(name, {}).items()):
-            if r.kind in ("tvar", "avar"):
-                continue  # TDEV is an angle (another unit); OADEV is the points above
-            with np.errstate(invalid="ignore"):
-                ax.plot(r.tau, r.deviation, "-", marker=".", lw=1, color=f"C{(k + 3) % 10}", label=dname.upper())
-                ax.fill_between(r.tau, np.sqrt(r.ci_low), np.sqrt(r.ci_high), color=f"C{(k + 3) % 10}", alpha=0.12)
+        _draw_deviations(ax, (deviations or {}).get(name, {}), skip=("tvar", "avar"))  # OADEV: the points above
         for i, (method, fit) in enumerate(axis_fits[name].items()):
             r = residuals(fit)
             if r is not None:
@@ -112,3 +107,44 @@ def residuals(fit):
     tau, z = np.asarray(check["tau"], float), np.asarray(check["z"], float)
     ok = np.isfinite(z)
     return (tau[ok], z[ok]) if ok.any() else None
+
+
+def _draw_deviations(ax, devs, skip=("tvar",)):
+    """Each deviation of ``devs`` (name -> AllanResult) as a line with its chi^2 band (TDEV, an angle, skipped)."""
+    for k, (dname, r) in enumerate(devs.items()):
+        if r.kind in skip:
+            continue
+        with np.errstate(invalid="ignore"):
+            ax.plot(r.tau, r.deviation, "-", marker=".", lw=1, color=f"C{(k + 3) % 10}", label=dname.upper())
+            ax.fill_between(r.tau, np.sqrt(r.ci_low), np.sqrt(r.ci_high), color=f"C{(k + 3) % 10}", alpha=0.12)
+
+
+def deviations_figure(sensor, si_unit, deviations, title, confidence):
+    """``avbench deviations``: one panel per axis, each deviation of ``deviations`` (axis -> name ->
+    AllanResult, SI units) with its chi^2 band at ``confidence``; TDEV (an angle) on a second y axis."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(deviations)
+    fig, axs = plt.subplots(1, len(names), figsize=(6.2 * len(names), 4.6), squeeze=False)
+    for ax, name in zip(axs[0], names):
+        _draw_deviations(ax, deviations[name])
+        t = {k: r for k, r in deviations[name].items() if r.kind == "tvar"}
+        if t:
+            ax2 = ax.twinx()
+            for dname, r in t.items():
+                ax2.plot(r.tau, r.deviation, "--", color="0.4", lw=1, label=f"{dname.upper()} (right axis)")
+            ax2.set_yscale("log")
+            ax2.set_ylabel(f"time deviation ({si_unit.split('/')[0]})")
+            ax2.legend(fontsize=7, loc="upper right")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("τ (s)")
+        ax.set_ylabel(f"deviation ({si_unit})")
+        ax.set_title(f"{title} — {sensor} {name} (bands: {confidence:.0%} χ²)", fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    return fig

@@ -17,8 +17,9 @@ from avbench.noise_models import terms as T
 
 allantools = pytest.importorskip("allantools")
 
-STATS = ("ohvar", "mvar", "tvar", "totvar", "theo1")
-AT = {"ohvar": "ohdev", "mvar": "mdev", "tvar": "tdev", "totvar": "totdev", "theo1": "theo1"}
+STATS = ("ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1")
+AT = {"ohvar": "ohdev", "mvar": "mdev", "tvar": "tdev", "totvar": "totdev", "mtotvar": "mtotdev", "htotvar": "htotdev",
+      "theo1": "theo1"}
 
 
 def nbs_1000():
@@ -38,6 +39,8 @@ DATA = {"random": np.random.default_rng(7).standard_normal(1200), "nbs1000": nbs
 @pytest.mark.parametrize("taus", ["octave", "decade"])
 def test_equals_allantools(data, kind, taus):
     y = DATA[data]
+    if kind in ("mtotvar", "htotvar"):  # allantools' are pure-Python O(N m) loops per m: a shorter record
+        y = y[:300]
     r = deviation(y, 1.0, kind, taus)
     tau_at, dev_at, _, _ = getattr(allantools, AT[kind])(y, rate=1.0, data_type="freq", taus=r.m.astype(float))
     assert np.array_equal(tau_at, r.m.astype(float))  # the same m (allantools labels Theo1 by m, not 0.75 m)
@@ -60,18 +63,96 @@ def test_sp1065_published_1000_point_values(kind):
     np.testing.assert_allclose(r.deviation, PUBLISHED[kind], rtol=1e-6)
 
 
+def _av_sum(x, m):
+    k = max(x.size - 2 * m, 0)
+    return float(np.sum((x[2 * m : 2 * m + k] - 2 * x[m : m + k] + x[:k]) ** 2))
+
+
 @pytest.mark.parametrize("m", [1, 2, 3, 7, 50, 333])
 def test_kernels_equal_numpy_references(m):
     x, _, _ = phase_of(np.random.default_rng(m).standard_normal(1200), 0.1)
-    for name in ("ohvar", "mvar"):
-        got, ref = getattr(K, f"{name}_sum")(x, m), getattr(K, f"{name}_sum_numpy")(x, m)
-        assert got == pytest.approx(ref, rel=1e-12)
     ms = np.array([1, m, 2 * m], dtype=np.int64)
+    ms = ms[3 * ms < x.size]
+    av_ref = [_av_sum(x, int(mi)) for mi in ms]
+    for block in (7, 4096, x.size):
+        h, a = K.ohvar_sums(x, ms, block)
+        np.testing.assert_allclose(h, [K.ohvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
+        np.testing.assert_allclose(a, av_ref, rtol=1e-12)
+    for block in (3, 2048):  # the four-lane path (record >= 8m + 64 terms) and the one-lane path
+        for mi in ms:
+            assert K.mvar_sum(x, int(mi), block) == pytest.approx(K.mvar_sum_numpy(x, int(mi)), rel=1e-11)
+    np.testing.assert_allclose(K.mvar_sums(x, ms), [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
+    ms = np.array([1, m, 2 * m], dtype=np.int64)
+    av_ref = [_av_sum(x, int(mi)) for mi in ms]
     for block in (7, 4096):
-        np.testing.assert_allclose(K.totvar_sums(x, ms, block), [K.totvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
+        tot, a = K.totvar_sums(x, ms, block)
+        np.testing.assert_allclose(tot, [K.totvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
+        np.testing.assert_allclose(a, av_ref, rtol=1e-12)
     if m % 2 == 0 or m == 1:
         me = 2 * max(1, m // 2)
-        assert K.theo1_sum(x, me) == pytest.approx(K.theo1_sum_numpy(x, me), rel=1e-12)
+        for block in (5, K.THEO1_BLOCK, x.size):
+            assert K.theo1_sum(x, me, block) == pytest.approx(K.theo1_sum_numpy(x, me), rel=1e-12)
+
+
+def test_octave_box_sum_mvar_equals_reference():
+    x, _, _ = phase_of(np.random.default_rng(3).standard_normal(3000), 0.1)
+    for ms in ([1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 999], [4, 64, 512], [2]):
+        ms = np.array(ms, dtype=np.int64)
+        octave = K._powers_of_two_increasing(ms)
+        assert octave == bool(np.all((ms & (ms - 1)) == 0))
+        got = K.mvar_sums_octave(x, ms) if octave else K.mvar_sums(x, ms)
+        np.testing.assert_allclose(got, [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
+
+
+@pytest.mark.parametrize("m", [1, 2, 3, 5, 16])
+def test_total_window_kernel_equals_matrix_reference(m):
+    """MTOTVAR/HTOTVAR's compiled windows (running sums) against the explicit 6m x 3m filter matrix."""
+    v = np.random.default_rng(m).standard_normal(200)
+    x = np.concatenate(([0.0], np.cumsum(v)))
+    for data, phase in ((x, True), (v, False), (v + 5.0 + 0.01 * np.arange(v.size), False)):
+        assert K.total_window_sums(data, m, phase) == pytest.approx(K.total_window_sums_numpy(data, m, phase), rel=1e-11)
+
+
+def test_htotvar_is_blind_to_a_constant_rate_and_a_ramp():
+    w = np.random.default_rng(2).standard_normal(600)
+    a = deviation(w, 0.1, "htotvar", edf=False)
+    b = deviation(w + 3.0 + 0.05 * np.arange(w.size), 0.1, "htotvar", edf=False)
+    np.testing.assert_allclose(b.avar, a.avar, rtol=1e-9)
+
+
+def test_theobr_is_its_definition_on_allantools_values():
+    """TheoBR (Howe & Tasset 2004, SP1065): [mean_i AV(9+3i) / Theo1(12+4i)] Theo1(m), i <= floor(0.1N/3 - 3).
+
+    allantools has no TheoBR: the ratio is rebuilt from allantools' own oadev and theo1 at those m.
+    """
+    y = DATA["random"][:600]
+    N = y.size + 1
+    k = int(np.floor(0.1 * N / 3 - 3))
+    i = np.arange(k + 1)
+    _, av, _, _ = allantools.oadev(y, rate=1.0, data_type="freq", taus=(9.0 + 3 * i))
+    _, th, _, _ = allantools.theo1(y, rate=1.0, data_type="freq", taus=(12.0 + 4 * i))
+    ratio = np.mean(av**2 / th**2)
+    r = deviation(y, 1.0, "theobr", "octave")
+    _, th_m, _, _ = allantools.theo1(y, rate=1.0, data_type="freq", taus=r.m.astype(float))
+    np.testing.assert_allclose(r.avar, ratio * th_m**2, rtol=1e-9)
+    np.testing.assert_allclose(r.tau, 0.75 * r.m)
+    with pytest.raises(ValueError, match="N >= 90"):
+        deviation(y[:88], 1.0, "theobr")
+    deviation(y[:89], 1.0, "theobr")  # N = 90: k = 0
+
+
+@pytest.mark.parametrize("term", [T.AngleRandomWalk(1e-3), T.RateRandomWalk(3e-4)], ids=lambda t: type(t).__name__)
+def test_theobr_ensemble_mean_equals_its_first_order_value(term):
+    """E[TheoBR] against the ratio of exact expectations; the O(1/edf) bias of the ratio (its k + 1 Theo1
+    values at N = 1001 have edf in the hundreds) is far below the standard error of 60 replicates."""
+    n, reps, dt = 1000, 60, 0.1
+    m = np.array([8, 64, 400])
+    rng = np.random.default_rng(21)
+    vals = np.array([deviation(term.simulate(n, dt, rng), dt, "theobr", 0.75 * m * dt, edf=False).avar
+                     for _ in range(reps)])
+    truth = ev.theobr([term], m, n, dt)
+    z = (vals.mean(axis=0) - truth) / (vals.std(axis=0, ddof=1) / np.sqrt(reps))
+    assert np.all(np.abs(z) < 4.5), z
 
 
 def all_terms():
@@ -126,14 +207,15 @@ STATIONARY_OR_WALK = [t for t in all_terms() if not isinstance(t, T.RateRamp)]
 @pytest.mark.parametrize("kind", STATS)
 @pytest.mark.parametrize("term", STATIONARY_OR_WALK, ids=lambda t: type(t).__name__)
 def test_ensemble_mean_equals_exact_value(term, kind):
-    _check_mean(term, kind, 400, 40, 11, np.array([2, 8, 40]))
+    _check_mean(term, kind, 400, 40, 11, np.array([2, 8, 40]) if kind not in ("mtotvar", "htotvar") else np.array([1, 2, 8, 24]))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", STATS)
 @pytest.mark.parametrize("term", STATIONARY_OR_WALK, ids=lambda t: type(t).__name__)
 def test_ensemble_mean_equals_exact_value_slow(term, kind):
-    _check_mean(term, kind, 4000, 400, 12, np.array([2, 16, 128, 1000]))
+    m = np.array([2, 16, 128, 1000]) if kind not in ("mtotvar", "htotvar") else np.array([1, 2, 16, 64])
+    _check_mean(term, kind, 4000, 400, 12, m)
 
 
 @pytest.mark.parametrize("kind", STATS)
@@ -143,7 +225,7 @@ def test_ramp_value_is_exact(kind):
     got = deviation(ramp.simulate(600, 0.1, np.random.default_rng(0)), 0.1, kind,
                     m * 0.1 * (0.75 if kind == "theo1" else 1.0)).avar
     truth = ev.KINDS[kind]([ramp], m, 600, 0.1)
-    if kind == "ohvar":
+    if kind in ("ohvar", "htotvar"):  # both blind to a ramp: their exact value is 0 up to rounding
         assert np.all(np.abs(truth) <= 1e-12 * ramp.avar(m, 0.1))
         x, _, _ = phase_of(ramp.simulate(600, 0.1, np.random.default_rng(0)), 0.1)
         assert np.all(got <= (32 * np.finfo(float).eps * np.max(np.abs(x)) / (m * 0.1)) ** 2)
@@ -166,7 +248,9 @@ def test_quadratic_form_edf_agrees_with_sp1065_table_5_for_the_av(noise, tol):
     "kind,term,noise",
     [("ohvar", T.AngleRandomWalk(1e-3), "white_fm"), ("mvar", T.AngleRandomWalk(1e-3), "white_fm"),
      ("theo1", T.AngleRandomWalk(1e-3), "white_fm"), ("totvar", T.AngleRandomWalk(1e-3), "white_fm"),
-     ("ohvar", T.RateRandomWalk(3e-4), "rw_fm"), ("totvar", T.RateRandomWalk(3e-4), "rw_fm")],
+     ("ohvar", T.RateRandomWalk(3e-4), "rw_fm"), ("totvar", T.RateRandomWalk(3e-4), "rw_fm"),
+     ("mtotvar", T.AngleRandomWalk(1e-3), "white_fm"), ("htotvar", T.AngleRandomWalk(1e-3), "white_fm"),
+     ("mtotvar", T.RateRandomWalk(3e-4), "rw_fm"), ("htotvar", T.RateRandomWalk(3e-4), "rw_fm")],
 )
 def test_edf_predicts_the_ensemble_variance(kind, term, noise):
     """Var(estimate) = 2 E^2 / edf, checked on 300 replicates (SE of a sample variance incl. kurtosis)."""
@@ -253,3 +337,33 @@ def test_max_terms_bounds_the_cost():
     assert np.sum(terms_per_tau("theo1", cut.m, 3001)) <= budget < np.sum(terms_per_tau("theo1", full.m[: cut.m.size + 1], 3001))
     with pytest.raises(ValueError, match="max_terms"):
         deviation(w, 0.1, "theo1", max_terms=10)
+
+
+def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
+    import pandas as pd
+
+    from avbench.cli import main
+
+    f = tmp_path / "rec.npy"
+    np.save(f, np.random.default_rng(1).standard_normal(4000) * 0.01)
+    out = tmp_path / "out"
+    assert main(["deviations", str(f), "--fs", "100", "--units", "deg/s", "--deviation", "oadev,ohdev,mtotdev,tdev",
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "ohdev" in printed and "mtotdev" in printed
+    table = pd.read_csv(out / "rec_deviations.csv")
+    assert list(dict.fromkeys(table["statistic"])) == ["oadev", "ohdev", "mtotdev", "tdev"]
+    x = np.load(f) * np.pi / 180
+    for name, kind in (("ohdev", "ohvar"), ("mtotdev", "mtotvar")):
+        np.testing.assert_allclose(table.loc[table["statistic"] == name, "avar"], deviation(x, 0.01, kind).avar, rtol=1e-12)
+    assert (table.loc[table["statistic"] == "tdev", "unit"] == "variance (rad)^2, deviation rad").all()
+    assert (out / "rec_gyro_deviations.png").stat().st_size > 0
+    assert main(["deviations", str(f), "--fs", "100", "--units", "deg/s", "--deviation", "hdev2", "--out", str(out)]) == 2
+    assert "--deviation" in capsys.readouterr().err
+    assert main(["deviations", str(f), "--fs", "100", "--units", "deg/s", "--sensor", "accel", "--out", str(out)]) == 2
+    assert "--sensor accel" in capsys.readouterr().err
+    long = tmp_path / "long.npy"  # TheoBR's bias ratio is refused up front on a long record, naming why
+    np.save(long, np.zeros(20_000))
+    assert main(["deviations", str(long), "--fs", "100", "--units", "deg/s", "--deviation", "theobr",
+                 "--out", str(tmp_path / "o2")]) == 2
+    assert "theobr" in capsys.readouterr().err and not (tmp_path / "o2" / "long_deviations.csv").exists()

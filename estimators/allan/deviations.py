@@ -1,4 +1,5 @@
-"""The variance family beside the Allan variance: Hadamard, modified, time, total and Theo1.
+"""The variance family beside the Allan variance: Hadamard, modified, time, total (plain, modified,
+Hadamard), Theo1 and TheoBR.
 
 All are computed on the phase (angle) record x of the rate record w: x_0 = 0,
 x_k = dt * sum_{j<k} (w_j - mean w), N = n + 1 phase points (allantools ``frequency2phase``; the
@@ -14,16 +15,41 @@ Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
 * ``totvar`` total variance, SP1065 eq. 25: 1/(2 tau^2 (N-2)) sum_{i=2}^{N-1} (x*_{i-m} - 2x*_i + x*_{i+m})^2
   on the doubly reflected phase x*_{1-j} = 2x_1 - x_{1+j}, x*_{N+j} = 2x_N - x_{N-j}; m <= (N-1)/2.
   SP1065's published 1000-point TOTDEV values are of this "doubly reflected" form (its p. 108).
+* ``mtotvar`` modified total variance, SP1065 eq. 27 (Howe & Vernotte 1999):
+  1/(2 m^2 tau^2 (N-3m+1)) sum_{n=1}^{N-3m+1} (1/6m) sum_{i=n-3m}^{n+3m-1} [z#_i(m)]^2: each of the N-3m+1
+  windows of 3m phases has its linear trend removed (slope from the means of its two halves, the
+  middle point skipped when 3m is odd: Stable32 and allantools), is extended by uninverted even
+  reflection to 9m points, and z# is the MVAR inner sum on it (6m terms). m <= (N-1)/3.
+* ``htotvar`` Hadamard total variance, SP1065 eq. 29 (Howe et al. 2001): 1/(6 (n-3m+1)) sum over the
+  n-3m+1 windows of 3m *rate* samples of (1/6m) sum_{j<6m} (ybar_j - 2 ybar_{j+m} + ybar_{j+2m})^2,
+  ybar the m-point averages of the window with its rate drift removed the same way and reflected
+  the same way (a third difference of the phase). Blind to a constant rate and to a ramp. At
+  m = 1 the overlapping Hadamard variance stands in (Riley: "for best consistency"; Stable32,
+  allantools). m <= (N-2)/3.
+  MTOTVAR and HTOTVAR cost 9m + 6m per window, O(N m) per m (O(N^2) over octaves): a compiled loop
+  per window (running sums as Stable32's MTC.c); ``max_terms`` bounds it. SP1065 divides them by
+  noise-dependent bias factors in its plots (e.g. MTOT: 0.94 white PM ... 0.69 RW FM); they are
+  not applied here (as allantools): ``noise_models.exact_variances`` gives the exact expectation of
+  the statistic as defined, for every noise term, which is what the tests and fits compare with.
 * ``theo1`` Theo1, SP1065 eq. 30, m even, 10 <= m <= N-1 in SP1065 (here every even m >= 2, as
   allantools, so that the two agree on the same m):
   1/(0.75 (N-m) (m dt)^2) sum_{i=1}^{N-m} sum_{d=0}^{m/2-1} [(x_i - x_{i-d+m/2}) + (x_{i+m} - x_{i+d+m/2})]^2 / (m/2-d),
   reported at tau = 0.75 m dt (SP1065: "Theo1 at tau = 0.75 m tau0"; allantools labels it m dt).
-  Cost: (N - m) m / 2 terms per m (the definition, compiled), so Theo1 over an octave grid reaching
-  m ~ N is O(N^2): ``theo1_max_m`` bounds it. Not used: expanding the square into lagged products
+  Cost: (N - m) m / 2 terms per m (the definition: SIMD passes per lag d over cache-sized blocks of
+  start indices, about 10x the previous scalar loop at n = 1e4), so Theo1 over an octave grid
+  reaching m ~ N is O(N^2):
+  ``theo1_max_m`` bounds it. No exact fast form is used: expanding the square into lagged products
   (one FFT for the cross-correlations of x_i + x_{i+m} with x, prefix sums for the squares) leaves
   O(m^2 / 2) edge corrections for the x_{i+m/2-d} x_{i+m/2+d} products, so it is no cheaper at the
   long m that dominate, and it subtracts sums of squared phases (~ N) to get squared increments
-  (~ m), losing ~log10(N/m) digits -- beyond the 1e-9 agreement with allantools at N = 1e6.
+  (~ m), losing ~log10(N/m) digits -- beyond the 1e-9 agreement with allantools at N = 1e6. The
+  fast TheoBR of Taylor & Howe (2010) decimates the phase before Theo1 at long tau: a different
+  statistic (an approximation), not implemented.
+* ``theobr`` bias-removed Theo1 (Howe & Tasset 2004; SP1065 §5.2.12):
+  TheoBR(m) = [1/(k+1) sum_{i=0}^{k} OAVAR(m = 9+3i) / Theo1(m = 12+4i)] Theo1(m), k = floor(0.1 N/3 - 3)
+  (N >= 90 phases), at tau = 0.75 m dt. The ratio needs Theo1 at k + 1 ~ N/30 sizes up to m ~ 0.13 N:
+  O(N^3) work, refused beyond ``THEOBR_MAX_TERMS`` (about N = 1.7e4) with an error saying so. Its
+  edf is taken as Theo1's (the ratio averages k + 1 values; its own spread is not counted).
 * ``oavar`` the overlapping AV of :func:`~avbench.estimators.allan.variance.allan_variance`.
 
 Equivalent degrees of freedom. Each statistic (bar totvar) is V = (1/K) sum_i sum_f w_f q_{i,f}^2, a
@@ -39,8 +65,16 @@ slope of the overlapping AV, as ``allan_variance`` does. For long filters of the
 "m' = infinity" limit); for Theo1 under white PM this scaling is an approximation that
 underestimates the edf (wider intervals) when m > 64. The total variance is given the edf of the
 overlapping AV filter over its N - 2 terms (the reflected ends taken as if stationary): an
-approximation, measured in tests/test_deviations.py against the ensemble variance.
-Intervals: chi^2 with that edf, like the AV engine.
+approximation, measured in tests/test_deviations.py against the ensemble variance. MTOTVAR and
+HTOTVAR are exactly of the quadratic form above (per window, 6m filters of 3m (+1) phases whose
+coefficients come from ``noise_models.exact_variances.total_window_filters``: detrending and
+reflection are linear), so their edf is exact for their filters, with m' = 16 for the scale-free
+limit (the F x F cross-correlations of 6m filters cost F^2 P). Intervals: chi^2 with that edf, like
+the AV engine.
+
+Cost (``python -m avbench.bench --only Deviations``): every statistic is computed on the unscaled
+cumulative sum S (x = dt S; tau^2 -> m^2), one pass to make it; the compiled passes are described
+in :mod:`~avbench.estimators.allan._deviation_kernels`.
 """
 
 from __future__ import annotations
@@ -59,12 +93,13 @@ from avbench.estimators.allan.variance import (
     cluster_sizes,
 )
 from avbench.estimators.validation import check_taus
-from avbench.noise_models.exact_variances import mvar_filter_acf
+from avbench.noise_models.exact_variances import mvar_filter_acf, total_window_filters
 
-__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches", "terms_per_tau"]
+__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches", "terms_per_tau",
+           "theobr_bias_sizes", "check_feasible"]
 
 #: the statistics
-KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "theo1")
+KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
 #: names users type (allantools' deviations) -> kind
 DEVIATION_NAMES = {
     "oadev": "oavar",
@@ -73,17 +108,34 @@ DEVIATION_NAMES = {
     "mdev": "mvar",
     "tdev": "tvar",
     "totdev": "totvar",
+    "mtotdev": "mtotvar",
+    "htotdev": "htotvar",
     "theo1": "theo1",
+    "theobr": "theobr",
 }
 _M_PRIME = 64
+#: statistics made of several filters per term, and the m' their scale-free edf is evaluated at (the
+#: F x F filter cross-correlations cost F^2 P: 6m filters of 3m points for the total variances)
+_MULTI_FILTER = {"theo1": _M_PRIME, "theobr": _M_PRIME, "mtotvar": 16, "htotvar": 16}
+#: the Theo1 values TheoBR's bias ratio needs are refused beyond this many terms (see ``deviation``)
+THEOBR_MAX_TERMS = 5e9
+
+
+def _sample_phase(rate, dt):
+    """(S, n, dt): S[0] = 0, S[k] = sum of the first k mean-removed rate samples (the phase in units of dt).
+
+    Every statistic is a sum of squared filters of the phase x = dt S divided by (tau^2 = m^2 dt^2)
+    times a count, so it is computed on S with m^2 in place of tau^2: one pass fewer than scaling.
+    """
+    rate, dt, mean = _checked_record_and_mean(rate, dt)
+    return _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1)), rate.size, dt
 
 
 def phase_of(rate, dt):
     """(phase x with x[0] = 0 and N = n + 1 points, n, dt) of a rate record (mean removed)."""
-    rate, dt, mean = _checked_record_and_mean(rate, dt)
-    S = _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1))
+    S, n, dt = _sample_phase(rate, dt)
     S *= dt
-    return S, rate.size, dt
+    return S, n, dt
 
 
 def _max_m(kind: str, N: int) -> int:
@@ -93,14 +145,17 @@ def _max_m(kind: str, N: int) -> int:
         "mvar": (N + 1) // 3 - 1 if (N + 1) % 3 == 0 else (N + 1) // 3,
         "tvar": (N + 1) // 3,
         "totvar": (N - 1) // 2,
+        "mtotvar": (N - 1) // 3,  # at least two windows of 3m phases (allantools drops one)
+        "htotvar": (N - 2) // 3,  # at least two windows of 3m rates
         "theo1": N - 1,
+        "theobr": N - 1,
     }[kind]
 
 
 def _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m):
     N = n + 1
     top = _max_m(kind, N)
-    if kind == "theo1":
+    if kind in ("theo1", "theobr"):
         top = min(top, theo1_max_m) if theo1_max_m else top
         if isinstance(taus, str):
             m = cluster_sizes(taus, 2 * (top + 1), dt, points_per_decade)
@@ -114,9 +169,26 @@ def _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m):
 
 
 def terms_per_tau(kind: str, m, N: int) -> np.ndarray:
-    """Number of terms summed per cluster size (the cost of one value): (N - m) m / 2 for Theo1, ~N otherwise."""
+    """Number of terms summed per cluster size (the cost of one value).
+
+    (N - m) m / 2 for Theo1 and TheoBR; (N - 3m + 1) 15m for the modified and Hadamard total
+    variances (9m reflected points and 6m running sums per window); ~N otherwise.
+    """
     m = np.asarray(m, dtype=float)
-    return (N - m) * m / 2 if kind == "theo1" else np.full(m.shape, float(N))
+    if kind in ("theo1", "theobr"):
+        return (N - m) * m / 2
+    if kind in ("mtotvar", "htotvar"):
+        return np.maximum(N - 3 * m + 1, 1) * 15 * m
+    return np.full(m.shape, float(N))
+
+
+def theobr_bias_sizes(N: int):
+    """(AV m = 9 + 3i, Theo1 m = 12 + 4i), i = 0..k, k = floor(0.1 N/3 - 3): TheoBR's bias ratio (SP1065)."""
+    k = int(np.floor(0.1 * N / 3 - 3))
+    if k < 0:
+        raise ValueError(f"theobr: needs a record of N >= 90 phase points (k = floor(0.1 N/3 - 3) >= 0), got N = {N}")
+    i = np.arange(k + 1, dtype=np.int64)
+    return 9 + 3 * i, 12 + 4 * i
 
 
 def _filters(kind: str, m: int):
@@ -130,11 +202,16 @@ def _filters(kind: str, m: int):
         for s, a in ((0, 1.0), (m, -2.0), (2 * m, 1.0)):
             c[s : s + m] += a
         return np.arange(3 * m + 1)[None, :], c[None, :], np.ones(1)
-    if kind == "theo1":
+    if kind in ("theo1", "theobr"):
         h = m // 2
         d = np.arange(h)
         pos = np.stack([0 * d, h - d, np.full(h, m), h + d], axis=-1)
         return pos, np.tile([1.0, -1.0, 1.0, -1.0], (h, 1)), 1.0 / (h - d)
+    if kind in ("mtotvar", "htotvar"):
+        if kind == "htotvar" and m == 1:  # the overlapping Hadamard variance stands in at m = 1
+            return _filters("ohvar", 1)
+        C = total_window_filters(kind, m)
+        return np.broadcast_to(np.arange(C.shape[1]), C.shape), C, np.ones(C.shape[0])
     raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
 
 
@@ -176,9 +253,10 @@ def edf_quadratic(kind: str, m: int, K: int, noise: str) -> float:
     m, K = int(m), int(K)
     if K < 1:
         return 1.0
-    if m > _M_PRIME and (noise != "white_pm" or kind == "theo1"):
-        return edf_quadratic(kind, _M_PRIME, max(1, int(round(K * _M_PRIME / m))), noise)
-    if noise == "white_pm" and kind != "theo1":  # G = [d = 0]: rho is the filter's own autocorrelation
+    mp = _MULTI_FILTER.get(kind, _M_PRIME)
+    if m > mp and (noise != "white_pm" or kind in _MULTI_FILTER):
+        return edf_quadratic(kind, mp, max(1, int(round(K * mp / m))), noise)
+    if noise == "white_pm" and kind not in _MULTI_FILTER:  # G = [d = 0]: rho is the filter's own autocorrelation
         A = _single_filter_acf(kind, m)
         kk = np.arange(min(A.size, K))
         A = A[: kk.size]
@@ -226,12 +304,21 @@ def clear_caches() -> None:
     _rho_squares.cache_clear()
 
 
-def _noise_kinds(rate, dt, m_av, n):
-    """Noise type per m from the overlapping AV slope (as allan_variance), m beyond n/2 take the last."""
-    mm = np.unique(np.clip(m_av, 1, n // 2))
-    av = allan_variance(rate, dt, taus=mm * dt, noise="white_fm")
-    kinds = _noise_from_slope(av.tau, av.avar, av.J)
-    return dict(zip(av.m.tolist(), kinds))
+def _noise_kinds(S, dt, m_av, n, av_sums=None):
+    """Noise type per m from the overlapping AV slope (as allan_variance), m beyond n/2 take the last.
+
+    The AV is computed from the same cumulative sum S (``_sample_phase``) as ``allan_variance`` does,
+    unless ``av_sums`` ({m: sum of squared second differences}) already holds every m needed.
+    """
+    mm = np.unique(np.clip(m_av, 1, n // 2)).astype(np.int64)
+    mf = mm.astype(float)
+    if av_sums is not None and all(int(k) in av_sums for k in mm):
+        sums = np.array([av_sums[int(k)] for k in mm])
+    else:
+        sums = _kernels.oavar_sums(S, mm)
+    av = sums / (2.0 * mf * mf * (n - 2 * mf + 1))
+    kinds = _noise_from_slope(mf * dt, av, n // mm)
+    return dict(zip(mm.tolist(), kinds))
 
 
 def deviation(
@@ -256,18 +343,21 @@ def deviation(
     dt : float
         Sample interval (s).
     kind : str
-        "oavar", "ohvar", "mvar", "tvar", "totvar", "theo1", or a deviation name of allantools
-        ("oadev", "ohdev", "mdev", "tdev", "totdev", "theo1").
+        One of ``KINDS`` ("oavar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1",
+        "theobr"), or a deviation name (``DEVIATION_NAMES``: "oadev", "ohdev", "hdev", "mdev", "tdev",
+        "totdev", "mtotdev", "htotdev", "theo1", "theobr").
     taus : "octave", "decade", "all" or array of seconds
         As :func:`~avbench.estimators.allan.variance.allan_variance`; each statistic keeps the m its
         definition allows (ohvar, mvar: m <= N/3; totvar: m <= (N-1)/2; theo1: even m <= N-1, tau = 0.75 m dt).
     noise : "auto" or a noise type name
         For the edf ("white_pm", "white_fm", "flicker_fm", "rw_fm"); "auto" reads it from the AV slope.
     theo1_max_m : int, optional
-        Largest Theo1 m (its cost grows as N m / 2 per tau).
+        Largest Theo1 (TheoBR) m (its cost grows as N m / 2 per tau).
     max_terms : float, optional
         Keep the cluster sizes, smallest first, while the total number of terms summed stays within
-        this budget (Theo1: (N - m) m / 2 per m; the others about N): a bound on the cost.
+        this budget (``terms_per_tau``: Theo1, TheoBR (N - m) m / 2 per m; MTOTVAR, HTOTVAR
+        15 m (N - 3m + 1); the others about N): a bound on the cost. TheoBR's bias ratio has its own
+        bound, ``THEOBR_MAX_TERMS``.
     edf : bool
         False: skip the noise identification and the edf (``edf`` NaN, no interval): the values only.
 
@@ -283,7 +373,7 @@ def deviation(
     check_taus(taus)
     if kind == "oavar":
         return allan_variance(rate, dt, taus, points_per_decade=points_per_decade, noise=noise, confidence=confidence)
-    x, n, dt = phase_of(rate, dt)
+    x, n, dt = _sample_phase(rate, dt)  # the phase in units of dt: tau^2 -> m^2 below
     N = n + 1
     m = _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m)
     if max_terms is not None:
@@ -292,39 +382,81 @@ def deviation(
         raise ValueError(f"taus: no cluster size of {kind} fits a record of {n} samples (N = {N} phases)"
                          + ("" if max_terms is None else f" within max_terms = {max_terms:g}"))
     mf = m.astype(float)
+    av_sums = None  # the AV's sums where a kernel gives them on the way (for the noise identification)
     if kind == "ohvar":
         K = N - 3 * m
-        sums = np.array([_k.ohvar_sum(x, int(mi)) for mi in m])
-        var = sums / (6.0 * (mf * dt) ** 2 * K)
+        sums, av_sums = _k.ohvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
+        var = sums / (6.0 * mf * mf * K)
     elif kind in ("mvar", "tvar"):
         K = N - 3 * m + 1
-        sums = np.array([_k.mvar_sum(x, int(mi)) for mi in m])
-        var = sums / (2.0 * mf * mf * (mf * dt) ** 2 * K)
+        sums = _k.mvar_sums(x, m)
+        var = sums / (2.0 * mf**4 * K)
         if kind == "tvar":
             var = var * (mf * dt) ** 2 / 3.0
     elif kind == "totvar":
         K = np.full(m.size, N - 2)
-        sums = _k.totvar_sums(x, m)
-        var = sums / (2.0 * (mf * dt) ** 2 * (N - 2))
-    else:  # theo1
+        sums, av_sums = _k.totvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
+        var = sums / (2.0 * mf * mf * (N - 2))
+    elif kind == "mtotvar":
+        K = N - 3 * m + 1
+        sums = np.array([_k.total_window_sums(x, int(mi), True) for mi in m])
+        var = sums / (2.0 * mf * mf * K)
+    elif kind == "htotvar":
+        y = np.asarray(rate, dtype=float)
+        y = y - np.mean(y)  # cancelled by the differences, but a large bias would cost digits there
+        K = n - 3 * m + 1
+        sums = np.array([_k.total_window_sums(y, int(mi), False) if mi > 1 else np.nan for mi in m])
+        var = sums / (6.0 * K)
+        if m[0] == 1:  # SP1065 / Stable32: the overlapping Hadamard variance at m = 1
+            K[0] = N - 3
+            var[0] = _k.ohvar_sums(x, m[:1])[0][0] / (6.0 * K[0])
+    else:  # theo1, theobr
         K = N - m
         sums = np.array([_k.theo1_sum(x, int(mi)) for mi in m])
-        var = sums / (0.75 * K * (mf * dt) ** 2)
-    tau = mf * dt * (0.75 if kind == "theo1" else 1.0)
+        var = sums / (0.75 * K * mf * mf)
+        if kind == "theobr":
+            var = var * _theobr_ratio(x, N)
+    tau = mf * dt * (0.75 if kind in ("theo1", "theobr") else 1.0)
     if not edf:
         nan = np.full(m.size, np.nan)
         return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), nan, nan, True, n, dt, confidence, kind=kind)
     if noise == "auto":
         m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
-        table = _noise_kinds(np.asarray(rate, dtype=float), dt, m_av, n)
+        table = _noise_kinds(x, dt, m_av, n, None if av_sums is None else dict(zip(m.tolist(), av_sums)))
         keys = np.array(sorted(table))
         kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
     else:
         kinds = list(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
-    edf_kind = "oavar" if kind == "totvar" else kind
+    edf_kind = {"totvar": "oavar", "theobr": "theo1"}.get(kind, kind)
     e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m, K, kinds)])
     return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
                        kind=kind)
+
+
+def check_feasible(kinds, n: int) -> None:
+    """Raise ValueError, before any work, for a statistic a record of ``n`` samples cannot have at a
+    bounded cost: TheoBR, whose bias ratio needs Theo1 at ~N/30 cluster sizes (``THEOBR_MAX_TERMS``)."""
+    if "theobr" not in {DEVIATION_NAMES.get(k, k) for k in kinds}:
+        return
+    N = int(n) + 1
+    m_av, m_th = theobr_bias_sizes(N)
+    cost = float(np.sum(terms_per_tau("theo1", m_th, N)))
+    if cost > THEOBR_MAX_TERMS:
+        raise ValueError(
+            f"theobr: its bias ratio needs Theo1 at {m_th.size} cluster sizes up to m = {m_th[-1]} "
+            f"({cost:.2g} terms, beyond THEOBR_MAX_TERMS = {THEOBR_MAX_TERMS:.2g}): a record of {n} samples "
+            "is too long for it (Theo1 costs (N - m) m / 2 per m); use theo1 or a shorter record")
+
+
+def _theobr_ratio(S, N):
+    """1/(k+1) sum_i AV(9 + 3i) / Theo1(12 + 4i) on the unit phase S (Howe & Tasset 2004; SP1065)."""
+    check_feasible(["theobr"], N - 1)
+    m_av, m_th = theobr_bias_sizes(N)
+    mf = m_av.astype(float)
+    av = _kernels.oavar_sums(S, m_av) / (2.0 * mf * mf * (N - 2 * mf))
+    mt = m_th.astype(float)
+    th = np.array([_k.theo1_sum(S, int(mi)) for mi in m_th]) / (0.75 * (N - mt) * mt * mt)
+    return float(np.mean(av / th))
 
 
 def deviations(rate, dt, kinds=("oavar", "ohvar", "mvar", "totvar", "theo1"), taus="octave", **kw) -> dict:
