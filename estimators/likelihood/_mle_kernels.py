@@ -320,41 +320,72 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
                           np.zeros(0), np.zeros((0, k, k)), a_out, P_out, np.zeros(0))
 
 
-@njit(cache=True)
-def _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQci, dP, tmp, tmp2):
-    """dP = T dPf T' + dT Pf T' + T Pf dT' + dQc, forced symmetric: the derivative of
-    :func:`_predict` in one parameter (T by its non-zero entries, dT by its ``dnz`` non-zero entries
-    ``dval`` at ``drow, dcol``; the last two terms are each other's transpose, Pf being symmetric)."""
-    k = dP.shape[0]
-    _csr_left(tp, tl, tv, dPf, tmp)  # T dPf
-    if dnz > 0:
+@njit(cache=True, inline="always")
+def _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2):
+    """dP[r] = T dPf[r] T' + dT Pf T' + T Pf dT' + dQc[r], forced symmetric: the derivative of
+    :func:`_predict` in parameter r (T by its non-zero entries, dT by its ``dnz[r]`` non-zero entries
+    ``dval[r]`` at ``drow[r], dcol[r]``; the last two terms are each other's transpose, Pf being
+    symmetric). Indexes the parameter's slices in place (no views: this runs p times per step)."""
+    k = Pf.shape[0]
+    for i in range(k):  # tmp = T dPf[r]
+        for j in range(k):
+            acc = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc += tv[e] * dPf[r, tl[e], j]
+            tmp[i, j] = acc
+    nz = dnz[r]
+    if nz > 0:
         for i in range(k):
             for j in range(k):
                 tmp2[i, j] = 0.0
-        for e in range(dnz):  # dT Pf
+        for e in range(nz):  # tmp2 = dT Pf
             for j in range(k):
-                tmp2[drow[e], j] += dval[e] * Pf[dcol[e], j]
+                tmp2[drow[r, e], j] += dval[r, e] * Pf[dcol[r, e], j]
         for i in range(k):
             for j in range(k):
                 tmp[i, j] += tmp2[i, j]
     for i in range(k):
-        for j in range(k):
+        for j in range(i, k):
             acc = 0.0
             for e in range(tp[j], tp[j + 1]):
                 acc += tmp[i, tl[e]] * tv[e]
-            dP[i, j] = acc + dQci[i, j]
-    if dnz > 0:
-        for i in range(k):
-            for j in range(k):
-                acc = 0.0
+            acc2 = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc2 += tmp[j, tl[e]] * tv[e]
+            if nz > 0:
                 for e in range(tp[i], tp[i + 1]):
                     acc += tv[e] * tmp2[j, tl[e]]
-                dP[i, j] += acc
+                for e in range(tp[j], tp[j + 1]):
+                    acc2 += tv[e] * tmp2[i, tl[e]]
+            sym = 0.5 * ((acc + dQc[r, i, j]) + (acc2 + dQc[r, j, i]))
+            dP[r, i, j] = sym
+            dP[r, j, i] = sym
+
+
+@njit(cache=True, inline="always")
+def _dforecast(dP, r, Z, dHr, dM):
+    """dM[r] = dP[r] Z and the forecast variance's derivative Z' dP[r] Z + dH[r]."""
+    k = Z.shape[0]
+    F = dHr
     for i in range(k):
-        for j in range(i + 1, k):
-            s = 0.5 * (dP[i, j] + dP[j, i])
-            dP[i, j] = s
-            dP[j, i] = s
+        acc = 0.0
+        for j in range(k):
+            acc += dP[r, i, j] * Z[j]
+        dM[r, i] = acc
+        F += Z[i] * acc
+    return F
+
+
+@njit(cache=True, inline="always")
+def _dsq_change(dP, r, prev):
+    """Squared Frobenius norm of dP[r] - prev."""
+    k = prev.shape[0]
+    ss = 0.0
+    for i in range(k):
+        for j in range(k):
+            d = dP[r, i, j] - prev[i, j]
+            ss += d * d
+    return ss
 
 
 @njit(cache=True)
@@ -474,7 +505,7 @@ def diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, dT, dQc, dH, dP0, a_out, P_
                 # the covariance is frozen, its derivatives still settle (their own test below)
                 dchange = 0.0
                 for r in range(p):
-                    dF[r] = _forecast(dP[r], Z, dH[r], dM[r])
+                    dF[r] = _dforecast(dP, r, Z, dH[r], dM)
                     for i in range(k):
                         dK0[r, i] = (dM[r, i] - K0[i] * dF[r]) / Fc
                     for i in range(k):
@@ -484,12 +515,12 @@ def diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, dT, dQc, dH, dP0, a_out, P_
                         for j in range(k):
                             dPf[r, i, j] = dP[r, i, j] - dM[r, i] * K0[j] - M[i] * dK0[r, j]
                             Pprev[i, j] = dP[r, i, j]
-                    _dpredict(tp, tl, tv, dnz[r], drow[r], dcol[r], dval[r], Pf, dPf[r], dQc[r], dP[r], tmp, tmp2)
-                    dchange = max(dchange, _sq_change(dP[r], Pprev))
+                    _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
+                    dchange = max(dchange, _dsq_change(dP, r, Pprev))
                 if dchange < TOL_CONVERGED:
                     dconverged = True
                     for r in range(p):
-                        dF[r] = _forecast(dP[r], Z, dH[r], dM[r])
+                        dF[r] = _dforecast(dP, r, Z, dH[r], dM)
                         for i in range(k):
                             dK0[r, i] = (dM[r, i] - K0[i] * dF[r]) / Fc
             for i in range(k):
@@ -508,7 +539,7 @@ def diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, dT, dQc, dH, dP0, a_out, P_
             continue
         F = max(_forecast(P, Z, H, M), 0.0)
         for r in range(p):
-            dF[r] = _forecast(dP[r], Z, dH[r], dM[r])
+            dF[r] = _dforecast(dP, r, Z, dH[r], dM)
         Fi = max(_forecast(Pi, Z, 0.0, Mi), 0.0) if diffuse else 0.0
         if diffuse and Fi > TOL_DIFFUSE:
             for i in range(k):
@@ -573,10 +604,12 @@ def diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, dT, dQc, dH, dP0, a_out, P_
         for r in range(p):
             for i in range(k):
                 acc = 0.0
-                for j in range(k):
-                    acc += T[i, j] * daf[r, j] + dT[r, i, j] * af[j]
+                for e in range(tp[i], tp[i + 1]):
+                    acc += tv[e] * daf[r, tl[e]]
                 da[r, i] = acc
-            _dpredict(tp, tl, tv, dnz[r], drow[r], dcol[r], dval[r], Pf, dPf[r], dQc[r], dP[r], tmp, tmp2)
+            for e in range(dnz[r]):
+                da[r, drow[r, e]] += dval[r, e] * af[dcol[r, e]]
+            _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
         for i in range(k):
             for j in range(k):
                 Pprev[i, j] = P[i, j]
