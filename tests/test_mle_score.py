@@ -1,5 +1,5 @@
-"""MLE: the analytic score (the exact initial filter's derivative recursions) is the derivative of
-the likelihood the filter computes, and the observed information from it is stable."""
+"""MLE: the analytic score (each Kalman filter's derivative recursions) is the derivative of the
+likelihood the filter computes, and the observed information from it is stable."""
 
 import numpy as np
 import pytest
@@ -66,24 +66,28 @@ def test_score_is_the_derivative_of_the_likelihood(latents, m, dt):
     rng = np.random.default_rng(5)
     for _ in range(2):
         p = np.log([_TRUTH[name] for name in s.names]) + rng.uniform(-0.5, 0.5, len(s.names))
-        ll, grad = s.score(y, p, scale)
-        assert np.isfinite(ll) and np.all(np.isfinite(grad))
-        assert ll == s.loglike(y, p, scale, method="exact_initial")
-        num = _richardson(lambda q: s.loglike(y, q, scale, method="exact_initial"), p, 1e-3)
-        np.testing.assert_allclose(grad, num, rtol=1e-6, atol=1e-9 * abs(ll))
+        for method in ("exact_initial", "augmented") if s.drift else ("exact_initial",):
+            ll, grad = s.score(y, p, scale, method=method)
+            assert np.isfinite(ll) and np.all(np.isfinite(grad))
+            assert ll == s.loglike(y, p, scale, method=method)
+            num = _richardson(lambda q: s.loglike(y, q, scale, method=method), p, 1e-3)
+            np.testing.assert_allclose(grad, num, rtol=1e-6, atol=1e-9 * abs(ll))
 
 
-def test_score_after_the_steady_state():
-    # a long record: the covariance freezes (steady state) and the score stays the derivative;
-    # central differences now also see the freezing step move (jumps of ~1e-10 relative in the
-    # likelihood, i.e. ~1e-5 absolute over steps of 1e-3), so the tolerance is that resolution
-    s = BlockMeanSystem(("WN", "GM", "RW"), 4, 0.01)
-    y = block_means(_record(200_000), 4)
+@pytest.mark.parametrize("latents", [("WN", "GM", "RW"), ("QN", "WN", "GM", "RW", "DR")])
+def test_score_after_the_steady_state(latents):
+    # a long record: the covariance freezes (steady state; with a drift the augmented filter's
+    # diffuse columns settle too) and the score stays the derivative; central differences now
+    # also see the freezing step move (jumps of ~1e-10 relative in the likelihood, i.e. ~1e-5
+    # absolute over steps of 1e-3), so the tolerance is that resolution
+    s = BlockMeanSystem(latents, 4, 0.01)
+    y = block_means(_record(400_000), 4)
     scale = 1.0 / np.std(y)
     p = np.log([_TRUTH[name] for name in s.names]) + 0.2
     ll, grad = s.score(y, p, scale)
     assert np.isfinite(ll) and np.all(np.isfinite(grad))
-    num = _richardson(lambda q: s.loglike(y, q, scale, method="exact_initial"), p, 1e-3)
+    assert ll == s.loglike(y, p, scale)
+    num = _richardson(lambda q: s.loglike(y, q, scale), p, 1e-3)
     np.testing.assert_allclose(grad, num, rtol=1e-5, atol=1e-10 * abs(ll) / 1e-3)
 
 

@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["BlockMeanSystem", "diffuse_loglike", "diffuse_filter", "augmented_loglike", "_gm_block", "_level_block"]
+__all__ = ["BlockMeanSystem", "diffuse_loglike", "diffuse_filter", "augmented_loglike", "augmented_filter", "_gm_block", "_level_block"]
 
 #: statsmodels' thresholds (``KalmanFilter``): diffuse F_inf, and the steady-state test on P
 TOL_DIFFUSE = 1e-10
@@ -164,14 +164,20 @@ class BlockMeanSystem:
                 dP0[i, :2, :2] = v["log_sigma"] ** 2 * (np.outer(dt0, t0) + np.outer(t0, dt0)) + dQg
         return dT, dQc, dH, dP0
 
-    def score(self, y, params, scale: float = 1.0) -> tuple:
+    def score(self, y, params, scale: float = 1.0, method: str = "auto") -> tuple:
         """``(loglike, gradient)``: the exact diffuse log-likelihood of ``y * scale`` (as
-        :meth:`loglike` with ``method="exact_initial"``, to the bit) and its analytic derivatives
-        in the log-parameters (:func:`diffuse_filter`'s derivative recursions)."""
+        :meth:`loglike` with the same ``method``, to the bit) and its analytic derivatives in the
+        log-parameters (the derivative recursions of :func:`diffuse_filter` or :func:`augmented_filter`)."""
+        if method not in ("auto", "exact_initial", "augmented"):
+            raise ValueError(f"method: expected 'auto', 'exact_initial' or 'augmented', got {method!r}")
         T, Qc, H, P0, Pinf0 = self.matrices(params, scale)
         dT, dQc, dH, dP0 = self.derivatives(params, scale)
         grad = np.empty(len(self.names))
         a, P = np.empty(self.k), np.empty((self.k, self.k))
+        if method == "augmented" or (method == "auto" and self.drift):
+            ll = augmented_filter(y, scale, T, Qc, self.Z, H, P0, self.lev, dT, dQc, dH, dP0, a, P, grad)
+            if not math.isnan(ll):
+                return ll, grad
         ll = diffuse_filter(y, scale, T, Qc, self.Z, H, P0, Pinf0, dT, dQc, dH, dP0, a, P, grad)
         return ll, grad
 
@@ -665,9 +671,81 @@ def _augmented_step(yt, A, Af, Kf, w, zi, zv, tp, tl, tv):
     _csr_left(tp, tl, tv, Af, A)
 
 
+@njit(cache=True, inline="always")
+def _dsettle_gain(dP, dH, Z, dM, Kf, dKf, dF, Fc):
+    """With the covariance frozen: the forecast variance's and gain's derivatives from dP."""
+    p, k = dM.shape[0], dM.shape[1]
+    for r in range(p):
+        dF[r] = _dforecast(dP, r, Z, dH[r], dM)
+        for i in range(k):
+            dKf[r, i] = (dM[r, i] - Kf[i] * dF[r]) / Fc
+
+
+@njit(cache=True, inline="always")
+def _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM, dKf, prev, tmp, tmp2):
+    """One step of the covariance derivatives with the covariance frozen; True once they settle
+    (squared Frobenius change below ``TOL_CONVERGED_AUGMENTED`` for every parameter)."""
+    p, k = dM.shape[0], dM.shape[1]
+    change = 0.0
+    for r in range(p):
+        for i in range(k):
+            for j in range(k):
+                dPf[r, i, j] = dP[r, i, j] - dM[r, i] * Kf[j] - M[i] * dKf[r, j]
+                prev[i, j] = dP[r, i, j]
+        _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
+        change = max(change, _dsq_change(dP, r, prev))
+    return change < TOL_CONVERGED_AUGMENTED
+
+
 @njit(cache=True)
 def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
-    """Diffuse log-likelihood of ``y * scale`` by the augmented Kalman filter.
+    """Diffuse log-likelihood of ``y * scale`` by the augmented Kalman filter
+    (:func:`augmented_filter` without derivatives)."""
+    k = T.shape[0]
+    return augmented_filter(y, scale, T, Qc, Z, H, P0, lev, np.zeros((0, k, k)), np.zeros((0, k, k)),
+                            np.zeros(0), np.zeros((0, k, k)), a_out, P_out, np.zeros(0))
+
+
+@njit(cache=True, inline="always")
+def _dcolumns(r, dA, dAf, Af, w, dw, Kf, dKf, c0, c1, tp, tl, tv, dnz, drow, dcol, dval):
+    """Derivative of one filtering and prediction step of the columns c0..c1-1 in parameter r:
+    dAf = dA + dKf w' + Kf dw', dA = T dAf + dT Af."""
+    k = Kf.shape[0]
+    for i in range(k):
+        for col in range(c0, c1):
+            dAf[r, i, col] = dA[r, i, col] + dKf[r, i] * w[col] + Kf[i] * dw[r, col]
+    for i in range(k):
+        for col in range(c0, c1):
+            acc = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc += tv[e] * dAf[r, tl[e], col]
+            dA[r, i, col] = acc
+    for e in range(dnz[r]):
+        for col in range(c0, c1):
+            dA[r, drow[r, e], col] += dval[r, e] * Af[dcol[r, e], col]
+
+
+@njit(cache=True, inline="always")
+def _dinnovations(r, dA, dw, zi, zv, c0, c1):
+    """dw[r, col] = -Z' dA[r][:, col] for the columns c0..c1-1."""
+    for col in range(c0, c1):
+        acc = 0.0
+        for e in range(zi.shape[0]):
+            acc -= zv[e] * dA[r, zi[e], col]
+        dw[r, col] = acc
+
+
+@njit(cache=True, inline="always")
+def _dgram(r, dG, w, dw, dFr, F, c):
+    """dG[r] += d(w w' / F) (lower triangle)."""
+    for i in range(c):
+        for j in range(i + 1):
+            dG[r, i, j] += (dw[r, i] * w[j] + w[i] * dw[r, j]) / F - w[i] * w[j] * dFr / (F * F)
+
+
+@njit(cache=True)
+def augmented_filter(y, scale, T, Qc, Z, H, P0, lev, dT, dQc, dH, dP0, a_out, P_out, grad):
+    r"""Diffuse log-likelihood of ``y * scale`` by the augmented Kalman filter.
 
     The states ``lev, ..., k-1`` (level, block-mean level, slope) are diffuse: the state is
     :math:`\\alpha_t = \\alpha^*_t + A_t\\delta`, :math:`\\delta` the diffuse initial values, and one
@@ -686,6 +764,16 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
     steady-state rules as :func:`diffuse_loglike`. ``a_out``/``P_out`` receive the last filtered
     state :math:`a + A\\hat\\delta` and covariance :math:`P + A S^{-1} A'`. Returns NaN when a
     forecast variance falls below ``TOL_AUGMENTED`` (the caller then uses :func:`diffuse_loglike`).
+
+    With ``p = dT.shape[0] > 0`` parameters (system-matrix derivatives ``dT, dQc, dH, dP0``) it
+    also returns the score in ``grad``: the derivative recursions of :func:`diffuse_filter` for the
+    covariance, gain and forecast variance, and for every column :math:`\dot A_{t+1} = \dot T A_{t|t}
+    + T(\dot A + \dot K w' + K\dot w')`, :math:`\dot w = -Z'\dot A`,
+    :math:`\dot G = \sum_t (\dot w w' + w\dot w')/F_t - ww'\dot F_t/F_t^2`; then
+    :math:`\dot{(q - s'S^{-1}s)} = \dot q - 2x'\dot s + x'\dot Sx` (:math:`x = S^{-1}s`) and
+    :math:`\dot{\log|S|} = \mathrm{tr}(S^{-1}\dot S)`. As in :func:`diffuse_filter` the
+    derivatives run on after the covariance (and the diffuse columns) settle, until they settle
+    themselves (same tests); from then on their sums are kept in closed form, as the likelihood's.
     """
     n = y.shape[0]
     k = T.shape[0]
@@ -707,6 +795,21 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
     tp, ti, tl, tv = _sparse_rows(T)
     _, zi, zv = _nonzeros(Z)
     zn = zi.shape[0]
+    p = dT.shape[0]
+    dnz, drow, dcol, dval = _entries(dT)
+    dA = np.zeros((p, k, c))
+    dAf = np.empty((p, k, c))
+    dP = dP0.copy()
+    dPf = np.empty((p, k, k))
+    dM = np.empty((p, k))
+    dKf = np.empty((p, k))
+    dF = np.empty(p)
+    dw = np.empty((p, c))
+    dG = np.zeros((p, c, c))
+    dlogdet = np.zeros(p)
+    tmp2 = np.empty((k, k))
+    dsettled = p == 0  # the covariance derivatives (after the covariance itself)
+    csettled = p == 0  # the diffuse columns' derivatives (after the columns themselves)
     logdet = 0.0
     converged = False
     Fc = 1.0
@@ -716,19 +819,36 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
         # phase 1: the covariance is still moving
         F = _forecast(P, Z, H, M)
         if not F > TOL_AUGMENTED:
+            for r in range(p):
+                grad[r] = np.nan
             return np.nan
         for i in range(k):
             Kf[i] = M[i] / F
+        for r in range(p):
+            dF[r] = _dforecast(dP, r, Z, dH[r], dM)
+            for i in range(k):
+                dKf[r, i] = (dM[r, i] - Kf[i] * dF[r]) / F
+            _dinnovations(r, dA, dw, zi, zv, 0, c)
         _augmented_step(y[t] * scale, A, Af, Kf, w, zi, zv, tp, tl, tv)
         logdet += math.log(F)
         for i in range(c):
             for j in range(i + 1):
                 G[i, j] += w[i] * w[j] / F
+        for r in range(p):
+            _dcolumns(r, dA, dAf, Af, w, dw, Kf, dKf, 0, c, tp, tl, tv, dnz, drow, dcol, dval)
+            dlogdet[r] += dF[r] / F
+            _dgram(r, dG, w, dw, dF[r], F, c)
         for i in range(k):
             for j in range(k):
                 Pf[i, j] = P[i, j] - M[i] * Kf[j]
                 Pprev[i, j] = P[i, j]
+        for r in range(p):
+            for i in range(k):
+                for j in range(k):
+                    dPf[r, i, j] = dP[r, i, j] - dM[r, i] * Kf[j] - M[i] * dKf[r, j]
         _predict(tp, ti, tl, tv, Pf, Qc, P, tmp)
+        for r in range(p):
+            _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
         t += 1
         if t < n:
             if _sq_change(P, Pprev) < TOL_CONVERGED_AUGMENTED:
@@ -743,10 +863,21 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
         for i in range(k):
             for col in range(1, c):
                 Aprev[i, col] = A[i, col]
+        if not dsettled:
+            _dsettle_gain(dP, dH, Z, dM, Kf, dKf, dF, Fc)
+        for r in range(p):
+            _dinnovations(r, dA, dw, zi, zv, 0, c)
         _augmented_step(y[t] * scale, A, Af, Kf, w, zi, zv, tp, tl, tv)
         for i in range(c):
             for j in range(i + 1):
                 Gss[i, j] += w[i] * w[j]
+        for r in range(p):
+            _dcolumns(r, dA, dAf, Af, w, dw, Kf, dKf, 0, c, tp, tl, tv, dnz, drow, dcol, dval)
+            dlogdet[r] += dF[r] / Fc
+            _dgram(r, dG, w, dw, dF[r], Fc, c)
+        if not dsettled:
+            dsettled = _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM, dKf,
+                                     Pprev, tmp, tmp2)
         t += 1
         ss = 0.0
         nn = 0.0
@@ -771,6 +902,14 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
     a0 = A[:, :1].copy()  # the data column
     sw = 0.0
     sww = 0.0
+    # derivatives in phase 3: per step while they settle, then sums over the remaining steps
+    n_agg = 0
+    s_v = 0.0
+    s_vv = 0.0
+    s_dv = np.zeros(p)
+    s_vdv = np.zeros(p)
+    wcur = w1.copy()
+    dAprev = np.empty((k, c))
     while t < n:
         v = y[t] * scale
         for e in range(zn):
@@ -779,8 +918,52 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
         sww += v * v
         for i in range(k):
             Af[i, 0] = a0[i, 0] + Kf[i] * v
+        if p > 0:
+            if dsettled and csettled:
+                n_agg += 1
+                s_v += v
+                s_vv += v * v
+                wcur[0] = v
+                for r in range(p):
+                    _dinnovations(r, dA, dw, zi, zv, 0, 1)
+                    s_dv[r] += dw[r, 0]
+                    s_vdv[r] += v * dw[r, 0]
+                    _dcolumns(r, dA, dAf, Af, wcur, dw, Kf, dKf, 0, 1, tp, tl, tv, dnz, drow, dcol, dval)
+            else:
+                if not dsettled:
+                    _dsettle_gain(dP, dH, Z, dM, Kf, dKf, dF, Fc)
+                wcur[0] = v
+                ss = 0.0
+                nn = 0.0
+                for r in range(p):
+                    _dinnovations(r, dA, dw, zi, zv, 0, c)
+                    for i in range(k):
+                        for col in range(1, c):
+                            dAprev[i, col] = dA[r, i, col]
+                    _dcolumns(r, dA, dAf, Af, wcur, dw, Kf, dKf, 0, c, tp, tl, tv, dnz, drow, dcol, dval)
+                    dlogdet[r] += dF[r] / Fc
+                    _dgram(r, dG, wcur, dw, dF[r], Fc, c)
+                    for i in range(k):
+                        for col in range(1, c):
+                            dd = dA[r, i, col] - dAprev[i, col]
+                            ss += dd * dd
+                            nn += dA[r, i, col] * dA[r, i, col]
+                csettled = ss <= TOL_COLUMNS * nn
+                if not dsettled:
+                    dsettled = _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM, dKf,
+                                             Pprev, tmp, tmp2)
         _csr_left(tp, tl, tv, Af[:, :1], a0)
         t += 1
+    if n_agg > 0:
+        # the derivatives' sums over the settled steps: only the data column's innovation moves
+        for r in range(p):
+            dlogdet[r] += n_agg * dF[r] / Fc
+            dG[r, 0, 0] += 2.0 * s_vdv[r] / Fc - s_vv * dF[r] / (Fc * Fc)
+            for i in range(1, c):
+                dG[r, i, 0] += (dw[r, i] * s_v + w1[i] * s_dv[r]) / Fc - w1[i] * s_v * dF[r] / (Fc * Fc)
+                for j in range(1, i + 1):
+                    dG[r, i, j] += n_agg * ((dw[r, i] * w1[j] + w1[i] * dw[r, j]) / Fc
+                                            - w1[i] * w1[j] * dF[r] / (Fc * Fc))
     if converged:
         logdet += (n - t_conv) * math.log(Fc)
         Gss[0, 0] += sww
@@ -803,6 +986,8 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
                 acc -= R[i, l] * R[j, l]
             if i == j:
                 if not acc > 0.0:
+                    for r in range(p):
+                        grad[r] = np.nan
                     return -np.inf
                 R[i, i] = math.sqrt(acc)
             else:
@@ -851,6 +1036,29 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
             for l in range(d):
                 acc += B[i, l] * B[j, l]
             P_out[i, j] = acc
+    if p > 0:
+        # x = S^-1 s = -delta_hat; S^-1 = Rinv' Rinv
+        Sinv = np.zeros((d, d))
+        for i in range(d):
+            for j in range(d):
+                acc = 0.0
+                for l in range(d):
+                    acc += Rinv[l, i] * Rinv[l, j]
+                Sinv[i, j] = acc
+        for r in range(p):
+            for i in range(c):
+                for j in range(i):
+                    dG[r, j, i] = dG[r, i, j]
+            dq = dG[r, 0, 0]
+            for i in range(d):
+                dq -= 2.0 * (-dh[i]) * dG[r, i + 1, 0]
+                for j in range(d):
+                    dq += dh[i] * dG[r, i + 1, j + 1] * dh[j]
+            dls = 0.0
+            for i in range(d):
+                for j in range(d):
+                    dls += Sinv[i, j] * dG[r, j + 1, i + 1]
+            grad[r] = -0.5 * (dlogdet[r] + dq + dls)
     return -0.5 * (n * math.log(2.0 * math.pi) + logdet + quad + logS)
 
 

@@ -68,13 +68,11 @@ cheaper and the whole fit several times faster (``results/bench``, ``MleFitDrift
 Starting values come from :class:`avbench.estimators.likelihood.gmwm.GMWM` with the same latent model, diagonal
 weights and three trial correlation times, fitted on the octaves the block means resolve (cluster sizes >= m). The likelihood is
 maximised by L-BFGS-B over the log-parameters, to a tighter tolerance than statsmodels' default
-(each evaluation costs milliseconds), with the analytic score: the exact initial filter carries
-the derivative recursions of its state, covariance, gain and forecast variance in each parameter
-(Harvey 1989, Sec. 3.4.6), so one compiled pass gives the likelihood and its gradient; with a
-drift (the augmented filter, whose derivative recursions are not written) the gradient is central
-differences. Standard errors are from the observed information (the Hessian in the
-log-parameters by central differences of the analytic score; with a drift, of the
-central-difference score as statsmodels ``cov_type="approx"``) by the delta method; the drift, a diffuse state, gets the filtered
+(each evaluation costs milliseconds), with the analytic score: each filter (exact initial, augmented)
+carries the derivative recursions of its state (and diffuse columns), covariance, gain and forecast
+variance in each parameter (Harvey 1989, Sec. 3.4.6), so one compiled pass gives the likelihood and
+its gradient. Standard errors are from the observed information (the Hessian in the
+log-parameters by central differences of the analytic score) by the delta method; the drift, a diffuse state, gets the filtered
 GLS estimate and its filtered standard deviation.
 """
 
@@ -310,26 +308,16 @@ def observed_cov(loglike, p, score=None) -> np.ndarray:
         return np.full(hess.shape, np.nan)
 
 
-def _analytic_score(system, method) -> bool:
-    """Whether the fit uses the analytic score: with the exact initial filter
-    (:meth:`BlockMeanSystem.score`), i.e. without a drift under ``method="auto"`` or with
-    ``method="exact_initial"``; the augmented filter (a drift) keeps central differences."""
-    return method == "exact_initial" or (method == "auto" and not system.drift)
-
-
 def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
     """Maximise the exact block-mean log-likelihood over the log-parameters (L-BFGS-B).
 
     The objective is ``-loglike / nobs`` (as statsmodels' ``MLEModel.fit``) with a tight
-    tolerance and, without a drift, the analytic score of the exact initial filter (its
-    derivative recursions, :func:`avbench.estimators.likelihood._mle_kernels.diffuse_filter`: one
-    pass gives the likelihood and the whole gradient); with a drift (the augmented filter) a
-    central-difference gradient of the compiled likelihood (forward differences, statsmodels'
-    choice, leave ~sqrt(eps) of gradient noise that the likelihood's flat directions turn into
-    ~1e-4 relative parameter noise). The covariance of the log-parameters is the inverse of the
-    observed information, the Hessian by central differences of the score (of the analytic score
-    where there is one, else of the central-difference score as statsmodels ``cov_type="approx"``,
-    ``approx_centered=True``: :func:`observed_cov`). Returns ``params``, ``cov``, ``loglike`` (scaled units),
+    tolerance and the analytic score (:meth:`BlockMeanSystem.score`: the filter's derivative
+    recursions, one compiled pass for the likelihood and the whole gradient; the finite-difference
+    gradients of before -- statsmodels' forward differences, then central ones -- left ~sqrt(eps)
+    of gradient noise that the likelihood's flat directions turned into ~1e-4 relative parameter
+    noise). The covariance of the log-parameters is the inverse of the observed information, the
+    Hessian by central differences of the analytic score (:func:`observed_cov`). Returns ``params``, ``cov``, ``loglike`` (scaled units),
     ``converged``, ``final_state`` and ``final_cov`` (last filtered state and covariance).
     ``method`` selects the Kalman filter (:meth:`BlockMeanSystem.loglike`; the filters give the same
     likelihood to ~1e-14 relative, "exact_initial" is the slower path of before, kept for the tests
@@ -344,38 +332,24 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
         with np.errstate(all="ignore"):
             return system.loglike(y, p, scale, method=method)
 
-    def objective(p):
-        v = -loglike(p) / nobs
-        return v if np.isfinite(v) else 1e300
-
-    def gradient(p):
-        g = -_score(loglike, p) / nobs
-        return np.where(np.isfinite(g), g, 0.0)
-
     def objective_and_score(p):
         with np.errstate(all="ignore"):
-            v, g = system.score(y, p, scale)
+            v, g = system.score(y, p, scale, method=method)
         v, g = -v / nobs, -g / nobs
         return (v, np.where(np.isfinite(g), g, 0.0)) if np.isfinite(v) else (1e300, np.zeros(p.size))
 
-    analytic = _analytic_score(system, method)
-    options = {"maxiter": int(maxiter), "gtol": 1e-8, "ftol": 1e-14}
-    if analytic:
-        res = minimize(objective_and_score, np.asarray(x0, dtype=float), jac=True, method="L-BFGS-B", options=options)
-    else:
-        res = minimize(objective, np.asarray(x0, dtype=float), jac=gradient, method="L-BFGS-B", options=options)
+    res = minimize(objective_and_score, np.asarray(x0, dtype=float), jac=True, method="L-BFGS-B",
+                   options={"maxiter": int(maxiter), "gtol": 1e-8, "ftol": 1e-14})
     # at this tolerance the line search may stop on the likelihood's own round-off (~1e-12
     # relative): converged when the gradient per observation is small, as statsmodels' pgtol 1e-5
     converged = bool(res.success or np.max(np.abs(res.jac)) < 1e-5)
     p = res.x
-    if analytic:
-        def score(q):
-            with np.errstate(all="ignore"):
-                return system.score(y, q, scale)[1]
 
-        cov = observed_cov(loglike, p, score)
-    else:
-        cov = observed_cov(loglike, p)
+    def score(q):
+        with np.errstate(all="ignore"):
+            return system.score(y, q, scale, method=method)[1]
+
+    cov = observed_cov(loglike, p, score)
     a, P = np.empty(system.k), np.empty((system.k, system.k))
     llf = system.loglike(y, p, scale, (a, P), method=method)
     return {"params": p, "cov": cov, "loglike": float(llf), "converged": converged,
