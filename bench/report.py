@@ -34,8 +34,11 @@ LIMITS = {
     "are read; reading coefficients_ at the end loads it (second figure).",
     "mle": "Per likelihood evaluation one compiled Kalman pass over the block means (steady state after a few "
     "thousand steps: a state update per block mean; with a drift the augmented filter, whose diffuse columns "
-    "also settle); 2p evaluations per L-BFGS gradient (central differences), ~30 iterations, plus the "
-    "Hessian's 4p^2; the diagonal-weight GMWM start and the fit check are a fixed share (~half of the default fit).",
+    "also settle). The gradient is the analytic score (issue 25: the filter's derivative recursions in the same "
+    "pass): ~6-9 likelihood passes' worth for p = 4-5 -- the p covariance derivatives cost ~p k^3 per step "
+    "until they settle, a few thousand steps -- against 2p + 1 for the central differences of before, ~30 "
+    "iterations; the Hessian is 2p scores. The diagonal-weight GMWM start (~30 %) and the fit check are a "
+    "fixed share.",
     "whittle": "One FFT of the record; then Fisher scoring in log-parameters, each step one compiled pass over the "
     "n/2 Fourier frequencies with the terms' closed-form spectra; the ramp's exact variance costs two FFTs of twice "
     "the record per model reported, and with selection there is one fit per candidate term set.",

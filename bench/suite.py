@@ -582,7 +582,10 @@ class MleFit:
         _quiet_fit(self.est, self.rate, self.dt)
 
     def baseline_statsmodels(self, n):
-        mle_statsmodels_path(self.rate, self.dt)
+        from avbench.estimators.threads import one_blas_thread
+
+        with one_blas_thread():  # as the fit it is compared with (both single-threaded BLAS)
+            mle_statsmodels_path(self.rate, self.dt)
 
     def teardown(self, n):
         self.rate = None

@@ -34,6 +34,7 @@ from avbench.estimators.allan.deviations import deviation, edf_quadratic
 from avbench.estimators.allan.fit_check import assess_five_term
 from avbench.estimators.allan.model import PLATEAU, TAU_POWER
 from avbench.estimators.base import Estimator, register
+from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.curve_fits.least_squares import ls_std_err, solve_scaled
 from avbench.estimators.validation import check_taus, check_terms
 
@@ -91,6 +92,7 @@ class HadamardEDFWeightedLS(Estimator):
             raise ValueError(f"n_iter: expected a positive integer, got {self.n_iter!r}")
         return terms
 
+    @one_blas_thread()
     def _fit(self, rate, dt):
         terms = self.check_settings()
         hv = deviation(rate, dt, "ohvar", self.taus, edf=False)

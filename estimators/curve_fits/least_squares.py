@@ -31,6 +31,7 @@ from avbench.estimators.allan.model import BETA_SCALE, coefficients_from_beta, d
 from avbench.estimators.validation import check_terms
 from avbench.noise_models.units import COEFFICIENTS
 from avbench.estimators.base import Estimator, register
+from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.fit_check import assess_five_term
 
 __all__ = ["OLS", "TrimmedOLS", "WLS", "EDFWeightedLS", "solve_scaled", "ls_std_err"]
@@ -65,6 +66,7 @@ class _AVCurveFit(Estimator):
         """(row mask, row scale or None, extra diagnostics)."""
         return np.ones(len(av), dtype=bool), None, {}
 
+    @one_blas_thread()
     def _fit(self, rate, dt):
         terms = check_terms(self.terms)
         av = allan_variance(rate, dt, taus=self.taus, overlapping=bool(self.overlapping))

@@ -31,6 +31,7 @@ from avbench.estimators.allan.model import (
     design_matrix,
 )
 from avbench.estimators.base import Estimator, register
+from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.fit_check import assess_five_term
 from avbench.estimators.validation import check_terms
 
@@ -206,6 +207,7 @@ class SlopeLines(_AVBaseline):
         self.ordered = ordered
         self.min_clusters = min_clusters
 
+    @one_blas_thread()
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
         if not isinstance(self.ordered, bool):
@@ -249,6 +251,7 @@ class LogFit(_AVBaseline):
         self.overlapping = overlapping
         self.min_clusters = min_clusters
 
+    @one_blas_thread()
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
         beta, sol = log_fit_beta(tau, avar, terms)
@@ -327,6 +330,7 @@ class NNLSRel(_AVBaseline):
         self.overlapping = overlapping
         self.min_clusters = min_clusters
 
+    @one_blas_thread()
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
         beta = nnls_rel_beta(tau, avar, terms)

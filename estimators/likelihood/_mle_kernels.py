@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["BlockMeanSystem", "diffuse_loglike", "augmented_loglike", "_gm_block", "_level_block"]
+__all__ = ["BlockMeanSystem", "diffuse_loglike", "diffuse_filter", "augmented_loglike", "augmented_filter", "_gm_block", "_level_block"]
 
 #: statsmodels' thresholds (``KalmanFilter``): diffuse F_inf, and the steady-state test on P
 TOL_DIFFUSE = 1e-10
@@ -55,6 +55,22 @@ def _level_block(K2dt, m, dt, drift):
         T = np.vstack([T, [0.0, 0.0, 1.0]])
         cov = np.pad(cov, ((0, 1), (0, 1)))
     return T, cov
+
+
+def _gm_block_dphi(phi_log, sigma, m):
+    r"""Derivatives of :func:`_gm_block`'s ``(T, cov)`` with respect to ``phi_log`` (analytic:
+    :math:`c_j = \\sum_{i<j}\\phi^i`, so :math:`dc_j/d\\log\\phi = \\sum_{i<j} i\\phi^i`)."""
+    j = np.arange(1, m + 1, dtype=float)
+    c = np.expm1(j * phi_log) / math.expm1(phi_log)
+    pw = np.exp((j - 1) * phi_log)
+    dpw = (j - 1) * pw
+    dc = np.cumsum(dpw)
+    q = sigma**2 * -math.expm1(2 * phi_log)
+    dq = -2.0 * sigma**2 * math.exp(2 * phi_log)
+    S = np.array([[pw @ pw, pw @ c / m], [pw @ c / m, c @ c / m**2]])
+    dS = np.array([[2 * (pw @ dpw), (dpw @ c + pw @ dc) / m], [(dpw @ c + pw @ dc) / m, 2 * (c @ dc) / m**2]])
+    dT = np.array([[m * math.exp(m * phi_log), 0.0], [float((j * np.exp(j * phi_log)).sum()) / m, 0.0]])
+    return dT, dq * S + q * dS
 
 
 class BlockMeanSystem:
@@ -115,6 +131,55 @@ class BlockMeanSystem:
             Pinf0[i, i] = 1.0
         H = v.get("log_N", 0.0) ** 2 / (m * dt)
         return T, Qc, H, P0, Pinf0
+
+    def derivatives(self, params, scale: float = 1.0):
+        """Derivatives of :meth:`matrices`' ``(T, Qc, H, P0)`` with respect to each log-parameter:
+        arrays ``(dT, dQc, dH, dP0)`` of shapes (p, k, k), (p, k, k), (p,), (p, k, k), in the order
+        of :attr:`names` (analytic: every variance is a squared coefficient, so its derivative in
+        the log-coefficient is twice itself; the GM block's in log Tc by :func:`_gm_block_dphi`,
+        with :math:`d\\log\\phi/d\\log T_c = -\\log\\phi`)."""
+        T, Qc, H, P0, _ = self.matrices(params, scale)
+        v = {key: (val if key == "log_tc" else val * scale) for key, val in self.values(params).items()}
+        p, k, m, dt = len(self.names), self.k, self.m, self.dt
+        dT, dQc, dH, dP0 = np.zeros((p, k, k)), np.zeros((p, k, k)), np.zeros(p), np.zeros((p, k, k))
+        lev = self.lev
+        for i, name in enumerate(self.names):
+            if name == "log_N":
+                dH[i] = 2.0 * H
+            elif name == "log_K":
+                dQc[i, lev:, lev:] = 2.0 * Qc[lev:, lev:]
+            elif name == "log_Q":
+                q = self.q0
+                dQc[i, q, q] = 2.0 * Qc[q, q]
+                dP0[i, q, q] = dP0[i, q + 1, q + 1] = 2.0 * P0[q, q]
+            elif name == "log_sigma":
+                dQc[i, :2, :2] = 2.0 * Qc[:2, :2]
+                dP0[i, :2, :2] = 2.0 * P0[:2, :2]
+            elif name == "log_tc":
+                phi_log = -dt / v["log_tc"]
+                dTg, dQg = _gm_block_dphi(phi_log, v["log_sigma"], m)
+                dTg, dQg = -phi_log * dTg, -phi_log * dQg  # d/dlog Tc = -log(phi) d/dlog(phi)
+                dT[i, :2, :2], dQc[i, :2, :2] = dTg, dQg
+                t0, dt0 = T[:2, 0], dTg[:, 0]
+                dP0[i, :2, :2] = v["log_sigma"] ** 2 * (np.outer(dt0, t0) + np.outer(t0, dt0)) + dQg
+        return dT, dQc, dH, dP0
+
+    def score(self, y, params, scale: float = 1.0, method: str = "auto") -> tuple:
+        """``(loglike, gradient)``: the exact diffuse log-likelihood of ``y * scale`` (as
+        :meth:`loglike` with the same ``method``, to the bit) and its analytic derivatives in the
+        log-parameters (the derivative recursions of :func:`diffuse_filter` or :func:`augmented_filter`)."""
+        if method not in ("auto", "exact_initial", "augmented"):
+            raise ValueError(f"method: expected 'auto', 'exact_initial' or 'augmented', got {method!r}")
+        T, Qc, H, P0, Pinf0 = self.matrices(params, scale)
+        dT, dQc, dH, dP0 = self.derivatives(params, scale)
+        grad = np.empty(len(self.names))
+        a, P = np.empty(self.k), np.empty((self.k, self.k))
+        if method == "augmented" or (method == "auto" and self.drift):
+            ll = augmented_filter(y, scale, T, Qc, self.Z, H, P0, self.lev, dT, dQc, dH, dP0, a, P, grad)
+            if not math.isnan(ll):
+                return ll, grad
+        ll = diffuse_filter(y, scale, T, Qc, self.Z, H, P0, Pinf0, dT, dQc, dH, dP0, a, P, grad)
+        return ll, grad
 
     def loglike(self, y, params, scale: float = 1.0, final=None, method: str = "auto") -> float:
         """Exact diffuse log-likelihood of ``y * scale`` (scaled units); ``final``: optional
@@ -254,9 +319,126 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
 
     Returns the log-likelihood in the scaled units; ``a_out``/``P_out`` receive the last filtered
     state and covariance. A non-positive forecast variance outside the diffuse period gives -inf.
+    (:func:`diffuse_filter` without derivatives.)
+    """
+    k = T.shape[0]
+    return diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, np.zeros((0, k, k)), np.zeros((0, k, k)),
+                          np.zeros(0), np.zeros((0, k, k)), a_out, P_out, np.zeros(0))
+
+
+@njit(cache=True, inline="always")
+def _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2):
+    """dP[r] = T dPf[r] T' + dT Pf T' + T Pf dT' + dQc[r], forced symmetric: the derivative of
+    :func:`_predict` in parameter r (T by its non-zero entries, dT by its ``dnz[r]`` non-zero entries
+    ``dval[r]`` at ``drow[r], dcol[r]``; the last two terms are each other's transpose, Pf being
+    symmetric). Indexes the parameter's slices in place (no views: this runs p times per step)."""
+    k = Pf.shape[0]
+    for i in range(k):  # tmp = T dPf[r]
+        for j in range(k):
+            acc = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc += tv[e] * dPf[r, tl[e], j]
+            tmp[i, j] = acc
+    nz = dnz[r]
+    if nz > 0:
+        for i in range(k):
+            for j in range(k):
+                tmp2[i, j] = 0.0
+        for e in range(nz):  # tmp2 = dT Pf
+            for j in range(k):
+                tmp2[drow[r, e], j] += dval[r, e] * Pf[dcol[r, e], j]
+        for i in range(k):
+            for j in range(k):
+                tmp[i, j] += tmp2[i, j]
+    for i in range(k):
+        for j in range(i, k):
+            acc = 0.0
+            for e in range(tp[j], tp[j + 1]):
+                acc += tmp[i, tl[e]] * tv[e]
+            acc2 = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc2 += tmp[j, tl[e]] * tv[e]
+            if nz > 0:
+                for e in range(tp[i], tp[i + 1]):
+                    acc += tv[e] * tmp2[j, tl[e]]
+                for e in range(tp[j], tp[j + 1]):
+                    acc2 += tv[e] * tmp2[i, tl[e]]
+            sym = 0.5 * ((acc + dQc[r, i, j]) + (acc2 + dQc[r, j, i]))
+            dP[r, i, j] = sym
+            dP[r, j, i] = sym
+
+
+@njit(cache=True, inline="always")
+def _dforecast(dP, r, Z, dHr, dM):
+    """dM[r] = dP[r] Z and the forecast variance's derivative Z' dP[r] Z + dH[r]."""
+    k = Z.shape[0]
+    F = dHr
+    for i in range(k):
+        acc = 0.0
+        for j in range(k):
+            acc += dP[r, i, j] * Z[j]
+        dM[r, i] = acc
+        F += Z[i] * acc
+    return F
+
+
+@njit(cache=True, inline="always")
+def _dsq_change(dP, r, prev):
+    """Squared Frobenius norm of dP[r] - prev."""
+    k = prev.shape[0]
+    ss = 0.0
+    for i in range(k):
+        for j in range(k):
+            d = dP[r, i, j] - prev[i, j]
+            ss += d * d
+    return ss
+
+
+@njit(cache=True)
+def _entries(dT):
+    """The non-zero entries of each matrix ``dT[r]``: counts, rows, columns, values."""
+    p, k = dT.shape[0], dT.shape[1]
+    dnz = np.zeros(p, dtype=np.int64)
+    drow = np.zeros((p, k * k), dtype=np.int64)
+    dcol = np.zeros((p, k * k), dtype=np.int64)
+    dval = np.zeros((p, k * k))
+    for r in range(p):
+        for i in range(k):
+            for j in range(k):
+                if dT[r, i, j] != 0.0:
+                    e = dnz[r]
+                    drow[r, e], dcol[r, e], dval[r, e] = i, j, dT[r, i, j]
+                    dnz[r] = e + 1
+    return dnz, drow, dcol, dval
+
+
+@njit(cache=True)
+def diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, dT, dQc, dH, dP0, a_out, P_out, grad):
+    r""":func:`diffuse_loglike` and, for each of the ``p = dT.shape[0]`` parameters whose system
+    matrices have derivatives ``dT[i], dQc[i], dH[i], dP0[i]``, the derivative of the same
+    log-likelihood in ``grad[i]`` (the score; ``p`` may be 0).
+
+    The score runs the derivative (tangent) recursions of the filter beside it -- the Kalman
+    filter's derivative recursions of Harvey (1989, Sec. 3.4.6; Durbin & Koopman 2012, Sec. 7.3.3
+    give the same score by the smoother): with :math:`\\dot x` the derivative of x in one parameter,
+    :math:`\\dot v = -Z'\\dot a`, :math:`\\dot F = Z'\\dot PZ + \\dot H`, :math:`\\dot K =
+    (\\dot PZ - K\\dot F)/F`, :math:`\\dot a_{t+1} = \\dot T a_{t|t} + T(\\dot a + \\dot Kv + K\\dot v)`,
+    :math:`\\dot P_{t+1} = \\dot T P_{t|t}T' + T\\dot P_{t|t}T' + TP_{t|t}\\dot T' + \\dot Q` and
+    :math:`\\dot\\ell = -\\tfrac12\\sum_t(\\dot F/F + 2v\\dot v/F - v^2\\dot F/F^2)`. The diffuse
+    covariance does not depend on the parameters (the diffuse block of T is fixed).
+
+    The likelihood freezes the covariance at its steady state (module docstring): the derivative
+    of that function would jump wherever the freezing step moves, by the change of the still
+    settling :math:`\dot P` times the number of frozen steps. Instead the derivative recursions
+    run on, with the covariance frozen, until :math:`\dot P` settles by the same test
+    (:math:`\|\Delta\dot P\|_F^2 < 10^{-19}` for every parameter): the score is then the
+    derivative of the exact (never frozen) likelihood to the precision of the freeze, smooth in
+    the parameters, so that its central differences give a stable observed information. The
+    log-likelihood returned is :func:`diffuse_loglike`'s, to the bit.
     """
     n = y.shape[0]
     k = T.shape[0]
+    p = dT.shape[0]
     a = np.zeros(k)
     af = np.empty(k)
     P = P0.copy()
@@ -265,11 +447,27 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
     Pif = np.empty((k, k))
     Pprev = np.empty((k, k))
     tmp = np.empty((k, k))
+    tmp2 = np.empty((k, k))
     M = np.empty(k)
     Mi = np.empty(k)
     K0 = np.empty(k)
     K1 = np.empty(k)
+    # derivatives, one row per parameter
+    da = np.zeros((p, k))
+    daf = np.empty((p, k))
+    dP = dP0.copy()
+    dPf = np.empty((p, k, k))
+    dM = np.empty((p, k))
+    dK0 = np.empty((p, k))
+    dF = np.empty(p)
+    dv = np.empty(p)
+    dssq2 = np.zeros(p)  # sum of 2 v dv over the steps after the derivatives settle
+    dll = np.zeros(p)
+    ssq2 = 0.0
+    n_post = 0
+    dconverged = False
     tp, ti, tl, tv = _sparse_rows(T)  # T's non-zero entries by rows, for the covariance prediction
+    dnz, drow, dcol, dval = _entries(dT)
     zero = np.zeros((k, k))
     log2pi = math.log(2.0 * math.pi)
     ll = 0.0
@@ -291,19 +489,63 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
         v = y[t] * scale
         for i in range(k):
             v -= Z[i] * a[i]
+        for r in range(p):
+            acc = 0.0
+            for i in range(k):
+                acc -= Z[i] * da[r, i]
+            dv[r] = acc
         if converged:
             # steady state: fixed gain K0 and forecast variance Fc (the log-determinant term
             # -0.5 log(2 pi Fc) per step is added once at the end)
             for i in range(k):
                 af[i] = a[i] + K0[i] * v
             ssq += v * v
+            if dconverged:
+                ssq2 += v * v
+                n_post += 1
+                for r in range(p):
+                    for i in range(k):
+                        daf[r, i] = da[r, i] + dK0[r, i] * v + K0[i] * dv[r]
+                    dssq2[r] += 2.0 * v * dv[r]
+            else:
+                # the covariance is frozen, its derivatives still settle (their own test below)
+                dchange = 0.0
+                for r in range(p):
+                    dF[r] = _dforecast(dP, r, Z, dH[r], dM)
+                    for i in range(k):
+                        dK0[r, i] = (dM[r, i] - K0[i] * dF[r]) / Fc
+                    for i in range(k):
+                        daf[r, i] = da[r, i] + dK0[r, i] * v + K0[i] * dv[r]
+                    dll[r] -= 0.5 * (dF[r] / Fc + 2.0 * v * dv[r] / Fc - v * v * dF[r] / (Fc * Fc))
+                    for i in range(k):
+                        for j in range(k):
+                            dPf[r, i, j] = dP[r, i, j] - dM[r, i] * K0[j] - M[i] * dK0[r, j]
+                            Pprev[i, j] = dP[r, i, j]
+                    _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
+                    dchange = max(dchange, _dsq_change(dP, r, Pprev))
+                if dchange < TOL_CONVERGED:
+                    dconverged = True
+                    for r in range(p):
+                        dF[r] = _dforecast(dP, r, Z, dH[r], dM)
+                        for i in range(k):
+                            dK0[r, i] = (dM[r, i] - K0[i] * dF[r]) / Fc
             for i in range(k):
                 acc = 0.0
                 for e in range(tp[i], tp[i + 1]):
                     acc += tv[e] * af[tl[e]]
                 a[i] = acc
+            for r in range(p):
+                for i in range(k):
+                    acc = 0.0
+                    for e in range(tp[i], tp[i + 1]):
+                        acc += tv[e] * daf[r, tl[e]]
+                    da[r, i] = acc
+                for e in range(dnz[r]):
+                    da[r, drow[r, e]] += dval[r, e] * af[dcol[r, e]]
             continue
         F = max(_forecast(P, Z, H, M), 0.0)
+        for r in range(p):
+            dF[r] = _dforecast(dP, r, Z, dH[r], dM)
         Fi = max(_forecast(Pi, Z, 0.0, Mi), 0.0) if diffuse else 0.0
         if diffuse and Fi > TOL_DIFFUSE:
             for i in range(k):
@@ -318,6 +560,13 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
                     Pf[i, j] = P[i, j] - M[i] * K0[j] - Mi[i] * K1[j]
                     Pif[i, j] = Pi[i, j] - Mi[i] * K0[j]
             ll -= 0.5 * math.log(2.0 * math.pi * Fi)
+            for r in range(p):  # K0 does not depend on the parameters; dK1 = (dM - dF K0) / Fi
+                for i in range(k):
+                    daf[r, i] = da[r, i] + K0[i] * dv[r]
+                for i in range(k):
+                    for j in range(k):
+                        dPf[r, i, j] = (dP[r, i, j] - dM[r, i] * K0[j]
+                                        - Mi[i] * (dM[r, j] - dF[r] * K0[j]) / Fi)
         elif F > TOL_DIFFUSE:
             for i in range(k):
                 K0[i] = M[i] / F
@@ -328,20 +577,45 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
                     Pf[i, j] = P[i, j] - M[i] * K0[j]
                     Pif[i, j] = Pi[i, j]
             ll -= 0.5 * (log2pi + math.log(F) + v * v / F)
+            for r in range(p):
+                for i in range(k):
+                    dK0[r, i] = (dM[r, i] - K0[i] * dF[r]) / F
+                for i in range(k):
+                    daf[r, i] = da[r, i] + dK0[r, i] * v + K0[i] * dv[r]
+                for i in range(k):
+                    for j in range(k):
+                        dPf[r, i, j] = dP[r, i, j] - dM[r, i] * K0[j] - M[i] * dK0[r, j]
+                dll[r] -= 0.5 * (dF[r] / F + 2.0 * v * dv[r] / F - v * v * dF[r] / (F * F))
         else:
             if not diffuse:
+                for r in range(p):
+                    grad[r] = np.nan
                 return -np.inf
             for i in range(k):
                 af[i] = a[i]
                 for j in range(k):
                     Pf[i, j] = P[i, j]
                     Pif[i, j] = Pi[i, j]
+            for r in range(p):
+                for i in range(k):
+                    daf[r, i] = da[r, i]
+                    for j in range(k):
+                        dPf[r, i, j] = dP[r, i, j]
         # prediction
         for i in range(k):
             acc = 0.0
             for j in range(k):
                 acc += T[i, j] * af[j]
             a[i] = acc
+        for r in range(p):
+            for i in range(k):
+                acc = 0.0
+                for e in range(tp[i], tp[i + 1]):
+                    acc += tv[e] * daf[r, tl[e]]
+                da[r, i] = acc
+            for e in range(dnz[r]):
+                da[r, drow[r, e]] += dval[r, e] * af[dcol[r, e]]
+            _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
         for i in range(k):
             for j in range(k):
                 Pprev[i, j] = P[i, j]
@@ -354,8 +628,14 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
                 converged = True
                 t_conv = t + 1
                 Fc = _steady_gain(P, Z, H, M, K0, Pf)
+                dconverged = p == 0
     if converged:
         ll -= 0.5 * ((n - t_conv) * (log2pi + math.log(Fc)) + ssq / Fc)
+    if dconverged:
+        for r in range(p):
+            dll[r] -= 0.5 * (n_post * dF[r] / Fc + dssq2[r] / Fc - ssq2 * dF[r] / (Fc * Fc))
+    for r in range(p):
+        grad[r] = dll[r]
     for i in range(k):
         a_out[i] = af[i]
         for j in range(k):
@@ -391,9 +671,81 @@ def _augmented_step(yt, A, Af, Kf, w, zi, zv, tp, tl, tv):
     _csr_left(tp, tl, tv, Af, A)
 
 
+@njit(cache=True, inline="always")
+def _dsettle_gain(dP, dH, Z, dM, Kf, dKf, dF, Fc):
+    """With the covariance frozen: the forecast variance's and gain's derivatives from dP."""
+    p, k = dM.shape[0], dM.shape[1]
+    for r in range(p):
+        dF[r] = _dforecast(dP, r, Z, dH[r], dM)
+        for i in range(k):
+            dKf[r, i] = (dM[r, i] - Kf[i] * dF[r]) / Fc
+
+
+@njit(cache=True, inline="always")
+def _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM, dKf, prev, tmp, tmp2):
+    """One step of the covariance derivatives with the covariance frozen; True once they settle
+    (squared Frobenius change below ``TOL_CONVERGED_AUGMENTED`` for every parameter)."""
+    p, k = dM.shape[0], dM.shape[1]
+    change = 0.0
+    for r in range(p):
+        for i in range(k):
+            for j in range(k):
+                dPf[r, i, j] = dP[r, i, j] - dM[r, i] * Kf[j] - M[i] * dKf[r, j]
+                prev[i, j] = dP[r, i, j]
+        _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
+        change = max(change, _dsq_change(dP, r, prev))
+    return change < TOL_CONVERGED_AUGMENTED
+
+
 @njit(cache=True)
 def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
-    """Diffuse log-likelihood of ``y * scale`` by the augmented Kalman filter.
+    """Diffuse log-likelihood of ``y * scale`` by the augmented Kalman filter
+    (:func:`augmented_filter` without derivatives)."""
+    k = T.shape[0]
+    return augmented_filter(y, scale, T, Qc, Z, H, P0, lev, np.zeros((0, k, k)), np.zeros((0, k, k)),
+                            np.zeros(0), np.zeros((0, k, k)), a_out, P_out, np.zeros(0))
+
+
+@njit(cache=True, inline="always")
+def _dcolumns(r, dA, dAf, Af, w, dw, Kf, dKf, c0, c1, tp, tl, tv, dnz, drow, dcol, dval):
+    """Derivative of one filtering and prediction step of the columns c0..c1-1 in parameter r:
+    dAf = dA + dKf w' + Kf dw', dA = T dAf + dT Af."""
+    k = Kf.shape[0]
+    for i in range(k):
+        for col in range(c0, c1):
+            dAf[r, i, col] = dA[r, i, col] + dKf[r, i] * w[col] + Kf[i] * dw[r, col]
+    for i in range(k):
+        for col in range(c0, c1):
+            acc = 0.0
+            for e in range(tp[i], tp[i + 1]):
+                acc += tv[e] * dAf[r, tl[e], col]
+            dA[r, i, col] = acc
+    for e in range(dnz[r]):
+        for col in range(c0, c1):
+            dA[r, drow[r, e], col] += dval[r, e] * Af[dcol[r, e], col]
+
+
+@njit(cache=True, inline="always")
+def _dinnovations(r, dA, dw, zi, zv, c0, c1):
+    """dw[r, col] = -Z' dA[r][:, col] for the columns c0..c1-1."""
+    for col in range(c0, c1):
+        acc = 0.0
+        for e in range(zi.shape[0]):
+            acc -= zv[e] * dA[r, zi[e], col]
+        dw[r, col] = acc
+
+
+@njit(cache=True, inline="always")
+def _dgram(r, dG, w, dw, dFr, F, c):
+    """dG[r] += d(w w' / F) (lower triangle)."""
+    for i in range(c):
+        for j in range(i + 1):
+            dG[r, i, j] += (dw[r, i] * w[j] + w[i] * dw[r, j]) / F - w[i] * w[j] * dFr / (F * F)
+
+
+@njit(cache=True)
+def augmented_filter(y, scale, T, Qc, Z, H, P0, lev, dT, dQc, dH, dP0, a_out, P_out, grad):
+    r"""Diffuse log-likelihood of ``y * scale`` by the augmented Kalman filter.
 
     The states ``lev, ..., k-1`` (level, block-mean level, slope) are diffuse: the state is
     :math:`\\alpha_t = \\alpha^*_t + A_t\\delta`, :math:`\\delta` the diffuse initial values, and one
@@ -412,6 +764,16 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
     steady-state rules as :func:`diffuse_loglike`. ``a_out``/``P_out`` receive the last filtered
     state :math:`a + A\\hat\\delta` and covariance :math:`P + A S^{-1} A'`. Returns NaN when a
     forecast variance falls below ``TOL_AUGMENTED`` (the caller then uses :func:`diffuse_loglike`).
+
+    With ``p = dT.shape[0] > 0`` parameters (system-matrix derivatives ``dT, dQc, dH, dP0``) it
+    also returns the score in ``grad``: the derivative recursions of :func:`diffuse_filter` for the
+    covariance, gain and forecast variance, and for every column :math:`\dot A_{t+1} = \dot T A_{t|t}
+    + T(\dot A + \dot K w' + K\dot w')`, :math:`\dot w = -Z'\dot A`,
+    :math:`\dot G = \sum_t (\dot w w' + w\dot w')/F_t - ww'\dot F_t/F_t^2`; then
+    :math:`\dot{(q - s'S^{-1}s)} = \dot q - 2x'\dot s + x'\dot Sx` (:math:`x = S^{-1}s`) and
+    :math:`\dot{\log|S|} = \mathrm{tr}(S^{-1}\dot S)`. As in :func:`diffuse_filter` the
+    derivatives run on after the covariance (and the diffuse columns) settle, until they settle
+    themselves (same tests); from then on their sums are kept in closed form, as the likelihood's.
     """
     n = y.shape[0]
     k = T.shape[0]
@@ -433,6 +795,21 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
     tp, ti, tl, tv = _sparse_rows(T)
     _, zi, zv = _nonzeros(Z)
     zn = zi.shape[0]
+    p = dT.shape[0]
+    dnz, drow, dcol, dval = _entries(dT)
+    dA = np.zeros((p, k, c))
+    dAf = np.empty((p, k, c))
+    dP = dP0.copy()
+    dPf = np.empty((p, k, k))
+    dM = np.empty((p, k))
+    dKf = np.empty((p, k))
+    dF = np.empty(p)
+    dw = np.empty((p, c))
+    dG = np.zeros((p, c, c))
+    dlogdet = np.zeros(p)
+    tmp2 = np.empty((k, k))
+    dsettled = p == 0  # the covariance derivatives (after the covariance itself)
+    csettled = p == 0  # the diffuse columns' derivatives (after the columns themselves)
     logdet = 0.0
     converged = False
     Fc = 1.0
@@ -442,19 +819,36 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
         # phase 1: the covariance is still moving
         F = _forecast(P, Z, H, M)
         if not F > TOL_AUGMENTED:
+            for r in range(p):
+                grad[r] = np.nan
             return np.nan
         for i in range(k):
             Kf[i] = M[i] / F
+        for r in range(p):
+            dF[r] = _dforecast(dP, r, Z, dH[r], dM)
+            for i in range(k):
+                dKf[r, i] = (dM[r, i] - Kf[i] * dF[r]) / F
+            _dinnovations(r, dA, dw, zi, zv, 0, c)
         _augmented_step(y[t] * scale, A, Af, Kf, w, zi, zv, tp, tl, tv)
         logdet += math.log(F)
         for i in range(c):
             for j in range(i + 1):
                 G[i, j] += w[i] * w[j] / F
+        for r in range(p):
+            _dcolumns(r, dA, dAf, Af, w, dw, Kf, dKf, 0, c, tp, tl, tv, dnz, drow, dcol, dval)
+            dlogdet[r] += dF[r] / F
+            _dgram(r, dG, w, dw, dF[r], F, c)
         for i in range(k):
             for j in range(k):
                 Pf[i, j] = P[i, j] - M[i] * Kf[j]
                 Pprev[i, j] = P[i, j]
+        for r in range(p):
+            for i in range(k):
+                for j in range(k):
+                    dPf[r, i, j] = dP[r, i, j] - dM[r, i] * Kf[j] - M[i] * dKf[r, j]
         _predict(tp, ti, tl, tv, Pf, Qc, P, tmp)
+        for r in range(p):
+            _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
         t += 1
         if t < n:
             if _sq_change(P, Pprev) < TOL_CONVERGED_AUGMENTED:
@@ -469,10 +863,21 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
         for i in range(k):
             for col in range(1, c):
                 Aprev[i, col] = A[i, col]
+        if not dsettled:
+            _dsettle_gain(dP, dH, Z, dM, Kf, dKf, dF, Fc)
+        for r in range(p):
+            _dinnovations(r, dA, dw, zi, zv, 0, c)
         _augmented_step(y[t] * scale, A, Af, Kf, w, zi, zv, tp, tl, tv)
         for i in range(c):
             for j in range(i + 1):
                 Gss[i, j] += w[i] * w[j]
+        for r in range(p):
+            _dcolumns(r, dA, dAf, Af, w, dw, Kf, dKf, 0, c, tp, tl, tv, dnz, drow, dcol, dval)
+            dlogdet[r] += dF[r] / Fc
+            _dgram(r, dG, w, dw, dF[r], Fc, c)
+        if not dsettled:
+            dsettled = _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM, dKf,
+                                     Pprev, tmp, tmp2)
         t += 1
         ss = 0.0
         nn = 0.0
@@ -497,6 +902,14 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
     a0 = A[:, :1].copy()  # the data column
     sw = 0.0
     sww = 0.0
+    # derivatives in phase 3: per step while they settle, then sums over the remaining steps
+    n_agg = 0
+    s_v = 0.0
+    s_vv = 0.0
+    s_dv = np.zeros(p)
+    s_vdv = np.zeros(p)
+    wcur = w1.copy()
+    dAprev = np.empty((k, c))
     while t < n:
         v = y[t] * scale
         for e in range(zn):
@@ -505,8 +918,52 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
         sww += v * v
         for i in range(k):
             Af[i, 0] = a0[i, 0] + Kf[i] * v
+        if p > 0:
+            if dsettled and csettled:
+                n_agg += 1
+                s_v += v
+                s_vv += v * v
+                wcur[0] = v
+                for r in range(p):
+                    _dinnovations(r, dA, dw, zi, zv, 0, 1)
+                    s_dv[r] += dw[r, 0]
+                    s_vdv[r] += v * dw[r, 0]
+                    _dcolumns(r, dA, dAf, Af, wcur, dw, Kf, dKf, 0, 1, tp, tl, tv, dnz, drow, dcol, dval)
+            else:
+                if not dsettled:
+                    _dsettle_gain(dP, dH, Z, dM, Kf, dKf, dF, Fc)
+                wcur[0] = v
+                ss = 0.0
+                nn = 0.0
+                for r in range(p):
+                    _dinnovations(r, dA, dw, zi, zv, 0, c)
+                    for i in range(k):
+                        for col in range(1, c):
+                            dAprev[i, col] = dA[r, i, col]
+                    _dcolumns(r, dA, dAf, Af, wcur, dw, Kf, dKf, 0, c, tp, tl, tv, dnz, drow, dcol, dval)
+                    dlogdet[r] += dF[r] / Fc
+                    _dgram(r, dG, wcur, dw, dF[r], Fc, c)
+                    for i in range(k):
+                        for col in range(1, c):
+                            dd = dA[r, i, col] - dAprev[i, col]
+                            ss += dd * dd
+                            nn += dA[r, i, col] * dA[r, i, col]
+                csettled = ss <= TOL_COLUMNS * nn
+                if not dsettled:
+                    dsettled = _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM, dKf,
+                                             Pprev, tmp, tmp2)
         _csr_left(tp, tl, tv, Af[:, :1], a0)
         t += 1
+    if n_agg > 0:
+        # the derivatives' sums over the settled steps: only the data column's innovation moves
+        for r in range(p):
+            dlogdet[r] += n_agg * dF[r] / Fc
+            dG[r, 0, 0] += 2.0 * s_vdv[r] / Fc - s_vv * dF[r] / (Fc * Fc)
+            for i in range(1, c):
+                dG[r, i, 0] += (dw[r, i] * s_v + w1[i] * s_dv[r]) / Fc - w1[i] * s_v * dF[r] / (Fc * Fc)
+                for j in range(1, i + 1):
+                    dG[r, i, j] += n_agg * ((dw[r, i] * w1[j] + w1[i] * dw[r, j]) / Fc
+                                            - w1[i] * w1[j] * dF[r] / (Fc * Fc))
     if converged:
         logdet += (n - t_conv) * math.log(Fc)
         Gss[0, 0] += sww
@@ -529,6 +986,8 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
                 acc -= R[i, l] * R[j, l]
             if i == j:
                 if not acc > 0.0:
+                    for r in range(p):
+                        grad[r] = np.nan
                     return -np.inf
                 R[i, i] = math.sqrt(acc)
             else:
@@ -577,6 +1036,29 @@ def augmented_loglike(y, scale, T, Qc, Z, H, P0, lev, a_out, P_out):
             for l in range(d):
                 acc += B[i, l] * B[j, l]
             P_out[i, j] = acc
+    if p > 0:
+        # x = S^-1 s = -delta_hat; S^-1 = Rinv' Rinv
+        Sinv = np.zeros((d, d))
+        for i in range(d):
+            for j in range(d):
+                acc = 0.0
+                for l in range(d):
+                    acc += Rinv[l, i] * Rinv[l, j]
+                Sinv[i, j] = acc
+        for r in range(p):
+            for i in range(c):
+                for j in range(i):
+                    dG[r, j, i] = dG[r, i, j]
+            dq = dG[r, 0, 0]
+            for i in range(d):
+                dq -= 2.0 * (-dh[i]) * dG[r, i + 1, 0]
+                for j in range(d):
+                    dq += dh[i] * dG[r, i + 1, j + 1] * dh[j]
+            dls = 0.0
+            for i in range(d):
+                for j in range(d):
+                    dls += Sinv[i, j] * dG[r, j + 1, i + 1]
+            grad[r] = -0.5 * (dlogdet[r] + dq + dls)
     return -0.5 * (n * math.log(2.0 * math.pi) + logdet + quad + logS)
 
 

@@ -70,6 +70,7 @@ from scipy.optimize import least_squares
 from avbench.estimators.allan.variance import allan_variance
 from avbench.estimators.allan.model import PLATEAU
 from avbench.estimators.base import Estimator, register
+from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.covariance import av_covariance
 from avbench.estimators.allan.fit_check import assess_fit
 
@@ -261,6 +262,7 @@ class GMWM(Estimator):
         res = allan_variance(rate, dt, taus="octave", overlapping=True)
         return WaveletVariance(res.tau, res.avar, res.m, res.edf)
 
+    @one_blas_thread()
     def _fit(self, rate, dt):
         latents = self.check_settings()
         n = rate.size

@@ -67,10 +67,12 @@ cheaper and the whole fit several times faster (``results/bench``, ``MleFitDrift
 
 Starting values come from :class:`avbench.estimators.likelihood.gmwm.GMWM` with the same latent model, diagonal
 weights and three trial correlation times, fitted on the octaves the block means resolve (cluster sizes >= m). The likelihood is
-maximised by L-BFGS-B over the log-parameters with a central-difference gradient, to a tighter
-tolerance than statsmodels' default (each evaluation costs milliseconds). Standard errors
-are from the observed information (numerical Hessian of the log-likelihood in the log-parameters,
-central differences as statsmodels ``cov_type="approx"``) by the delta method; the drift, a diffuse state, gets the filtered
+maximised by L-BFGS-B over the log-parameters, to a tighter tolerance than statsmodels' default
+(each evaluation costs milliseconds), with the analytic score: each filter (exact initial, augmented)
+carries the derivative recursions of its state (and diffuse columns), covariance, gain and forecast
+variance in each parameter (Harvey 1989, Sec. 3.4.6), so one compiled pass gives the likelihood and
+its gradient. Standard errors are from the observed information (the Hessian in the
+log-parameters by central differences of the analytic score) by the delta method; the drift, a diffuse state, gets the filtered
 GLS estimate and its filtered standard deviation.
 """
 
@@ -82,6 +84,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.base import Estimator, register
+from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.fit_check import assess_fit
 from avbench.estimators.likelihood.gmwm import GMWM, build_gyro, parse_model
 
@@ -171,6 +174,7 @@ class MLE(Estimator):
                 raise ValueError(f"{name}: expected a positive integer, got {v!r}")
         return latents
 
+    @one_blas_thread()
     def _fit(self, rate, dt):
         latents = self.check_settings()
         n = rate.size
@@ -277,16 +281,27 @@ def _score(f, p, rel=_EPS_GRAD):
     return g
 
 
-def observed_cov(loglike, p) -> np.ndarray:
+def observed_cov(loglike, p, score=None) -> np.ndarray:
     """Inverse observed information of ``loglike`` at ``p``: the Hessian by central differences of
-    the central-difference score (statsmodels ``cov_type="approx"``, ``approx_centered=True``),
-    symmetrised; NaN where it is not finite."""
-    h = _EPS_HESS * np.maximum(np.abs(p), 0.1)
+    the score, symmetrised; NaN where it is not finite.
+
+    ``score``: the analytic score (a function of the log-parameters); its central differences
+    (relative step eps^(1/3), the optimum for an exact gradient) err by ~eps^(2/3) relative.
+    Without it, the score is itself central differences of ``loglike`` (statsmodels
+    ``cov_type="approx"``, ``approx_centered=True``), whose nested round-off (~eps^(1/2) relative to
+    the log-likelihood's scale, divided by the steps) dominates along the likelihood's flat
+    directions.
+    """
+    if score is None:
+        h = _EPS_HESS * np.maximum(np.abs(p), 0.1)
+        score = lambda q: _score(loglike, q)  # noqa: E731
+    else:
+        h = _EPS_GRAD * np.maximum(np.abs(p), 0.1)
     hess = np.empty((p.size, p.size))
     for i in range(p.size):
         e = np.zeros(p.size)
         e[i] = h[i]
-        hess[i] = (_score(loglike, p + e) - _score(loglike, p - e)) / (2 * h[i])
+        hess[i] = (score(p + e) - score(p - e)) / (2 * h[i])
     hess = (hess + hess.T) / 2
     try:
         return -np.linalg.pinv(hess) if np.all(np.isfinite(hess)) else np.full(hess.shape, np.nan)
@@ -297,13 +312,13 @@ def observed_cov(loglike, p) -> np.ndarray:
 def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
     """Maximise the exact block-mean log-likelihood over the log-parameters (L-BFGS-B).
 
-    The objective is ``-loglike / nobs`` (as statsmodels' ``MLEModel.fit``) with a
-    central-difference gradient of the compiled likelihood and a tight tolerance (forward
-    differences, statsmodels' choice, leave ~sqrt(eps) of gradient noise that the likelihood's flat
-    directions turn into ~1e-4 relative parameter noise); the covariance of the
-    log-parameters is the inverse of the observed information, the Hessian by central
-    differences of the central-difference score (statsmodels ``cov_type="approx"``,
-    ``approx_centered=True``). Returns ``params``, ``cov``, ``loglike`` (scaled units),
+    The objective is ``-loglike / nobs`` (as statsmodels' ``MLEModel.fit``) with a tight
+    tolerance and the analytic score (:meth:`BlockMeanSystem.score`: the filter's derivative
+    recursions, one compiled pass for the likelihood and the whole gradient; the finite-difference
+    gradients of before -- statsmodels' forward differences, then central ones -- left ~sqrt(eps)
+    of gradient noise that the likelihood's flat directions turned into ~1e-4 relative parameter
+    noise). The covariance of the log-parameters is the inverse of the observed information, the
+    Hessian by central differences of the analytic score (:func:`observed_cov`). Returns ``params``, ``cov``, ``loglike`` (scaled units),
     ``converged``, ``final_state`` and ``final_cov`` (last filtered state and covariance).
     ``method`` selects the Kalman filter (:meth:`BlockMeanSystem.loglike`; the filters give the same
     likelihood to ~1e-14 relative, "exact_initial" is the slower path of before, kept for the tests
@@ -318,21 +333,24 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
         with np.errstate(all="ignore"):
             return system.loglike(y, p, scale, method=method)
 
-    def objective(p):
-        v = -loglike(p) / nobs
-        return v if np.isfinite(v) else 1e300
+    def objective_and_score(p):
+        with np.errstate(all="ignore"):
+            v, g = system.score(y, p, scale, method=method)
+        v, g = -v / nobs, -g / nobs
+        return (v, np.where(np.isfinite(g), g, 0.0)) if np.isfinite(v) else (1e300, np.zeros(p.size))
 
-    def gradient(p):
-        g = -_score(loglike, p) / nobs
-        return np.where(np.isfinite(g), g, 0.0)
-
-    res = minimize(objective, np.asarray(x0, dtype=float), jac=gradient, method="L-BFGS-B",
+    res = minimize(objective_and_score, np.asarray(x0, dtype=float), jac=True, method="L-BFGS-B",
                    options={"maxiter": int(maxiter), "gtol": 1e-8, "ftol": 1e-14})
     # at this tolerance the line search may stop on the likelihood's own round-off (~1e-12
     # relative): converged when the gradient per observation is small, as statsmodels' pgtol 1e-5
     converged = bool(res.success or np.max(np.abs(res.jac)) < 1e-5)
     p = res.x
-    cov = observed_cov(loglike, p)
+
+    def score(q):
+        with np.errstate(all="ignore"):
+            return system.score(y, q, scale, method=method)[1]
+
+    cov = observed_cov(loglike, p, score)
     a, P = np.empty(system.k), np.empty((system.k, system.k))
     llf = system.loglike(y, p, scale, (a, P), method=method)
     return {"params": p, "cov": cov, "loglike": float(llf), "converged": converged,

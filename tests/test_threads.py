@@ -1,0 +1,38 @@
+"""The fits' linear algebra runs on one BLAS thread (estimators.threads)."""
+
+import numpy as np
+from threadpoolctl import ThreadpoolController, threadpool_limits
+
+from avbench.estimators.threads import one_blas_thread
+
+
+def _blas_threads():
+    return {lib["filepath"]: lib["num_threads"] for lib in ThreadpoolController().info() if lib["user_api"] == "blas"}
+
+
+def test_one_blas_thread_inside_and_restored_after():
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        with one_blas_thread():
+            inside = _blas_threads()
+        after = _blas_threads()
+    assert inside and set(inside.values()) == {1}
+    assert after == before
+
+
+def test_a_fit_runs_on_one_blas_thread(monkeypatch):
+    # the estimators' small solves see one thread, whatever the caller set
+    from avbench import estimators
+
+    seen = []
+    lstsq = np.linalg.lstsq
+
+    def spy(*args, **kwargs):
+        seen.append(set(_blas_threads().values()))
+        return lstsq(*args, **kwargs)
+
+    monkeypatch.setattr(np.linalg, "lstsq", spy)
+    x = np.random.default_rng(0).standard_normal(20_000) * 1e-3
+    with threadpool_limits(limits=2, user_api="blas"):
+        estimators.get("wls", taus="octave").fit(x, 0.01)
+    assert seen and all(s == {1} for s in seen)
