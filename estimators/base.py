@@ -58,6 +58,7 @@ __all__ = [
     "STANDARD_LEVEL",
     "DIAGNOSTIC_UNITS",
     "rescale_diagnostics",
+    "UNSEEN_SHARE",
 ]
 
 
@@ -303,7 +304,53 @@ class Estimator:
             diag = rescale_diagnostics(diag or {}, unit, {**DIAGNOSTIC_UNITS, **self.diagnostic_units})
             diag["data_scale"] = unit
         self._set_results(coefs, nonphys, diag)
+        self._mark_unseen_terms(rate.size, dt)
         return self
+
+    def _mark_unseen_terms(self, n: int, dt: float) -> None:
+        """Report a term the record cannot see as not resolved, with its bound (the contract's floor rule).
+
+        A positive coefficient whose term contributes less than :data:`UNSEEN_SHARE` of the fitted
+        model's AV (:meth:`model_avar`) at every octave tau of the record with at least 8 clusters is
+        below anything the record resolves: its value is where the fit's floor or round-off left it
+        (GMWM's Gauss-Markov sigma a few decades under the curve, say), and such values differ
+        between fits of the same record in two units by orders of magnitude while meaning the same.
+        It goes into ``diagnostics_["unresolved"]`` as ``(0, upper)``, the upper bound any such term
+        obeys: its AV is at most the AV's 97.5 % chi^2 upper limit at every tau (J - 1 degrees of
+        freedom, J = floor(n / m) clusters, the non-overlapping AV's, fewer than the overlapping
+        AV's), ``upper = min_tau sqrt(AV_97.5%(tau) / (beta_scale tau^p))``, with the fitted model
+        as the AV. An estimator's own entry for a term is kept. The coefficient keeps its value. A
+        coefficient of exactly 0 is left alone: it reads the same in every unit, and the report gives
+        it its bound and evidence already (``recordings.report.zero_notes``).
+        """
+        from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER
+
+        c = self.coefficients_
+        finite = [k for k in c.index if math.isfinite(float(c[k])) and float(c[k]) > 0.0]
+        if not finite or n < 16:
+            return
+        m = 2.0 ** np.arange(int(math.log2(n // 8)) + 1)
+        tau = m * dt
+        try:
+            model = np.asarray(self.model_avar(tau), dtype=float)
+        except Exception:  # a model that cannot be evaluated is the model check's business
+            return
+        if model.shape != tau.shape or not np.all(np.isfinite(model) & (model > 0)):
+            return
+        unresolved = dict(self.diagnostics_.get("unresolved") or {})
+        upper_av = None
+        for k in finite:
+            term = BETA_SCALE[k] * float(c[k]) ** 2 * tau ** TAU_POWER[k]
+            if k in unresolved or np.any(term >= UNSEEN_SHARE * model):
+                continue
+            if upper_av is None:
+                from scipy.stats import chi2
+
+                dof = np.floor(n / m) - 1
+                upper_av = model * dof / chi2.ppf(0.025, dof)
+            unresolved[k] = (0.0, float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k])))))
+        if unresolved:
+            self.diagnostics_["unresolved"] = unresolved
 
     @classmethod
     def _rate_settings(cls) -> list[str]:
@@ -408,6 +455,10 @@ class Estimator:
 #: unit-dependent inside an estimator (its tolerances and floors were tuned on such records) sees
 #: data of the magnitude it was tuned on
 STANDARD_LEVEL = 2.0**-10
+
+#: a term whose share of the fitted model's AV stays below this at every tau of the record is not
+#: seen by it (:meth:`Estimator._mark_unseen_terms`): no record resolves an AV to a part in a million
+UNSEEN_SHARE = 1e-6
 
 #: a record whose unit would differ from 1 by less than this is fitted as it is (a record already
 #: standardised, as an estimator fitting another inside its ``_fit`` hands it on)
