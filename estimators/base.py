@@ -319,7 +319,9 @@ class Estimator:
         obeys: its AV is at most the AV's 97.5 % chi^2 upper limit at every tau (J - 1 degrees of
         freedom, J = floor(n / m) clusters, the non-overlapping AV's, fewer than the overlapping
         AV's), ``upper = min_tau sqrt(AV_97.5%(tau) / (beta_scale tau^p))``, with the fitted model
-        as the AV. An estimator's own entry for a term is kept. The coefficient keeps its value. A
+        as the AV. It replaces an estimator's own entry for such a term (whose bound may come from
+        another rule that the floor's round-off switches on or off: GMWM's for a Gauss-Markov term
+        peaking early), so that the term reads the same in every unit. The coefficient keeps its value. A
         coefficient of exactly 0 is left alone: it reads the same in every unit, and the report gives
         it its bound and evidence already (``recordings.report.zero_notes``).
         """
@@ -341,7 +343,7 @@ class Estimator:
         upper_av = None
         for k in finite:
             term = BETA_SCALE[k] * float(c[k]) ** 2 * tau ** TAU_POWER[k]
-            if k in unresolved or np.any(term >= UNSEEN_SHARE * model):
+            if np.any(term >= UNSEEN_SHARE * model):
                 continue
             if upper_av is None:
                 from scipy.stats import chi2
@@ -473,11 +475,12 @@ def noise_level(rate: np.ndarray) -> float:
     rate = np.asarray(rate, dtype=float)
     if rate.size < 2:
         return 0.0
+    top = max(float(np.max(rate)), -float(np.min(rate)))
+    if top > 2.0**1000:  # differences of values near the float64 limit would overflow
+        e = math.frexp(top)[1]
+        return math.ldexp(noise_level(np.ldexp(rate, -e)), e)
     d = np.diff(rate)
     big = float(np.max(np.abs(d)))
-    if not math.isfinite(big):  # differences of values near the float64 limit overflowed
-        e = math.frexp(float(np.max(np.abs(rate))))[1]
-        return math.ldexp(noise_level(np.ldexp(rate, -e)), e)
     if big == 0.0:
         return 0.0
     d /= big
