@@ -574,17 +574,19 @@ def _rescale(value, power, unit):
         return value
     if power == 0:
         return value
-    f = unit ** power
+    with np.errstate(over="ignore"):
+        f = float(np.float64(unit) ** power)  # inf for a power of a unit near the float64 limit
     if isinstance(value, dict):
         return {k: _rescale(v, power, unit) for k, v in value.items()}
     if isinstance(value, (tuple, list)):
         return type(value)(_rescale(v, power, unit) for v in value)
-    if isinstance(value, pd.DataFrame):
-        return value * f
-    if isinstance(value, (pd.Series, np.ndarray)):
-        return value * f if value.dtype.kind in "fc" else value
-    if isinstance(value, (float, np.floating)):
-        return type(value)(value * f)
+    with np.errstate(over="ignore", invalid="ignore"):
+        if isinstance(value, pd.DataFrame):
+            return value * f
+        if isinstance(value, (pd.Series, np.ndarray)):
+            return value * f if value.dtype.kind in "fc" else value
+        if isinstance(value, (float, np.floating)):
+            return type(value)(np.float64(value) * f)
     return value  # ints (counts), objects: not a measured value in the rate's unit
 
 
