@@ -518,7 +518,7 @@ _ALLAN = {"avar": 2}  # AllanResult: adev, ci_low, ci_high follow from avar and 
 DIAGNOSTIC_UNITS: dict = {
     # coefficient-like (each entry is a coefficient in SI)
     "std_err": 1, "zero_upper": 1, "full_coefficients": 1, "full_std_err": 1, "start": 1, "x0": 1,
-    "last_good": 1, "unresolved": 1, "trajectory": 1,
+    "last_good": 1, "unresolved": 1, "trajectory": {c: 1 for c in COEFFICIENTS},  # its sample column: no unit
     "evidence": {"lower": 1, "upper": 1},
     # Allan-variance-like (rad^2/s^2)
     "avar": 2, "fitted_avar": 2, "fitted_hvar": 2, "residuals": 2, "beta": 2,
