@@ -291,7 +291,7 @@ class Estimator:
             diag = {**(diag or {}), "data_scale": 1.0}
         else:
             saved = {name: getattr(self, name) for name in self._rate_settings() if getattr(self, name) is not None}
-            scaled = rate / unit
+            scaled = _standardised(rate, unit)
             try:
                 for name, value in saved.items():
                     setattr(self, name, _scale_coefficients(name, value, 1.0 / unit))
@@ -588,6 +588,17 @@ def _rescale(value, power, unit):
         if isinstance(value, (float, np.floating)):
             return type(value)(np.float64(value) * f)
     return value  # ints (counts), objects: not a measured value in the rate's unit
+
+
+def _standardised(rate, unit):
+    """``rate / unit``; within the engine's ``memoize_allan`` (a study's replicate) one copy per record,
+    shared by the estimators fitted to it (and so their Allan variances too)."""
+    import sys
+
+    engine = sys.modules.get("avbench.estimators.allan.variance")
+    if engine is None:
+        return rate / unit
+    return engine.memoized(rate, ("standardised", unit), lambda: rate / unit)
 
 
 def _same_gaps(rate, scaled):

@@ -269,3 +269,27 @@ def test_the_issues_defects_on_adis_run_1_are_gone(name):
         x = np.ascontiguousarray(data[: 30 * 60 * 100, axis], dtype=float) * deg  # rad/s
         problems, note = equivariance(lambda: estimators.get(name), x, 0.01, scales=(1 / deg, 1e3), roundoff_draws=2)
         assert not problems, f"{name}, axis {axis}: {problems}"
+
+
+def test_estimators_fitted_to_one_replicate_share_its_standardised_copy():
+    from avbench.estimators.allan import variance
+
+    g, x = _record()
+    calls = []
+    real = variance._allan_variance
+
+    def counting(*args, **kwargs):
+        calls.append(args[0])
+        return real(*args, **kwargs)
+
+    variance._allan_variance = counting
+    try:
+        with variance.memoize_allan():
+            a = estimators.get("wls_edf").fit(x, g.dt)
+            alone = len(calls)
+            b = estimators.get("wls_edf", terms="NK").fit(x, g.dt)
+    finally:
+        variance._allan_variance = real
+    assert alone >= 1 and len(calls) == alone  # the second fit computed no AV: it had the first's copy
+    assert all(c is calls[0] for c in calls) and calls[0] is not x
+    assert a.diagnostics_["data_scale"] == b.diagnostics_["data_scale"] != 1.0
