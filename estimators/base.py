@@ -310,7 +310,7 @@ class Estimator:
     def _mark_unseen_terms(self, n: int, dt: float) -> None:
         """Report a term the record cannot see as not resolved, with its bound (the contract's floor rule).
 
-        A positive coefficient whose term contributes less than :data:`UNSEEN_SHARE` of the fitted
+        A coefficient whose term contributes less than :data:`UNSEEN_SHARE` of the fitted
         model's AV (:meth:`model_avar`) at every octave tau of the record with at least 8 clusters is
         below anything the record resolves: its value is where the fit's floor or round-off left it
         (GMWM's Gauss-Markov sigma a few decades under the curve, say), and such values differ
@@ -321,14 +321,17 @@ class Estimator:
         AV's), ``upper = min_tau sqrt(AV_97.5%(tau) / (beta_scale tau^p))``, with the fitted model
         as the AV. It replaces an estimator's own entry for such a term (whose bound may come from
         another rule that the floor's round-off switches on or off: GMWM's for a Gauss-Markov term
-        peaking early), so that the term reads the same in every unit. The coefficient keeps its value. A
-        coefficient of exactly 0 is left alone: it reads the same in every unit, and the report gives
-        it its bound and evidence already (``recordings.report.zero_notes``).
+        peaking early), so that the term reads the same in every unit. The coefficient keeps its value.
+        A coefficient of exactly 0 (a term at the fit's lower bound: GMWM, nnls_rel) is such a term
+        too, so that a floor reached in one unit and missed by a hair in another reads the same,
+        unless the estimator bounds its zeros itself (``diagnostics_["zero_upper"]``: whittle).
         """
         from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER
 
         c = self.coefficients_
-        finite = [k for k in c.index if math.isfinite(float(c[k])) and float(c[k]) > 0.0]
+        own = self.diagnostics_.get("zero_upper")  # bounds an estimator gives its zeros itself (whittle)
+        own = set() if own is None else {k for k in getattr(own, "index", own) if math.isfinite(float(own[k]))}
+        finite = [k for k in c.index if math.isfinite(float(c[k])) and (float(c[k]) > 0.0 or k not in own)]
         if not finite or n < 16:
             return
         m = 2.0 ** np.arange(int(math.log2(n // 8)) + 1)

@@ -217,14 +217,17 @@ def test_a_term_the_record_cannot_see_is_reported_not_resolved_with_the_same_bou
         assert est.model_avar(tau) / c**2 == pytest.approx(model, rel=1e-6)
 
 
-def test_a_zero_or_a_visible_term_is_not_flagged():
+def test_a_visible_term_or_a_zero_with_its_own_bound_is_not_flagged():
     g, x = _record()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ols = estimators.get("ols").fit(x, g.dt)
         whittle = estimators.get("whittle").fit(x, g.dt)
+        nnls = estimators.get("nnls_rel").fit(x, g.dt)
     assert "unresolved" not in ols.diagnostics_  # every term it reports shapes its curve
-    assert (whittle.coefficients_ == 0).any() and "unresolved" not in whittle.diagnostics_
+    assert (whittle.coefficients_ == 0).any() and "unresolved" not in whittle.diagnostics_  # zero_upper
+    zero = [k for k, v in nnls.coefficients_.items() if v == 0]  # at the fit's lower bound, no bound of its own
+    assert zero and set(zero) <= set(nnls.diagnostics_["unresolved"])
 
 
 # -- the whole registry ---------------------------------------------------------------------------
