@@ -53,8 +53,12 @@ __all__ = [
     "DivergenceWarning",
     "IdentifiabilityWarning",
     "coefficient_series",
-    "data_scale_exponent",
-    "SAFE_SPREAD",
+    "data_scale",
+    "noise_level",
+    "STANDARD_LEVEL",
+    "DIAGNOSTIC_UNITS",
+    "rescale_diagnostics",
+    "UNSEEN_SHARE",
 ]
 
 
@@ -230,6 +234,9 @@ class Estimator:
     #: iteration carries them beyond 1e-8 relative: a study's rows of such an estimator regenerate on
     #: another machine only to a small share of their replicate spread (tests/test_regeneration.py).
     round_off_amplified: ClassVar[bool] = False
+    #: the diagnostics of this class that carry the rate's unit beyond :data:`DIAGNOSTIC_UNITS`
+    #: (same form: key -> power of the unit, or a nested mapping); ``fit`` rescales them
+    diagnostic_units: ClassVar[dict] = {}
 
     # -- parameters (scikit-learn style) -------------------------------------------------------
     @classmethod
@@ -266,31 +273,94 @@ class Estimator:
     def fit(self, rate, dt) -> "Estimator":
         """Fit the coefficients to a gyro record ``rate`` (rad/s) sampled every ``dt`` seconds.
 
-        Records whose spread lies outside :data:`SAFE_SPREAD` (e.g. data in wrong units scaled by
-        1e300 or 1e-200) are fitted in units of a power of two near their spread, and the
-        coefficients scaled back (every coefficient is linear in the rate): the scaling is exact, so
-        the estimates scale with the data instead of overflowing or underflowing to 0.
-        ``diagnostics_["data_scale"]`` then gives the unit (rad/s) the other diagnostics are in.
+        **Unit equivariance** (the contract every estimator keeps, checked by ``check-estimator``):
+        the record is standardised before ``_fit`` sees it, divided by ``data_scale = s / STANDARD_LEVEL``
+        where ``s`` is its noise level (:func:`noise_level`, the RMS of its first differences over
+        sqrt 2, a statistic that scales exactly with the data). A record in deg/s and the same record
+        in rad/s are therefore the same numbers, to rounding, when the estimator works on them:
+        absolute tolerances, floors and starting values inside an estimator cannot make its answer
+        depend on the unit it was handed. The results are scaled back to the caller's unit:
+        coefficients (linear in the rate), ``std_err_``, ``conf_int``, ``model_avar`` and the
+        diagnostics that carry the rate's unit (:data:`DIAGNOSTIC_UNITS` and the class's own
+        :attr:`diagnostic_units`). The entries not listed
+        there (an online filter's internal states, a likelihood's value, ``diagnostics_["model"]``,
+        the fitted :class:`~avbench.noise_models.Gyro`) are those of the standardised record, whose
+        unit is ``data_scale`` (in the caller's unit). It is exactly 1 for a record already
+        standardised (an estimator fitting another inside its ``_fit``) and for a constant one.
         """
         check_common_settings(self.get_params())
         rate, dt = check_record(rate, dt)
-        k = data_scale_exponent(rate)
-        if k == 0:
+        unit = data_scale(rate)
+        if unit == 1.0:
             coefs, nonphys, diag = self._fit(rate, dt)
+            diag = {**(diag or {}), "data_scale": 1.0}
         else:
-            factor = math.ldexp(1.0, k)
             saved = {name: getattr(self, name) for name in self._rate_settings() if getattr(self, name) is not None}
+            scaled = _standardised(rate, unit)
             try:
                 for name, value in saved.items():
-                    setattr(self, name, _scale_coefficients(name, value, 1.0 / factor))
-                coefs, nonphys, diag = self._fit(np.ldexp(rate, -k), dt)
+                    setattr(self, name, _scale_coefficients(name, value, 1.0 / unit))
+                with _same_gaps(rate, scaled):
+                    coefs, nonphys, diag = self._fit(scaled, dt)
             finally:
                 for name, value in saved.items():
                     setattr(self, name, value)
-            coefs = {c: float(v) * factor for c, v in coefs.items()}
-            diag = {**(diag or {}), "data_scale": factor}
+            coefs = {c: float(v) * unit for c, v in coefs.items()}
+            diag = rescale_diagnostics(diag or {}, unit, {**DIAGNOSTIC_UNITS, **self.diagnostic_units})
+            diag["data_scale"] = unit
         self._set_results(coefs, nonphys, diag)
+        self._mark_unseen_terms(rate.size, dt)
         return self
+
+    def _mark_unseen_terms(self, n: int, dt: float) -> None:
+        """Report a term the record cannot see as not resolved, with its bound (the contract's floor rule).
+
+        A coefficient whose term contributes less than :data:`UNSEEN_SHARE` of the fitted
+        model's AV (:meth:`model_avar`) at every octave tau of the record with at least 8 clusters is
+        below anything the record resolves: its value is where the fit's floor or round-off left it
+        (GMWM's Gauss-Markov sigma a few decades under the curve, say), and such values differ
+        between fits of the same record in two units by orders of magnitude while meaning the same.
+        It goes into ``diagnostics_["unresolved"]`` as ``(0, upper)``, the upper bound any such term
+        obeys: its AV is at most the AV's 97.5 % chi^2 upper limit at every tau (J - 1 degrees of
+        freedom, J = floor(n / m) clusters, the non-overlapping AV's, fewer than the overlapping
+        AV's), ``upper = min_tau sqrt(AV_97.5%(tau) / (beta_scale tau^p))``, with the fitted model
+        as the AV. It replaces an estimator's own entry for such a term (whose bound may come from
+        another rule that the floor's round-off switches on or off: GMWM's for a Gauss-Markov term
+        peaking early), so that the term reads the same in every unit. The coefficient keeps its value.
+        A coefficient of exactly 0 (a term at the fit's lower bound: GMWM, nnls_rel) is such a term
+        too, so that a floor reached in one unit and missed by a hair in another reads the same,
+        unless the estimator bounds its zeros itself (``diagnostics_["zero_upper"]``: whittle).
+        """
+        from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER
+
+        c = self.coefficients_
+        own = self.diagnostics_.get("zero_upper")  # bounds an estimator gives its zeros itself (whittle)
+        own = set() if own is None else {k for k in getattr(own, "index", own) if math.isfinite(float(own[k]))}
+        finite = [k for k in c.index if math.isfinite(float(c[k])) and (float(c[k]) > 0.0 or k not in own)]
+        if not finite or n < 16:
+            return
+        m = 2.0 ** np.arange(int(math.log2(n // 8)) + 1)
+        tau = m * dt
+        try:
+            model = np.asarray(self.model_avar(tau), dtype=float)
+        except Exception:  # a model that cannot be evaluated is the model check's business
+            return
+        if model.shape != tau.shape or not np.all(np.isfinite(model) & (model > 0)):
+            return
+        unresolved = dict(self.diagnostics_.get("unresolved") or {})
+        upper_av = None
+        for k in finite:
+            term = BETA_SCALE[k] * float(c[k]) ** 2 * tau ** TAU_POWER[k]
+            if np.any(term >= UNSEEN_SHARE * model):
+                continue
+            if upper_av is None:
+                from scipy.stats import chi2
+
+                dof = np.floor(n / m) - 1
+                upper_av = model * dof / chi2.ppf(0.025, dof)
+            unresolved[k] = (0.0, float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k])))))
+        if unresolved:
+            self.diagnostics_["unresolved"] = unresolved
 
     @classmethod
     def _rate_settings(cls) -> list[str]:
@@ -390,20 +460,165 @@ class Estimator:
         ).loc[list(COEFFICIENTS)]
 
 
-#: the spread (max - min) of a record that estimators handle in SI as it is; outside it the fit runs
-#: in power-of-two scaled units (squares and fourth powers of the rate then stay inside float64)
-SAFE_SPREAD = (2.0**-60, 2.0**60)
+#: the noise level (:func:`noise_level`) every record is standardised to before an estimator fits it:
+#: near that of the studies' simulated gyros in rad/s (1e-7..1e-2), so that what remained
+#: unit-dependent inside an estimator (its tolerances and floors were tuned on such records) sees
+#: data of the magnitude it was tuned on
+STANDARD_LEVEL = 2.0**-10
+
+#: a term whose share of the fitted model's AV stays below this at every tau of the record is not
+#: seen by it (:meth:`Estimator._mark_unseen_terms`): no record resolves an AV to a part in a million
+UNSEEN_SHARE = 1e-6
+
+#: a record whose unit would differ from 1 by less than this is fitted as it is (a record already
+#: standardised, as an estimator fitting another inside its ``_fit`` hands it on)
+_UNIT_TOLERANCE = 1e-9
 
 
-def data_scale_exponent(rate: np.ndarray) -> int:
-    """0 for a record whose spread is inside :data:`SAFE_SPREAD`, else k with spread / 2**k in [0.5, 1)."""
-    lo, hi = float(rate.min()), float(rate.max())
-    spread = hi - lo
-    if not math.isfinite(spread):  # max - min overflowed (values near the float64 limit)
-        spread = max(abs(lo), abs(hi))
-    if spread == 0.0 or SAFE_SPREAD[0] <= spread <= SAFE_SPREAD[1]:
-        return 0
-    return math.frexp(spread)[1]
+def noise_level(rate: np.ndarray) -> float:
+    """The RMS of the record's first differences over sqrt 2 (the white-noise level of one sample;
+    0 for a constant record). It scales exactly with the data (``noise_level(2**k * x) == 2**k *
+    noise_level(x)``) and to rounding with any factor; computed relative to the largest difference,
+    so that neither 1e300 nor 1e-300 over- or underflows."""
+    rate = np.asarray(rate, dtype=float)
+    if rate.size < 2:
+        return 0.0
+    top = max(float(np.max(rate)), -float(np.min(rate)))
+    if top > 2.0**1000:  # differences of values near the float64 limit would overflow
+        e = math.frexp(top)[1]
+        return math.ldexp(noise_level(np.ldexp(rate, -e)), e)
+    d = np.diff(rate)
+    big = float(np.max(np.abs(d)))
+    if big == 0.0:
+        return 0.0
+    d /= big
+    return big * math.sqrt(float(np.dot(d, d)) / (2.0 * d.size))
+
+
+def data_scale(rate: np.ndarray) -> float:
+    """The unit (in the record's own unit) an estimator fits the record in: ``noise_level(rate) /
+    STANDARD_LEVEL``, so that ``rate / data_scale(rate)`` has the noise level :data:`STANDARD_LEVEL`;
+    exactly 1 for a constant record and for one already standardised (within 1e-9)."""
+    s = noise_level(rate)
+    if s == 0.0:
+        return 1.0
+    unit = s / STANDARD_LEVEL
+    if not (math.isfinite(unit) and unit > 0.0):  # noise levels within 2^10 of the float64 limits
+        return math.ldexp(1.0, math.frexp(s)[1] + 10)
+    return 1.0 if abs(unit - 1.0) < _UNIT_TOLERANCE else unit
+
+
+def _parameter_power(key) -> int:
+    """A latent model's parameter by its name (``"GM.sigma"``, ``"tc"``, ``"FW.tf"``): times and
+    frequencies (``tc``, ``tf``, ``f0``) do not carry the rate's unit, the other parameters (scales:
+    N, sigma, K, Q, B, R, A) carry it once."""
+    return 0 if str(key).rsplit(".", 1)[-1] in ("tc", "tf", "f0", "omega0", "T") else 1
+
+
+#: How the diagnostics every estimator may hold scale with the unit of the record: key -> power p
+#: of the unit (the value, a number, array, Series, DataFrame, tuple, list or a mapping of such, is
+#: multiplied by ``data_scale ** p``), or a mapping for entries with parts of different powers (keys
+#: of a dict, columns of a DataFrame, attributes of a dataclass such as ``AllanResult``; parts not
+#: named keep their value), or a function of the key for mappings keyed by parameter names, or the
+#: name of such a mapping for an array holding its values in order (GMWM's ``values``). A class adds
+#: its own in :attr:`Estimator.diagnostic_units`.
+_ALLAN = {"avar": 2}  # AllanResult: adev, ci_low, ci_high follow from avar and edf
+DIAGNOSTIC_UNITS: dict = {
+    # coefficient-like (each entry is a coefficient in SI)
+    "std_err": 1, "zero_upper": 1, "full_coefficients": 1, "full_std_err": 1, "start": 1, "x0": 1,
+    "last_good": 1, "unresolved": 1, "trajectory": {c: 1 for c in COEFFICIENTS},  # its sample column: no unit
+    "evidence": {"lower": 1, "upper": 1},
+    # Allan-variance-like (rad^2/s^2)
+    "avar": 2, "fitted_avar": 2, "fitted_hvar": 2, "residuals": 2, "beta": 2,
+    "fit_check": {"avar": 2, "model": 2},
+    "allan": _ALLAN, "hadamard": _ALLAN,
+    # latent parameters by name, and the same values as an array in that order (GMWM)
+    "params": _parameter_power, "values": "params",
+}
+
+
+def rescale_diagnostics(diag: dict, unit: float, units: dict) -> dict:
+    """``diag`` with each entry named in ``units`` (see :data:`DIAGNOSTIC_UNITS`) multiplied by
+    ``unit ** power``; the other entries unchanged (a new dict; values are not modified in place)."""
+    out = {}
+    for k, v in diag.items():
+        spec = units.get(k, 0)
+        if isinstance(spec, str):  # the values of the mapping diag[spec], in order
+            names = list(diag.get(spec) or ())
+            if isinstance(v, np.ndarray) and v.shape == (len(names),) and callable(units.get(spec)):
+                v = v * unit ** np.array([units[spec](n) for n in names], dtype=float)
+            out[k] = v
+        else:
+            out[k] = _rescale(v, spec, unit)
+    return out
+
+
+def _rescale(value, power, unit):
+    import dataclasses
+
+    import pandas as pd
+
+    if value is None or isinstance(value, (str, bool)):
+        return value
+    if callable(power):  # a mapping keyed by parameter names
+        if isinstance(value, dict):
+            return {k: _rescale(v, power(k), unit) for k, v in value.items()}
+        if isinstance(value, pd.Series):
+            return pd.Series([_rescale(v, power(k), unit) for k, v in value.items()], index=value.index,
+                             dtype=value.dtype, name=value.name)
+        return value
+    if isinstance(power, dict):
+        if isinstance(value, dict):
+            return {k: (_rescale(v, power[k], unit) if k in power else v) for k, v in value.items()}
+        if isinstance(value, pd.DataFrame):
+            out = value.copy()
+            for c, p in power.items():
+                if c in out.columns:
+                    out[c] = _rescale(out[c], p, unit)
+            return out
+        if dataclasses.is_dataclass(value):
+            return dataclasses.replace(value, **{f: _rescale(getattr(value, f), p, unit)
+                                                 for f, p in power.items() if hasattr(value, f)})
+        return value
+    if power == 0:
+        return value
+    with np.errstate(over="ignore"):
+        f = float(np.float64(unit) ** power)  # inf for a power of a unit near the float64 limit
+    if isinstance(value, dict):
+        return {k: _rescale(v, power, unit) for k, v in value.items()}
+    if isinstance(value, (tuple, list)):
+        return type(value)(_rescale(v, power, unit) for v in value)
+    with np.errstate(over="ignore", invalid="ignore"):
+        if isinstance(value, pd.DataFrame):
+            return value * f
+        if isinstance(value, (pd.Series, np.ndarray)):
+            return value * f if value.dtype.kind in "fc" else value
+        if isinstance(value, (float, np.floating)):
+            return type(value)(np.float64(value) * f)
+    return value  # ints (counts), objects: not a measured value in the rate's unit
+
+
+def _standardised(rate, unit):
+    """``rate / unit``; within the engine's ``memoize_allan`` (a study's replicate) one copy per record,
+    shared by the estimators fitted to it (and so their Allan variances too)."""
+    import sys
+
+    engine = sys.modules.get("avbench.estimators.allan.variance")
+    if engine is None:
+        return rate / unit
+    return engine.memoized(rate, ("standardised", unit), lambda: rate / unit)
+
+
+def _same_gaps(rate, scaled):
+    """A context in which ``scaled`` (the standardised copy of ``rate``) has the gaps
+    :func:`avbench.estimators.allan.variance.skip_gaps` registered for ``rate``, if any (the engine is
+    looked up, not imported: no gaps can be registered before it is loaded)."""
+    import contextlib
+    import sys
+
+    engine = sys.modules.get("avbench.estimators.allan.variance")
+    starts = None if engine is None else engine.gap_starts(rate)
+    return contextlib.nullcontext() if starts is None else engine.skip_gaps(scaled, starts)
 
 
 def _scale_coefficients(name: str, value, factor: float):

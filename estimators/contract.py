@@ -33,6 +33,17 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
 ``bad input``
     a record with NaN or inf, a record too short (8 samples), a 2-D array, and a ``dt`` that is
     zero, negative, NaN or not a number are each refused with a ``ValueError`` with a message;
+``equivariance``
+    the answer does not depend on the unit of the record (:func:`equivariance`): the shorter record
+    fitted in units :data:`EQUIVARIANCE_SCALES` times rad/s (about 1.7e-6 and 5.7e5, neither a power
+    of two) and scaled back reports every term the same way (modelled or not, non-physical, not
+    resolved, failed) and gives the same coefficients, standard errors, bounds of unresolved terms
+    and model AV, to 1e-8 relative or, for a fit whose answer moves more than that when the last bit
+    of its input does (an optimiser stopping on a flat direction, a filter that amplifies round-off),
+    to :data:`ROUNDOFF_FACTOR` times what it moves then, and a status only where round-off of the
+    input changes it too (measured on :data:`ROUNDOFF_DRAWS` records perturbed in the last bit; the
+    note then names the fragility). :meth:`Estimator.fit` standardises every record, so an estimator inherits this; a plugin
+    that overrides ``fit`` or keeps unit-carrying diagnostics of its own has to keep it;
 ``recovery``
     on a simple simulated gyro (:func:`recovery_gyro`: angle random walk plus rate random walk,
     2^14 samples at 10 Hz, a fixed seed) every coefficient of the gyro the estimator reports
@@ -86,6 +97,9 @@ __all__ = [
     "RECOVERY_SAMPLES",
     "Z_RECOVERY",
     "EFFICIENCY_ALLOWANCE",
+    "equivariance",
+    "EQUIVARIANCE_SCALES",
+    "EQUIVARIANCE_RTOL",
 ]
 
 #: record length of the recovery check (samples at dt = 0.1 s: about 27 minutes)
@@ -95,6 +109,14 @@ Z_RECOVERY = 4.0
 #: how many times the CRLB standard deviation an estimator's own may be in the recovery check
 EFFICIENCY_ALLOWANCE = 10.0
 _SEED_A, _SEED_B = 20260101, 20260102
+#: the units (times rad/s) the equivariance check fits a record in: deg/s-like factors far from 1
+EQUIVARIANCE_SCALES = (math.pi / 180 * 1e-4, 180 / math.pi * 1e4)
+#: relative agreement of an equivariant answer across units (round-off of the standardised record:
+#: the estimators built on closed forms agree to 1e-12 or better)
+EQUIVARIANCE_RTOL = 1e-8
+#: an answer that moves more than EQUIVARIANCE_RTOL between units may move up to this many times
+#: what it moves when the last bit of the input does, over ROUNDOFF_DRAWS perturbed records
+ROUNDOFF_FACTOR, ROUNDOFF_DRAWS = 10.0, 2
 _INDEX = list(COEFFICIENTS)
 
 
@@ -284,6 +306,7 @@ class _Checker:
             ("model", self.check_model),
             ("determinism", self.check_determinism),
             ("bad input", self.check_bad_input),
+            ("equivariance", self.check_equivariance),
             ("recovery", self.check_recovery),
         ]:
             try:
@@ -515,6 +538,10 @@ class _Checker:
                 problems.append(f"{what}: accepted, expected a ValueError")
         return problems
 
+    def check_equivariance(self):
+        self._need_fit()
+        return equivariance(self.new, self.b, self.gyro.dt)
+
     def check_recovery(self):
         from avbench.estimators.likelihood.crlb import crlb
 
@@ -553,3 +580,104 @@ class _Checker:
         if flagged:
             notes.append(f"{', '.join(flagged)} flagged non-physical on this record")
         return problems, "; ".join(notes)
+
+
+def _answer(est, tau):
+    """What a fit reports, in SI of the record it was handed: the status of each coefficient and
+    the numbers (coefficients, standard errors, bounds of unresolved terms, model AV at ``tau``)."""
+    c = est.coefficients_.astype(float)
+    unresolved = dict(est.diagnostics_.get("unresolved") or {})
+    se = getattr(est, "std_err_", None)
+    status = {
+        k: ("failed" if est.diagnostics_.get("failure") and not np.isfinite(c[k]) else
+            "not resolved" if k in unresolved else
+            "non-physical" if bool(est.nonphysical_[k]) else
+            "not modelled" if not np.isfinite(c[k]) else "zero" if c[k] == 0 else "estimated")
+        for k in _INDEX
+    }
+    numbers = {f"coefficient {k}": float(c[k]) for k in _INDEX if status[k] == "estimated"}
+    if isinstance(se, pd.Series):
+        numbers.update({f"std_err {k}": float(se[k]) for k in _INDEX
+                        if status[k] == "estimated" and np.isfinite(se[k]) and se[k] > 0})
+    numbers.update({f"bound of unresolved {k}": float(unresolved[k][1]) for k in unresolved})
+    try:
+        model = np.asarray(est.model_avar(tau), dtype=float)
+    except Exception:
+        model = np.full(tau.shape, np.nan)
+    return status, numbers, model
+
+
+def _differences(ref, other, scale):
+    """Relative differences between two answers, the second fitted in units ``scale`` times SI."""
+    (_, n1, m1), (_, n2, m2) = ref, other
+    out = {}
+    for k, v in n1.items():
+        w = n2.get(k, math.nan) / (scale**2 if k.startswith("model") else scale)
+        out[k] = abs(w - v) / abs(v) if v != 0 else (0.0 if w == 0 else math.inf)
+    with np.errstate(all="ignore"):
+        r = np.abs(m2 / scale**2 - m1) / np.abs(m1)
+    ok = np.isfinite(m1) & (m1 > 0)
+    out["model AV"] = float(np.max(np.where(np.isnan(r), np.inf, r)[ok])) if ok.any() else 0.0
+    return {k: (v if math.isfinite(v) else math.inf) for k, v in out.items()}
+
+
+def equivariance(new, rate, dt, scales=EQUIVARIANCE_SCALES, rtol=EQUIVARIANCE_RTOL,
+                 roundoff_draws=ROUNDOFF_DRAWS, roundoff_factor=ROUNDOFF_FACTOR, seed=0):
+    """``(problems, note)``: does a fresh estimator from ``new()`` give the same answer for ``rate``
+    (SI) handed to it in units ``scales`` times SI, scaled back? (the ``equivariance`` check of the
+    module docstring, also the registry-wide property test).
+
+    Compared: each coefficient's status (estimated, zero, not modelled, non-physical, not resolved,
+    failed), and coefficients, standard errors, the bounds of unresolved terms and the model AV at
+    the record's octave taus (J >= 8) to ``rtol`` relative. If anything differs, ``roundoff_draws``
+    fits of ``rate * (1 + 2**-52 z)`` (z standard normal: a change in the last bit, the size of the
+    rounding the standardisation itself makes, and of the difference between a record in deg/s and
+    the same record in rad/s) measure the fit's own sensitivity to round-off: a status that
+    round-off of the input also changes, and a number that moves by at most ``roundoff_factor``
+    times what round-off moves it, are the fit's fragility, not its unit (said in the note); the
+    rest are problems.
+    """
+    rate = np.asarray(rate, dtype=float)
+    tau = dt * 2.0 ** np.arange(int(math.log2(rate.size // 8)) + 1)
+    ref = _answer(_quiet(new().fit, rate, dt), tau)
+    moved, worst = {}, {}
+    for c in scales:
+        other = _answer(_quiet(new().fit, rate * c, dt), tau)
+        flips = {k: (ref[0][k], other[0][k]) for k in _INDEX if ref[0][k] != other[0][k]}
+        if flips:
+            moved[c] = flips
+            continue
+        for k, v in _differences(ref, other, c).items():
+            worst[k] = max(worst.get(k, 0.0), v)
+    over = {k: v for k, v in worst.items() if v > rtol}
+    if not over and not moved:
+        return [], f"equal to {max(worst.values(), default=0.0):.1g} relative in units {', '.join(f'{c:.3g}' for c in scales)} x SI"
+    rng = np.random.default_rng(seed)
+    noise, noise_flips = {}, set()
+    for _ in range(int(roundoff_draws)):
+        pert = rate * (1.0 + 2.0**-52 * rng.standard_normal(rate.size))
+        other = _answer(_quiet(new().fit, pert, dt), tau)
+        if other[0] != ref[0]:  # round-off changed what is reported: no measure of the numbers
+            noise_flips |= {k for k in _INDEX if ref[0][k] != other[0][k]}
+            continue
+        for k, v in _differences(ref, other, 1.0).items():
+            noise[k] = max(noise.get(k, 0.0), v)
+    problems = [
+        f"in units {c:.4g} x SI the record's terms are reported differently: "
+        + ", ".join(f"{k} {a} -> {b}" for k, (a, b) in flips.items())
+        for c, flips in moved.items() if set(flips) - noise_flips
+    ]
+    bad = {k: v for k, v in over.items() if v > roundoff_factor * noise.get(k, 0.0)}
+    problems += [f"{k} moves by {v:.2g} (relative) between units, {noise.get(k, 0.0):.2g} under round-off of the input"
+                 for k, v in sorted(bad.items(), key=lambda kv: -kv[1])[:4]]
+    if problems:
+        return problems, ""
+    notes = []
+    if moved:
+        notes.append(f"{', '.join(sorted({k for f in moved.values() for k in f}))} reported differently between "
+                     "units, as under round-off of the input (a fit that round-off decides)")
+    if over:
+        k = max(over, key=over.get)
+        notes.append(f"equal to {rtol:g} relative except where the fit's own round-off is larger: "
+                     f"{k} moves by {over[k]:.2g} between units, {noise.get(k, 0.0):.2g} under round-off of the input")
+    return [], "; ".join(notes)

@@ -11,10 +11,11 @@ import pytest
 from avbench import estimators
 from avbench.estimators import Estimator
 from avbench.estimators.contract import ContractError, check_estimator
+from avbench.estimators.validation import check_record
 from avbench.cli import main
 
 #: settings that keep the default run fast; the slow run checks every estimator at its defaults
-FAST = {"mle": {"model": "WN+RW", "max_blocks": 4096}}
+FAST = {"mle": {"model": "WN+RW", "max_blocks": 4096}, "gmwm_filtered": {"n_starts": 2}}
 
 
 @pytest.mark.parametrize("name", estimators.names())
@@ -25,7 +26,7 @@ def test_builtin_estimators_keep_the_contract(name):
     assert report.ok, str(report)
     assert [r.check for r in report.results] == [
         "init", "params", "pickle", "fit", "attributes", "uncertainty", "model", "determinism", "bad input",
-        "recovery",
+        "equivariance", "recovery",
     ]
 
 
@@ -96,6 +97,19 @@ class RemembersFirstRecord(_WhiteN):
         return {"N": float(np.sqrt(self._first * dt))}, {}, {}
 
 
+class AbsoluteFloor(_WhiteN):
+    """Fits the record as handed (its own fit, no standardisation) with an absolute floor on N: its
+    answer depends on the unit of the record."""
+
+    def _fit(self, rate, dt):
+        return {"N": max(float(np.sqrt(np.var(rate) * dt)), 1e-6)}, {}, {}
+
+    def fit(self, rate, dt):
+        rate, dt = check_record(rate, dt)
+        self._set_results(*self._fit(rate, dt))
+        return self
+
+
 class AcceptsAnything(_WhiteN):
     def fit(self, rate, dt):
         rate = np.asarray(rate, dtype=float).ravel()
@@ -141,6 +155,7 @@ BROKEN = [
     (VarArgs, "init", "__init__ takes *extra"),
     (FitReturnsNone, "fit", "fit() returned None, expected self"),
     (DegreesPerHour, "recovery", "off by"),
+    (AbsoluteFloor, "equivariance", "coefficient N moves by"),
     (WrongIndex, "attributes", "coefficients_ index ['N', 'K'], expected ['Q', 'N', 'B', 'K', 'R']"),
     (Unseeded, "determinism", "a fresh copy fitted on the same record gave other coefficients"),
     (RemembersFirstRecord, "determinism", "refitting a fitted estimator on another record differs from a fresh fit"),
@@ -188,7 +203,7 @@ class NoSelf(Estimator):
 
 def test_cli_check_estimator(tmp_path, capsys):
     assert main(["check-estimator", "ols"]) == 0
-    assert "all 10 checks passed" in capsys.readouterr().out
+    assert "all 11 checks passed" in capsys.readouterr().out
     f = tmp_path / "my_broken_estimator.py"
     f.write_text(BROKEN_FILE)
     assert main(["check-estimator", f"{f}:NoSelf"]) == 1

@@ -312,6 +312,23 @@ def memoize_allan():
         _MEMO.table = prev
 
 
+def memoized(rate, key, compute):
+    """``compute()``, computed once per array object ``rate`` and ``key`` within :func:`memoize_allan`
+    (every call outside it computes): e.g. the standardised copy of a replicate that
+    :meth:`avbench.estimators.base.Estimator.fit` hands each estimator, so that they share it and
+    its Allan variance."""
+    memo = getattr(_MEMO, "table", None)
+    if memo is None or not isinstance(rate, np.ndarray):
+        return compute()
+    k = ("memoized", id(rate), key)
+    hit = memo.get(k)
+    if hit is not None and hit[0] is rate:
+        return hit[1]
+    value = compute()
+    memo[k] = (rate, value)  # the reference keeps id(rate) from being reused meanwhile
+    return value
+
+
 def _memo_key(rate, dt, taus, overlapping, points_per_decade, noise, confidence):
     if not isinstance(rate, np.ndarray):
         return None
@@ -505,6 +522,12 @@ def skip_gaps(rate, starts):
         yield
     finally:
         _GAPS.table = prev
+
+
+def gap_starts(rate):
+    """The run starts :func:`skip_gaps` registered for this very array object, or None."""
+    hit = (getattr(_GAPS, "table", None) or {}).get(id(rate))
+    return hit[1] if hit is not None and hit[0] is rate else None
 
 
 def _oavar_sums_numpy(S, m):

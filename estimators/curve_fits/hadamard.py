@@ -76,6 +76,9 @@ class HadamardEDFWeightedLS(Estimator):
         Re-weighting iterations (as ``wls_edf``).
     """
 
+    #: the rows' weights sqrt(edf / 2) / AV carry the inverse of the AV's unit
+    diagnostic_units = {"row_scale": -2}
+
     uses_allan_variance = False  # it reads the record through the Hadamard variance, not allan_variance
 
     def __init__(self, *, terms="QNBK", taus="octave", n_iter=5):

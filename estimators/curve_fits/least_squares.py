@@ -168,6 +168,9 @@ class EDFWeightedLS(_AVCurveFit):
     re-weights ``n_iter`` times (rows whose fitted AV is not positive keep the empirical AV).
     """
 
+    #: the rows' weights sqrt(edf / 2) / AV carry the inverse of the AV's unit
+    diagnostic_units = {"row_scale": -2}
+
     def __init__(self, *, terms="QNBKR", taus="all", overlapping=False, n_iter=5):
         super().__init__(terms=terms, taus=taus, overlapping=overlapping)
         self.n_iter = n_iter

@@ -774,6 +774,9 @@ class Whittle(Estimator):
     True
     """
 
+    #: ``beta`` is the fitted ramp's slope per sample (the rate's unit), not an AV coefficient
+    diagnostic_units = {"beta": 1}
+
     def __init__(self, *, terms="QNBKR", bias="flicker", select=True, criterion="bic", n_starts=4, reml=False,
                  spectrum="plain", intervals="wald"):
         self.terms = terms

@@ -429,6 +429,10 @@ class ArmaEM(Estimator):
         ``trajectory`` (DataFrame: sample, N, B, K in SI).
     """
 
+    #: the record's offset and scale (the first chunk's mean and noise level) and the Gauss-Markov
+    #: sigma carry the rate's unit; A, C, Q, R are in the filter's own scaled units
+    diagnostic_units = {"offset": 1, "scale": 1, "sigma_gm": 1}
+
     online = True
 
     def __init__(self, *, terms="NBK", x0=None, tc0=None, init_form="eq63", passes=1, recursive=True,
