@@ -44,16 +44,20 @@ def add_parser(subparsers):
                               description=__doc__.split("\n\n")[0],
                               epilog=__doc__.split("Examples\n--------\n", 1)[1].split("\n\n")[0],
                               formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("file", nargs="+", help="recording(s): .npy .npz .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
+    s.add_argument("file", nargs="+", help="recording(s): .npy .npz .mat .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
     s.add_argument("--fs", type=float, default=None,
                    help="sample rate in Hz (needed when the file has no time stamps; else only checked)")
     s.add_argument("--units", default=None, help="gyro sample units when the format does not say: rad/s, deg/s, deg/h, mrad/s")
     s.add_argument("--accel-units", default=None, help="accelerometer sample units when the format does not say: m/s^2, g, mg, ug")
     s.add_argument("--column", default=None, help="one gyro column of a table: name or 0-based index")
-    s.add_argument("--gyro", default=None, help="gyro columns of a table, comma-separated names or indices")
-    s.add_argument("--accel", default=None, help="accelerometer columns of a table, comma-separated")
-    s.add_argument("--time", default=None, help="time column of a table (default: one named t/time/timestamp; 'none' to ignore it)")
-    s.add_argument("--time-units", default="s", choices=["s", "ms", "us", "ns"], help="units of the time column (default s)")
+    s.add_argument("--gyro", default=None, help="gyro columns of a table (comma-separated names or indices), or the "
+                   "gyro array(s) of an .npz/.mat by name")
+    s.add_argument("--accel", default=None, help="accelerometer columns of a table, or array(s) of an .npz/.mat, comma-separated")
+    s.add_argument("--time", default=None, help="time column (or .npz/.mat array) (default: one named t/time/timestamp "
+                   "or with a time unit in its header; 'none' to ignore it)")
+    s.add_argument("--time-units", default=None, choices=["s", "ms", "us", "ns"],
+                   help="units of the time column (default: the header's [unit], else from the stamps' magnitude "
+                        "and step, else s)")
     s.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
     s.add_argument("--method", default=None,
                    help="comma-separated estimator names (avbench estimators; default: the methods safe on real records, "
