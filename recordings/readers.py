@@ -442,7 +442,10 @@ def _read_text(path, gyro, accel, time_column, time_units):
         if k > 1 and len(cand) == k and all(cand) and _is_header(cand, decimal):
             names = cand
     n_cols = len(names) if names else len(_split_cells(lines[1] if header and len(lines) > 1 else lines[0], sep))
-    t_idx, picks = _choose_columns(path, names or [], n_cols, gyro, accel, time_column)
+    try:  # the time column, to read it as int64 when it holds integers; a bad choice is said after parsing
+        t_idx = _choose_columns(path, names or [], n_cols, gyro, accel, time_column)[0]
+    except ValueError:
+        t_idx = None
     dtype = np.float64
     if t_idx is not None and _integer_column(lines[int(header):], sep, t_idx):
         key = names[t_idx] if names else t_idx
@@ -473,9 +476,10 @@ def _read_text(path, gyro, accel, time_column, time_units):
     arr_cols = [df.iloc[:, i].to_numpy() for i in range(df.shape[1])]
     nm = names or []
     label = (lambda i: nm[i]) if nm else (lambda i: f"column {i}")
-    for i in [t_idx, *[i for i, _ in picks]]:
-        if i is not None and arr_cols[i].dtype.kind == "f":
+    for i in range(n_cols):  # the file's own faults first, then the choice of columns
+        if arr_cols[i].dtype.kind == "f":
             _blank_line_check(path, arr_cols[i], lead + int(header), label(i))
+    t_idx, picks = _choose_columns(path, nm, n_cols, gyro, accel, time_column)
     return _columns_recording(path, "text", arr_cols, nm, t_idx, picks, time_units)
 
 
@@ -596,9 +600,10 @@ def _arrays_recording(path, fmt, arrays: dict, gyro, accel, time_column, time_un
 
     ``gyro``/``accel``: array names (comma-separated; each a 1-D array or an n x k one, whose columns
     are the axes x, y, z); ``time_column``: the time array. Without them, arrays named like a gyro
-    (``gyro``, ``omega``, ``w``, ``angular_velocity``, ...) or an accelerometer (``accel``, ``acc``,
-    ``a``, ``alpha``, ...) and a time array (``t``, ``time``, ``timestamp``) are found; any doubt is an
-    error listing every variable found with its shape."""
+    (``gyro``, ``omega``, ``angular_velocity``, ...) or an accelerometer (``accel``, ``acc``,
+    ``alpha``, ...) and a time array (``t``, ``time``, ``timestamp``) are found; any doubt is an
+    error listing every variable found with its shape. One-letter names (``a``, ``w``) are never
+    guessed."""
     usable = {k: v for k, v in arrays.items() if _as_samples(v) is not None}
     listing = ", ".join(_describe(k, v) for k, v in arrays.items()) or "no variables"
 
@@ -622,10 +627,10 @@ def _arrays_recording(path, fmt, arrays: dict, gyro, accel, time_column, time_un
         t_name = next((k for k in usable if k.lower() in _TIME_NAMES), None)
     if not g and not a:
         stem = {k: re.sub(r"^.*\.", "", k) for k in usable if k != t_name}  # a struct's field: its last name
-        g = [k for k, b in stem.items() if re.fullmatch(r"(gyro|gyr|gyros|gyroscope|omega|w|angular_velocity|ang_vel|"
-                                                          r"rate|rates|wm)", b, re.I)]
-        a = [k for k, b in stem.items() if re.fullmatch(r"(accel|acc|accelerometer|a|alpha|linear_acceleration|lin_acc|"
-                                                          r"fb|f|specific_force)", b, re.I)]
+        g = [k for k, b in stem.items() if re.fullmatch(r"(gyro|gyr|gyros|gyroscope|omega|angular_velocity|ang_vel|"
+                                                          r"rates|wm)", b, re.I)]
+        a = [k for k, b in stem.items() if re.fullmatch(r"(accel|acc|accelerometer|accels|alpha|linear_acceleration|"
+                                                          r"lin_acc|specific_force)", b, re.I)]
         if not g and not a:
             cand = [k for k in usable if k != t_name and k.lower() not in ("fs", "dt", "rate_hz")]
             if len(cand) == 1 and _as_samples(arrays[cand[0]]).shape[1] == 1:
