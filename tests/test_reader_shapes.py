@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 from avbench.cli import main
 from avbench.recordings.readers import header_unit, read_recording, time_in_seconds
 
-N = 12_000
+N = 6_000
 T0_NS = 1_403_636_579_758_555_392  # EuRoC MH_01's first stamp
-GAP_AT = 7_000
+GAP_AT = 3_500
 HEADER = ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
           "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]")
 
@@ -97,6 +97,18 @@ def test_every_shape_gives_the_plain_npy_coefficients(imu, reference, tmp_path, 
     assert [g["before_sample"] for g in got["timing"]["gaps"]] == [GAP_AT]
     assert [v if v is not None else None for *_, v in _coefficients(got)] == \
         [v if np.isfinite(v) else None for *_, v in want]
+    # the printed table: every coefficient the method gives with an interval is shown with it
+    from avbench.recordings.report import screen_tables
+
+    screen = screen_tables(got)
+    for sensor, sd in got["sensors"].items():
+        for axis, ad in sd["axes"].items():
+            for c, e in ad["methods"]["wls"]["coefficients"].items():
+                cell = screen[sensor].loc[(axis, "wls"), f"{c} ({e['unit']})"]
+                if e["flag"] == "ok" and e.get("conf_int_si") and e["conf_int_si"][0] > 0:
+                    assert cell.endswith("]") and " [" in cell, cell
+                elif e["flag"] == "not modelled":
+                    assert cell == "-"
 
     npz = tmp_path / "named.npz"
     np.savez(npz, gyro=gyro, accel=accel, t=_seconds(t))

@@ -54,7 +54,12 @@ def _move(sensors, dt, start_s, stop_s, rate=0.05, seed=0):
     return [SensorRecord("gyro", "rad/s", gyro), SensorRecord("accel", "m/s^2", accel)]
 
 
-@pytest.mark.parametrize("name", presets.names())
+#: the default run: one preset of each family (the slow run takes every preset)
+QUICK_PRESETS = ["SRS2000", "ADIS16405_X", "FOG1"]
+
+
+@pytest.mark.parametrize("name", [n if n in QUICK_PRESETS else pytest.param(n, marks=pytest.mark.slow)
+                                  for n in presets.names()])
 def test_no_alarm_on_simulated_presets_at_rest(name):
     """False alarms on every preset (10 min, 7 channels; 30 min and 3 seeds in results/README.md): none. Under Gaussian window
     differences the level test alarms with probability 1e-6 per channel; the spread ratio of a static
@@ -90,8 +95,8 @@ def test_motion_throughout_is_found_by_the_spread():
 def test_estimate_says_not_static_and_why_fits_are_poor(tmp_path, capsys):
     from avbench.cli import main
 
-    dt, sensors = _rest("ADIS16405_X", 600.0, 5)
-    moved = _move(sensors, dt, 200.0, 300.0)
+    dt, sensors = _rest("ADIS16405_X", 180.0, 5)
+    moved = _move(sensors, dt, 60.0, 120.0)
     f = tmp_path / "flight.npz"
     np.savez(f, gyro=np.column_stack(list(moved[0].axes.values())), accel=np.column_stack(list(moved[1].axes.values())))
     assert main(["estimate", str(f), "--fs", "100", "--units", "rad/s", "--accel-units", "m/s^2",
@@ -99,6 +104,8 @@ def test_estimate_says_not_static_and_why_fits_are_poor(tmp_path, capsys):
     out, err = capsys.readouterr()
     assert "NOT STATIC" in err and "NOT STATIC" in out
     assert "gyro" in out.split("NOT STATIC", 1)[1].split("\n", 1)[0]
+    # the printed table (same run): the unit in the column name, the legend of the intervals
+    assert "N (deg/sqrt(h))" in out and "value [95 % interval]" in out
 
 
 @pytest.mark.skipif(not os.environ.get("AVBENCH_REAL_DATA"), reason="AVBENCH_REAL_DATA is not set: the real ADIS runs are optional")
