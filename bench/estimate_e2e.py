@@ -7,9 +7,9 @@
 * :func:`measure` -- the wall time of ``avbench estimate FILE`` with its defaults (every output: the
   screen table, CSV, JSON, the two figures) in a fresh process, after one untimed run on a short file
   of the same shape (numba's disk cache warm, as for any user's second run); then, in this process, the
-  same pipeline step by step: reading the file, timing + SI, the static check, the six Allan variances,
-  each default method's fits over the six axes, and within the fits, by a profile of one more pass,
-  the share of the fit check (:mod:`avbench.estimators.allan.fit_check`, its AV covariance) and of
+  same pipeline step by step: reading the file, timing + SI, the static check, the six Allan variances;
+  each default method's fits over the six axes as the timed run itself reports them; and within the
+  fits, by a profile of one more pass, the share of the fit check (:mod:`avbench.estimators.allan.fit_check`, its AV covariance) and of
   GMWM's model evaluations; what is left of the wall time is imports, figures and writing.
 
 ``python -m avbench.bench.estimate_e2e CASE`` (a key of :data:`CASES`) runs one measurement and prints it as JSON.
@@ -64,14 +64,21 @@ def write_euroc(path, hours: float, fs: float, seed: int = 0) -> Path:
     return Path(path)
 
 
-def _wall(path: Path, out: Path) -> float:
+def _wall(path: Path, out: Path) -> tuple[float, dict]:
+    """(wall seconds of ``avbench estimate FILE`` in a fresh process, seconds per method summed over the
+    axes as the command itself reports them: its ``# gyro x gmwm: 1.2 s`` lines)."""
+    import re
+
     cmd = [sys.executable, "-m", "avbench.cli", "estimate", str(path), "--out", str(out), "--no-progress"]
     t0 = time.perf_counter()
     r = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "MPLBACKEND": "Agg"})
     wall = time.perf_counter() - t0
     if r.returncode != 0:
         raise RuntimeError(f"avbench estimate failed: {r.stderr[-800:]}")
-    return wall
+    per: dict = {}
+    for m in re.finditer(r"^# (?:gyro|accel) \S+ (\S+): ([\d.]+) s", r.stdout, re.M):
+        per[m.group(1)] = per.get(m.group(1), 0.0) + float(m.group(2))
+    return wall, per
 
 
 def _steps(path: Path) -> dict:
@@ -99,15 +106,7 @@ def _steps(path: Path) -> dict:
         for x in s.axes.values():
             scaled_allan(x, timing.dt, timing.starts)
     out["six_avs_s"] = time.perf_counter() - t0
-    per_method = {m: 0.0 for m in DEFAULT_METHODS}
-    t0 = time.perf_counter()
-    for s in sensors:
-        for x in s.axes.values():
-            for m, f in fit_axis(x, timing.dt, timing.starts, list(DEFAULT_METHODS)).items():
-                per_method[m] += f.seconds
-    out["fits_s"] = time.perf_counter() - t0
-    out["fits_per_method_s"] = per_method
-    prof = cProfile.Profile()
+    prof = cProfile.Profile()  # shares only: the profiler slows Python-level calls, not the ratios much
     prof.enable()
     for s in sensors:
         for x in s.axes.values():
@@ -137,14 +136,15 @@ def measure(case: str) -> dict:
         t_write = time.perf_counter() - t0
         warm = write_euroc(d / "warm.csv", 120 / 3600, fs, seed=1)
         _wall(warm, d / "warm_out")  # numba's disk cache and the OS file cache warm, as on a second run
-        wall = _wall(f, d / "out")
+        wall, per_method = _wall(f, d / "out")
         steps = _steps(f)
         imports = subprocess.run([sys.executable, "-c", "import time; t=time.perf_counter(); "
                                   "import avbench.recordings.estimate, avbench.estimators, matplotlib.pyplot; "
                                   "print(time.perf_counter()-t)"], capture_output=True, text=True, check=True)
         out = {"case": case, "hours": hours, "fs": fs, "n": int(round(hours * 3600 * fs)), "target_s": target,
                "wall_s": wall, "file_mb": f.stat().st_size / 2**20, "write_s": t_write,
-               "imports_s": float(imports.stdout.strip()), **steps, "loadavg_after": list(os.getloadavg())}
+               "imports_s": float(imports.stdout.strip()), **steps, "fits_per_method_s": per_method,
+               "fits_s": sum(per_method.values()), "loadavg_after": list(os.getloadavg())}
     known = out["imports_s"] + out["read_s"] + out["timing_si_s"] + out["static_check_s"] + out["six_avs_s"] + out["fits_s"]
     out["rest_s"] = wall - known  # figures, tables, JSON/CSV writing, and the payload
     return out
