@@ -112,11 +112,19 @@ def _resolve_length(k: float, av, scale: float) -> float | None:
     return float(48 * avar.min() / k**2)
 
 
-def _length_text(seconds) -> str:
+def _duration(seconds: float) -> str:
+    return f"{seconds / 3600:.3g} h" if seconds >= 3600 else f"{seconds / 60:.3g} min"
+
+
+def _length_text(seconds, record_s) -> str:
+    """The record length that would resolve a random walk at the bound (a lower limit: a smaller one
+    needs longer); where that is no longer than this record, the record already says it is smaller."""
     if seconds is None:
         return ""
-    return f"; a record of at least {seconds / 3600:.3g} h would resolve it" if seconds >= 3600 else \
-        f"; a record of at least {seconds / 60:.3g} min would resolve it"
+    if record_s is not None and seconds <= record_s:
+        return (f"; a random walk at this bound would show within {_duration(seconds)}, so the true one is smaller: "
+                f"resolving it needs a record longer than this one ({_duration(record_s)})")
+    return f"; a record of at least {_duration(seconds)} would resolve it (longer if it is smaller than the bound)"
 
 
 def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) -> dict[str, tuple]:
@@ -139,13 +147,13 @@ def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) 
             av = (avs or {}).get(sensor, {}).get(axis)
             v, why = _axis_value(e, md, coef, sensor, to_si)
             if why is not None and v is None and av is not None:
-                v, why = av_bound(coef, *av), why + "; no interval from the method: the bound the AV allows"
+                v, why = av_bound(coef, *av), why + " and the method gives no interval: the bound the AV allows"
             if v is None:
                 fail = f"{e['flag']}: {md['failure']}" if md.get("failure") else e["flag"]
                 raise ValueError(f"{option}: {method} gives no {coef} for {sensor} axis {axis} ({fail}); expected "
                                  "a method that models it (choose one with --filter-method)")
             if why is not None and coef == "K" and av is not None:
-                why += _length_text(_resolve_length(v, *av))
+                why += _length_text(_resolve_length(v, *av), av[0].n_samples * av[0].dt)
             if best is None or v > best[0]:
                 best = (v, axis, why)
         out[key] = best
@@ -164,7 +172,9 @@ def _axis_value(e, md, coef, sensor, to_si):
     if ev is not None and not ev["present"]:
         up = to_si(coef, ev["upper"], e["unit"], sensor) if ev.get("upper") is not None else hi
         return up, "not resolved (its evidence): the upper end of its interval"
-    if e["si"] == 0.0 or (ci is not None and ci[0] is not None and ci[0] <= 0):
+    if e["si"] == 0.0:
+        return hi, "zero (no random walk seen)" + (": the upper end of its interval" if hi is not None else "")
+    if ci is not None and ci[0] is not None and ci[0] <= 0:
         return hi, "its interval reaches zero: the upper end of the interval"
     if md.get("poor_fit"):
         return (hi if hi is not None else None), "the fit is poor: the upper end of its interval"
