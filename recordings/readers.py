@@ -558,7 +558,8 @@ def _read_npz(path, gyro, accel, time_column, time_units):
         arr = z["data"]
     else:
         arrays = [k for k in keys if k not in ("columns", "fs", time_key)]
-        if len(arrays) != 1 or gyro is not None or accel is not None or (time_column is not None and time_key is None):
+        named = [x for x in (*_split(gyro), *_split(accel), *_split(time_column)) if x in keys]
+        if len(arrays) != 1 or named:  # named arrays; a single array's columns are chosen as a table's
             return _arrays_recording(path, "npz", z, gyro, accel, time_column, time_units)
         arr = z[arrays[0]]
     arr = _numeric(arr, path)
