@@ -244,7 +244,9 @@ def run(args) -> int:
 
     from avbench.recordings.static import static_check
 
-    still = static_check(sensors, dt)  # said before the fits, which still run
+    # the AV engine, asked once per axis: the static check, the yaml's bounds, the AV table and the figure use it
+    all_avs = {s.sensor: {a: scaled_allan(x, dt, timing.starts) for a, x in s.axes.items()} for s in sensors}
+    still = static_check(sensors, dt, all_avs)  # said before the fits, which still run
     if not still["static"] and not args.json:
         print("# NOT STATIC: the record does not look like a sensor at rest -- " + "; ".join(still["reasons"][:4]) +
               ("; ..." if len(still["reasons"]) > 4 else "") + ". The fits below assume rest: poor fits are expected.",
@@ -282,8 +284,6 @@ def run(args) -> int:
         extra["between_runs"]["inflate"] = inflate
     data = report.payload([r.path for r, _, _ in loaded], timing, sensors, fits, extra)
 
-    # the AV engine, asked once per axis: the yaml's bounds, the AV table and the figure use it
-    all_avs = {s.sensor: {a: scaled_allan(x, dt, timing.starts) for a, x in s.axes.items()} for s in sensors}
     # everything that can refuse is checked before anything is written
     yaml_text = None
     if args.kalibr is not None or args.format:

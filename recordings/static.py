@@ -47,7 +47,9 @@ def level_threshold(n_windows: int, level: float = FAMILY_LEVEL) -> float:
     return float(stats.norm.isf(level / (2 * max(n_windows, 1))))
 
 
-def _channel(x, dt, n_w):
+def _channel(x, dt, n_w, av=None):
+    """The two statistics of one channel; ``av``: its octave AV already computed (an AllanResult of the
+    record times any scale: the ratio does not depend on it), else computed here."""
     k = x.size // n_w
     if k < 4:
         return None
@@ -56,7 +58,10 @@ def _channel(x, dt, n_w):
     from avbench.estimators.allan.variance import allan_variance
 
     ms = _SHORT * 2 ** np.arange(int(math.log2(max(n_w // _SHORT, 1))) + 1)
-    av = allan_variance(np.asarray(x, dtype=np.float64), dt, ms * dt).avar
+    if av is not None and all(np.any(av.m == m) for m in ms):
+        av = np.array([av.avar[np.flatnonzero(av.m == m)[0]] for m in ms], dtype=float)
+    else:
+        av = allan_variance(np.asarray(x, dtype=np.float64), dt, ms * dt).avar
     white = av[0] * ms[0] / ms  # the short-scale AV extrapolated as white noise
     with np.errstate(divide="ignore", invalid="ignore"):
         r = np.where(white > 0, av / white, np.where(av > 0, np.inf, 1.0))
@@ -81,17 +86,19 @@ def _spans(windows, T) -> list[tuple[float, float]]:
     return out
 
 
-def static_check(sensors, dt: float) -> dict:
+def static_check(sensors, dt: float, avs=None) -> dict:
     """The check of the module docstring on SI channels (``sensors``: list of
     :class:`~avbench.recordings.sensors.SensorRecord`), as a JSON-ready dict: ``static`` (bool),
     ``reasons`` (sentences), per channel the spread ratio, the largest level z and its threshold, and
-    ``moved`` (time spans, s, where a level changed)."""
+    ``moved`` (time spans, s, where a level changed). ``avs``: ``{sensor: {axis: (AllanResult, scale)}}``
+    already computed by the pipeline (:func:`~avbench.recordings.fit.scaled_allan`), reused here."""
     n_w = max(MIN_WINDOW, int(round(WINDOW_S / dt)))
     T = n_w * dt
-    channels = {}
+    channels, given = {}, {}
     for s in sensors:
         for axis, x in s.axes.items():
             channels[f"{s.sensor} {axis}"] = x
+            given[f"{s.sensor} {axis}"] = ((avs or {}).get(s.sensor, {}).get(axis) or (None,))[0]
         if s.sensor == "accel" and len(s.axes) == 3:
             a = np.sqrt(sum(np.asarray(v, dtype=np.float64) ** 2 for v in s.axes.values()))
             channels["accel magnitude"] = a
@@ -99,7 +106,7 @@ def static_check(sensors, dt: float) -> dict:
            "channels": {}, "reasons": [], "moved": []}
     spans_all = []
     for name, x in channels.items():
-        r = _channel(np.asarray(x), dt, n_w)
+        r = _channel(np.asarray(x), dt, n_w, given.get(name))
         if r is None:
             continue
         spans = _spans(r["moved_windows"], T)
