@@ -213,3 +213,18 @@ def test_first_error_is_the_earliest_defect(imu, tmp_path, capsys, defects):
     first = next(d for d in DEFECTS if d in defects)
     assert WORDS[first] in err, (first, err)
     assert not (tmp_path / "imu.yaml").exists()
+
+
+def test_the_benchmark_record_reads_with_no_flag(tmp_path):
+    """bench/estimate_e2e's EuRoC-style CSV: names, units and ns stamps from its header alone."""
+    from avbench.bench.estimate_e2e import write_euroc
+    from avbench.recordings.sensors import to_si
+    from avbench.recordings.timing import timing_of
+
+    f = write_euroc(tmp_path / "imu0.csv", 30 / 3600, 100.0)
+    rec = read_recording(f)
+    assert [(c.sensor, c.axis, c.unit) for c in rec.channels] == \
+        [("gyro", a, "rad/s") for a in "xyz"] + [("accel", a, "m/s^2") for a in "xyz"]
+    timing = timing_of(rec.time, None, rec.n_samples, rec.path)
+    assert rec.n_samples == 3000 and timing.dt == pytest.approx(0.01, rel=1e-12) and timing.n_gaps == 0
+    assert [s.sensor for s in to_si(rec)] == ["gyro", "accel"]
