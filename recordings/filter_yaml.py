@@ -33,7 +33,8 @@ and anything the model omits; with few recordings the interval is wide (t with k
 when the record cannot resolve one. Where an axis's value is not a resolved estimate -- the estimator
 flags it "not resolved", its evidence says the term is not present, it is zero, its interval reaches
 zero, or the fit is poor -- the yaml takes the upper end of its interval (the method's 95 % interval,
-or its evidence bound) and says so in a comment. Where the method gives no interval at all, the
+or its evidence bound) and says so in a comment. Where the fit is poor the model misses the curve and
+its interval is not trusted alone: the larger of it and the AV's own bound (below) is taken. Where the method gives no interval at all, the
 bound comes from the Allan variance itself: every term adds to the AV, so ``K^2 tau / 3 <= AV(tau)``
 and ``N^2 / tau <= AV(tau)`` at every tau; the bound is the smallest over the octave taus of the
 AV's one-sided 95 % chi^2 upper limit turned into the coefficient. For a random walk the comment
@@ -148,6 +149,10 @@ def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) 
             v, why = _axis_value(e, md, coef, sensor, to_si)
             if why is not None and v is None and av is not None:
                 v, why = av_bound(coef, *av), why + " and the method gives no interval: the bound the AV allows"
+            elif md.get("poor_fit") and v is not None and av is not None:  # the model misses the curve: its
+                b = av_bound(coef, *av)                                    # interval is not to be trusted alone
+                if b is not None and b > v:
+                    v, why = b, (why or "the fit is poor") + "; the bound the AV allows is larger: taken"
             if v is None:
                 fail = f"{e['flag']}: {md['failure']}" if md.get("failure") else e["flag"]
                 raise ValueError(f"{option}: {method} gives no {coef} for {sensor} axis {axis} ({fail}); expected "
