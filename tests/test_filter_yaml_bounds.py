@@ -90,3 +90,15 @@ def test_shown_value_by_flag():
                        "B", "gyro") == "2 (+- 0.5)"
     assert shown_value({**e, "flag": "not modelled", "value": None}, "B", "gyro") == "-"
     assert shown_value({k: v for k, v in e.items() if k != "conf_int_si"}, "B", "gyro") == "2 (no interval)"
+
+
+def test_a_poor_fit_takes_the_larger_of_its_interval_and_the_av_bound():
+    rng = np.random.default_rng(8)
+    dt, n = 0.01, 60_000
+    x = 1e-3 / np.sqrt(dt) * rng.standard_normal(n) + np.cumsum(5e-5 * np.sqrt(dt) * rng.standard_normal(n))
+    av = allan_variance(x, dt, "octave")
+    tight = _payload({"x": _entry(1e-7, ci=(1e-8, 2e-7))}, poor=True)  # a poor model's interval far too low
+    v, _, why = filter_yaml.filter_choices(tight, "m", avs={"gyro": {"x": (av, 1.0)}})["gyroscope_random_walk"]
+    assert v == filter_yaml.av_bound("K", av) > 2e-7 and "the bound the AV allows is larger" in why
+    v, _, why = filter_yaml.filter_choices(tight, "m")["gyroscope_random_walk"]  # without the AV: the interval
+    assert v == 2e-7 and "poor" in why
