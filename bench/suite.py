@@ -31,6 +31,9 @@ Every speed claim is a ratio against a baseline timed in the same loop:
 * ``ReadRecording`` -- reading a 7-column CSV (time + 6 IMU axes) through ``avbench estimate``'s
   reader (:mod:`avbench.recordings.readers`) against a bare ``pandas.read_csv`` of the same file,
   and the reader's peak memory over the numeric data (:mod:`avbench.bench.recordings`).
+* ``EstimateEndToEnd`` -- ``avbench estimate`` with its defaults on an EuRoC-style CSV, whole process
+  (reading included): 1 h at 100 Hz and 2 h at 400 Hz, 6 axes, beside the cost of reading the file,
+  of the six Allan variances and of each default method's fits (:mod:`avbench.bench.estimate_e2e`).
 * ``EstimateMemory`` -- peak RSS of ``avbench estimate`` (nnls_rel, gmwm) on an n-sample .npy in a
   child process, against the record's size, up to 5e7 samples (400 MB).
 * ``LvStudy`` -- wall time of ``avbench run studies/lv2015.toml`` with ``--jobs 1`` and ``--jobs 2``
@@ -72,6 +75,7 @@ __all__ = [
     "FirstCall",
     "ReadRecording",
     "EstimateMemory",
+    "EstimateEndToEnd",
     "FitCost",
     "ALL",
 ]
@@ -867,6 +871,22 @@ class ReadRecording:
         return read_peak(self.path, n)
 
 
+class EstimateEndToEnd:
+    """``avbench estimate FILE`` (defaults) from a fresh process, and where its time goes."""
+
+    params = [["1h_100Hz", "2h_400Hz"]]
+    quick_params = [["quick_2min_100Hz"]]
+    param_names = ["case"]
+
+    def setup(self, case):
+        pass
+
+    def track_end_to_end(self, case):
+        from avbench.bench.estimate_e2e import measure
+
+        return measure(case)
+
+
 class EstimateMemory:
     """Peak RSS of ``avbench estimate`` on an n-sample .npy (child process), against the record's size."""
 
@@ -884,8 +904,8 @@ class EstimateMemory:
 
 
 ALL = [Generation, AllanOverlapping, Deviations, AllanEngine, AllanKernel, EstimatorScaling, FitCost, OnlineKernels,
-       OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory, LvStudy,
-       StartUp, FirstCall]
+       OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory,
+       EstimateEndToEnd, LvStudy, StartUp, FirstCall]
 
 
 def classes(quick: bool) -> list:

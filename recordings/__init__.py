@@ -2,7 +2,8 @@
 
 One module per step, in the order the data flows:
 
-1. :mod:`~avbench.recordings.readers` -- a file (CSV/text, NPY/NPZ, ROS 1/ROS 2 bag, PX4 ULog) becomes
+1. :mod:`~avbench.recordings.readers` -- a file (CSV/text incl. EuRoC/TUM-VI, NPY/NPZ, MATLAB .mat, ROS 1/ROS 2
+   bag, PX4 ULog) becomes
    a :class:`~avbench.recordings.readers.Recording`: named channels in the file's own units, their
    sensor (gyro/accel), the units the format defines (if any) and the time stamps (if any);
 2. :mod:`~avbench.recordings.timing` -- time stamps (or ``--fs``) become a
@@ -10,6 +11,7 @@ One module per step, in the order the data flows:
    split the record into gap-free runs;
 3. :mod:`~avbench.recordings.sensors` -- channels in SI units (through :mod:`avbench.noise_models.units`, the
    one units module), grouped by sensor and axis;
+3b. :mod:`~avbench.recordings.static` -- does the record look like a sensor at rest (said before the fits);
 4. :mod:`~avbench.recordings.fit` -- every estimator on every axis, gap-aware (clusters that straddle a
    gap are left out: :func:`avbench.estimators.allan.variance.allan_variance_gaps`), failures kept as data, several
    recordings pooled and tested for agreement;

@@ -44,16 +44,20 @@ def add_parser(subparsers):
                               description=__doc__.split("\n\n")[0],
                               epilog=__doc__.split("Examples\n--------\n", 1)[1].split("\n\n")[0],
                               formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("file", nargs="+", help="recording(s): .npy .npz .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
+    s.add_argument("file", nargs="+", help="recording(s): .npy .npz .mat .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
     s.add_argument("--fs", type=float, default=None,
                    help="sample rate in Hz (needed when the file has no time stamps; else only checked)")
     s.add_argument("--units", default=None, help="gyro sample units when the format does not say: rad/s, deg/s, deg/h, mrad/s")
     s.add_argument("--accel-units", default=None, help="accelerometer sample units when the format does not say: m/s^2, g, mg, ug")
     s.add_argument("--column", default=None, help="one gyro column of a table: name or 0-based index")
-    s.add_argument("--gyro", default=None, help="gyro columns of a table, comma-separated names or indices")
-    s.add_argument("--accel", default=None, help="accelerometer columns of a table, comma-separated")
-    s.add_argument("--time", default=None, help="time column of a table (default: one named t/time/timestamp; 'none' to ignore it)")
-    s.add_argument("--time-units", default="s", choices=["s", "ms", "us", "ns"], help="units of the time column (default s)")
+    s.add_argument("--gyro", default=None, help="gyro columns of a table (comma-separated names or indices), or the "
+                   "gyro array(s) of an .npz/.mat by name")
+    s.add_argument("--accel", default=None, help="accelerometer columns of a table, or array(s) of an .npz/.mat, comma-separated")
+    s.add_argument("--time", default=None, help="time column (or .npz/.mat array) (default: one named t/time/timestamp "
+                   "or with a time unit in its header; 'none' to ignore it)")
+    s.add_argument("--time-units", default=None, choices=["s", "ms", "us", "ns"],
+                   help="units of the time column (default: the header's [unit], else from the stamps' magnitude "
+                        "and step, else s)")
     s.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
     s.add_argument("--method", default=None,
                    help="comma-separated estimator names (avbench estimators; default: the methods safe on real records, "
@@ -252,16 +256,28 @@ def run(args) -> int:
     column = args.column if args.column is not None else None
     stem = (rec.path.stem or rec.path.name) + (f"_{column}" if column is not None else "") + \
         ("_combined" if len(loaded) > 1 else "")
+    if args.kalibr is not None or args.format:  # checked from the file to the fit: the yaml's needs before any fit
+        filter_yaml.check_sensors([s.sensor for s in sensors], "--kalibr" if args.kalibr else "--format")
     out = prepare_out_dir(args.out, "--out", _outputs(stem, sensors, args))
     dt = timing.dt
     _check_deviations_feasible(args.deviation, timing.n_samples, timing.starts)
 
+    from avbench.recordings.static import static_check
+
+    # the AV engine, asked once per axis: the static check, the yaml's bounds, the AV table and the figure use it
+    all_avs = {s.sensor: {a: scaled_allan(x, dt, timing.starts) for a, x in s.axes.items()} for s in sensors}
+    still = static_check(sensors, dt, all_avs)  # said before the fits, which still run
+    if not still["static"] and not args.json:
+        print("# NOT STATIC: the record does not look like a sensor at rest -- " + "; ".join(still["reasons"][:4]) +
+              ("; ..." if len(still["reasons"]) > 4 else "") + ". The fits below assume rest: poor fits are expected.",
+              file=sys.stderr)
     n_fits = sum(len(s.axes) for s in sensors) * len(methods)
     fits: dict = {}
     with tqdm(total=n_fits, desc="fitting", unit="fit", disable=not progress, leave=False) as bar:
         for s in sensors:
             fits[s.sensor] = {a: fit_axis(x, dt, timing.starts, methods, settings, bar) for a, x in s.axes.items()}
-    extra = {"format": rec.format, "topic": rec.topic, "time_source": rec.time_source, "notes": rec.notes}
+    extra = {"format": rec.format, "topic": rec.topic, "time_source": rec.time_source, "notes": rec.notes,
+             "static_check": still}
     if len(loaded) > 1:
         extra["combine"] = {}
         for s_i, s in enumerate(sensors):
@@ -291,19 +307,19 @@ def run(args) -> int:
     # everything that can refuse is checked before anything is written
     yaml_text = None
     if args.kalibr is not None or args.format:
-        values = filter_yaml.filter_values(data, filter_method, "--kalibr" if args.kalibr else "--format")
+        choices = filter_yaml.filter_choices(data, filter_method, "--kalibr" if args.kalibr else "--format", all_avs)
         style = args.format or "kalibr"
-        yaml_text = filter_yaml.kalibr_yaml(values, timing.fs, rec.topic, filter_method,
+        yaml_text = filter_yaml.kalibr_yaml(choices, timing.fs, rec.topic, filter_method,
                                             [r.path for r, _, _ in loaded], inflate, style)
         data["filter_yaml"] = {"method": filter_method, "inflate": dict(inflate) if isinstance(inflate, dict) else list(inflate),
-                               "values_si": {k: v for k, (v, _) in values.items()}}
+                               "values_si": {k: v for k, (v, _, _) in choices.items()},
+                               "bounds": {k: why for k, (_, _, why) in choices.items() if why}}
     tables = report.tables(data)
     av_rows, figs, devs = [], [], {}
     for s in sensors:
-        avs = {}
+        avs = all_avs[s.sensor]
         for a, x in s.axes.items():
-            av, scale = scaled_allan(x, dt, timing.starts)
-            avs[a] = (av, scale)
+            av, scale = avs[a]
             frame = av.to_frame()
             with np.errstate(over="ignore", under="ignore"):
                 for col in ("avar", "ci_low", "ci_high"):
@@ -357,6 +373,8 @@ def run(args) -> int:
 
 
 def _print_summary(data, tables, timing, fits, rec):
+    from avbench.recordings import report
+
     src = ", ".join(data["sources"])
     joins = int(np.isnan(timing.gap_seconds).sum())  # --combine: file boundaries
     gaps = (f", {timing.n_gaps - joins} gap(s) ({np.nansum(timing.gap_seconds):.3g} s missing)" if timing.n_gaps - joins else "") + \
@@ -366,19 +384,27 @@ def _print_summary(data, tables, timing, fits, rec):
           f"from {timing.source}{jit}{gaps}" + (f"; topic {rec.topic}" if rec.topic else ""))
     for note in rec.notes:
         print(f"# note: {note}")
+    still = data.get("static_check")
+    if still is not None and not still["static"]:
+        print("# NOT STATIC: " + "; ".join(still["reasons"]) + " -- the fits assume a sensor at rest; "
+              "a POOR FIT below is expected for this reason")
+    screen = report.screen_tables(data)
+    print("# each coefficient: value [95 % interval]; '< x': not resolved by this record, x its upper 95 % bound; "
+          "'(+- s)': a standard error only; '-': not in the method's model")
     for sensor, table in tables.items():
         sd = data["sensors"][sensor]
         print(f"\n## {sensor} (samples in {sd['units_in']}): {', '.join(f'{c} = {n}' for c, n in sd['terms'].items())}")
-        with pd.option_context("display.float_format", "{:.4g}".format, "display.width", 200,
-                               "display.max_columns", 20):
-            print(table.to_string())
+        with pd.option_context("display.width", 250, "display.max_columns", 20, "display.max_colwidth", 120):
+            print(screen[sensor].to_string())
     for sensor, per_axis in fits.items():
         for axis, per_method in per_axis.items():
             for name, f in per_method.items():
                 md = data["sensors"][sensor]["axes"][axis]["methods"][name]
                 extra = [f"failed: {md['failure']}"] if md["failure"] else []
                 if md["poor_fit"]:
-                    extra.append("POOR FIT: the model misses the AV curve beyond its intervals")
+                    extra.append("POOR FIT: the model misses the AV curve beyond its intervals" +
+                                 (" (the record does not look static: see NOT STATIC above)"
+                                  if still is not None and not still["static"] else ""))
                 extra += md["warnings"][:2]
                 print(f"# {sensor} {axis} {name}: {f.seconds:.1f} s" + (f"; {'; '.join(extra)}" if extra else ""))
     if "combine" in data:

@@ -27,7 +27,7 @@ __all__ = ["check_file", "check_path_kind", "load_npy", "load_npz", "is_header_r
 _NONFINITE_WORDS = {"nan", "+nan", "-nan", "inf", "+inf", "-inf", "infinity", "+infinity", "-infinity"}
 
 
-_EXPECTED = "expected a recording file (.npy, .npz, .csv, .txt, .dat, .tsv, .bag, .ulg) or a ROS 2 bag folder"
+_EXPECTED = "expected a recording file (.npy, .npz, .mat, .csv, .txt, .dat, .tsv, .bag, .ulg) or a ROS 2 bag folder"
 
 
 def check_path_kind(path, allow_dir: bool = False, expected: str = _EXPECTED) -> Path:

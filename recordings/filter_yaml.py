@@ -28,13 +28,28 @@ variation of the sensor's noise under the conditions the recordings span (warm-u
 mounting, the temperatures they happened at), plus the uncertainty of the mean. What it does not:
 temperatures, ages and vibration the recordings did not see, dynamics (g-sensitivity, scale factor),
 and anything the model omits; with few recordings the interval is wide (t with k - 2 dof).
+
+**A yaml from a short record** (:func:`filter_choices`). A filter needs a positive random walk even
+when the record cannot resolve one. Where an axis's value is not a resolved estimate -- the estimator
+flags it "not resolved", its evidence says the term is not present, it is zero, its interval reaches
+zero, or the fit is poor -- the yaml takes the upper end of its interval (the method's 95 % interval,
+or its evidence bound) and says so in a comment. Where the fit is poor the model misses the curve and
+its interval is not trusted alone: the larger of it and the AV's own bound (below) is taken. Where the method gives no interval at all, the
+bound comes from the Allan variance itself: every term adds to the AV, so ``K^2 tau / 3 <= AV(tau)``
+and ``N^2 / tau <= AV(tau)`` at every tau; the bound is the smallest over the octave taus of the
+AV's one-sided 95 % chi^2 upper limit turned into the coefficient. For a random walk the comment
+also gives the record length that would resolve it: its line ``K^2 tau / 3`` must rise to 4 times
+the AV's floor at a tau of at most a quarter of the record, so ``T >= 48 AV_min / K^2`` with K at the
+bound -- a lower limit (a smaller true K needs longer).
 """
 
 from __future__ import annotations
 
 import math
 
-__all__ = ["KEYS", "filter_values", "kalibr_yaml", "parse_inflate"]
+import numpy as np
+
+__all__ = ["KEYS", "filter_values", "filter_choices", "check_sensors", "kalibr_yaml", "parse_inflate", "av_bound"]
 
 #: (sensor, coefficient) -> Kalibr key
 KEYS = {("accel", "N"): "accelerometer_noise_density", ("accel", "K"): "accelerometer_random_walk",
@@ -62,34 +77,122 @@ def parse_inflate(text) -> tuple[float, float] | str:
     return vals[0], vals[1]
 
 
-def filter_values(data: dict, method: str, option: str = "--kalibr") -> dict[str, tuple[float, str]]:
-    """Kalibr key -> (SI value, the axis it comes from), from the JSON payload of ``avbench estimate``.
-
-    Raises ValueError naming ``option`` when a sensor is missing or ``method`` gives no value.
-    """
-    out = {}
-    for (sensor, coef), key in KEYS.items():
-        sd = data["sensors"].get(sensor)
-        if sd is None:
+def check_sensors(sensors, option: str = "--kalibr") -> None:
+    """Refuse, before any fit, a recording that lacks a sensor the yaml needs (a gyro and an accelerometer)."""
+    for sensor in ("accel", "gyro"):
+        if sensor not in sensors:
             raise ValueError(f"{option}: the recording has no {'accelerometer' if sensor == 'accel' else 'gyro'} "
                              f"channels; expected gyro and accelerometer axes (a sensor_msgs/Imu topic, or --gyro and --accel)")
+
+
+def av_bound(coefficient: str, av, scale: float = 1.0, level: float = 0.95) -> float | None:
+    """The upper bound on N or K that the Allan variance itself allows (module docstring): the smallest
+    over the taus of the one-sided ``level`` chi^2 upper limit of AV(tau) (``av``: an AllanResult of
+    the record times ``scale``) turned into the coefficient. None for other coefficients."""
+    from scipy import stats
+
+    tau, edf = np.asarray(av.tau, float), np.asarray(av.edf, float)
+    avar = np.asarray(av.avar, float) / scale**2
+    ok = np.isfinite(avar) & (avar > 0) & np.isfinite(edf) & (edf > 0)
+    if not ok.any():
+        return None
+    hi = avar[ok] * edf[ok] / stats.chi2.ppf(1 - level, edf[ok])
+    if coefficient == "K":
+        return float(np.sqrt(np.min(3 * hi / tau[ok])))
+    if coefficient == "N":
+        return float(np.sqrt(np.min(hi * tau[ok])))
+    return None
+
+
+def _resolve_length(k: float, av, scale: float) -> float | None:
+    """Record length (s) at which a random walk ``k`` would show: 48 AV_min / k^2 (module docstring)."""
+    avar = np.asarray(av.avar, float) / scale**2
+    avar = avar[np.isfinite(avar) & (avar > 0)]
+    if not avar.size or not k > 0:
+        return None
+    return float(48 * avar.min() / k**2)
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds / 3600:.3g} h" if seconds >= 3600 else f"{seconds / 60:.3g} min"
+
+
+def _length_text(seconds, record_s) -> str:
+    """The record length that would resolve a random walk at the bound (a lower limit: a smaller one
+    needs longer); where that is no longer than this record, the record already says it is smaller."""
+    if seconds is None:
+        return ""
+    if record_s is not None and seconds <= record_s:
+        return (f"; a random walk at this bound would show within {_duration(seconds)}, so the true one is smaller: "
+                f"resolving it needs a record longer than this one ({_duration(record_s)})")
+    return f"; a record of at least {_duration(seconds)} would resolve it (longer if it is smaller than the bound)"
+
+
+def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) -> dict[str, tuple]:
+    """Kalibr key -> (SI value, axis, note or None): the largest over the axes, where each axis gives its
+    estimate when resolved and else the upper end of its interval (module docstring); ``note`` says
+    which are bounds and why. ``avs``: ``{sensor: {axis: (AllanResult, scale)}}`` for the AV bound where
+    the method has no interval. Raises ValueError naming ``option`` when a sensor is missing or an axis
+    has neither a value nor a bound."""
+    from avbench.noise_models.units import to_si
+
+    check_sensors(list(data["sensors"]), option)
+    out = {}
+    for (sensor, coef), key in KEYS.items():
         best = None
-        for axis, ad in sd["axes"].items():
+        for axis, ad in data["sensors"][sensor]["axes"].items():
             md = ad["methods"].get(method)
             if md is None:
                 raise ValueError(f"{option}: method {method!r} was not fitted; expected one of --method")
             e = md["coefficients"][coef]
-            if e["si"] is None:
-                raise ValueError(f"{option}: {method} gives no {coef} for {sensor} axis {axis} ({e['flag']}); expected "
+            av = (avs or {}).get(sensor, {}).get(axis)
+            v, why = _axis_value(e, md, coef, sensor, to_si)
+            if why is not None and v is None and av is not None:
+                v, why = av_bound(coef, *av), why + " and the method gives no interval: the bound the AV allows"
+            elif md.get("poor_fit") and v is not None and av is not None:  # the model misses the curve: its
+                b = av_bound(coef, *av)                                    # interval is not to be trusted alone
+                if b is not None and b > v:
+                    v, why = b, (why or "the fit is poor") + "; the bound the AV allows is larger: taken"
+            if v is None:
+                fail = f"{e['flag']}: {md['failure']}" if md.get("failure") else e["flag"]
+                raise ValueError(f"{option}: {method} gives no {coef} for {sensor} axis {axis} ({fail}); expected "
                                  "a method that models it (choose one with --filter-method)")
-            if best is None or e["si"] > best[0]:
-                best = (e["si"], axis)
+            if why is not None and coef == "K" and av is not None:
+                why += _length_text(_resolve_length(v, *av), av[0].n_samples * av[0].dt)
+            if best is None or v > best[0]:
+                best = (v, axis, why)
         out[key] = best
     return out
 
 
+def _axis_value(e, md, coef, sensor, to_si):
+    """(SI value, None) for a resolved estimate; (upper bound or None, reason) otherwise."""
+    ci = e.get("conf_int_si")
+    hi = ci[1] if ci is not None and ci[1] is not None and math.isfinite(ci[1]) else None
+    ev = e.get("evidence")
+    if e["flag"] == "not resolved":
+        return e["interval_si"][1], "not resolved by this record: the upper end of its interval"
+    if e["si"] is None:
+        return None, e["flag"]
+    if ev is not None and not ev["present"]:
+        up = to_si(coef, ev["upper"], e["unit"], sensor) if ev.get("upper") is not None else hi
+        return up, "not resolved (its evidence): the upper end of its interval"
+    if e["si"] == 0.0:
+        return hi, "zero (no random walk seen)" + (": the upper end of its interval" if hi is not None else "")
+    if ci is not None and ci[0] is not None and ci[0] <= 0:
+        return hi, "its interval reaches zero: the upper end of the interval"
+    if md.get("poor_fit"):
+        return (hi if hi is not None else None), "the fit is poor: the upper end of its interval"
+    return e["si"], None
+
+
+def filter_values(data: dict, method: str, option: str = "--kalibr", avs=None) -> dict[str, tuple[float, str]]:
+    """Kalibr key -> (SI value, the axis it comes from): :func:`filter_choices` without the notes."""
+    return {k: (v, axis) for k, (v, axis, _) in filter_choices(data, method, option, avs).items()}
+
+
 def kalibr_yaml(values, update_rate: float, topic: str | None, method: str, sources, inflate=(1.0, 1.0),
-                style: str = "kalibr") -> str:
+                style: str = "kalibr", notes=None) -> str:
     """The text of a Kalibr ``imu.yaml`` (``style="allan_variance_ros"`` only changes the comment).
 
     ``inflate``: a pair (noise densities, random walks) given by the user, or a mapping Kalibr key ->
@@ -109,7 +212,10 @@ def kalibr_yaml(values, update_rate: float, topic: str | None, method: str, sour
                      f"# INFLATED by the user: noise densities x {f_noise:g}, random walks x {f_walk:g} (--inflate)")
     for key in ("accelerometer_noise_density", "accelerometer_random_walk",
                 "gyroscope_noise_density", "gyroscope_random_walk"):
-        v, axis = values[key]
+        v, axis = values[key][:2]
+        why = (notes or {}).get(key) or (values[key][2] if len(values[key]) > 2 else None)
+        if why:
+            lines.append(f"# {key}: a BOUND, not an estimate -- axis {axis} {why}")
         v *= factors[key]
         note = (f"; x {factors[key]:.3g}" if isinstance(inflate, dict) else "") + ("" if v > 0 else "; zero: no random walk seen in this record -- a filter needs a positive value")
         lines.append(f"{key}: {v:.16e}  # {_UNITS[key]}, axis {axis}{note}")

@@ -1,18 +1,24 @@
 """Step 1: read a recording file into named channels, their sensor, their units and the time stamps.
 
-Formats (chosen by the file name):
+One reader per container, behind the one call :func:`read_recording` (chosen by the file name):
 
 * text ``.csv .txt .dat .tsv`` -- comma, semicolon, tab or blank separated, ``#`` comments, an
-  optional header row (a first row none of whose cells is a number). The separator is the one under
+  optional header row (a first row none of whose cells is a number) or, as in EuRoC / TUM-VI /
+  Kalibr files, a header in the last ``#`` comment line before the data (``#timestamp [ns],w_RS_S_x
+  [rad s^-1],...``) when it splits into as many names as the data has columns. The separator is the one under
   which the first data lines split into equally many numeric cells and the header into as many names
   (:func:`_dialect`): a header's own spaces do not make columns. Parsed by pandas' C engine
-  straight to float64 (``bench/`` measures it against a bare ``pandas.read_csv``). A blank line
+  straight to float64 (an integer time column to int64: 1.4e18 ns stamps hold a 10 ms step exactly;
+  ``bench/`` measures it against a bare ``pandas.read_csv``). A blank line
   between samples is an error (it is not silently dropped); so is a file that looks written with
   decimal commas (``0,0123``) under a comma separator; with ``;``/tab/blank separators decimal commas
   are read as such.
 * ``.npy`` -- 1-D, or 2-D samples x columns; memory-mapped, so a large record is not copied.
-* ``.npz`` -- the array ``data`` (or the only array), column names from ``columns``, time stamps from
-  ``t`` or ``time`` (seconds).
+* ``.npz`` -- the array ``data`` (column names from ``columns``, time stamps from ``t`` or ``time``),
+  or named arrays (``gyro`` n x 3, ``accel`` n x 3, ``t``; any names with ``--gyro NAME``,
+  ``--accel NAME``, ``--time NAME``): see :func:`_arrays_recording`.
+* MATLAB ``.mat`` -- v4-v7 through ``scipy.io.loadmat``; v7.3 (HDF5) through ``h5py`` (``pip install
+  avbench[mat73]``); variables (struct fields as ``struct.field``) are named arrays as in an ``.npz``.
 * ROS 1 ``.bag`` and ROS 2 bag folders (``metadata.yaml`` with ``.db3``/``.mcap``) -- ``sensor_msgs/Imu``
   messages of one topic through the ``rosbags`` package (``pip install avbench[ros]``): gyro x, y, z
   from ``angular_velocity`` (rad/s) and accelerometer x, y, z from ``linear_acceleration`` (m/s^2),
@@ -21,9 +27,20 @@ Formats (chosen by the file name):
 * PX4 ULog ``.ulg`` -- the ``sensor_combined`` topic through ``pyulog`` (``pip install avbench[px4]``):
   ``gyro_rad[0..2]`` (rad/s), ``accelerometer_m_s2[0..2]`` (m/s^2), time from ``timestamp`` (us).
 
+**Units from a header.** A unit in brackets at the end of a column name (``[rad s^-1]``, ``[deg/s]``,
+``(m/s^2)``, ``[g]``, ``[ns]``, ...; :func:`header_unit`) is the file stating it: it sets the column's unit
+(a contradicting ``--units`` is an error) and its sensor (an angular rate is a gyro, an acceleration an
+accelerometer, a time unit the time column). A unit written as a name suffix (``gyro_x_dps``) is
+only an axis label: units come from the format, a bracket, or the user, never guessed from a name.
+
+**Time units** (:func:`time_in_seconds`): ``time_units`` when given; else the header's bracket; else,
+for epoch stamps (first stamp >= 1e8), the unit that puts the first stamp between 1973 and 2286;
+else, for integer stamps, the unit that makes the median step a rate between 5 Hz and 5 kHz (a
+note says so); else seconds. Integer stamps are differenced as int64 before conversion.
+
 For tables the channels are chosen with ``gyro``/``accel`` (names or 0-based indices); with neither, a
-single column is a gyro, and headers named like ``gyro_x``/``gx``/``wx`` and ``acc_x``/``ax`` are found.
-A column named ``t``, ``time``, ``timestamp`` or ``time_s`` (or chosen with ``time_column``) gives the
+single column is a gyro, and headers named like ``gyro_x``/``gx``/``wx``/``w_RS_S_x``/``omega_x`` and
+``acc_x``/``ax``/``a_RS_S_x``/``alpha_x`` are found. A column named ``t``, ``time``, ``timestamp`` or ``time_s`` (or chosen with ``time_column``) gives the
 time stamps. Every problem is a ``ValueError`` whose message starts with the file name.
 """
 
@@ -40,16 +57,28 @@ from avbench.recordings import files as data_files
 __all__ = ["Channel", "Recording", "read_recording", "TEXT_SUFFIXES", "KNOWN_SUFFIXES"]
 
 TEXT_SUFFIXES = (".csv", ".txt", ".dat", ".tsv")
-KNOWN_SUFFIXES = (".npy", ".npz", *TEXT_SUFFIXES, ".bag", ".db3", ".mcap", ".ulg")
+KNOWN_SUFFIXES = (".npy", ".npz", ".mat", *TEXT_SUFFIXES, ".bag", ".db3", ".mcap", ".ulg")
 _TIME_NAMES = {"t", "time", "timestamp", "time_s", "times", "t_s"}
 #: a unit written after the axis in a column name (``gyro_x_dps``, ``acc_x_g``): recognised for the axis
 #: label only -- the units still come from the format or the user, never from a name
 _UNIT_SUFFIX = r"(?:[_ .\-](?:dps|degs|deg_s|rps|rads|rad_s|g|mg|ug|mps2|ms2|m_s2))?"
 _GYRO_RE = re.compile(r"^(gyro|gyr|g|w|omega|wx|wy|wz|angular_velocity)[_ .\-\[]?([xyz012])\]?" + _UNIT_SUFFIX
-                      + r"$|gyro.*[_ .\-]?([xyz])$", re.I)
-_ACCEL_RE = re.compile(r"^(accel|acc|a|linear_acceleration|accelerometer)[_ .\-\[]?([xyz012])\]?" + _UNIT_SUFFIX
-                       + r"$|acc.*[_ .\-]?([xyz])$", re.I)
+                      + r"$|gyro.*[_ .\-]?([xyz])$"
+                      + r"|^(?:w|omega|gyr|angular_velocity|ang_vel)[_ .\-].*[_ .\-]([xyz])$", re.I)
+_ACCEL_RE = re.compile(r"^(accel|acc|a|alpha|linear_acceleration|accelerometer)[_ .\-\[]?([xyz012])\]?" + _UNIT_SUFFIX
+                       + r"$|acc.*[_ .\-]?([xyz])$"
+                       + r"|^(?:a|alpha|linear_acceleration|lin_acc)[_ .\-].*[_ .\-]([xyz])$", re.I)
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+#: a unit in brackets at the end of a column name: ``w_RS_S_x [rad s^-1]``, ``acc (m/s^2)``
+_BRACKET_UNIT = re.compile(r"^(.*?)\s*[\[(]\s*([^\[\]()]+?)\s*[\])]\s*$")
+_UNIT_SPELLINGS = {"dps": "deg/s", "deg/sec": "deg/s", "degree/s": "deg/s", "degrees/s": "deg/s", "rps": "rad/s",
+                   "rad/sec": "rad/s", "m/s2": "m/s^2", "m/s/s": "m/s^2", "m/sec^2": "m/s^2", "mps2": "m/s^2",
+                   "sec": "s", "second": "s", "seconds": "s", "usec": "us", "msec": "ms", "nsec": "ns",
+                   "deg/hr": "deg/h", "dph": "deg/h", "g0": "g"}
+#: epoch stamps: the first stamp in seconds lies between these (1973 and 2286)
+_EPOCH_S = (1e8, 1e10)
+#: integer stamps that are not epoch stamps: the unit whose median step makes a rate in this range (Hz)
+_STEP_RATE = (5.0, 5e3)
 
 
 @dataclass
@@ -90,6 +119,7 @@ def _split(spec) -> list[str]:
 
 
 def _axis_label(name: str, sensor: str) -> str:
+    name = header_unit(name)[0]
     m = (_GYRO_RE if sensor == "gyro" else _ACCEL_RE).match(name)
     if m:
         letter = next((g for g in m.groups()[1:] if g), None)
@@ -98,9 +128,11 @@ def _axis_label(name: str, sensor: str) -> str:
     return name
 
 
-def _resolve(path, names: list[str], n_cols: int, spec: str, option: str) -> int:
+def _resolve(path, names: list[str], n_cols: int, spec: str, option: str, bases=()) -> int:
     if spec in names:
         return names.index(spec)
+    if spec in bases and list(bases).count(spec) == 1:  # a name given without its bracketed unit
+        return list(bases).index(spec)
     try:
         idx = int(spec)
     except ValueError:
@@ -112,24 +144,39 @@ def _resolve(path, names: list[str], n_cols: int, spec: str, option: str) -> int
 
 
 def _choose_columns(path, names: list[str], n_cols: int, gyro, accel, time_column):
-    """(time index or None, [(index, sensor)]) for a table with ``names`` (auto names if none)."""
+    """(time index or None, [(index, sensor)]) for a table with ``names`` (auto names if none).
+
+    A name's bracketed unit (:func:`header_unit`) says its sensor before its name does."""
     shown = names if names else [f"column {i}" for i in range(n_cols)]
+    parsed = [header_unit(nm) for nm in names]
+    bases = [b for b, _, _ in parsed]
+    kinds = [k for _, k, _ in parsed]
     if time_column is not None and str(time_column).lower() == "none":
         t_idx = None
     elif time_column is not None:
-        t_idx = _resolve(path, names, n_cols, str(time_column), "--time")
+        t_idx = _resolve(path, names, n_cols, str(time_column), "--time", bases)
     else:
-        t_idx = next((i for i, nm in enumerate(names) if nm.strip().lower() in _TIME_NAMES), None)
-    picks = [(_resolve(path, names, n_cols, s, "--gyro/--column"), "gyro") for s in _split(gyro)]
-    picks += [(_resolve(path, names, n_cols, s, "--accel"), "accel") for s in _split(accel)]
+        t_idx = next((i for i, k in enumerate(kinds) if k == "time"), None)
+        if t_idx is None:
+            t_idx = next((i for i, b in enumerate(bases) if b.lower() in _TIME_NAMES), None)
+    picks = [(_resolve(path, names, n_cols, s, "--gyro/--column", bases), "gyro") for s in _split(gyro)]
+    picks += [(_resolve(path, names, n_cols, s, "--accel", bases), "accel") for s in _split(accel)]
     if not picks:
         rest = [i for i in range(n_cols) if i != t_idx]
         if len(rest) == 1:
             picks = [(rest[0], "gyro")]
         else:
-            picks = [(i, "gyro") for i in rest if names and _GYRO_RE.match(names[i].strip())]
-            picks += [(i, "accel") for i in rest if names and _ACCEL_RE.match(names[i].strip())
-                      and not _GYRO_RE.match(names[i].strip())]
+            def sensor_of(i):
+                if kinds[i] in ("gyro", "accel"):
+                    return kinds[i]
+                if kinds[i] is None and _GYRO_RE.match(bases[i]):
+                    return "gyro"
+                if kinds[i] is None and _ACCEL_RE.match(bases[i]):
+                    return "accel"
+                return None
+
+            found = [(i, sensor_of(i)) for i in rest] if names else []
+            picks = [(i, k) for i, k in found if k == "gyro"] + [(i, k) for i, k in found if k == "accel"]
             if not picks:
                 listed = ", ".join(shown[i] for i in rest)
                 raise ValueError(f"{path}: {len(rest)} columns ({listed}); choose them with --gyro COLS and/or "
@@ -157,19 +204,40 @@ def _table_recording(path, fmt, arr, names, gyro, accel, time_column, time_units
         raise ValueError(f"{path}: the record is empty")
     names = names or []
     t_idx, picks = _choose_columns(path, names, arr.shape[1], gyro, accel, time_column)
+    rec = _columns_recording(path, fmt, [arr[:, i] for i in range(arr.shape[1])], names, t_idx, picks, time_units)
+    if t_idx is None and time is not None:
+        t = np.asarray(time)
+        if t.shape != (arr.shape[0],):
+            raise ValueError(f"{path}: the time array has shape {t.shape}; expected ({arr.shape[0]},), one per sample")
+        _set_time(rec, path, t, time_units, None, "array 't'")
+    return rec
+
+
+def _columns_recording(path, fmt, cols, names, t_idx, picks, time_units):
+    """A Recording from columns (``picks``: [(index, sensor)]) with the units and sensor a header names."""
+    n_cols = len(cols)
     label = (lambda i: names[i]) if names else (lambda i: f"column {i}")
-    channels = [Channel(label(i), sensor, _axis_label(label(i), sensor) if names else
-                        ("x" if arr.shape[1] == 1 else str(i)), arr[:, i]) for i, sensor in picks]
+    channels = []
+    for i, sensor in picks:
+        _, kind, unit = header_unit(label(i)) if names else (None, None, None)
+        if kind is not None and kind != sensor:
+            raise ValueError(f"{path}: column {label(i)!r} is chosen as {sensor} but its header says {unit} "
+                             f"({'a time' if kind == 'time' else 'an angular rate' if kind == 'gyro' else 'an acceleration'}); "
+                             f"expected {'--gyro' if kind == 'gyro' else '--accel' if kind == 'accel' else '--time'} for it")
+        axis = _axis_label(label(i), sensor) if names else ("x" if n_cols == 1 else str(i))
+        channels.append(Channel(label(i), sensor, axis, cols[i], unit if kind == sensor else None))
     rec = Recording(Path(path), fmt, channels)
     if t_idx is not None:
-        rec.time = np.asarray(arr[:, t_idx], dtype=np.float64) * _time_scale(time_units)
-        rec.time_source = f"column {label(t_idx)!r} ({time_units})"
-    elif time is not None:
-        rec.time = np.asarray(time, dtype=np.float64) * _time_scale(time_units)
-        rec.time_source = f"array 't' ({time_units})"
-        if rec.time.shape != (arr.shape[0],):
-            raise ValueError(f"{path}: the time array has shape {rec.time.shape}; expected ({arr.shape[0]},), one per sample")
+        _, kind, unit = header_unit(label(t_idx)) if names else (None, None, None)
+        _set_time(rec, path, cols[t_idx], time_units, unit if kind == "time" else None, f"column {label(t_idx)!r}")
     return rec
+
+
+def _set_time(rec, path, t, time_units, declared, what):
+    rec.time, unit, how = time_in_seconds(path, t, time_units, declared, what)
+    rec.time_source = f"{what} ({unit}, from {how})"
+    if how.startswith("its integer step") or how.startswith("the magnitude"):
+        rec.notes.append(f"{what} read in {unit}: inferred from {how}")
 
 
 def _time_scale(units) -> float:
@@ -179,16 +247,84 @@ def _time_scale(units) -> float:
         raise ValueError(f"--time-units: expected one of {', '.join(_TIME_SCALE)}, got {units!r}") from None
 
 
+def header_unit(name: str) -> tuple[str, str | None, str | None]:
+    """(name without its unit, kind, unit) of a column name ending in a bracketed unit: kind is
+    "gyro", "accel" or "time" and unit its avbench spelling (``[rad s^-1]`` -> ("gyro", "rad/s"),
+    ``[m s^-2]`` -> ("accel", "m/s^2"), ``[ns]`` -> ("time", "ns")); (name, None, None) when there
+    is no bracket or its unit is none of these (``[degC]``)."""
+    from avbench.noise_models.units import SAMPLE_UNITS
+
+    base = name.strip().lstrip("#").strip()
+    m = _BRACKET_UNIT.match(base)
+    if not m:
+        return base, None, None
+    u = m.group(2).strip().lower().replace("°", "deg").replace("µ", "u").replace("μ", "u")
+    u = re.sub(r"\b(degrees|degree)\b", "deg", u)
+    u = re.sub(r"\b(radians|radian)\b", "rad", u)
+    u = re.sub(r"\s*\*\s*|\s+", " ", u)
+    u = re.sub(r" ?\b(s|sec)\s*\^?\s*-1$", "/s", u)
+    u = re.sub(r" ?\b(s|sec)\s*\^?\s*-2$", "/s^2", u)
+    u = re.sub(r" ?\b(h|hr)\s*\^?\s*-1$", "/h", u)
+    u = u.replace(" ", "")
+    u = _UNIT_SPELLINGS.get(u, u)
+    for kind, units in (("time", tuple(_TIME_SCALE)), ("gyro", SAMPLE_UNITS["gyro"]), ("accel", SAMPLE_UNITS["accel"])):
+        if u in units:
+            return m.group(1).strip(), kind, u
+    return base, None, None
+
+
+def time_in_seconds(path, t, time_units=None, declared=None, what="the time column"):
+    """(seconds since the first stamp as float64, the unit used, how it was chosen) for raw stamps ``t``.
+
+    The unit: ``time_units`` (the user's) if given, else ``declared`` (the file's header), else the
+    rule of the module docstring (epoch magnitude, then the step of integer stamps, then seconds).
+    Integer stamps are differenced in int64 first, so 1.4e18 ns keep every nanosecond."""
+    t = np.asarray(t)
+    if t.ndim != 1 or t.size == 0:
+        raise ValueError(f"{path}: {what} has shape {t.shape}; expected one time stamp per sample")
+    if t.dtype.kind not in "iuf":
+        raise ValueError(f"{path}: {what} is not numeric (dtype {t.dtype}); expected time stamps")
+    integer = t.dtype.kind in "iu"
+    if time_units is not None:
+        unit, how = time_units, "--time-units"
+        _time_scale(unit)
+    elif declared is not None:
+        unit, how = declared, "the header"
+    else:
+        unit, how = _infer_time_unit(t, integer)
+    rel = (t - t[0]) if integer else t
+    return np.asarray(rel, dtype=np.float64) * _time_scale(unit), unit, how
+
+
+def _infer_time_unit(t, integer):
+    t0 = abs(float(t[0]))
+    finite = np.isfinite(t0)
+    if finite and t0 >= _EPOCH_S[0]:
+        for u, f in _TIME_SCALE.items():
+            if _EPOCH_S[0] <= t0 * f < _EPOCH_S[1]:
+                return u, f"the magnitude of its epoch stamps ({t0:.4g})"
+    whole = integer or (t.size > 1 and bool(np.all(np.isfinite(t[:1000])) and np.all(t[:1000] == np.round(t[:1000]))))
+    if whole and t.size > 1:
+        d = np.diff(t[: min(t.size, 10001)])
+        step = float(np.median(d))
+        if step > 0:
+            for u, f in _TIME_SCALE.items():
+                if _STEP_RATE[0] <= 1.0 / (step * f) < _STEP_RATE[1]:
+                    return u, f"its integer step ({step:.6g} -> {1 / (step * f):.6g} Hz; --time-units to override)"
+    return "s", "the default (seconds)"
+
+
 # -- text -----------------------------------------------------------------------------------------
 def _first_lines(path, k=20):
-    """(number of leading comment/blank lines, the first k data lines)."""
-    lead, lines = 0, []
+    """(number of leading comment/blank lines, the first k data lines, the last leading comment line or None)."""
+    lead, lines, comment = 0, [], None
     try:
         with open(path, encoding="utf-8", errors="strict") as fh:
             for line in fh:
                 s = line.strip()
                 if not lines and (not s or s.startswith("#")):
                     lead += 1
+                    comment = s if s else comment
                     continue
                 lines.append(s)
                 if len(lines) >= k:
@@ -199,7 +335,7 @@ def _first_lines(path, k=20):
         raise ValueError(f"{path}: cannot read ({e.strerror or e})") from None
     if not lines:
         raise ValueError(f"{path}: the file is empty")
-    return lead, lines
+    return lead, lines, comment
 
 
 _LEADING_ZERO_INT = re.compile(r"^[+-]?0\d+$")
@@ -295,14 +431,35 @@ def _decimal_comma_check(path, lines):
 def _read_text(path, gyro, accel, time_column, time_units):
     import pandas as pd
 
-    lead, lines = _first_lines(path)
+    lead, lines, last_comment = _first_lines(path)
     sep, decimal = _dialect(path, lines)
     cells = _split_cells(lines[0], sep)
     header = _is_header(cells, decimal)
     names = [c.strip() for c in cells] if header else None
+    if names is None and last_comment is not None:  # EuRoC / TUM-VI: "#timestamp [ns],w_RS_S_x [rad s^-1],..."
+        k = len(_split_cells(lines[0], sep))
+        cand = [c.strip() for c in _split_cells(last_comment.lstrip("#").strip(), sep)]
+        if k > 1 and len(cand) == k and all(cand) and _is_header(cand, decimal):
+            names = cand
+    n_cols = len(names) if names else len(_split_cells(lines[1] if header and len(lines) > 1 else lines[0], sep))
+    try:  # the time column, to read it as int64 when it holds integers; a bad choice is said after parsing
+        t_idx = _choose_columns(path, names or [], n_cols, gyro, accel, time_column)[0]
+    except ValueError:
+        t_idx = None
+    dtype = np.float64
+    if t_idx is not None and _integer_column(lines[int(header):], sep, t_idx):
+        key = names[t_idx] if names else t_idx
+        dtype = {(nm if names else j): np.float64 for j, nm in enumerate(names or range(n_cols))}
+        dtype[key] = np.int64
     try:
-        df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=lead + int(header), comment="#",
-                         skip_blank_lines=False, engine="c", dtype=np.float64, names=names)
+        try:
+            df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=lead + int(header), comment="#",
+                             skip_blank_lines=False, engine="c", dtype=dtype, names=names)
+        except (ValueError, OverflowError):
+            if dtype is np.float64:
+                raise
+            df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=lead + int(header), comment="#",
+                             skip_blank_lines=False, engine="c", dtype=np.float64, names=names)
     except pd.errors.EmptyDataError:
         raise ValueError(f"{path}: a header but no samples" if header else f"{path}: the file is empty") from None
     except (ValueError, pd.errors.ParserError) as e:
@@ -314,22 +471,22 @@ def _read_text(path, gyro, accel, time_column, time_units):
     if df.shape[0] == 0:
         raise ValueError(f"{path}: a header but no samples" if header else f"{path}: the file is empty")
     df = _trailing_blank_rows(path, df, lead + int(header))
+    if df.shape[1] != n_cols:
+        raise ValueError(f"{path}: {df.shape[1]} columns where the first lines have {n_cols}; expected one table")
     arr_cols = [df.iloc[:, i].to_numpy() for i in range(df.shape[1])]
     nm = names or []
-    t_idx, picks = _choose_columns(path, nm, df.shape[1], gyro, accel, time_column)
     label = (lambda i: nm[i]) if nm else (lambda i: f"column {i}")
-    channels = []
-    for i, sensor in picks:
-        axis = _axis_label(label(i), sensor) if nm else ("x" if df.shape[1] == 1 else str(i))
-        channels.append(Channel(label(i), sensor, axis, arr_cols[i]))
-    rec = Recording(Path(path), "text", channels)
-    for i in [t_idx, *[i for i, _ in picks]]:
-        if i is not None:
+    for i in range(n_cols):  # the file's own faults first, then the choice of columns
+        if arr_cols[i].dtype.kind == "f":
             _blank_line_check(path, arr_cols[i], lead + int(header), label(i))
-    if t_idx is not None:
-        rec.time = arr_cols[t_idx] * _time_scale(time_units)
-        rec.time_source = f"column {label(t_idx)!r} ({time_units})"
-    return rec
+    t_idx, picks = _choose_columns(path, nm, n_cols, gyro, accel, time_column)
+    return _columns_recording(path, "text", arr_cols, nm, t_idx, picks, time_units)
+
+
+def _integer_column(lines, sep, j) -> bool:
+    """True if cell ``j`` of every one of the first data lines is an integer (read it as int64)."""
+    rows = [_split_cells(ln, sep) for ln in lines if ln and not ln.startswith("#")]
+    return bool(rows) and all(len(r) > j and _INT.match(r[j].strip()) for r in rows)
 
 
 def _trailing_blank_rows(path, df, skip):
@@ -401,8 +558,9 @@ def _read_npz(path, gyro, accel, time_column, time_units):
         arr = z["data"]
     else:
         arrays = [k for k in keys if k not in ("columns", "fs", time_key)]
-        if len(arrays) != 1:
-            raise ValueError(f"{path}: expected an array 'data' or a single array, found {keys}")
+        named = [x for x in (*_split(gyro), *_split(accel), *_split(time_column)) if x in keys]
+        if len(arrays) != 1 or named:  # named arrays; a single array's columns are chosen as a table's
+            return _arrays_recording(path, "npz", z, gyro, accel, time_column, time_units)
         arr = z[arrays[0]]
     arr = _numeric(arr, path)
     names = None
@@ -419,6 +577,153 @@ def _read_npz(path, gyro, accel, time_column, time_units):
     if time_key is not None and (time_column is None or str(time_column).lower() != "none"):
         time = _numeric(z[time_key], path, f"'{time_key}'")
     return _table_recording(path, "npz", arr, names, gyro, accel, time_column, time_units, time)
+
+
+# -- named arrays (npz, MATLAB) -------------------------------------------------------------------
+def _describe(name, a) -> str:
+    a = np.asarray(a)
+    return f"{name} ({'x'.join(map(str, a.shape)) or 'scalar'} {a.dtype})"
+
+
+def _as_samples(a):
+    """A 2-D (samples x axes) view of a 1-D or 2-D array, samples along its longer dimension (MATLAB
+    users store 3 x n as often as n x 3; HDF5 stores a MATLAB n x 3 as 3 x n); None if not such."""
+    a = np.asarray(a)
+    if a.dtype.kind not in "iuf" or a.ndim not in (1, 2) or a.size < 2:
+        return None
+    if a.ndim == 1:
+        return a[:, None]
+    return a.T if a.shape[0] < a.shape[1] else a
+
+
+def _arrays_recording(path, fmt, arrays: dict, gyro, accel, time_column, time_units):
+    """A Recording from named arrays (an ``.npz`` without ``data``, a MATLAB file's variables).
+
+    ``gyro``/``accel``: array names (comma-separated; each a 1-D array or an n x k one, whose columns
+    are the axes x, y, z); ``time_column``: the time array. Without them, arrays named like a gyro
+    (``gyro``, ``omega``, ``angular_velocity``, ...) or an accelerometer (``accel``, ``acc``,
+    ``alpha``, ...) and a time array (``t``, ``time``, ``timestamp``) are found; any doubt is an
+    error listing every variable found with its shape. One-letter names (``a``, ``w``) are never
+    guessed."""
+    usable = {k: v for k, v in arrays.items() if _as_samples(v) is not None}
+    listing = ", ".join(_describe(k, v) for k, v in arrays.items()) or "no variables"
+
+    def pick(spec, option):
+        out = []
+        for nm in _split(spec):
+            if nm not in arrays:
+                raise ValueError(f"{path}: no variable {nm!r} ({option}); found {listing}")
+            if nm not in usable:
+                raise ValueError(f"{path}: variable {_describe(nm, arrays[nm])} ({option}) is not a 1-D or 2-D "
+                                 f"numeric array; expected samples (found {listing})")
+            out.append(nm)
+        return out
+
+    g, a = pick(gyro, "--gyro"), pick(accel, "--accel")
+    if time_column is not None and str(time_column).lower() == "none":
+        t_name = None
+    elif time_column is not None:
+        (t_name,) = pick(time_column, "--time") or [None]
+    else:
+        t_name = next((k for k in usable if k.lower() in _TIME_NAMES), None)
+    if not g and not a:
+        stem = {k: re.sub(r"^.*\.", "", k) for k in usable if k != t_name}  # a struct's field: its last name
+        g = [k for k, b in stem.items() if re.fullmatch(r"(gyro|gyr|gyros|gyroscope|omega|angular_velocity|ang_vel|"
+                                                          r"rates|wm)", b, re.I)]
+        a = [k for k, b in stem.items() if re.fullmatch(r"(accel|acc|accelerometer|accels|alpha|linear_acceleration|"
+                                                          r"lin_acc|specific_force)", b, re.I)]
+        if not g and not a:
+            cand = [k for k in usable if k != t_name and k.lower() not in ("fs", "dt", "rate_hz")]
+            if len(cand) == 1 and _as_samples(arrays[cand[0]]).shape[1] == 1:
+                g = cand
+            else:
+                raise ValueError(f"{path}: no variable named like a gyro or accelerometer; found {listing}; "
+                                 "choose them with --gyro NAME and/or --accel NAME (and --time NAME)")
+        if len(g) > 1 or len(a) > 1:
+            raise ValueError(f"{path}: more than one gyro-like or accelerometer-like variable "
+                             f"({', '.join(g + a)}); found {listing}; choose with --gyro NAME / --accel NAME")
+    chosen = [(k, "gyro") for k in g] + [(k, "accel") for k in a]
+    if len({k for k, _ in chosen} | ({t_name} if t_name else set())) != len(chosen) + (1 if t_name else 0):
+        raise ValueError(f"{path}: a variable is chosen twice (--time/--gyro/--accel)")
+    channels = []
+    n = None
+    for k, sensor in chosen:
+        x = _as_samples(arrays[k])
+        if n is None:
+            n = x.shape[0]
+        elif x.shape[0] != n:
+            raise ValueError(f"{path}: {_describe(k, arrays[k])} has {x.shape[0]} samples but "
+                             f"{chosen[0][0]} has {n}; expected arrays of one length")
+        singles = sum(1 for c, sn in chosen if sn == sensor and _as_samples(arrays[c]).shape[1] == 1)
+        for j in range(x.shape[1]):
+            if x.shape[1] == 1:
+                axis = _axis_label(k, sensor) if singles > 1 else "x"
+            else:
+                axis = "xyz"[j] if x.shape[1] <= 3 else str(j)
+            channels.append(Channel(k if x.shape[1] == 1 else f"{k}[{j}]", sensor, axis, x[:, j]))
+    rec = Recording(Path(path), fmt, channels)
+    if t_name is not None:
+        t = np.asarray(arrays[t_name]).reshape(-1)
+        if t.size != n:
+            raise ValueError(f"{path}: the time variable {_describe(t_name, arrays[t_name])} has {t.size} stamps for "
+                             f"{n} samples; expected one per sample")
+        _set_time(rec, path, t, time_units, None, f"variable {t_name!r}")
+    return rec
+
+
+def _mat_arrays(path) -> dict:
+    """The variables of a MATLAB file (struct fields flattened to ``struct.field``): v4-v7 through
+    scipy.io, v7.3 (HDF5) through h5py (optional: ``pip install 'avbench[mat73]'``)."""
+    with open(path, "rb") as fh:
+        head = fh.read(128)
+    if head.startswith(b"MATLAB 7.3") or _is_hdf5(path):
+        try:
+            import h5py
+        except ImportError:
+            raise ValueError(f"{path}: a MATLAB v7.3 (HDF5) file; reading it needs the 'h5py' package, expected "
+                             "it installed (pip install 'avbench[mat73]'), or save with -v7") from None
+        out = {}
+        try:
+            with h5py.File(path, "r") as f:
+                def visit(name, obj):
+                    if isinstance(obj, h5py.Dataset) and not name.startswith("#") and \
+                            obj.attrs.get("MATLAB_class", b"double") not in (b"char", b"cell", b"struct"):
+                        out[name.replace("/", ".")] = obj[()]
+                f.visititems(visit)
+        except OSError as e:
+            raise ValueError(f"{path}: not a readable MATLAB v7.3 file ({e})") from None
+        return out
+    import scipy.io
+
+    try:
+        m = scipy.io.loadmat(path, simplify_cells=True)
+    except Exception as e:  # scipy raises ValueError/TypeError/MatReadError for broken files
+        raise ValueError(f"{path}: not a readable MATLAB file ({str(e).splitlines()[0][:200] if str(e) else type(e).__name__})") from None
+    out = {}
+
+    def flat(prefix, v):
+        if isinstance(v, dict):
+            for k, x in v.items():
+                flat(f"{prefix}.{k}" if prefix else k, x)
+        elif isinstance(v, np.ndarray | int | float):
+            out[prefix] = np.asarray(v)
+    for k, v in m.items():
+        if not k.startswith("__"):
+            flat(k, v)
+    return out
+
+
+def _is_hdf5(path) -> bool:
+    with open(path, "rb") as fh:
+        for off in (0, 512, 1024, 2048):
+            fh.seek(off)
+            if fh.read(8) == b"\x89HDF\r\n\x1a\n":
+                return True
+    return False
+
+
+def _read_mat(path, gyro, accel, time_column, time_units):
+    return _arrays_recording(path, "mat", _mat_arrays(path), gyro, accel, time_column, time_units)
 
 
 # -- ROS bags ---------------------------------------------------------------------------------------
@@ -588,12 +893,13 @@ def _read_ulog(path, progress):
 
 
 # -- entry point ------------------------------------------------------------------------------------
-def read_recording(path, *, gyro=None, accel=None, time_column=None, time_units="s", topic=None,
+def read_recording(path, *, gyro=None, accel=None, time_column=None, time_units=None, topic=None,
                    progress=False) -> Recording:
     """Read ``path`` (any format of the module docstring) into a :class:`Recording`.
 
     ``gyro``/``accel``: column names or indices (comma-separated string or list) of a table;
-    ``time_column``: the time column (``"none"`` to ignore one); ``time_units``: s, ms, us or ns;
+    ``time_column``: the time column (``"none"`` to ignore one); ``time_units``: s, ms, us or ns
+    (None: from the file, see :func:`time_in_seconds`);
     ``topic``: the ``sensor_msgs/Imu`` topic of a bag.
     """
     p = Path(path)
@@ -608,6 +914,8 @@ def read_recording(path, *, gyro=None, accel=None, time_column=None, time_units=
             rec = _read_npy(p, gyro, accel, time_column, time_units)
         elif suffix == ".npz":
             rec = _read_npz(p, gyro, accel, time_column, time_units)
+        elif suffix == ".mat":
+            rec = _read_mat(p, gyro, accel, time_column, time_units)
         elif suffix in TEXT_SUFFIXES:
             rec = _read_text(p, gyro, accel, time_column, time_units)
         elif suffix == ".ulg":

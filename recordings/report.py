@@ -25,7 +25,8 @@ import pandas as pd
 
 from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, TERM_NAMES, from_si, si_units
 
-__all__ = ["coefficient_flags", "poor_fit", "payload", "tables", "term_evidence", "zero_notes", "SCHEMA"]
+__all__ = ["coefficient_flags", "poor_fit", "payload", "tables", "screen_tables", "shown_value", "term_evidence",
+           "zero_notes", "SCHEMA"]
 
 SCHEMA = "avbench-estimate/1"
 
@@ -233,4 +234,60 @@ def tables(data: dict) -> dict[str, pd.DataFrame]:
                 rows.append(row)
                 index.append((axis, method))
         out[sensor] = pd.DataFrame(rows, index=pd.MultiIndex.from_tuples(index, names=["axis", "method"]))
+    return out
+
+
+def _g(v) -> str:
+    return f"{v:.3g}"
+
+
+def shown_value(e: dict, coefficient: str, sensor: str, level: float = 0.95) -> str:
+    """One coefficient as a user should read it, in its display unit (``e``: a coefficient of the JSON
+    payload): ``value [low, high]`` with its ``level`` interval; ``< upper`` where the record does not
+    resolve it (flag "not resolved", or evidence that the term is not present, or a zero with an
+    interval); ``value (+- se)`` where the method gives only a standard error; the bare value with
+    ``(no interval)`` where it gives neither; ``-`` for a term the method does not model, and the flag
+    itself for "non-physical" / "failed"."""
+    unit = e["unit"]
+
+    def d(v):
+        return None if v is None else _num(from_si(coefficient, v, unit, sensor))
+
+    flag = e["flag"]
+    ev = e.get("evidence")
+    if flag == "not resolved":
+        hi = d(e["interval_si"][1])
+        return f"< {_g(hi)}" if hi is not None else "not resolved"
+    if flag == "not modelled":
+        return "-"
+    if flag in ("non-physical", "failed"):
+        return flag
+    v = e["value"]
+    ci = e.get("conf_int_si")
+    lo, hi = (d(ci[0]), d(ci[1])) if ci is not None else (None, None)
+    if ev is not None and not ev["present"]:
+        up = ev.get("upper")
+        return f"< {_g(up)}" if up is not None else (f"< {_g(hi)}" if hi is not None else f"{_g(v)} (not resolved)")
+    if v == 0.0:
+        return f"< {_g(hi)}" if hi is not None else "0 (no interval)"
+    if lo is not None and hi is not None:
+        return f"{_g(v)} [{_g(lo)}, {_g(hi)}]"
+    se = e.get("std_err_si")
+    if se is not None:
+        return f"{_g(v)} (+- {_g(d(se))})"
+    return f"{_g(v)} (no interval)"
+
+
+def screen_tables(data: dict) -> dict[str, pd.DataFrame]:
+    """The tables printed by ``avbench estimate``: like :func:`tables`, each coefficient as text with
+    its 95 % interval or its upper bound (:func:`shown_value`), the unit in the column name."""
+    out = {}
+    for sensor, table in tables(data).items():
+        cells = table.copy().astype(object)
+        for (axis, method) in table.index:
+            md = data["sensors"][sensor]["axes"][axis]["methods"][method]
+            for c in COEFFICIENTS:
+                e = md["coefficients"][c]
+                cells.loc[(axis, method), f"{c} ({e['unit']})"] = shown_value(e, c, sensor)
+        out[sensor] = cells
     return out

@@ -101,6 +101,11 @@ def timing_of(time, fs, n_samples: int, path) -> Timing:
     if 1.0 / dt > MAX_FS:
         raise ValueError(f"{path}: time stamps {dt!r} s apart; expected a sample rate of at most {MAX_FS:g} Hz "
                          "(are the time units right? see --time-units)")
+    from avbench.estimators.validation import DT_RANGE
+
+    if dt > DT_RANGE[1]:  # the estimators' own bound, said here about the time stamps, before any fit
+        raise ValueError(f"{path}: time stamps {dt:.6g} s apart (median); expected a sample interval of at most "
+                         f"{DT_RANGE[1]:g} s (are the time units right? see --time-units)")
     gap = d > GAP_FACTOR * dt
     starts = np.flatnonzero(gap).astype(np.int64) + 1
     within = d[~gap]

@@ -1,0 +1,124 @@
+"""The filter yaml from short records: 30-minute slices of the six ADIS16405 runs against the full runs.
+
+``python -m avbench.studies.yaml_slices --data DIR --out results/real`` (``DIR``: the folder holding
+``adis16405-calgary/``; default: the environment variable ``AVBENCH_REAL_DATA``).
+
+For each run and its first (``--slices K``: first K non-overlapping) 30-minute slice(s), the pipeline of ``avbench estimate --kalibr``
+(reader, SI units, gap-aware fits of the yaml's method, the payload, the AV of every axis,
+:func:`avbench.recordings.filter_yaml.filter_choices`) gives the yaml's two random walks
+(``gyroscope_random_walk``, ``accelerometer_random_walk``); the full run (2.8 h) gives the method's
+estimate per axis with its 95 % interval. The check (issue 28): a slice's yaml value is never below the
+full run's largest per-axis estimate by more than the slice's stated uncertainty (zero for a bound,
+which is already the upper end of its interval; the distance to the upper end of the interval for an
+estimate). Writes ``yaml_slices.csv`` (one row per run x slice x key) and ``yaml_slices.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["yaml_rows", "check", "main", "RUNS", "MINUTES", "METHOD"]
+
+RUNS = [f"adis16405-calgary/adis_16405_imu{i}.npz" for i in range(1, 7)]
+MINUTES = 30
+METHOD = "gmwm_filtered"  #: the yaml's method under avbench estimate's defaults (the first default method)
+_KEYS = {"gyroscope_random_walk": ("gyro", "K"), "accelerometer_random_walk": ("accel", "K")}
+
+
+def _payload_and_avs(sensors, dt, starts, method):
+    from avbench.recordings import report
+    from avbench.recordings.fit import fit_axis, scaled_allan
+    from avbench.recordings.timing import Timing
+
+    fits = {s.sensor: {a: fit_axis(x, dt, starts, [method]) for a, x in s.axes.items()} for s in sensors}
+    n = next(iter(sensors[0].axes.values())).size
+    data = report.payload(["slice"], Timing(dt, "--fs", n), sensors, fits)
+    avs = {s.sensor: {a: scaled_allan(x, dt, starts) for a, x in s.axes.items()} for s in sensors}
+    return data, avs
+
+
+def yaml_rows(data_root: Path, minutes: float = MINUTES, method: str = METHOD, runs=RUNS,
+              max_slices: int | None = None) -> pd.DataFrame:
+    """One row per run x slice x yaml random-walk key (SI): the slice's yaml value, whether it is a bound
+    and why, its stated upper end, and the full run's largest per-axis estimate."""
+    from avbench.recordings.filter_yaml import filter_choices
+    from avbench.recordings.readers import read_recording
+    from avbench.recordings.sensors import SensorRecord, to_si
+
+    rows = []
+    for rel in runs:
+        p = Path(data_root) / rel
+        if not p.exists():
+            continue
+        print(f"{rel}: full run and {max_slices or 'every'} slice(s)", flush=True)
+        sensors = to_si(read_recording(p), "deg/s", "g")
+        dt = 0.01
+        starts = np.zeros(0, dtype=np.int64)
+        full, _ = _payload_and_avs(sensors, dt, starts, method)
+        full_max = {}
+        for key, (sensor, coef) in _KEYS.items():
+            vals = [ad["methods"][method]["coefficients"][coef]["si"] for ad in full["sensors"][sensor]["axes"].values()]
+            vals = [v for v in vals if v is not None]
+            full_max[key] = max(vals) if vals else math.nan
+        n = next(iter(sensors[0].axes.values())).size
+        w = int(round(minutes * 60 / dt))
+        k_slices = n // w if max_slices is None else min(n // w, max_slices)
+        for k in range(k_slices):
+            part = [SensorRecord(s.sensor, s.unit_in, {a: x[k * w:(k + 1) * w] for a, x in s.axes.items()}, s.names)
+                    for s in sensors]
+            data, avs = _payload_and_avs(part, dt, starts, method)
+            choices = filter_choices(data, method, "--kalibr", avs)
+            for key, (sensor, coef) in _KEYS.items():
+                v, axis, why = choices[key]
+                e = data["sensors"][sensor]["axes"][axis]["methods"][method]["coefficients"][coef]
+                ci = e.get("conf_int_si")
+                upper = v if why else (ci[1] if ci and ci[1] is not None else v)
+                rows.append({"run": Path(rel).stem, "slice": k, "minutes": minutes, "key": key, "axis": axis,
+                             "yaml_si": v, "bound": bool(why), "why": why or "", "stated_upper_si": upper,
+                             "full_run_max_si": full_max[key]})
+    return pd.DataFrame(rows)
+
+
+def check(rows: pd.DataFrame) -> pd.Series:
+    """True where the slice's yaml value, plus its stated uncertainty, reaches the full run's value."""
+    return rows["stated_upper_si"] >= rows["full_run_max_si"] * (1 - 1e-12)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", default=os.environ.get("AVBENCH_REAL_DATA"))
+    ap.add_argument("--out", default="results/real")
+    ap.add_argument("--minutes", type=float, default=MINUTES)
+    ap.add_argument("--slices", type=int, default=1,
+                    help="slices per run, from its start (default 1: the first 30 minutes, as a user records)")
+    a = ap.parse_args(argv)
+    if not a.data:
+        raise SystemExit("--data: expected the folder of the real recordings (or AVBENCH_REAL_DATA)")
+    rows = yaml_rows(Path(a.data), a.minutes, max_slices=a.slices)
+    rows["holds"] = check(rows)
+    rows["yaml_over_full"] = rows["yaml_si"] / rows["full_run_max_si"]
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows.to_csv(out / "yaml_slices.csv", index=False, float_format="%.5g")
+    lines = [f"# The filter yaml from {a.minutes:g}-minute slices of the six ADIS16405 runs ({METHOD})", "",
+             "`python -m avbench.studies.yaml_slices --data $AVBENCH_REAL_DATA --out results/real"
+             f"{'' if a.slices == 1 else f' --slices {a.slices}'}` ({a.slices} slice(s) per run, from its start)", "",
+             "| key | slices | bounds | holds (yaml + its uncertainty >= full run) | yaml / full run: min, median, max |",
+             "|---|---|---|---|---|"]
+    for key, g in rows.groupby("key"):
+        r = g["yaml_over_full"]
+        lines.append(f"| {key} | {len(g)} | {int(g['bound'].sum())} | {int(g['holds'].sum())} of {len(g)} | "
+                     f"{r.min():.3g}, {r.median():.3g}, {r.max():.3g} |")
+    (out / "yaml_slices.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,125 @@
+"""The filter yaml from a short record (issue 28): a random walk the record does not resolve is written
+as the upper end of its interval, said to be a bound, with the record length that would resolve it."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from avbench.estimators.allan.variance import allan_variance
+from avbench.recordings import filter_yaml
+
+
+def _entry(si, flag="ok", ci=None, unresolved=None):
+    e = {"si": si, "flag": flag, "unit": "rad/s^1.5", "value": si}
+    if ci is not None:
+        e["conf_int_si"] = list(ci)
+    if unresolved is not None:
+        e["interval_si"] = list(unresolved)
+    return e
+
+
+def _payload(gyro_k: dict, poor=False):
+    def axis(k):
+        return {"methods": {"m": {"coefficients": {"N": _entry(1e-3, ci=(0.9e-3, 1.1e-3)), "K": k}, "poor_fit": poor}}}
+    accel = {"x": axis(_entry(1e-4, ci=(0.5e-4, 2e-4)))}
+    return {"sensors": {"gyro": {"axes": {a: axis(k) for a, k in gyro_k.items()}}, "accel": {"axes": accel}}}
+
+
+def test_resolved_values_are_kept_and_unresolved_ones_become_their_upper_bound():
+    data = _payload({"x": _entry(2e-5, ci=(1e-5, 3e-5)), "y": _entry(None, "not resolved", unresolved=(0, 4e-5)),
+                     "z": _entry(0.0, ci=(0.0, 5e-6))})
+    ch = filter_yaml.filter_choices(data, "m")
+    v, axis, why = ch["gyroscope_random_walk"]
+    assert (v, axis) == (4e-5, "y") and "not resolved" in why
+    v, axis, why = ch["accelerometer_random_walk"]
+    assert (v, axis, why) == (1e-4, "x", None)
+    text = filter_yaml.kalibr_yaml(ch, 100.0, None, "m", ["r.csv"])
+    assert "# gyroscope_random_walk: a BOUND, not an estimate -- axis y not resolved" in text
+    assert "accelerometer_random_walk: a BOUND" not in text
+
+
+def test_an_interval_reaching_zero_or_a_poor_fit_gives_the_upper_end():
+    ch = filter_yaml.filter_choices(_payload({"x": _entry(2e-5, ci=(0.0, 6e-5))}), "m")
+    assert ch["gyroscope_random_walk"][0] == 6e-5 and "reaches zero" in ch["gyroscope_random_walk"][2]
+    ch = filter_yaml.filter_choices(_payload({"x": _entry(2e-5, ci=(1e-5, 7e-5))}, poor=True), "m")
+    assert ch["gyroscope_random_walk"][0] == 7e-5 and "poor" in ch["gyroscope_random_walk"][2]
+
+
+def test_without_an_interval_the_av_bounds_it_and_the_bound_holds():
+    """A zero K with no interval: the bound the AV allows (K^2 tau / 3 <= AV at its 95 % chi^2 upper
+    limit), which lies above the true K of the simulated record, and the length that would resolve it."""
+    rng = np.random.default_rng(7)
+    dt, n, N, K = 0.01, 180_000, 1e-3, 2e-5
+    x = N / np.sqrt(dt) * rng.standard_normal(n) + np.cumsum(K * np.sqrt(dt) * rng.standard_normal(n))
+    av = allan_variance(x, dt, "octave")
+    data = _payload({"x": _entry(0.0)})
+    ch = filter_yaml.filter_choices(data, "m", avs={"gyro": {"x": (av, 1.0)}})
+    v, _, why = ch["gyroscope_random_walk"]
+    assert v >= K and "the bound the AV allows" in why and ("would resolve it" in why or "resolving it needs" in why)
+    assert filter_yaml.av_bound("K", av) == v
+
+
+_REAL = pytest.mark.skipif(not os.environ.get("AVBENCH_REAL_DATA"),
+                           reason="AVBENCH_REAL_DATA is not set: the real ADIS runs are optional")
+
+
+@pytest.fixture(scope="module")
+def slice_rows():
+    from avbench.studies.yaml_slices import check, yaml_rows
+
+    rows = yaml_rows(Path(os.environ["AVBENCH_REAL_DATA"]), max_slices=1)
+    if rows.empty:
+        pytest.skip("the ADIS16405 runs are not under AVBENCH_REAL_DATA")
+    return rows.assign(holds=check(rows))
+
+
+@pytest.mark.slow
+@_REAL
+def test_thirty_minute_slices_gyro_random_walk_never_falls_below_the_full_runs(slice_rows):
+    """On the first 30-minute slice of each of the six ADIS16405 runs, the yaml's gyro random walk plus
+    its stated uncertainty reaches the full run's largest per-axis estimate (results/real/yaml_slices.md;
+    ~15 min)."""
+    g = slice_rows[slice_rows["key"] == "gyroscope_random_walk"]
+    assert len(g) == 6 and g["holds"].all(), g.to_string()
+
+
+@pytest.mark.slow
+@_REAL
+@pytest.mark.xfail(strict=True, reason="measured 2026-11-25: runs 1 and 6 fall 3 % and 30 % below the full runs, "
+                   "whose accelerometer fits are all POOR FIT (results/README.md); not met")
+def test_thirty_minute_slices_accel_random_walk_never_falls_below_the_full_runs(slice_rows):
+    a = slice_rows[slice_rows["key"] == "accelerometer_random_walk"]
+    assert a["bound"].all()  # every one says it is a bound
+    assert a["holds"].all(), a.to_string()
+
+
+# -- the printed table ------------------------------------------------------------------------------
+def test_shown_value_by_flag():
+    from avbench.recordings.report import shown_value
+
+    e = {"unit": "deg/h", "flag": "ok", "value": 2.0, "si": 2.0 * np.pi / 180 / 3600,
+         "conf_int_si": [1.0 * np.pi / 180 / 3600, 3.0 * np.pi / 180 / 3600]}
+    assert shown_value(e, "B", "gyro") == "2 [1, 3]"
+    assert shown_value({**e, "conf_int_si": [0.0, 3.0 * np.pi / 180 / 3600], "value": 0.0, "si": 0.0}, "B", "gyro") == "< 3"
+    assert shown_value({**e, "flag": "not resolved", "value": None, "interval_si": [0.0, 4.0 * np.pi / 180 / 3600]},
+                       "B", "gyro") == "< 4"
+    assert shown_value({k: v for k, v in e.items() if k != "conf_int_si"} | {"std_err_si": 0.5 * np.pi / 180 / 3600},
+                       "B", "gyro") == "2 (+- 0.5)"
+    assert shown_value({**e, "flag": "not modelled", "value": None}, "B", "gyro") == "-"
+    assert shown_value({k: v for k, v in e.items() if k != "conf_int_si"}, "B", "gyro") == "2 (no interval)"
+
+
+def test_a_poor_fit_takes_the_larger_of_its_interval_and_the_av_bound():
+    rng = np.random.default_rng(8)
+    dt, n = 0.01, 60_000
+    x = 1e-3 / np.sqrt(dt) * rng.standard_normal(n) + np.cumsum(5e-5 * np.sqrt(dt) * rng.standard_normal(n))
+    av = allan_variance(x, dt, "octave")
+    tight = _payload({"x": _entry(1e-7, ci=(1e-8, 2e-7))}, poor=True)  # a poor model's interval far too low
+    v, _, why = filter_yaml.filter_choices(tight, "m", avs={"gyro": {"x": (av, 1.0)}})["gyroscope_random_walk"]
+    assert v == filter_yaml.av_bound("K", av) > 2e-7 and "the bound the AV allows is larger" in why
+    v, _, why = filter_yaml.filter_choices(tight, "m")["gyroscope_random_walk"]  # without the AV: the interval
+    assert v == 2e-7 and "poor" in why
