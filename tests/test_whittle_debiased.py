@@ -206,3 +206,28 @@ def test_fit_check_false_alarms_and_power_small():
 def test_fit_check_false_alarms_slow(spectrum):
     n = 72_000
     _check_false_alarms(_fit_check_rates(_gyro(n), R=300, n=n, seed=73, spectrum=spectrum))
+
+
+def test_profile_fit_raises_a_term_from_its_floor_without_crawling():
+    """A profile fit whose terms must rise from their floors (20 min of the ADIS16405_X preset, B
+    held near its lower profile bound) reaches the likelihood of the log-scale scoring of the point
+    fits in a few steps, where that scoring crawls for hundreds (the huge log step of a floored
+    term, once the step vector is capped, stalls every parameter): the profile fits score in the
+    variances themselves (``hold_floor``)."""
+    from avbench.estimators.likelihood.whittle import _FLOOR, WhittleFit, whittle_fit
+    from avbench.noise_models import presets
+
+    g = presets.get("ADIS16405_X")
+    x = g.simulate(120_000, np.random.default_rng(100))
+    wf = WhittleFit(x, g.dt, debiased=True)
+    comps = ["Q", "N", "B", "K"]
+    full = whittle_fit(wf, comps)
+    _, top = wf.start(comps)
+    lo = np.log(_FLOOR * top)
+    lo[2] = -np.inf
+    a0 = 10 * _FLOOR * top  # every other term starts near its floor, B near its lower profile bound
+    a0[2] = (9.83e-5 / wf.scale) ** 2
+    lin = wf.fit(comps, a0, None, lo, fixed=2, tol=1e-10)
+    log = wf.fit(comps, a0, None, lo, fixed=2, tol=1e-10, hold_floor=False, max_iter=200)
+    assert lin[4] and lin[3] < 60
+    assert not log[4] and lin[2] > log[2]  # 200 log-scale steps: still short of the optimum
