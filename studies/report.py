@@ -295,7 +295,8 @@ def read_tidy(folder) -> pd.DataFrame:
     """The tidy table of a finished study folder (``failure`` is "" on success)."""
     nan = ["nan", "NaN", ""]
     d = pd.read_csv(Path(folder) / TIDY_FILE, keep_default_na=False,
-                    na_values={c: nan for c in ("true", "estimate", "std_err", "lower", "upper")})
+                    na_values={c: nan for c in ("true", "estimate", "std_err", "lower", "upper",
+                                                "evidence_lr", "evidence_p")})
     d["failure"] = d["failure"].astype(str)
     d["nonphysical"] = d["nonphysical"].astype(str).str.lower().eq("true")
     return d

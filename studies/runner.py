@@ -46,6 +46,7 @@ __all__ = [
     "collect",
     "StudyError",
     "TIDY_COLUMNS",
+    "EVIDENCE_COLUMNS",
 ]
 
 TIDY_COLUMNS = [
@@ -62,6 +63,10 @@ TIDY_COLUMNS = [
     "lower",
     "upper",
 ]
+#: each term's evidence, added to the tidy rows only when an estimator of the block reports it
+#: (``diagnostics_["evidence"]``: the likelihood ratio of the model without the term and its p-value,
+#: e.g. ``whittle_debiased``); studies without such an estimator keep :data:`TIDY_COLUMNS` exactly
+EVIDENCE_COLUMNS = ["evidence_lr", "evidence_p"]
 COEFS = ["Q", "N", "B", "K", "R"]
 
 
@@ -102,7 +107,7 @@ def _modelled(est, coefs, nonphys) -> list[str]:
 
 def _fit_one(spec_est, gspec, rate, dt, boot_seed=None):
     """Fit one estimator; return (modelled, coefficients or None, nonphysical, failure, seconds,
-    95 % intervals or None)."""
+    95 % intervals or None, evidence or None)."""
     est = spec_est.make(gspec)
     t0 = time.perf_counter()
     try:
@@ -112,12 +117,13 @@ def _fit_one(spec_est, gspec, rate, dt, boot_seed=None):
                 est.fit(rate, dt)
     except Exception as e:  # failures are data
         msg = f"{type(e).__name__}: {e}".splitlines()[0][:300]
-        return _modelled(est, None, None), None, None, msg, time.perf_counter() - t0, None
+        return _modelled(est, None, None), None, None, msg, time.perf_counter() - t0, None, None
     secs = time.perf_counter() - t0
     failure = str(est.diagnostics_.get("failure") or "")
     coefs, nonphys = est.coefficients_, est.nonphysical_
     ci = _intervals(est, spec_est, rate.size, dt, boot_seed)
-    return _modelled(est, coefs, nonphys), coefs, nonphys, failure, secs, ci
+    evidence = est.diagnostics_.get("evidence")
+    return _modelled(est, coefs, nonphys), coefs, nonphys, failure, secs, ci, evidence
 
 
 def _intervals(est, spec_est, n, dt, boot_seed):
@@ -139,17 +145,19 @@ def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
     """Simulate and fit every replicate of one task; the tidy rows.
 
     One row per modelled coefficient. ``failure`` is empty on success, else the reason: the
-    exception, the estimator's own failure report, or "non-finite estimate".
+    exception, the estimator's own failure report, or "non-finite estimate". When an estimator
+    reports evidence per term (``diagnostics_["evidence"]``, columns ``lr`` and ``p_value``), the
+    block's rows get :data:`EVIDENCE_COLUMNS` as well (NaN for the other estimators' rows).
     """
     gspec = cfg.gyros[task.gyro_index]
     truth = gspec.gyro.coefficients
-    rows = []
+    rows, evid = [], []
     for r in range(task.start, task.stop):
         rate = gspec.gyro.simulate(gspec.n_samples, replicate_rng(cfg.seed, task.gyro_index, r))
         with memoize_allan():  # estimators asking for the same AV curve of this record share it
             fits = [(e, _fit_one(e, gspec, rate, gspec.gyro.dt, [cfg.seed, task.gyro_index, r, k]))
                     for k, e in enumerate(cfg.estimators)]
-        for e, (modelled, coefs, nonphys, failure, secs, ci) in fits:
+        for e, (modelled, coefs, nonphys, failure, secs, ci, ev) in fits:
             if not modelled:  # failed before saying what it models: one row per true coefficient
                 modelled = [c for c in COEFS if np.isfinite(truth[c])]
             for c in modelled:
@@ -160,7 +168,12 @@ def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
                     fail = "non-finite estimate"
                 unc = (np.nan,) * 3 if ci is None else tuple(float(ci.loc[c, k]) for k in ("std_err", "lower", "upper"))
                 rows.append((gspec.label, r, e.label, c, float(truth[c]), est, flag, fail, secs, *unc))
-    return pd.DataFrame(rows, columns=TIDY_COLUMNS)
+                has = ev is not None and c in ev.index
+                evid.append((float(ev.loc[c, "lr"]), float(ev.loc[c, "p_value"])) if has else (np.nan, np.nan))
+    df = pd.DataFrame(rows, columns=TIDY_COLUMNS)
+    if any(np.isfinite(v[0]) for v in evid):
+        df[EVIDENCE_COLUMNS] = pd.DataFrame(evid, columns=EVIDENCE_COLUMNS, index=df.index)
+    return df
 
 
 class StudyError(RuntimeError):
@@ -244,8 +257,8 @@ def collect(shard_dir: Path, tasks: list[Task], cfg: StudyConfig | None = None) 
         except Exception as e:
             raise StudyError(f"{path}: unreadable shard ({type(e).__name__}: {e}); delete it and rerun") from e
         bad = None
-        if list(df.columns) != TIDY_COLUMNS:
-            bad = f"columns {list(df.columns)}, expected {TIDY_COLUMNS}"
+        if list(df.columns) not in (TIDY_COLUMNS, TIDY_COLUMNS + EVIDENCE_COLUMNS):
+            bad = f"columns {list(df.columns)}, expected {TIDY_COLUMNS} (+ {EVIDENCE_COLUMNS})"
         elif set(df["replicate"].unique()) != set(range(t.start, t.stop)):
             bad = f"replicates {sorted(set(df['replicate']))}, expected {t.start}..{t.stop - 1}"
         elif cfg is not None and set(df["gyro"].unique()) != {cfg.gyros[t.gyro_index].label}:

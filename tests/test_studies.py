@@ -271,3 +271,31 @@ def test_collect_rejects_a_shard_that_does_not_match_its_block(tmp_path):
     (shard_dir / tasks[0].shard_name).write_bytes(b"garbage")
     with pytest.raises(StudyError, match="unreadable shard"):
         collect(shard_dir, tasks, cfg)
+
+
+def test_evidence_columns_only_when_an_estimator_reports_evidence(tmp_path):
+    """Tidy rows carry each term's evidence (likelihood ratio, chi-bar^2 p-value) from an estimator
+    that reports it (whittle_debiased), NaN on the other estimators' rows; a study without such an
+    estimator keeps exactly the columns it had (committed tidy.csv files stay byte for byte)."""
+    from avbench.studies.report import read_tidy, write_tidy
+    from avbench.studies.runner import EVIDENCE_COLUMNS, TIDY_COLUMNS
+
+    plain = run_study(load_config(write(tmp_path, study_toml(replicates=2))), tmp_path / "p", progress=False,
+                      make_report=False)
+    assert list(plain.columns) == TIDY_COLUMNS
+    extra = '\n[[estimators]]\nname = "whittle_debiased"\nlabel = "wd"\nsettings = { terms = "NBK" }\n'
+    cfg = load_config(write(tmp_path, study_toml(replicates=2, n_samples=4000, extra_estimators=extra), "e.toml"))
+    tidy = run_study(cfg, tmp_path / "e", progress=False, make_report=False)
+    assert list(tidy.columns) == TIDY_COLUMNS + EVIDENCE_COLUMNS
+    wd = tidy[tidy["estimator"] == "wd"]
+    assert sorted(set(wd["coefficient"])) == ["B", "K", "N"]
+    assert (wd["evidence_lr"] >= 0).all() and wd["evidence_p"].between(0, 1).all()
+    # the p-value is the chi-bar^2 tail of the LR: 1/2 P(chi2_1 >= lr), 1 at lr = 0
+    from scipy import stats
+
+    expect = np.where(wd["evidence_lr"] > 0, 0.5 * stats.chi2.sf(wd["evidence_lr"], 1), 1.0)
+    np.testing.assert_allclose(wd["evidence_p"], expect, rtol=1e-12)
+    assert tidy.loc[tidy["estimator"] != "wd", EVIDENCE_COLUMNS].isna().all().all()
+    write_tidy(tidy, tmp_path / "e")
+    back = read_tidy(tmp_path / "e")
+    np.testing.assert_allclose(back["evidence_lr"], tidy["evidence_lr"], rtol=1e-8, equal_nan=True)

@@ -89,6 +89,12 @@ def test_every_term_reported_with_its_interval_and_evidence():
     # the profile bounds are the intervals conf_int gives at 95 %; other levels fall back to Wald
     np.testing.assert_allclose(ci.loc[list(ev.index)].to_numpy(), ev[["lower", "upper"]].to_numpy())
     assert not np.allclose(e.conf_int(0.9).loc["N"].to_numpy(), ci.loc["N"].to_numpy())
+    # the ramp's evidence: |R| +- z s with s >= its standard error (the random walk's drift at K's
+    # upper bound), and its p-value the two-sided chi^2_1 tail of (|R| / s)^2
+    r = e.coefficients_["R"] if e.coefficients_["R"] > 0 else math.sqrt(e.diagnostics_["ramp_z2"]) * e.std_err_["R"]
+    s = (ev.loc["R", "upper"] - r) / stats.norm.ppf(0.975)
+    assert s >= e.std_err_["R"] * (1 - 1e-9)
+    assert ev.loc["R", "p_value"] == pytest.approx(stats.chi2.sf((r / s) ** 2, 1), rel=1e-6)
 
 
 @pytest.mark.parametrize("debiased", [True, False])
@@ -133,15 +139,17 @@ def test_bad_settings_are_clear_errors(bad):
 
 
 def _coverage(R, n, seed):
-    """Per replicate: does the 95 % interval hold N, B, K (present) and 0 for Q (absent)?"""
+    """Per replicate, at the defaults (candidates QNBKR): does the 95 % interval hold N, B, K
+    (present) and 0 for Q and for the ramp R (absent; R beside a random walk whose drift it must
+    not be read as)?"""
     g = _gyro(n)
     truth = g.coefficients
     hits = []
     for s in np.random.SeedSequence(seed).spawn(R):
-        e = estimators.get("whittle_debiased", terms="QNBK").fit(g.simulate(n, np.random.default_rng(s)), DT)
+        e = estimators.get("whittle_debiased").fit(g.simulate(n, np.random.default_rng(s)), DT)
         ci = e.conf_int()
         row = [ci.loc[c, "lower"] <= truth[c] <= ci.loc[c, "upper"] for c in "NBK"]
-        row.append(ci.loc["Q", "lower"] == 0.0)
+        row += [ci.loc[c, "lower"] == 0.0 for c in "QR"]
         hits.append(row)
     return np.array(hits)
 
@@ -198,3 +206,28 @@ def test_fit_check_false_alarms_and_power_small():
 def test_fit_check_false_alarms_slow(spectrum):
     n = 72_000
     _check_false_alarms(_fit_check_rates(_gyro(n), R=300, n=n, seed=73, spectrum=spectrum))
+
+
+def test_profile_fit_raises_a_term_from_its_floor_without_crawling():
+    """A profile fit whose terms must rise from their floors (20 min of the ADIS16405_X preset, B
+    held near its lower profile bound) reaches the likelihood of the log-scale scoring of the point
+    fits in a few steps, where that scoring crawls for hundreds (the huge log step of a floored
+    term, once the step vector is capped, stalls every parameter): the profile fits score in the
+    variances themselves (``hold_floor``)."""
+    from avbench.estimators.likelihood.whittle import _FLOOR, WhittleFit, whittle_fit
+    from avbench.noise_models import presets
+
+    g = presets.get("ADIS16405_X")
+    x = g.simulate(120_000, np.random.default_rng(100))
+    wf = WhittleFit(x, g.dt, debiased=True)
+    comps = ["Q", "N", "B", "K"]
+    full = whittle_fit(wf, comps)
+    _, top = wf.start(comps)
+    lo = np.log(_FLOOR * top)
+    lo[2] = -np.inf
+    a0 = 10 * _FLOOR * top  # every other term starts near its floor, B near its lower profile bound
+    a0[2] = (9.83e-5 / wf.scale) ** 2
+    lin = wf.fit(comps, a0, None, lo, fixed=2, tol=1e-10)
+    log = wf.fit(comps, a0, None, lo, fixed=2, tol=1e-10, hold_floor=False, max_iter=200)
+    assert lin[4] and lin[3] < 60
+    assert not log[4] and lin[2] > log[2]  # 200 log-scale steps: still short of the optimum
