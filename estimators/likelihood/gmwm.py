@@ -53,8 +53,11 @@ sensor's first-order low-pass filter (N, tf; :class:`avbench.noise_models.Filter
 ``tc=tf``: the first octaves below the white line are modelled instead of dropped), an alternative
 to ``WN`` (not both); ``SN`` sinusoidal noise (amplitude A, frequency f0;
 :class:`avbench.noise_models.Sinusoidal`, IEEE Std 952-1997 Annex C), which reports no coefficient.
-The AV covariance (weights, standard errors) is computed from the model spectrum, in which the
-sinusoid's line does not appear: where it dominates the curve its weights are too large.
+The AV covariance (weights, standard errors, the fit check) includes the line's cross term with the
+rest of the spectrum (:func:`avbench.estimators.allan.covariance.av_covariance`; without it the
+covariance was 2-11 times too small where the sinusoid shapes the curve). With ``lines="auto"``
+(:class:`GMWMFiltered`'s default) ``SN`` is added when the record's strongest spectral line passes the
+test of :mod:`avbench.estimators.likelihood.lines`.
 Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts.
 """
 
