@@ -652,7 +652,11 @@ class GMWMFiltered(GMWM):
     (:class:`avbench.noise_models.FilteredWhiteNoise` with a first-order low-pass, time constant
     ``tf``) models the filter, so the scales are kept and the Gauss-Markov term is left to the bias
     instability (results/real/README.md: N and B plausible on 35 of the 36 first 30/60-minute ADIS
-    gyro slices, the one exception flagged). Settings as :class:`GMWM`.
+    gyro slices, the one exception flagged). Settings as :class:`GMWM`, with two defaults of its own
+    (issue 24): ``lines="auto"`` (a sinusoid ``SN`` when the record's strongest spectral line passes the
+    line test: the ADIS16405 accelerometers' 0.47-0.57 Hz line) and ``min_m="adequate"`` (the shortest
+    cut-off the model fits by Hansen's J; it differs from ``"auto"`` only where the all-scale fit is
+    rejected).
     """
 
     def __init__(self, *, model="FW+GM+RW", min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
