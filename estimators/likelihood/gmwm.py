@@ -342,6 +342,7 @@ class GMWM(Estimator):
             return best["coefs"], {}, diag
         if "GM" in latents:
             _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable)
+        _bound_terms_at_zero(diag, latents, best["coefs"], tau_all, avar_all, edf_all, usable, dt, 2.0 * n * dt)
         gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
         model_avar = gyro.avar
         if gain_all is not None and "WN" in latents:
@@ -478,6 +479,31 @@ def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable):
         f"B <= {upper:.3g} (SI, the 97.5 % upper limit of the smallest AV read as a plateau)",
         IdentifiabilityWarning, stacklevel=3,
     )
+
+
+def _bound_terms_at_zero(diag, latents, coefs, tau_all, avar_all, edf_all, usable, dt, tau_fl):
+    """A one-parameter term the fit put at zero (its scale on the lower bound) gets the interval
+    [0, upper] in ``diagnostics_["unresolved"]`` instead of a bare 0: its AV alone, c^2 u(tau) with u the
+    term's exact AV at unit coefficient, cannot exceed the record's AV anywhere, so c <= sqrt(min_tau
+    AV_97.5%(tau) / u(tau)), the chi^2 upper 97.5 % limit of the AV (engine edf) at the tau where that
+    is smallest (the bound of :func:`_check_gm_resolves_b`, for any term). The coefficient keeps its 0;
+    the report flags it ``not resolved`` and shows the interval."""
+    from scipy.stats import chi2
+
+    ok = usable & (edf_all > 0)
+    if not ok.any():
+        return
+    upper_av = avar_all[ok] * edf_all[ok] / chi2.ppf(0.025, edf_all[ok])
+    for lat in latents:
+        names, coef = LATENTS[lat]
+        if coef is None or len(names) != 1 or coefs.get(coef, 1.0) != 0.0:
+            continue
+        if coef in (diag.get("unresolved") or {}):
+            continue
+        unit = build_gyro((lat,), [1.0], dt, tau_fl).avar(tau_all[ok])
+        good = unit > 0
+        if good.any():
+            diag.setdefault("unresolved", {})[coef] = (0.0, float(math.sqrt(np.min(upper_av[good] / unit[good]))))
 
 
 def _param_index(latents, name):
