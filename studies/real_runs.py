@@ -180,7 +180,7 @@ def spectral_lines(data: Path, band=(0.3, 3.0)) -> pd.DataFrame:
     for rec, sensor, axis, x, timing in _records(data):
         if timing.starts.size:
             continue  # a record with gaps: not one periodogram
-        line = strongest_line(x, timing.dt, band)
+        line = strongest_line(x, timing.dt, band, floor=False)
         if line is None:
             continue
         unit = DISPLAY_UNITS[sensor]["B"]

@@ -58,10 +58,12 @@ class SpectralLine(NamedTuple):
     band: tuple[float, float]
 
 
-def strongest_line(x, dt, band=None) -> SpectralLine | None:
+def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     """The strongest line of record ``x`` (sample interval ``dt``) in ``band`` (Hz; default: every
     frequency the test can search, module docstring), or None when no frequency can be searched
-    (a record too short for the band)."""
+    (a record too short for the band). ``floor=False`` searches the whole ``band`` even below the
+    frequency where the background's span is a fifth of the frequency (a table of a fixed band on
+    short records; the p-value is then less safe on a steep spectrum)."""
     x = np.asarray(x, dtype=float)
     span = FAR_BLOCKS * BLOCK
     if x.ndim != 1 or x.size < 8 * span:
@@ -71,7 +73,7 @@ def strongest_line(x, dt, band=None) -> SpectralLine | None:
     P = np.abs(np.fft.rfft(x * w)) ** 2
     f = np.fft.rfftfreq(x.size, dt)
     df = 1.0 / (x.size * dt)
-    lo, hi = 10 * span * df, f[-1 - span]
+    lo, hi = (10 * span * df if floor else df), f[-1 - span]
     if band is not None:
         lo, hi = max(lo, float(band[0])), min(hi, float(band[1]))
     idx = np.flatnonzero((f >= lo) & (f <= hi))
