@@ -67,6 +67,12 @@ def test_adequate_cutoff_keeps_every_scale_when_the_model_fits():
     assert e.diagnostics_["min_m"] == 1 and len(e.diagnostics_["scale_choice"]) == 1
     with pytest.raises(ValueError, match="min_m"):
         estimators.get("gmwm", min_m="best").fit(x, DT)
+    # a model that misses the middle of the curve is not rescued by fitting only its long end
+    g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=20.0), RateRandomWalk(K=3e-6)])
+    wrong = estimators.get("gmwm", model="WN+RW", min_m="adequate").fit(g.simulate(200_000, np.random.default_rng(11)),
+                                                                         0.1).diagnostics_
+    assert wrong["poor_fit"]
+    assert 2 * len(wrong["tau"]) >= wrong["scale_choice"][0]["n_scales"]
     with pytest.raises(ValueError, match="lines"):
         estimators.get("gmwm", lines="yes").fit(x, DT)
 

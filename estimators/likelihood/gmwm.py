@@ -201,8 +201,10 @@ class GMWM(Estimator):
         fixes the shortest cluster size (1: all octaves, the GMWM of Guerrier et al. 2013 as
         written; :class:`avbench.estimators.likelihood.mle.MLE` starts from a GMWM fit on the scales its block means
         resolve). ``"adequate"``: the shortest cut-off whose own fit is not rejected by Hansen's J test
-        at :data:`SCALE_TEST_LEVEL`, cut-offs tried from the shortest up; if none is, the ``"auto"``
-        choice. It differs from ``"auto"`` only where the all-scale fit is rejected, i.e. where the
+        at :data:`SCALE_TEST_LEVEL`, cut-offs tried from the shortest up, keeping at least half of the
+        usable scales (the model must explain the longer half of the curve: without that bound a
+        white + random-walk model of a gyro with a Gauss-Markov term "passed" from 102 s on, 5 of 15
+        scales; tests/test_gmwm_lines.py); if none is, the ``"auto"`` choice. It differs from ``"auto"`` only where the all-scale fit is rejected, i.e. where the
         model misses the first octaves over more than one scale (the ADIS16405 accelerometers'
         filter, 0.02-0.16 s: dropping one scale at a time changes J too little for the difference
         test); on a record the model describes the all-scale fit passes with probability 1 - 0.001
@@ -320,10 +322,15 @@ class GMWM(Estimator):
             k = int(np.count_nonzero(keep))
             tried.append((m0, fit["J_stat"], k))
             fit["k"] = k
-            if self.min_m == "adequate" and chi2.sf(fit["J_stat"], max(k - n_par, 1)) >= SCALE_TEST_LEVEL:
+            if best is None:
+                k_all = k
+            if (self.min_m == "adequate" and 2 * k >= k_all
+                    and chi2.sf(fit["J_stat"], max(k - n_par, 1)) >= SCALE_TEST_LEVEL):
                 best = fit  # the shortest cut-off whose own J is not rejected (see min_m)
                 break
             if chosen:
+                if 2 * k < k_all:
+                    break  # "adequate" keeps at least the longer half of the scales
                 continue  # "adequate": the sequential choice is made; look on for an adequate cut-off
             if best is not None and not best["J_stat"] - fit["J_stat"] > chi2.ppf(1 - SCALE_TEST_LEVEL,
                                                                                   best["k"] - k):
