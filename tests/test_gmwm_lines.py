@@ -78,6 +78,7 @@ def test_adequate_cutoff_keeps_every_scale_when_the_model_fits():
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(3600)  # 60 fits with a sinusoid: ~5 min on a quiet machine, over 10 at load 10
 @pytest.mark.parametrize("with_line", [False, True])
 def test_default_fit_check_false_alarms_stay_nominal(with_line):
     """gmwm_filtered at its defaults (lines="auto", min_m="adequate") on 60 simulated records of a filtered
