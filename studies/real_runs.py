@@ -168,32 +168,25 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
 def spectral_lines(data: Path, band=(0.3, 3.0)) -> pd.DataFrame:
     """The strongest spectral line of every axis in ``band`` (Hz): the accelerometers' AV bump.
 
-    Periodogram of the whole record (Hann window, mean removed); the line's frequency is the peak,
-    its variance the periodogram's excess over the median of the neighbouring +-0.01-0.05 Hz summed
-    over +-0.004 Hz (at least 3 and 6-30 frequency bins on short records), its amplitude A = sqrt(2 variance) (a sinusoid A sin(2 pi f0 t) has variance A^2/2),
-    and ``prominence`` the peak over that median (a broadband spectrum gives a few).
+    :func:`avbench.estimators.likelihood.lines.strongest_line` (the line test GMWM's ``lines="auto"``
+    uses): Hann periodogram of the whole record, the peak over the median of the neighbouring
+    frequencies (``prominence``), the line's amplitude A = sqrt(2 variance) from the periodogram's
+    excess there, and the test's ``p_value`` (the evidence that the peak is a line, not broadband noise).
     """
+    from avbench.estimators.likelihood.lines import strongest_line
     from avbench.noise_models.units import DISPLAY_UNITS, from_si
 
     rows = []
     for rec, sensor, axis, x, timing in _records(data):
         if timing.starts.size:
             continue  # a record with gaps: not one periodogram
-        x = np.asarray(x, dtype=float) - np.mean(x)
-        w = np.hanning(x.size)
-        P = np.abs(np.fft.rfft(x * w)) ** 2
-        f = np.fft.rfftfreq(x.size, timing.dt)
-        inband = np.flatnonzero((f >= band[0]) & (f <= band[1]))
-        k = inband[np.argmax(P[inband])]
-        df = 1.0 / (x.size * timing.dt)  # frequency resolution: the windows hold at least a few bins
-        near = (np.abs(f - f[k]) > max(0.01, 6 * df)) & (np.abs(f - f[k]) < max(0.05, 30 * df))
-        bg = float(np.median(P[near]))
-        line = np.abs(f - f[k]) < max(0.004, 3 * df)
-        var = max(0.0, float((P[line] - bg).sum())) * 2.0 / (x.size * float(np.sum(w * w)))
+        line = strongest_line(x, timing.dt, band, floor=False)
+        if line is None:
+            continue
         unit = DISPLAY_UNITS[sensor]["B"]
-        rows.append({"record": rec, "sensor": sensor, "axis": axis, "f0_hz": _round(float(f[k])),
-                     "amplitude": _round(from_si("B", math.sqrt(2 * var), unit, sensor)), "unit": unit,
-                     "prominence": _round(float(P[k] / bg))})
+        rows.append({"record": rec, "sensor": sensor, "axis": axis, "f0_hz": _round(line.f0),
+                     "amplitude": _round(from_si("B", line.amplitude, unit, sensor)), "unit": unit,
+                     "prominence": _round(line.prominence), "p_value": _round(line.p_value)})
     return pd.DataFrame(rows)
 
 

@@ -102,3 +102,23 @@ def test_gm_at_the_first_octaves_does_not_resolve_b():
         if gyro is fast_fl:
             lo, hi = unresolved["B"]
             assert lo == 0 and flicker.B <= hi
+
+
+def test_a_term_at_zero_is_reported_with_its_interval():
+    """No bare 0: a term the fit puts at its floor (K on a gyro without rate random walk) is flagged
+    not resolved with [0, upper], upper the largest K whose AV stays under the record's AV limits."""
+    import warnings
+
+    from avbench.recordings.fit import MethodFit
+    from avbench.recordings.report import coefficient_flags
+
+    g = Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=2e-4, tc=5.0)])
+    x = g.simulate(200_000, np.random.default_rng(1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        e = estimators.get("gmwm_filtered").fit(x, DT)
+    assert e.coefficients_["K"] == 0
+    lo, hi = e.diagnostics_["unresolved"]["K"]
+    av = e.diagnostics_["avar"]
+    assert lo == 0 and 0 < hi < math.sqrt(3 * av.max() / e.diagnostics_["tau"].min())
+    assert coefficient_flags(MethodFit("gmwm_filtered", e, 1.0, 0.0))["K"] == "not resolved"

@@ -109,7 +109,7 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
     n_grid = _grid_size(m, grid_per_cycle, max_grid)
     M = n_samples - 2 * m + 1
     if not reuse:
-        return _direct(gyro, m, n_grid) / (2.0 * np.sqrt(np.outer(M, M)))
+        return (_direct(gyro, m, n_grid) + _line_cross(gyro, m)) / (2.0 * np.sqrt(np.outer(M, M)))
     dt = float(gyro.dt)
     parts = [f for f in map(_factor, gyro.terms) if f[0] != 0.0]
     out = np.zeros((m.size, m.size))
@@ -142,7 +142,33 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
                 _PAIRS.popitem(last=False)
             except KeyError:
                 break
+    out += _line_cross(gyro, m)
     return out / (2.0 * np.sqrt(np.outer(M, M)))
+
+
+def _line_cross(gyro, m) -> np.ndarray:
+    r"""The spectral lines' share of the integral: :math:`2 P\,|H_j(\omega_0)|^2|H_k(\omega_0)|^2 S(\omega_0)`
+    per line (power P at omega_0, ``term.spectral_lines``), S the continuous spectrum there.
+
+    A line (a sinusoid of random phase, :class:`avbench.noise_models.Sinusoidal`) is the spectral
+    density :math:`\pi P\,\delta(\omega - \omega_0)` in the convention of :func:`av_covariance`.
+    Isserlis' integrand :math:`S^2 = S_c^2 + 2 S_c S_l + S_l^2` then has the cross term above, which
+    is exactly the variance of the AV's line-times-noise products (the cluster-mean differences of the
+    sinusoid and of the noise: :math:`\mathrm{Var}\,\frac1M\sum d_s d_n = \frac{1}{M} P |H|^4 S_c(\omega_0)`
+    on the diagonal). :math:`S_l^2` (a Gaussian line's random amplitude) does not apply: a sinusoid of
+    fixed amplitude adds only O(1/M^2) to the variance, and nothing is added for it. Without this term
+    the covariance of a model with a sinusoid is too small wherever the sinusoid shapes the curve, and a
+    correct fit is flagged (tests/test_gmwm_real_terms.py).
+    """
+    out = np.zeros((m.size, m.size))
+    dt = float(gyro.dt)
+    for term in gyro.terms:
+        for f0, power in term.spectral_lines(dt):
+            w0 = 2 * np.pi * f0 * dt
+            s_c = float(gyro.psd(np.array([f0]))[0]) / (2 * dt)
+            h = _haar_gain(m, w0, np.sin(w0 / 2))
+            out += 2.0 * power * s_c * np.outer(h, h)
+    return out
 
 
 def _direct(gyro, m, n_grid) -> np.ndarray:

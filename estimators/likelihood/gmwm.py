@@ -53,8 +53,11 @@ sensor's first-order low-pass filter (N, tf; :class:`avbench.noise_models.Filter
 ``tc=tf``: the first octaves below the white line are modelled instead of dropped), an alternative
 to ``WN`` (not both); ``SN`` sinusoidal noise (amplitude A, frequency f0;
 :class:`avbench.noise_models.Sinusoidal`, IEEE Std 952-1997 Annex C), which reports no coefficient.
-The AV covariance (weights, standard errors) is computed from the model spectrum, in which the
-sinusoid's line does not appear: where it dominates the curve its weights are too large.
+The AV covariance (weights, standard errors, the fit check) includes the line's cross term with the
+rest of the spectrum (:func:`avbench.estimators.allan.covariance.av_covariance`; without it the
+covariance was 2-11 times too small where the sinusoid shapes the curve). With ``lines="auto"``
+(:class:`GMWMFiltered`'s default) ``SN`` is added when the record's strongest spectral line passes the
+test of :mod:`avbench.estimators.likelihood.lines`.
 Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts.
 """
 
@@ -78,6 +81,10 @@ __all__ = ["GMWM", "GMWMFiltered", "LATENTS", "WaveletVariance", "parse_model", 
 
 #: level of the difference-in-J test that drops a shortest scale (``min_m="auto"``)
 SCALE_TEST_LEVEL = 0.001
+
+#: level of the line test (:func:`avbench.estimators.likelihood.lines.strongest_line`) that adds a
+#: sinusoid ``SN`` to the model (``lines="auto"``)
+LINE_TEST_LEVEL = 0.001
 
 #: a Gauss-Markov term whose AV peak (1.8926 Tc) lies less than this factor above the shortest tau
 #: fitted (three octaves) shapes the first octaves -- the sensor's filter -- and does not resolve B
@@ -194,12 +201,29 @@ class GMWM(Estimator):
         changes its J): it stays on all scales and is flagged by the poor-fit check. An integer
         fixes the shortest cluster size (1: all octaves, the GMWM of Guerrier et al. 2013 as
         written; :class:`avbench.estimators.likelihood.mle.MLE` starts from a GMWM fit on the scales its block means
-        resolve).
+        resolve). ``"adequate"``: the shortest cut-off whose own fit is not rejected by Hansen's J test
+        at :data:`SCALE_TEST_LEVEL`, cut-offs tried from the shortest up, keeping at least half of the
+        usable scales (the model must explain the longer half of the curve: without that bound a
+        white + random-walk model of a gyro with a Gauss-Markov term "passed" from 102 s on, 5 of 15
+        scales; tests/test_gmwm_lines.py); if none is, the ``"auto"`` choice. It differs from ``"auto"`` only where the all-scale fit is rejected, i.e. where the
+        model misses the first octaves over more than one scale (the ADIS16405 accelerometers'
+        filter, 0.02-0.16 s: dropping one scale at a time changes J too little for the difference
+        test); on a record the model describes the all-scale fit passes with probability 1 - 0.001
+        and the choice, and the poor-fit check's false-alarm rate, are those of all scales. The
+        scales it drops are the sensor's front end as far as this model can tell and are reported
+        (``min_m``, ``scale_choice``), not explained.
     weighting : {"model", "diagonal"}
         "model" (default): two-step efficient GMM with the parametric covariance
         :func:`av_covariance`; "diagonal": stop after the first step (edf weights).
     n_starts : int
         Number of starting values of Tc tried in the first step (log-spaced across the tau range).
+    lines : {"model", "auto"}
+        "model" (default here): the latents of ``model`` and no others. "auto": a sinusoid ``SN`` is
+        added when the record's strongest spectral line passes the test for a hidden periodicity of
+        :mod:`avbench.estimators.likelihood.lines` at level :data:`LINE_TEST_LEVEL` (0.001) at a
+        frequency the usable taus see; ``diagnostics_["line_test"]`` says what was found and chosen.
+        With ``SN`` in the model (given or added) and such a line found, the sinusoid is started at
+        the line (frequency and amplitude) instead of at the eight strongest bumps of the AV curve.
 
     Attributes
     ----------
@@ -230,12 +254,14 @@ class GMWM(Estimator):
     #: that uses the GMWM fit only as its start sets it False on its instance
     _assess = True
 
-    def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6):
+    def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6,
+                 lines="model"):
         self.model = model
         self.min_clusters = min_clusters
         self.min_m = min_m
         self.weighting = weighting
         self.n_starts = n_starts
+        self.lines = lines
 
     # -- settings --------------------------------------------------------------------------------
     def check_settings(self):
@@ -245,14 +271,16 @@ class GMWM(Estimator):
         if isinstance(self.min_clusters, bool) or not isinstance(self.min_clusters, (int, np.integer)) \
                 or self.min_clusters < 2:
             raise ValueError(f"min_clusters: expected an integer >= 2, got {self.min_clusters!r}")
-        if self.min_m != "auto" and (isinstance(self.min_m, bool) or not isinstance(self.min_m, (int, np.integer))
+        if self.min_m not in ("auto", "adequate") and (isinstance(self.min_m, bool) or not isinstance(self.min_m, (int, np.integer))
                                      or self.min_m < 1):
-            raise ValueError(f"min_m: expected 'auto' or a positive integer, got {self.min_m!r}")
+            raise ValueError(f"min_m: expected 'auto', 'adequate' or a positive integer, got {self.min_m!r}")
         if self.weighting not in ("model", "diagonal"):
             raise ValueError(f"weighting: expected 'model' or 'diagonal', got {self.weighting!r}")
         if isinstance(self.n_starts, bool) or not isinstance(self.n_starts, (int, np.integer)) \
                 or self.n_starts < 1:
             raise ValueError(f"n_starts: expected a positive integer, got {self.n_starts!r}")
+        if self.lines not in ("model", "auto"):
+            raise ValueError(f"lines: expected 'model' or 'auto', got {self.lines!r}")
         return latents
 
     # -- fitting ---------------------------------------------------------------------------------
@@ -270,8 +298,11 @@ class GMWM(Estimator):
         tau_all, avar_all, m_all, edf_all, cov_scale = wv.tau, wv.avar, wv.m, wv.edf, wv.cov_scale
         gain_all = wv.white_gain
         usable = (n // m_all >= self.min_clusters) & (avar_all > 0)
+        line = None
+        if "SN" in latents or self.lines == "auto":
+            latents, line = self._line_choice(latents, rate, dt, tau_all[usable])
         n_par = sum(len(LATENTS[lat][0]) for lat in latents)
-        if self.min_m == "auto":
+        if self.min_m in ("auto", "adequate"):
             lows = [int(v) for v in m_all if np.count_nonzero(usable & (m_all >= v)) >= n_par + 1]
         else:
             lows = [int(self.min_m)]
@@ -286,27 +317,42 @@ class GMWM(Estimator):
         # (Eichenbaum, Hansen & Singleton 1988) rejects it; see the class docstring.
         from scipy.stats import chi2
 
-        best, tried = None, []
+        best, tried, chosen = None, [], False
         for m0 in lows:
             keep = usable & (m_all >= m0)
             fit = self._fit_scales(latents, tau_all[keep], avar_all[keep], m_all[keep], edf_all[keep], n, dt,
-                                   cov_scale, None if gain_all is None else gain_all[keep])
+                                   cov_scale, None if gain_all is None else gain_all[keep], line)
             k = int(np.count_nonzero(keep))
             tried.append((m0, fit["J_stat"], k))
-            if best is not None:
-                drop = best["k"] - k
-                if not best["J_stat"] - fit["J_stat"] > chi2.ppf(1 - SCALE_TEST_LEVEL, drop):
-                    break  # the shorter scale agrees with the rest: keep it
             fit["k"] = k
+            if best is None:
+                k_all = k
+            if (self.min_m == "adequate" and 2 * k >= k_all
+                    and chi2.sf(fit["J_stat"], max(k - n_par, 1)) >= SCALE_TEST_LEVEL):
+                best = fit  # the shortest cut-off whose own J is not rejected (see min_m)
+                break
+            if chosen:
+                if 2 * k < k_all:
+                    break  # "adequate" keeps at least the longer half of the scales
+                continue  # "adequate": the sequential choice is made; look on for an adequate cut-off
+            if best is not None and not best["J_stat"] - fit["J_stat"] > chi2.ppf(1 - SCALE_TEST_LEVEL,
+                                                                                  best["k"] - k):
+                if self.min_m != "adequate":
+                    break  # the shorter scale agrees with the rest: keep it
+                chosen = True
+                continue
             best = fit
         diag = best["diag"]
         diag["min_m"] = int(diag["m"][0])
-        if self.min_m == "auto":
+        if line is not None:
+            diag["line_test"] = line
+        if self.min_m in ("auto", "adequate"):
             diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
             return best["coefs"], {}, diag
         if "GM" in latents:
             _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable)
+        _bound_terms_at_zero(diag, latents, best["coefs"], tau_all, avar_all, edf_all, usable, dt, 2.0 * n * dt)
         gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
         model_avar = gyro.avar
         if gain_all is not None and "WN" in latents:
@@ -323,14 +369,32 @@ class GMWM(Estimator):
         diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
         return best["coefs"], {}, diag
 
-    def _fit_scales(self, latents, tau, avar, m, edf, n, dt, cov_scale, white_gain=None):
+    def _line_choice(self, latents, rate, dt, tau):
+        """(latents, line): the record's strongest spectral line (:mod:`avbench.estimators.likelihood.lines`)
+        in the band the taus ``tau`` see (an AV peak 0.371 / f0 within them, up to the Nyquist frequency),
+        as a dict with ``included`` (SN in the model) and ``significant`` (p below
+        :data:`LINE_TEST_LEVEL`); with ``lines="auto"`` a significant line adds ``SN``."""
+        from avbench.estimators.likelihood.lines import strongest_line
+
+        found = strongest_line(rate, dt, (0.371 / tau[-1], 0.5 / dt)) if tau.size else None
+        if found is None:
+            return latents, None
+        significant = found.p_value < LINE_TEST_LEVEL
+        if significant and self.lines == "auto" and "SN" not in latents:
+            latents = parse_model(latents + ("SN",))
+        return latents, {"f0": found.f0, "amplitude": found.amplitude, "prominence": found.prominence,
+                         "p_value": found.p_value, "n_searched": found.n_searched, "band": found.band,
+                         "significant": bool(significant), "level": LINE_TEST_LEVEL,
+                         "included": "SN" in latents}
+
+    def _fit_scales(self, latents, tau, avar, m, edf, n, dt, cov_scale, white_gain=None, line=None):
         """Two-step GMWM on the given scales; returns dict(coefs, J_stat, diag).
 
         ``white_gain`` (None or one value per tau): the record's AV estimator sees the white
         (ARW) part of the model multiplied by it (:class:`WaveletVariance`)."""
         n_par = sum(len(LATENTS[lat][0]) for lat in latents)
         T = n * dt
-        lo, hi = _bounds(latents, tau, avar, dt, T)
+        lo, hi = _bounds(latents, tau, avar, dt, T, line)
 
         tau_fl = 2.0 * T  # flicker latent: filter memory twice the record, as the presets
         if "FL" in latents:
@@ -357,7 +421,7 @@ class GMWM(Estimator):
         # step 1: diagonal weights from the engine's edf, several starts
         L1 = np.sqrt(2.0 * avar**2 / edf * cov_scale)
         best = None
-        for u0 in _starts(latents, tau, avar, self.n_starts, lo, hi):
+        for u0 in _starts(latents, tau, avar, self.n_starts, lo, hi, line):
             sol = _solve(lambda u: (model_av(u) - avar) / L1, u0, lo, hi)
             if best is None or sol.cost < best.cost:
                 best = sol
@@ -427,6 +491,31 @@ def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable):
     )
 
 
+def _bound_terms_at_zero(diag, latents, coefs, tau_all, avar_all, edf_all, usable, dt, tau_fl):
+    """A one-parameter term the fit put at zero (its scale on the lower bound) gets the interval
+    [0, upper] in ``diagnostics_["unresolved"]`` instead of a bare 0: its AV alone, c^2 u(tau) with u the
+    term's exact AV at unit coefficient, cannot exceed the record's AV anywhere, so c <= sqrt(min_tau
+    AV_97.5%(tau) / u(tau)), the chi^2 upper 97.5 % limit of the AV (engine edf) at the tau where that
+    is smallest (the bound of :func:`_check_gm_resolves_b`, for any term). The coefficient keeps its 0;
+    the report flags it ``not resolved`` and shows the interval."""
+    from scipy.stats import chi2
+
+    ok = usable & (edf_all > 0)
+    if not ok.any():
+        return
+    upper_av = avar_all[ok] * edf_all[ok] / chi2.ppf(0.025, edf_all[ok])
+    for lat in latents:
+        names, coef = LATENTS[lat]
+        if coef is None or len(names) != 1 or coefs.get(coef, 1.0) != 0.0:
+            continue
+        if coef in (diag.get("unresolved") or {}):
+            continue
+        unit = build_gyro((lat,), [1.0], dt, tau_fl).avar(tau_all[ok])
+        good = unit > 0
+        if good.any():
+            diag.setdefault("unresolved", {})[coef] = (0.0, float(math.sqrt(np.min(upper_av[good] / unit[good]))))
+
+
 def _param_index(latents, name):
     """Index of the first parameter of latent ``name`` in the flat parameter vector."""
     i = 0
@@ -442,11 +531,19 @@ def _solve(fun, u0, lo, hi):
                          x_scale=1.0, xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=2000)
 
 
-def _bounds(latents, tau, avar, dt, T):
+#: a sinusoid started at a significant spectral line keeps its frequency within this factor of the line's
+LINE_FREQUENCY_FACTOR = 1.05
+
+
+def _bounds(latents, tau, avar, dt, T, line=None):
     """Box for the log-parameters: each scale at most the value explaining the whole AV curve alone
     (times 10), at least 1e-8 of that; Tc between the shortest tau fitted (>= dt) and 10 T: a Gauss-Markov
     term faster than every scale fitted looks like white noise plus a 1/tau^2 term there, i.e. like a
-    sensor filter, and says nothing about bias instability."""
+    sensor filter, and says nothing about bias instability. A sinusoid found by the line test (``line``
+    significant) keeps its frequency within :data:`LINE_FREQUENCY_FACTOR` of the line's: the
+    periodogram places the line to a few 1/T, the AV curve (above all from a longer shortest tau)
+    hardly at all -- left free, f0 wandered to 8.7 Hz with A = 7 times the line's on an ADIS16405
+    accelerometer fitted from 0.32 s, an oscillating 1/tau^2 term instead of the 0.56 Hz line."""
     lo, hi = [], []
     for lat in latents:
         if lat == "QN":
@@ -472,13 +569,19 @@ def _bounds(latents, tau, avar, dt, T):
             lo.append(math.log(dt / 100))
             hi.append(math.log(max(dt, tau[0]) * 16))
         elif lat == "SN":  # a frequency the fitted taus see: peak 0.371 / f0 inside the tau range
-            lo.append(math.log(0.371 / tau[-1]))
-            hi.append(math.log(0.5 / dt))
+            f_lo, f_hi = 0.371 / tau[-1], 0.5 / dt
+            if line is not None and line["significant"]:
+                f_lo = max(f_lo, line["f0"] / LINE_FREQUENCY_FACTOR)
+                f_hi = min(f_hi, line["f0"] * LINE_FREQUENCY_FACTOR)
+            lo.append(math.log(f_lo))
+            hi.append(math.log(max(f_hi, f_lo * 1.001)))
     return np.array(lo), np.array(hi)
 
 
-def _starts(latents, tau, avar, n_starts, lo, hi):
-    """Starting log-parameters read off the AV curve; Tc takes ``n_starts`` log-spaced values."""
+def _starts(latents, tau, avar, n_starts, lo, hi, line=None):
+    """Starting log-parameters read off the AV curve; Tc takes ``n_starts`` log-spaced values; a
+    sinusoid starts at a significant spectral line ``line`` (:meth:`GMWM._line_choice`) if there is
+    one, else at the eight strongest bumps of the curve."""
     base = []
     for lat in latents:
         if lat == "QN":
@@ -515,12 +618,16 @@ def _starts(latents, tau, avar, n_starts, lo, hi):
         if tau.size >= 3:
             bump[1:-1] = np.log(avar[1:-1]) - 0.5 * (np.log(avar[:-2]) + np.log(avar[2:]))
         order = [i for i in np.argsort(-bump)[:8] if np.isfinite(bump[i])] or [0]
+        if line is not None and line["significant"]:
+            sn = [(line["amplitude"], line["f0"])]
+        else:
+            sn = [(math.sqrt(avar[i] / 0.525) / 2, 0.371 / tau[i]) for i in order]
         with_sn = []
         for vals in out:
-            for i in order:
-                f0 = min(max(0.371 / tau[i], math.exp(lo[j + 1]) * 1.01), math.exp(hi[j + 1]) / 1.01)
+            for amp, f0 in sn:
                 v = list(vals)
-                v[j], v[j + 1] = math.sqrt(avar[i] / 0.525) / 2, f0
+                v[j] = min(max(amp, math.exp(lo[j]) * 1.01), math.exp(hi[j]) / 1.01)
+                v[j + 1] = min(max(f0, math.exp(lo[j + 1]) * 1.01), math.exp(hi[j + 1]) / 1.01)
                 with_sn.append(v)
         out = with_sn
     return [np.log(np.array(v, dtype=float)) for v in out]
@@ -581,8 +688,14 @@ class GMWMFiltered(GMWM):
     (:class:`avbench.noise_models.FilteredWhiteNoise` with a first-order low-pass, time constant
     ``tf``) models the filter, so the scales are kept and the Gauss-Markov term is left to the bias
     instability (results/real/README.md: N and B plausible on 35 of the 36 first 30/60-minute ADIS
-    gyro slices, the one exception flagged). Settings as :class:`GMWM`.
+    gyro slices, the one exception flagged). Settings as :class:`GMWM`, with two defaults of its own
+    (issue 24): ``lines="auto"`` (a sinusoid ``SN`` when the record's strongest spectral line passes the
+    line test: the ADIS16405 accelerometers' 0.47-0.57 Hz line) and ``min_m="adequate"`` (the shortest
+    cut-off the model fits by Hansen's J; it differs from ``"auto"`` only where the all-scale fit is
+    rejected).
     """
 
-    def __init__(self, *, model="FW+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6):
-        super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting, n_starts=n_starts)
+    def __init__(self, *, model="FW+GM+RW", min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
+                 lines="auto"):
+        super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting, n_starts=n_starts,
+                         lines=lines)
