@@ -327,6 +327,18 @@ def diffuse_loglike(y, scale, T, Qc, Z, H, P0, Pinf0, a_out, P_out):
 
 
 @njit(cache=True, inline="always")
+def _dstate(tp, tl, tv, dnz, drow, dcol, dval, af, daf, da, r, k):
+    """The predicted state's derivative in parameter r: T daf + dT af (T, dT in sparse rows)."""
+    for i in range(k):
+        acc = 0.0
+        for e in range(tp[i], tp[i + 1]):
+            acc += tv[e] * daf[r, tl[e]]
+        da[r, i] = acc
+    for e in range(dnz[r]):
+        da[r, drow[r, e]] += dval[r, e] * af[dcol[r, e]]
+
+
+@njit(cache=True, inline="always")
 def _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2):
     """dP[r] = T dPf[r] T' + dT Pf T' + T Pf dT' + dQc[r], forced symmetric: the derivative of
     :func:`_predict` in parameter r (T by its non-zero entries, dT by its ``dnz[r]`` non-zero entries
@@ -535,13 +547,7 @@ def diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, dT, dQc, dH, dP0, a_out, P_
                     acc += tv[e] * af[tl[e]]
                 a[i] = acc
             for r in range(p):
-                for i in range(k):
-                    acc = 0.0
-                    for e in range(tp[i], tp[i + 1]):
-                        acc += tv[e] * daf[r, tl[e]]
-                    da[r, i] = acc
-                for e in range(dnz[r]):
-                    da[r, drow[r, e]] += dval[r, e] * af[dcol[r, e]]
+                _dstate(tp, tl, tv, dnz, drow, dcol, dval, af, daf, da, r, k)
             continue
         F = max(_forecast(P, Z, H, M), 0.0)
         for r in range(p):
@@ -608,13 +614,7 @@ def diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, dT, dQc, dH, dP0, a_out, P_
                 acc += T[i, j] * af[j]
             a[i] = acc
         for r in range(p):
-            for i in range(k):
-                acc = 0.0
-                for e in range(tp[i], tp[i + 1]):
-                    acc += tv[e] * daf[r, tl[e]]
-                da[r, i] = acc
-            for e in range(dnz[r]):
-                da[r, drow[r, e]] += dval[r, e] * af[dcol[r, e]]
+            _dstate(tp, tl, tv, dnz, drow, dcol, dval, af, daf, da, r, k)
             _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
         for i in range(k):
             for j in range(k):
