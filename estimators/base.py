@@ -290,7 +290,11 @@ class Estimator:
         """
         check_common_settings(self.get_params())
         rate, dt = check_record(rate, dt)
-        unit = data_scale(rate)
+        # an online estimator is handed the record as it is (fit must equal partial_fit over chunks,
+        # and the noise level that standardises a record is known only at its end: the online filters
+        # work relative to their starting coefficients, ARMA-EM in its own offset and scale), unless
+        # its magnitude would over- or underflow float64 arithmetic (_extreme_unit: a power of two)
+        unit = _extreme_unit(rate) if self.online else data_scale(rate)
         if unit == 1.0:
             coefs, nonphys, diag = self._fit(rate, dt)
             diag = {**(diag or {}), "data_scale": 1.0}
@@ -493,6 +497,18 @@ def noise_level(rate: np.ndarray) -> float:
         return 0.0
     d /= big
     return big * math.sqrt(float(np.dot(d, d)) / (2.0 * d.size))
+
+
+def _extreme_unit(rate: np.ndarray) -> float:
+    """1 for a record whose spread (max - min) lies in [2^-60, 2^60] (or is 0); else the power of two
+    near its spread, an exact unit for estimators that keep the record's own unit otherwise."""
+    lo, hi = float(rate.min()), float(rate.max())
+    spread = hi - lo
+    if not math.isfinite(spread):  # max - min overflowed (values near the float64 limit)
+        spread = max(abs(lo), abs(hi))
+    if spread == 0.0 or 2.0**-60 <= spread <= 2.0**60:
+        return 1.0
+    return math.ldexp(1.0, math.frexp(spread)[1])
 
 
 def data_scale(rate: np.ndarray) -> float:

@@ -53,7 +53,7 @@ def test_every_axis_of_both_sensors_with_its_units(layout):
     units = df.drop_duplicates(["sensor", "coefficient"]).set_index(["sensor", "coefficient"])["unit"]
     assert units[("gyro", "N")] == "deg/sqrt(h)" and units[("gyro", "B")] == "deg/h"
     assert units[("accel", "N")] == "m/s/sqrt(h)" and units[("accel", "B")] == "ug"
-    assert set(df["flag"]) <= {"ok", "not modelled", "non-physical", "failed"}
+    assert set(df["flag"]) <= {"ok", "not resolved", "not modelled", "non-physical", "failed"}
     assert "failed" not in set(df["flag"])
 
 

@@ -1012,14 +1012,26 @@ class Whittle(Estimator):
     def conf_int(self, level=0.95, conservative=False) -> pd.DataFrame:
         """With ``intervals="profile"`` and the default two-sided 95 % level: the profile-likelihood
         intervals of ``diagnostics_["evidence"]`` (every candidate term, valid without knowing the
-        true set, :func:`profile_evidence`); otherwise the base class's Wald intervals."""
+        true set, :func:`profile_evidence`); otherwise the base class's Wald intervals, nested with
+        the profile ones so that intervals widen with the level: at a higher level each holds the 95 %
+        profile interval, at a lower one it lies within it (the profile interval can be the wider
+        where Wald is not valid: a term at its boundary, the ramp with the random walk at its bound)."""
         out = super().conf_int(level, conservative)
         ev = self.diagnostics_.get("evidence")
-        if ev is None or conservative or not math.isclose(level, self.diagnostics_["evidence_level"]):
+        if ev is None or conservative:
             return out
+        at = self.diagnostics_["evidence_level"]
         for c in ev.index:
             if np.isfinite(self.coefficients_[c]):
-                out.loc[c, ["lower", "upper"]] = ev.loc[c, ["lower", "upper"]].to_numpy(dtype=float)
+                lo, hi = ev.loc[c, ["lower", "upper"]].to_numpy(dtype=float)
+                if math.isclose(level, at):
+                    out.loc[c, ["lower", "upper"]] = lo, hi
+                elif level > at:
+                    out.loc[c, "lower"] = np.fmin(out.loc[c, "lower"], lo)
+                    out.loc[c, "upper"] = np.fmax(out.loc[c, "upper"], hi)
+                else:
+                    out.loc[c, "lower"] = np.fmax(out.loc[c, "lower"], lo)
+                    out.loc[c, "upper"] = np.fmin(out.loc[c, "upper"], hi)
         return out
 
     def _report(self, wf, fit, kept, terms, select, k_drift=0.0, pen=None):
