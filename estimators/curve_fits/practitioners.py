@@ -245,6 +245,8 @@ class LogFit(_AVBaseline):
         As :class:`SlopeLines`.
     """
 
+    round_off_amplified = True  # an iterative least-squares optimiser's end point (a term at its floor: 4e-11 vs 0) (Estimator.round_off_amplified)
+
     def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True, min_clusters=2):
         self.terms = terms
         self.taus = taus

@@ -429,6 +429,8 @@ class ArmaEM(Estimator):
         ``trajectory`` (DataFrame: sample, N, B, K in SI).
     """
 
+    round_off_amplified = True  # an iterative EM's end point (last digits of K move between kernels) (Estimator.round_off_amplified)
+
     #: the record's offset and scale (the first chunk's mean and noise level) and the Gauss-Markov
     #: sigma carry the rate's unit; A, C, Q, R are in the filter's own scaled units
     diagnostic_units = {"offset": 1, "scale": 1, "sigma_gm": 1}
