@@ -521,7 +521,6 @@ def diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, dT, dQc, dH, dP0, a_out, P_
                     dssq2[r] += 2.0 * v * dv[r]
             else:
                 # the covariance is frozen, its derivatives still settle (their own test below)
-                dchange = 0.0
                 for r in range(p):
                     dF[r] = _dforecast(dP, r, Z, dH[r], dM)
                     for i in range(k):
@@ -529,12 +528,8 @@ def diffuse_filter(y, scale, T, Qc, Z, H, P0, Pinf0, dT, dQc, dH, dP0, a_out, P_
                     for i in range(k):
                         daf[r, i] = da[r, i] + dK0[r, i] * v + K0[i] * dv[r]
                     dll[r] -= 0.5 * (dF[r] / Fc + 2.0 * v * dv[r] / Fc - v * v * dF[r] / (Fc * Fc))
-                    for i in range(k):
-                        for j in range(k):
-                            dPf[r, i, j] = dP[r, i, j] - dM[r, i] * K0[j] - M[i] * dK0[r, j]
-                            Pprev[i, j] = dP[r, i, j]
-                    _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
-                    dchange = max(dchange, _dsq_change(dP, r, Pprev))
+                dchange = _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, K0, dM, dK0,
+                                        Pprev, tmp, tmp2)
                 if dchange < TOL_CONVERGED:
                     dconverged = True
                     for r in range(p):
@@ -683,8 +678,8 @@ def _dsettle_gain(dP, dH, Z, dM, Kf, dKf, dF, Fc):
 
 @njit(cache=True, inline="always")
 def _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM, dKf, prev, tmp, tmp2):
-    """One step of the covariance derivatives with the covariance frozen; True once they settle
-    (squared Frobenius change below ``TOL_CONVERGED_AUGMENTED`` for every parameter)."""
+    """One step of the covariance derivatives with the covariance frozen; their largest squared
+    Frobenius change over the parameters (the caller compares it with its tolerance)."""
     p, k = dM.shape[0], dM.shape[1]
     change = 0.0
     for r in range(p):
@@ -694,7 +689,7 @@ def _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM
                 prev[i, j] = dP[r, i, j]
         _dpredict(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, r, tmp, tmp2)
         change = max(change, _dsq_change(dP, r, prev))
-    return change < TOL_CONVERGED_AUGMENTED
+    return change
 
 
 @njit(cache=True)
@@ -877,7 +872,7 @@ def augmented_filter(y, scale, T, Qc, Z, H, P0, lev, dT, dQc, dH, dP0, a_out, P_
             _dgram(r, dG, w, dw, dF[r], Fc, c)
         if not dsettled:
             dsettled = _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM, dKf,
-                                     Pprev, tmp, tmp2)
+                                     Pprev, tmp, tmp2) < TOL_CONVERGED_AUGMENTED
         t += 1
         ss = 0.0
         nn = 0.0
@@ -951,7 +946,7 @@ def augmented_filter(y, scale, T, Qc, Z, H, P0, lev, dT, dQc, dH, dP0, a_out, P_
                 csettled = ss <= TOL_COLUMNS * nn
                 if not dsettled:
                     dsettled = _dsettle_step(tp, tl, tv, dnz, drow, dcol, dval, Pf, dPf, dQc, dP, M, Kf, dM, dKf,
-                                             Pprev, tmp, tmp2)
+                                             Pprev, tmp, tmp2) < TOL_CONVERGED_AUGMENTED
         _csr_left(tp, tl, tv, Af[:, :1], a0)
         t += 1
     if n_agg > 0:
