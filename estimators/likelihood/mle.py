@@ -203,7 +203,7 @@ class MLE(Estimator):
         cov = fit["cov"]
         # a non-positive variance (flat or non-concave likelihood, e.g. a term at zero) has no
         # standard error: NaN, not 0
-        var = np.diag(cov) if np.all(np.isfinite(cov)) else np.full(len(vals), np.nan)
+        var = np.diag(cov)
         se_log = dict(zip(system.names, np.sqrt(np.where(var > 0, var, np.nan))))
         from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA
 
@@ -224,6 +224,8 @@ class MLE(Estimator):
             "block": m,
             "loglike": llf + y.size * math.log(scale),
             "converged": fit["converged"],
+            "polish_iterations": fit["polish_iterations"],
+            "pinned_to_zero": [k[4:] for k in fit["pinned"]],
             "start": start.coefficients_,
         }
         if not np.isfinite(llf):
@@ -281,32 +283,56 @@ def _score(f, p, rel=_EPS_GRAD):
     return g
 
 
-def observed_cov(loglike, p, score=None) -> np.ndarray:
-    """Inverse observed information of ``loglike`` at ``p``: the Hessian by central differences of
-    the score, symmetrised; NaN where it is not finite.
-
-    ``score``: the analytic score (a function of the log-parameters); its central differences
-    (relative step eps^(1/3), the optimum for an exact gradient) err by ~eps^(2/3) relative.
-    Without it, the score is itself central differences of ``loglike`` (statsmodels
-    ``cov_type="approx"``, ``approx_centered=True``), whose nested round-off (~eps^(1/2) relative to
-    the log-likelihood's scale, divided by the steps) dominates along the likelihood's flat
-    directions.
-    """
-    if score is None:
-        h = _EPS_HESS * np.maximum(np.abs(p), 0.1)
-        score = lambda q: _score(loglike, q)  # noqa: E731
-    else:
-        h = _EPS_GRAD * np.maximum(np.abs(p), 0.1)
+def score_hessian(score, p) -> np.ndarray:
+    """Hessian of the function whose gradient is ``score`` at ``p``: central differences of the
+    score (relative step eps^(1/3), the optimum for an exact gradient; they err by ~eps^(2/3)
+    relative), symmetrised."""
+    h = _EPS_GRAD * np.maximum(np.abs(p), 0.1)
     hess = np.empty((p.size, p.size))
     for i in range(p.size):
         e = np.zeros(p.size)
         e[i] = h[i]
         hess[i] = (score(p + e) - score(p - e)) / (2 * h[i])
-    hess = (hess + hess.T) / 2
+    return (hess + hess.T) / 2
+
+
+def observed_cov(loglike, p, score=None, hess=None) -> np.ndarray:
+    """Inverse observed information of ``loglike`` at ``p``: the Hessian by central differences of
+    the score, symmetrised; NaN where it is not finite.
+
+    ``score``: the analytic score (a function of the log-parameters); its central differences
+    (:func:`score_hessian`) err by ~eps^(2/3) relative. Without it, the score is itself central
+    differences of ``loglike`` (statsmodels ``cov_type="approx"``, ``approx_centered=True``), whose
+    nested round-off (~eps^(1/2) relative to the log-likelihood's scale, divided by the steps)
+    dominates along the likelihood's flat directions. ``hess``: the Hessian at ``p`` if the caller
+    has it already.
+    """
+    if hess is None and score is None:
+        h = _EPS_HESS * np.maximum(np.abs(p), 0.1)
+        hess = np.empty((p.size, p.size))
+        for i in range(p.size):
+            e = np.zeros(p.size)
+            e[i] = h[i]
+            hess[i] = (_score(loglike, p + e) - _score(loglike, p - e)) / (2 * h[i])
+        hess = (hess + hess.T) / 2
+    elif hess is None:
+        hess = score_hessian(score, p)
     try:
         return -np.linalg.pinv(hess) if np.all(np.isfinite(hess)) else np.full(hess.shape, np.nan)
     except np.linalg.LinAlgError:
         return np.full(hess.shape, np.nan)
+
+
+#: the Newton polish stops when the gradient of the log-likelihood per observation is below this
+#: (1e-10: ~2e-5 in the log-likelihood of 2e5 observations, a step of ~1e-6 of a standard error
+#: along the least informative resolved direction of the real records; the round-off of the
+#: log-likelihood itself is ~1e-12 relative)
+POLISH_GTOL = 1e-10
+#: at most this many Newton (trust-region) iterations after the quasi-Newton stage
+POLISH_MAXITER = 60
+#: a variance whose removal lowers the log-likelihood by at most this much is set to zero by the
+#: polish (a likelihood-ratio statistic of 2e-4, four decades under any test's threshold)
+PIN_LOGLIKE = 1e-4
 
 
 def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
@@ -318,8 +344,11 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
     gradients of before -- statsmodels' forward differences, then central ones -- left ~sqrt(eps)
     of gradient noise that the likelihood's flat directions turned into ~1e-4 relative parameter
     noise). The covariance of the log-parameters is the inverse of the observed information, the
-    Hessian by central differences of the analytic score (:func:`observed_cov`). Returns ``params``, ``cov``, ``loglike`` (scaled units),
-    ``converged``, ``final_state`` and ``final_cov`` (last filtered state and covariance).
+    Hessian by central differences of the analytic score (:func:`observed_cov`). L-BFGS-B's end
+    point is polished to the maximum by trust-region Newton steps (:func:`_newton_polish`). Returns
+    ``params``, ``cov``, ``loglike`` (scaled units), ``converged``, ``final_state`` and ``final_cov``
+    (last filtered state and covariance), ``polish_iterations`` and ``lbfgs_loglike`` (the
+    log-likelihood where L-BFGS-B stopped).
     ``method`` selects the Kalman filter (:meth:`BlockMeanSystem.loglike`; the filters give the same
     likelihood to ~1e-14 relative, "exact_initial" is the slower path of before, kept for the tests
     and the benchmark).
@@ -329,10 +358,6 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
     nobs = y.size
     y = np.ascontiguousarray(y, dtype=float)
 
-    def loglike(p):
-        with np.errstate(all="ignore"):
-            return system.loglike(y, p, scale, method=method)
-
     def objective_and_score(p):
         with np.errstate(all="ignore"):
             v, g = system.score(y, p, scale, method=method)
@@ -341,17 +366,115 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
 
     res = minimize(objective_and_score, np.asarray(x0, dtype=float), jac=True, method="L-BFGS-B",
                    options={"maxiter": int(maxiter), "gtol": 1e-8, "ftol": 1e-14})
-    # at this tolerance the line search may stop on the likelihood's own round-off (~1e-12
-    # relative): converged when the gradient per observation is small, as statsmodels' pgtol 1e-5
-    converged = bool(res.success or np.max(np.abs(res.jac)) < 1e-5)
-    p = res.x
-
-    def score(q):
-        with np.errstate(all="ignore"):
-            return system.score(y, q, scale, method=method)[1]
-
-    cov = observed_cov(loglike, p, score)
+    p, polish = _newton_polish(objective_and_score, res.x, list(system.names), nobs)
+    converged = polish["converged"]
+    free = polish["free"]
+    cov = np.full((p.size, p.size), np.nan)  # a pinned term has no standard error
+    if free.any():
+        cov[np.ix_(free, free)] = observed_cov(None, p[free], hess=-nobs * polish["hess"])
     a, P = np.empty(system.k), np.empty((system.k, system.k))
     llf = system.loglike(y, p, scale, (a, P), method=method)
     return {"params": p, "cov": cov, "loglike": float(llf), "converged": converged,
-            "final_state": a, "final_cov": P}
+            "final_state": a, "final_cov": P, "polish_iterations": polish["iterations"],
+            "pinned": polish["pinned"], "lbfgs_loglike": float(-res.fun * nobs)}
+
+
+def _newton_polish(objective_and_score, p, names, nobs):
+    """Take the quasi-Newton end point ``p`` to the maximum: trust-region Newton steps
+    (``scipy.optimize.minimize(method="trust-exact")``, More & Sorensen 1983) on ``objective_and_score``
+    (minus the log-likelihood per observation and its analytic score) with the Hessian by central
+    differences of the score (:func:`score_hessian`), until the gradient per observation is below
+    :data:`POLISH_GTOL`; a term the likelihood drives to zero is set to zero (the boundary rule below).
+
+    Why: L-BFGS-B stops when a step no longer lowers the objective by 1e-14 relative, which on the
+    likelihood's stiff and flat directions together (information eigenvalues from ~1e5 down to ~20
+    and below, per log-parameter) can happen far from the maximum -- at a saddle, on the first 30
+    minutes of ADIS16405 run 1 axis z, 2.9e3 below the maximum in log-likelihood with a gradient of
+    ~10 (issue 28); there the last bits of the samples (or their unit) decided where it stopped.
+    A trust region handles the saddle (an indefinite Hessian) and converges quadratically once
+    near the maximum, so that the end point no longer depends on the path.
+
+    Boundary rule: the maximum may lie at a variance of zero (log-parameter -inf: on that record the
+    white noise, whose share the Gauss-Markov term with a correlation time under one sample takes
+    over), which Newton steps approach by 0.5 in the log-parameter per iteration, forever. After each
+    iteration, a noise scale (``log_Q``, ``log_N``, ``log_sigma``, ``log_K``) whose gradient still
+    pushes it down and whose removal lowers the log-likelihood by at most :data:`PIN_LOGLIKE` is set
+    to zero (log-parameter -inf; with ``log_sigma`` its ``log_tc`` is frozen too) and the rest are
+    maximised again. The answer is the maximum over the remaining terms, which does not depend on
+    the iteration where the term was pinned. Returns ``(p, info)``: ``p`` with -inf for pinned
+    terms, info holding ``hess`` (of the objective over the free parameters, ``free`` their mask),
+    ``iterations``, ``pinned`` (names) and ``converged``.
+    """
+    from scipy.optimize import minimize
+
+    start = np.array(p, dtype=float)
+    p = start.copy()
+    free = np.ones(p.size, dtype=bool)
+    scales = [i for i, k in enumerate(names) if k in ("log_Q", "log_N", "log_sigma", "log_K")]
+    pinned, iterations, converged = [], 0, False
+    f0 = objective_and_score(p)[0]
+    for _ in range(len(scales) + 1):
+        def full(q):
+            r = p.copy()
+            r[free] = q
+            return r
+
+        def sub(q):
+            v, g = objective_and_score(full(q))
+            return v, g[free]
+
+        cache = {}
+
+        def hess(q):
+            key = q.tobytes()
+            if key not in cache:
+                cache.clear()
+                cache[key] = score_hessian(lambda r: sub(r)[1], q)
+            return cache[key]
+
+        pin, last = [], {"x": p[free].copy()}
+
+        def at_boundary(intermediate_result):
+            last["x"] = intermediate_result.x.copy()
+            r = full(intermediate_result.x)
+            v, g = objective_and_score(r)
+            for i in scales:
+                if free[i] and g[i] >= 0:
+                    t = r.copy()
+                    t[i] = -np.inf
+                    if (objective_and_score(t)[0] - v) * nobs <= PIN_LOGLIKE:
+                        pin.append(i)
+            if pin:
+                raise StopIteration
+
+        q0 = p[free]
+        if np.max(np.abs(sub(q0)[1])) <= POLISH_GTOL:
+            converged = True
+            break
+        res = minimize(sub, q0, jac=True, hess=hess, method="trust-exact", callback=at_boundary,
+                       options={"gtol": POLISH_GTOL, "maxiter": POLISH_MAXITER})
+        iterations += int(res.nit)
+        p[free] = last["x"] if pin else res.x
+        if not pin:
+            # trust-exact's own gtol is on the gradient's norm; success or a gradient at round-off level
+            converged = bool(res.success or np.max(np.abs(res.jac)) <= 10 * POLISH_GTOL)
+            break
+        for i in pin:
+            p[i] = -np.inf
+            free[i] = False
+            pinned.append(names[i])
+            if names[i] == "log_sigma" and "log_tc" in names:
+                free[names.index("log_tc")] = False
+        if not free.any():
+            break
+    f = objective_and_score(p)[0]
+    if not (np.isfinite(f) and f <= f0 + PIN_LOGLIKE * len(pinned) / nobs):  # never worse than the start
+        p, free, pinned, converged = start, np.ones(p.size, dtype=bool), [], False
+    h = score_hessian(lambda q: objective_and_score(_fill(p, free, q))[1][free], p[free]) if free.any() else np.zeros((0, 0))
+    return p, {"hess": h, "free": free, "iterations": iterations, "pinned": pinned, "converged": converged}
+
+
+def _fill(p, free, q):
+    r = p.copy()
+    r[free] = q
+    return r
