@@ -233,11 +233,14 @@ class MLE(Estimator):
         else:
             p = diag["params"]
             names = {"QN": ("Q",), "WN": ("N",), "GM": ("sigma", "tc"), "RW": ("K",)}
-            values = [p[k] for lat in latents if lat in names for k in names[lat]]
+            # a term the polish set to zero is no term of the fitted model (its parameters still count)
+            kept = [lat for lat in latents if lat not in names or p[names[lat][0]] > 0]
+            values = [p[k] for lat in kept if lat in names for k in names[lat]]
             if "DR" in latents:
                 values.append(coefs["R"])
-            gyro = build_gyro(latents, values, dt)
-            diag.update(assess_fit(rate, dt, gyro.avar, gyro, len(values), (m * dt, math.inf)))
+            n_par = sum(len(names.get(lat, ("R",))) for lat in latents)
+            gyro = build_gyro(kept, values, dt)
+            diag.update(assess_fit(rate, dt, gyro.avar, gyro, n_par, (m * dt, math.inf)))
             diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
         return coefs, {}, diag
 
@@ -323,11 +326,11 @@ def observed_cov(loglike, p, score=None, hess=None) -> np.ndarray:
         return np.full(hess.shape, np.nan)
 
 
-#: the Newton polish stops when the gradient of the log-likelihood per observation is below this
-#: (1e-10: ~2e-5 in the log-likelihood of 2e5 observations, a step of ~1e-6 of a standard error
-#: along the least informative resolved direction of the real records; the round-off of the
-#: log-likelihood itself is ~1e-12 relative)
-POLISH_GTOL = 1e-10
+#: the Newton polish stops at a maximum (negative definite Hessian) where the Newton step's
+#: predicted gain is below this relative to the log-likelihood: its own round-off (~1e-12 relative),
+#: under which no step can be told from a worse one; the step is then a few 1e-6 of a standard
+#: error along the least informative direction (2^14 samples of the ADIS16405_X preset)
+POLISH_GAIN = 1e-12
 #: at most this many Newton (trust-region) iterations after the quasi-Newton stage
 POLISH_MAXITER = 60
 #: a variance whose removal lowers the log-likelihood by at most this much is set to zero by the
@@ -383,8 +386,11 @@ def _newton_polish(objective_and_score, p, names, nobs):
     """Take the quasi-Newton end point ``p`` to the maximum: trust-region Newton steps
     (``scipy.optimize.minimize(method="trust-exact")``, More & Sorensen 1983) on ``objective_and_score``
     (minus the log-likelihood per observation and its analytic score) with the Hessian by central
-    differences of the score (:func:`score_hessian`), until the gradient per observation is below
-    :data:`POLISH_GTOL`; a term the likelihood drives to zero is set to zero (the boundary rule below).
+    differences of the score (:func:`score_hessian`), until it is at a maximum where the Newton
+    step's predicted gain is below the log-likelihood's round-off (:data:`POLISH_GAIN`, a tolerance
+    relative to the information: 1/2 g' H^-1 g); a term the likelihood drives to zero is set to
+    zero (the boundary rule below). Where L-BFGS-B already stopped at the maximum, this costs one
+    Hessian, the one the standard errors need anyway.
 
     Why: L-BFGS-B stops when a step no longer lowers the objective by 1e-14 relative, which on the
     likelihood's stiff and flat directions together (information eigenvalues from ~1e5 down to ~20
@@ -413,64 +419,77 @@ def _newton_polish(objective_and_score, p, names, nobs):
     scales = [i for i, k in enumerate(names) if k in ("log_Q", "log_N", "log_sigma", "log_K")]
     pinned, iterations, converged = [], 0, False
     f0 = objective_and_score(p)[0]
+    cache = {}
+
+    def sub(q):
+        v, g = objective_and_score(_fill(p, free, q))
+        return v, g[free]
+
+    def hess(q):
+        key = (q.tobytes(), free.tobytes())
+        if key not in cache:
+            cache.clear()
+            cache[key] = score_hessian(lambda r: sub(r)[1], q)
+        return cache[key]
+
+    def at_maximum(q):
+        """The Newton step's predicted gain is below the objective's round-off, at a maximum."""
+        v, g = sub(q)
+        w, V = np.linalg.eigh(hess(q))
+        if not (np.all(np.isfinite(w)) and w[0] > 0):
+            return False
+        return 0.5 * float(np.sum((V.T @ g) ** 2 / w)) <= POLISH_GAIN * abs(v)
+
+    def to_pin(q):
+        """Noise scales the gradient pushes down whose removal costs at most PIN_LOGLIKE."""
+        r = _fill(p, free, q)
+        v, g = objective_and_score(r)
+        out = []
+        for i in scales:
+            if free[i] and g[i] >= 0:
+                t = r.copy()
+                t[i] = -np.inf
+                if (objective_and_score(t)[0] - v) * nobs <= PIN_LOGLIKE:
+                    out.append(i)
+        return out
+
     for _ in range(len(scales) + 1):
-        def full(q):
-            r = p.copy()
-            r[free] = q
-            return r
+        state = {"x": p[free].copy(), "pin": [], "done": False}
 
-        def sub(q):
-            v, g = objective_and_score(full(q))
-            return v, g[free]
-
-        cache = {}
-
-        def hess(q):
-            key = q.tobytes()
-            if key not in cache:
-                cache.clear()
-                cache[key] = score_hessian(lambda r: sub(r)[1], q)
-            return cache[key]
-
-        pin, last = [], {"x": p[free].copy()}
-
-        def at_boundary(intermediate_result):
-            last["x"] = intermediate_result.x.copy()
-            r = full(intermediate_result.x)
-            v, g = objective_and_score(r)
-            for i in scales:
-                if free[i] and g[i] >= 0:
-                    t = r.copy()
-                    t[i] = -np.inf
-                    if (objective_and_score(t)[0] - v) * nobs <= PIN_LOGLIKE:
-                        pin.append(i)
-            if pin:
+        def after_step(intermediate_result):
+            q = state["x"] = intermediate_result.x.copy()
+            state["pin"] = to_pin(q)
+            if state["pin"]:
+                raise StopIteration
+            if at_maximum(q):
+                state["done"] = True
                 raise StopIteration
 
-        q0 = p[free]
-        if np.max(np.abs(sub(q0)[1])) <= POLISH_GTOL:
-            converged = True
+        state["pin"] = to_pin(p[free])
+        if not state["pin"]:
+            if at_maximum(p[free]):
+                converged = True
+                break
+            res = minimize(sub, p[free], jac=True, hess=hess, method="trust-exact", callback=after_step,
+                           options={"gtol": 0.0, "maxiter": POLISH_MAXITER})
+            iterations += int(res.nit)
+            p[free] = state["x"]
+        if not state["pin"]:
+            converged = state["done"]
             break
-        res = minimize(sub, q0, jac=True, hess=hess, method="trust-exact", callback=at_boundary,
-                       options={"gtol": POLISH_GTOL, "maxiter": POLISH_MAXITER})
-        iterations += int(res.nit)
-        p[free] = last["x"] if pin else res.x
-        if not pin:
-            # trust-exact's own gtol is on the gradient's norm; success or a gradient at round-off level
-            converged = bool(res.success or np.max(np.abs(res.jac)) <= 10 * POLISH_GTOL)
-            break
-        for i in pin:
+        for i in state["pin"]:
             p[i] = -np.inf
             free[i] = False
             pinned.append(names[i])
             if names[i] == "log_sigma" and "log_tc" in names:
                 free[names.index("log_tc")] = False
         if not free.any():
+            converged = True
             break
     f = objective_and_score(p)[0]
     if not (np.isfinite(f) and f <= f0 + PIN_LOGLIKE * len(pinned) / nobs):  # never worse than the start
         p, free, pinned, converged = start, np.ones(p.size, dtype=bool), [], False
-    h = score_hessian(lambda q: objective_and_score(_fill(p, free, q))[1][free], p[free]) if free.any() else np.zeros((0, 0))
+    h = hess(p[free]) if free.any() else np.zeros((0, 0))
     return p, {"hess": h, "free": free, "iterations": iterations, "pinned": pinned, "converged": converged}
 
 
