@@ -331,6 +331,10 @@ def observed_cov(loglike, p, score=None, hess=None) -> np.ndarray:
 #: under which no step can be told from a worse one; the step is then a few 1e-6 of a standard
 #: error along the least informative direction (2^14 samples of the ADIS16405_X preset)
 POLISH_GAIN = 1e-12
+#: at a maximum, plain Newton steps on the analytic score go on until the step is below this in every
+#: log-parameter (relative change of the parameter), at most FINISH_MAXITER of them; the predicted
+#: gain at POLISH_GAIN still allows ~1e-3 of a standard error (the gain is quadratic in the step)
+FINISH_STEP, FINISH_MAXITER = 1e-10, 6
 #: at most this many Newton (trust-region) iterations after the quasi-Newton stage
 POLISH_MAXITER = 60
 #: a variance whose removal lowers the log-likelihood by at most this much is set to zero by the
@@ -440,6 +444,19 @@ def _newton_polish(objective_and_score, p, names, nobs):
             return False
         return 0.5 * float(np.sum((V.T @ g) ** 2 / w)) <= POLISH_GAIN * abs(v)
 
+    def finish(q):
+        """Plain Newton steps from a maximum whose remaining gain round-off hides: the analytic score
+        is far more precise than the log-likelihood's value, and the step it gives is taken as it is
+        (no comparison of values), until it is below FINISH_STEP in every log-parameter."""
+        for _ in range(FINISH_MAXITER):
+            step = np.linalg.solve(hess(q), sub(q)[1])
+            if not np.all(np.isfinite(step)):
+                break
+            q = q - step
+            if np.max(np.abs(step)) <= FINISH_STEP:
+                break
+        return q
+
     def to_pin(q):
         """Noise scales the gradient pushes down whose removal costs at most PIN_LOGLIKE."""
         r = _fill(p, free, q)
@@ -486,8 +503,11 @@ def _newton_polish(objective_and_score, p, names, nobs):
         if not free.any():
             converged = True
             break
+    if converged and free.any():
+        p[free] = finish(p[free])
     f = objective_and_score(p)[0]
-    if not (np.isfinite(f) and f <= f0 + PIN_LOGLIKE * len(pinned) / nobs):  # never worse than the start
+    # never worse than the start (to the objective's round-off, which the last Newton steps do not see)
+    if not (np.isfinite(f) and f <= f0 + POLISH_GAIN * abs(f0) + PIN_LOGLIKE * len(pinned) / nobs):
         p, free, pinned, converged = start, np.ones(p.size, dtype=bool), [], False
     h = hess(p[free]) if free.any() else np.zeros((0, 0))
     return p, {"hess": h, "free": free, "iterations": iterations, "pinned": pinned, "converged": converged}
