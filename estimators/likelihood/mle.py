@@ -454,9 +454,12 @@ def _newton_polish(objective_and_score, p, names, nobs):
     def finish(q):
         """Plain Newton steps from a maximum whose remaining gain round-off hides: the analytic score
         is far more precise than the log-likelihood's value, and the step it gives is taken as it is
-        (no comparison of values), until it is below FINISH_STEP in every log-parameter."""
+        (no comparison of values), until it is below FINISH_STEP in every log-parameter. The Hessian
+        of the first step serves them all (one score per step: the steps are round-off sized, over
+        which the Hessian does not change; the covariance takes the one at the end point)."""
+        H = hess(q)
         for _ in range(FINISH_MAXITER):
-            step = np.linalg.solve(hess(q), sub(q)[1])
+            step = np.linalg.solve(H, sub(q)[1])
             if not np.all(np.isfinite(step)):
                 break
             q = q - step
