@@ -335,12 +335,11 @@ def observed_cov(loglike, p, score=None, hess=None) -> np.ndarray:
 
 #: the Newton polish stops at a maximum (negative definite Hessian) where the Newton step's
 #: predicted gain is below this relative to the log-likelihood: its own round-off (~1e-12 relative),
-#: under which no step can be told from a worse one; the step is then a few 1e-6 of a standard
-#: error along the least informative direction (2^14 samples of the ADIS16405_X preset)
+#: under which no step can be told from a worse one. The step may then still be ~1e-3 of a standard
+#: error (the gain is quadratic in it); the finishing steps below take it to round-off
 POLISH_GAIN = 1e-12
 #: at a maximum, plain Newton steps on the analytic score go on until the step is below this in every
-#: log-parameter (relative change of the parameter), at most FINISH_MAXITER of them; the predicted
-#: gain at POLISH_GAIN still allows ~1e-3 of a standard error (the gain is quadratic in the step)
+#: log-parameter (relative change of the parameter), at most FINISH_MAXITER of them
 FINISH_STEP, FINISH_MAXITER = 1e-10, 6
 #: at most this many Newton (trust-region) iterations after the quasi-Newton stage
 POLISH_MAXITER = 60
