@@ -78,10 +78,10 @@ def test_kernels_equal_numpy_references(m):
         h, a = K.ohvar_sums(x, ms, block)
         np.testing.assert_allclose(h, [K.ohvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
         np.testing.assert_allclose(a, av_ref, rtol=1e-12)
-    for block in (3, 2048):  # the four-lane path (record >= 8m + 64 terms) and the one-lane path
-        for mi in ms:
-            assert K.mvar_sum(x, int(mi), block) == pytest.approx(K.mvar_sum_numpy(x, int(mi)), rel=1e-11)
-    np.testing.assert_allclose(K.mvar_sums(x, ms), [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
+    for block in (3, 70, K.BLOCK_MVAR, x.size):  # one chain (< 64 steps a block) and four; blocked, one pass
+        mv, a = K.mvar_sums_blocked(x, ms, block)
+        np.testing.assert_allclose(mv, [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
+        np.testing.assert_allclose(a, av_ref, rtol=1e-12)
     ms = np.array([1, m, 2 * m], dtype=np.int64)
     av_ref = [_av_sum(x, int(mi)) for mi in ms]
     for block in (7, 4096):
@@ -94,14 +94,14 @@ def test_kernels_equal_numpy_references(m):
             assert K.theo1_sum(x, me, block) == pytest.approx(K.theo1_sum_numpy(x, me), rel=1e-12)
 
 
-def test_octave_box_sum_mvar_equals_reference():
+def test_blocked_mvar_equals_reference_on_every_grid():
+    """Octave, irregular and 'all'-like grids (many taus: one pass per m), down to a single term (3m = N)."""
     x, _, _ = phase_of(np.random.default_rng(3).standard_normal(3000), 0.1)
-    for ms in ([1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 999], [4, 64, 512], [2]):
+    for ms in ([1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1000], [4, 64, 512], [2], list(range(1, 200))):
         ms = np.array(ms, dtype=np.int64)
-        octave = K._powers_of_two_increasing(ms)
-        assert octave == bool(np.all((ms & (ms - 1)) == 0))
-        got = K.mvar_sums_octave(x, ms) if octave else K.mvar_sums(x, ms)
+        got, av = K.mvar_sums(x, ms)
         np.testing.assert_allclose(got, [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
+        np.testing.assert_allclose(av, [_av_sum(x, int(mi)) for mi in ms], rtol=1e-12)
 
 
 @pytest.mark.parametrize("m", [1, 2, 3, 5, 16])

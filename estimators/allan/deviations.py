@@ -389,7 +389,7 @@ def deviation(
         var = sums / (6.0 * mf * mf * K)
     elif kind in ("mvar", "tvar"):
         K = N - 3 * m + 1
-        sums = _k.mvar_sums(x, m)
+        sums, av_sums = _k.mvar_sums(x, m)
         var = sums / (2.0 * mf**4 * K)
         if kind == "tvar":
             var = var * (mf * dt) ** 2 / 3.0
