@@ -92,6 +92,30 @@ def ohvar_sums(x, ms, block=BLOCK):
     return out, av
 
 
+@njit(cache=True)
+def hvar_sums(x, ms):
+    """Non-overlapping Hadamard sums: sum_{i = 0, m, 2m, ..., i + 3m <= N-1} (x[i+3m] - 3x[i+2m] + 3x[i+m] - x[i])^2
+    (SP1065 eq. 18 on the phase decimated by m; (N-1)//m - 2 terms, N/m reads per m)."""
+    N = x.size
+    out = np.zeros(ms.size)
+    for t in range(ms.size):
+        m = ms[t]
+        acc = 0.0
+        i = 0
+        while i + 3 * m <= N - 1:
+            d = x[i + 3 * m] - 3.0 * x[i + 2 * m] + 3.0 * x[i + m] - x[i]
+            acc += d * d
+            i += m
+        out[t] = acc
+    return out
+
+
+def hvar_sum_numpy(x, m):
+    xd = x[::m]
+    d = xd[3:] - 3 * xd[2:-1] + 3 * xd[1:-2] - xd[:-3]
+    return float(np.sum(d * d))
+
+
 def ohvar_sum_numpy(x, m):
     k = x.size - 3 * m
     d = x[3 * m : 3 * m + k] - 3 * x[2 * m : 2 * m + k] + 3 * x[m : m + k] - x[:k]

@@ -6,6 +6,9 @@ x_k = dt * sum_{j<k} (w_j - mean w), N = n + 1 phase points (allantools ``freque
 mean removal changes none of the statistics, whose filters cancel constants and linear phase).
 Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
 
+* ``hvar`` (non-overlapping) Hadamard variance, SP1065 eq. 18: the same third differences on the phase
+  decimated by m, x_i, x_{i+m}, ...: 1/(6 tau^2 (M-3)) sum_{i=1}^{M-3} (...)^2, M = floor((N-1)/m) + 1
+  (allantools ``hdev``, Stable32 HDEV).
 * ``ohvar`` overlapping Hadamard variance, SP1065 eq. 20:
   1/(6 tau^2 (N-3m)) sum_{i=1}^{N-3m} (x_{i+3m} - 3x_{i+2m} + 3x_{i+m} - x_i)^2.
   A third difference: blind to a constant rate and to a linear rate ramp (R).
@@ -99,12 +102,12 @@ __all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "e
            "theobr_bias_sizes", "check_feasible"]
 
 #: the statistics
-KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
+KINDS = ("oavar", "hvar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
 #: names users type (allantools' deviations) -> kind
 DEVIATION_NAMES = {
     "oadev": "oavar",
     "ohdev": "ohvar",
-    "hdev": "ohvar",
+    "hdev": "hvar",
     "mdev": "mvar",
     "tdev": "tvar",
     "totdev": "totvar",
@@ -141,6 +144,7 @@ def phase_of(rate, dt):
 def _max_m(kind: str, N: int) -> int:
     return {
         "oavar": (N - 1) // 2,
+        "hvar": (N - 1) // 3,
         "ohvar": (N - 1) // 3,
         "mvar": (N + 1) // 3 - 1 if (N + 1) % 3 == 0 else (N + 1) // 3,
         "tvar": (N + 1) // 3,
@@ -195,7 +199,7 @@ def _filters(kind: str, m: int):
     """(positions (F, P), coefficients (F, P), weights (F,)) of the phase filters of one statistic."""
     if kind in ("oavar", "totvar"):
         return np.array([[0, m, 2 * m]]), np.array([[1.0, -2.0, 1.0]]), np.ones(1)
-    if kind == "ohvar":
+    if kind in ("ohvar", "hvar"):
         return np.array([[0, m, 2 * m, 3 * m]]), np.array([[-1.0, 3.0, -3.0, 1.0]]), np.ones(1)
     if kind in ("mvar", "tvar"):
         c = np.zeros(3 * m + 1)  # box(m) * (1, -2, 1 at 0, m, 2m): the phase filter of one MVAR term
@@ -383,7 +387,10 @@ def deviation(
                          + ("" if max_terms is None else f" within max_terms = {max_terms:g}"))
     mf = m.astype(float)
     av_sums = None  # the AV's sums where a kernel gives them on the way (for the noise identification)
-    if kind == "ohvar":
+    if kind == "hvar":
+        K = (N - 1) // m - 2
+        var = _k.hvar_sums(x, m) / (6.0 * mf * mf * K)
+    elif kind == "ohvar":
         K = N - 3 * m
         sums, av_sums = _k.ohvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
         var = sums / (6.0 * mf * mf * K)
@@ -427,8 +434,13 @@ def deviation(
         kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
     else:
         kinds = list(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
-    edf_kind = {"totvar": "oavar", "theobr": "theo1"}.get(kind, kind)
-    e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m, K, kinds)])
+    edf_kind = {"totvar": "oavar", "theobr": "theo1", "hvar": "ohvar"}.get(kind, kind)
+    # hvar: its K terms are the m = 1 statistic of the phase decimated by m, whose G is that of the same
+    # noise type scaled (white PM, white FM; flicker FM up to a quadratic in the lag, which the third
+    # difference cancels): exact for them. RW FM approximately: the decimated G is m^3 (|d|^3 - |d|/m^2)/12,
+    # the canonical discrete one (|d|^3 - |d|)/12.
+    m_edf = np.ones_like(m) if kind == "hvar" else m
+    e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m_edf, K, kinds)])
     return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
                        kind=kind)
 
