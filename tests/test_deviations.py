@@ -342,6 +342,16 @@ def test_hvar_edf_predicts_its_ensemble_variance(term, noise):
     assert np.all(np.abs(ratio - 1) < 4 * se), (ratio, se, edf)
 
 
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("n", [16, 17, 18, 19, 20, 33])
+def test_every_value_on_the_all_grid_is_finite_and_has_terms(kind, n):
+    """Down to the largest m each definition allows (tvar had one m with no term: an infinite value)."""
+    if kind == "theobr":
+        n = 95
+    r = deviation(np.random.default_rng(n).standard_normal(n), 1.0, kind, "all", edf=False)
+    assert np.all(r.J >= 1) and np.all(np.isfinite(r.avar)) and np.all(r.avar > 0), (r.m, r.J, r.avar)
+
+
 def test_bad_input_is_named():
     with pytest.raises(ValueError, match="kind"):
         deviation(np.zeros(100), 1.0, "adevv")

@@ -156,8 +156,8 @@ def _max_m(kind: str, N: int) -> int:
         "oavar": (N - 1) // 2,
         "hvar": (N - 1) // 3,
         "ohvar": (N - 1) // 3,
-        "mvar": (N + 1) // 3 - 1 if (N + 1) % 3 == 0 else (N + 1) // 3,
-        "tvar": (N + 1) // 3,
+        "mvar": N // 3,  # N - 3m + 1 >= 1 terms
+        "tvar": N // 3,
         "totvar": (N - 1) // 2,
         "mtotvar": (N - 1) // 3,  # at least two windows of 3m phases (allantools drops one)
         "htotvar": (N - 2) // 3,  # at least two windows of 3m rates
