@@ -44,15 +44,18 @@ Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
   octave m): 0.16 ns per term at n = 1e4 (3.7e7 terms, 6 ms) and 3e4 (3.1e8 terms, 49 ms), about 0.37
   cycles per term, the machine's SIMD throughput for 3 loads and 3 floating-point operations per term;
   four lags per pass (one read of the pair sums for four) measured no faster. So Theo1 over an octave
-  grid reaching m ~ N is O(N^2) (~0.3 N^2 terms: 5e-3 s at n = 1e4, ~50 s at 1e6); ``theo1_max_m``
-  and ``max_terms`` bound it. The alternatives and why they are not used:
-  (a) expanding the square into lagged products (the cross terms by one FFT correlation shared by
-  every m, O(N log N), the squares by prefix sums) leaves edge corrections of O(m^2) per m (the
-  products x_{i+m/2-d} x_{i+m/2+d} over the shifted ranges), so over an octave grid, taking per m the
-  cheaper of it and the direct form, it saves at most 1.45x (~0.21 N^2 against ~0.3 N^2 terms), and it
+  grid reaching m ~ N is O(N^2) (0.34-0.37 N^2 terms for n = 1e4-1e6: 6 ms at n = 1e4, ~1 min at
+  1e6); ``theo1_max_m`` and ``max_terms`` bound it. The alternatives and why they are not used:
+  (a) expanding the square into lagged products (the cross terms by one FFT correlation per m,
+  O(N log N), the squares by prefix sums) leaves edge corrections of O(m^2 / 4) per m (the products
+  x_{i+m/2-d} x_{i+m/2+d} over the shifted ranges); taking per m the cheaper of it and the direct
+  form, an octave grid costs 0.09-0.13 N^2 instead of 0.34-0.37 N^2 (3-4x less, FFTs aside). But it
   subtracts sums of squared phases (~N sigma^2 for white FM) to get squared increments (~m sigma^2):
-  log10(N/m) digits lost for white FM, 3 log10(N/m) for random-walk FM (~1e-4 relative at m = 2,
-  N = 1e6 in double precision, where the definition gives ~1e-15) -- not an exact method in floating point;
+  ~log10(N/m) digits lost for white FM, ~3 log10(N/m) for random-walk FM (x ~ N^1.5). Measured at
+  n = 1e5 (the expanded sums as dot products, against the definition): white FM 6e-11 relative at
+  m = 2; random-walk FM 2e-2 at m = 2, 9e-7 at m = 64, 3e-10 at m = 1024, where the definition's
+  kernel agrees with its NumPy reference to ~1e-15 (3e-12 for RW FM at m = 2) -- not an exact
+  method in floating point, so not used;
   (b) in increments, the same statistic is sum_{L=1}^{m/2} (1/L) sum_i (D_{i+m-L}(L) - D_i(L))^2 with
   D_i(L) = x_{i+L} - x_i (L = m/2 - d): m/2 structure functions of L-increments at gap m - L, the
   same (N - m) m / 2 terms; its expansion has the same edge and cancellation costs as (a);
