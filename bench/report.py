@@ -20,8 +20,9 @@ LIMITS = {
                     "_gm_f_over_c2 series), and every fit's check builds the AV covariance under the fitted model "
                     "(allan/covariance.av_covariance: _haar_gain, _pair_integrals); reading, the six AVs and the static "
                     "check are a small share. See the breakdown.",
-    "deviations": "Memory-bound SIMD passes over the phase, blocked over the start index for all taus (ohvar, totvar, "
-                  "with the AV for the edf read from the same slices), one fused pass per octave for mvar (box sums); "
+    "deviations": "SIMD passes over the phase, blocked over the start index for all taus (ohvar, totvar, mvar, "
+                  "with the AV for the edf read from the same slices; mvar's running sum is a sequential chain per tau, "
+                  "carried 16 steps per dependent addition); hvar reads N/m points per tau; "
                   "Theo1 is (N - m) m / 2 terms per tau and MTOT/HTOT 15 m per window by definition (O(N^2) over "
                   "octaves), and allantools' theo1/mtotdev/htotdev are pure-Python loops, timed on <= 3000 / 1000 "
                   "samples only.",
@@ -178,7 +179,7 @@ def targets(df: pd.DataFrame, quick: bool) -> list[dict]:
                                  f"({last['median_s']:.3f} s vs {last['baseline_median_s']:.3f} s)",
                      "met": bool(last["ratio"] >= 3) if int(last["param_n"]) >= 10**7 else None,
                      "limit": LIMITS["allan"]})
-    for kind in ("ohvar", "mvar", "totvar", "theo1", "mtotvar", "htotvar"):
+    for kind in ("hvar", "ohvar", "mvar", "totvar", "theo1", "mtotvar", "htotvar"):
         d = _pick(df, "Deviations", "time_deviation", kind=kind).pipe(_with_ratio) if len(df) else df
         if len(d):
             last = d.sort_values("param_n").iloc[-1]

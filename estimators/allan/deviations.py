@@ -6,6 +6,9 @@ x_k = dt * sum_{j<k} (w_j - mean w), N = n + 1 phase points (allantools ``freque
 mean removal changes none of the statistics, whose filters cancel constants and linear phase).
 Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
 
+* ``hvar`` (non-overlapping) Hadamard variance, SP1065 eq. 18: the same third differences on the phase
+  decimated by m, x_i, x_{i+m}, ...: 1/(6 tau^2 (M-3)) sum_{i=1}^{M-3} (...)^2, M = floor((N-1)/m) + 1
+  (allantools ``hdev``, Stable32 HDEV).
 * ``ohvar`` overlapping Hadamard variance, SP1065 eq. 20:
   1/(6 tau^2 (N-3m)) sum_{i=1}^{N-3m} (x_{i+3m} - 3x_{i+2m} + 3x_{i+m} - x_i)^2.
   A third difference: blind to a constant rate and to a linear rate ramp (R).
@@ -35,16 +38,29 @@ Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
   allantools, so that the two agree on the same m):
   1/(0.75 (N-m) (m dt)^2) sum_{i=1}^{N-m} sum_{d=0}^{m/2-1} [(x_i - x_{i-d+m/2}) + (x_{i+m} - x_{i+d+m/2})]^2 / (m/2-d),
   reported at tau = 0.75 m dt (SP1065: "Theo1 at tau = 0.75 m tau0"; allantools labels it m dt).
-  Cost: (N - m) m / 2 terms per m (the definition: SIMD passes per lag d over cache-sized blocks of
-  start indices, about 10x the previous scalar loop at n = 1e4), so Theo1 over an octave grid
-  reaching m ~ N is O(N^2):
-  ``theo1_max_m`` bounds it. No exact fast form is used: expanding the square into lagged products
-  (one FFT for the cross-correlations of x_i + x_{i+m} with x, prefix sums for the squares) leaves
-  O(m^2 / 2) edge corrections for the x_{i+m/2-d} x_{i+m/2+d} products, so it is no cheaper at the
-  long m that dominate, and it subtracts sums of squared phases (~ N) to get squared increments
-  (~ m), losing ~log10(N/m) digits -- beyond the 1e-9 agreement with allantools at N = 1e6. The
-  fast TheoBR of Taylor & Howe (2010) decimates the phase before Theo1 at long tau: a different
-  statistic (an approximation), not implemented.
+  Cost: (N - m) m / 2 terms per m, the definition, which is also the fastest exact form found
+  (``_deviation_kernels.theo1_sum``: the pair sums x_i + x_{i+m} formed once, then one SIMD pass per
+  lag d over cache-sized blocks of start indices). Measured (CPU time, this 2-core machine at 2.3 GHz,
+  octave m): 0.16 ns per term at n = 1e4 (3.7e7 terms, 6 ms) and 3e4 (3.1e8 terms, 49 ms), about 0.37
+  cycles per term, the machine's SIMD throughput for 3 loads and 3 floating-point operations per term;
+  four lags per pass (one read of the pair sums for four) measured no faster. So Theo1 over an octave
+  grid reaching m ~ N is O(N^2) (0.34-0.37 N^2 terms for n = 1e4-1e6: 6 ms at n = 1e4, ~1 min at
+  1e6); ``theo1_max_m`` and ``max_terms`` bound it. The alternatives and why they are not used:
+  (a) expanding the square into lagged products (the cross terms by one FFT correlation per m,
+  O(N log N), the squares by prefix sums) leaves edge corrections of O(m^2 / 4) per m (the products
+  x_{i+m/2-d} x_{i+m/2+d} over the shifted ranges); taking per m the cheaper of it and the direct
+  form, an octave grid costs 0.09-0.13 N^2 instead of 0.34-0.37 N^2 (3-4x less, FFTs aside). But it
+  subtracts sums of squared phases (~N sigma^2 for white FM) to get squared increments (~m sigma^2):
+  ~log10(N/m) digits lost for white FM, ~3 log10(N/m) for random-walk FM (x ~ N^1.5). Measured at
+  n = 1e5 (the expanded sums as dot products, against the definition): white FM 6e-11 relative at
+  m = 2; random-walk FM 2e-2 at m = 2, 9e-7 at m = 64, 3e-10 at m = 1024, where the definition's
+  kernel agrees with its NumPy reference to ~1e-15 (3e-12 for RW FM at m = 2) -- not an exact
+  method in floating point, so not used;
+  (b) in increments, the same statistic is sum_{L=1}^{m/2} (1/L) sum_i (D_{i+m-L}(L) - D_i(L))^2 with
+  D_i(L) = x_{i+L} - x_i (L = m/2 - d): m/2 structure functions of L-increments at gap m - L, the
+  same (N - m) m / 2 terms; its expansion has the same edge and cancellation costs as (a);
+  (c) the fast TheoBR / TheoH of Taylor & Howe (2010) decimate the phase before Theo1 at long tau:
+  another statistic (an approximation), not implemented.
 * ``theobr`` bias-removed Theo1 (Howe & Tasset 2004; SP1065 §5.2.12):
   TheoBR(m) = [1/(k+1) sum_{i=0}^{k} OAVAR(m = 9+3i) / Theo1(m = 12+4i)] Theo1(m), k = floor(0.1 N/3 - 3)
   (N >= 90 phases), at tau = 0.75 m dt. The ratio needs Theo1 at k + 1 ~ N/30 sizes up to m ~ 0.13 N:
@@ -99,12 +115,12 @@ __all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "e
            "theobr_bias_sizes", "check_feasible"]
 
 #: the statistics
-KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
+KINDS = ("oavar", "hvar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
 #: names users type (allantools' deviations) -> kind
 DEVIATION_NAMES = {
     "oadev": "oavar",
     "ohdev": "ohvar",
-    "hdev": "ohvar",
+    "hdev": "hvar",
     "mdev": "mvar",
     "tdev": "tvar",
     "totdev": "totvar",
@@ -141,9 +157,10 @@ def phase_of(rate, dt):
 def _max_m(kind: str, N: int) -> int:
     return {
         "oavar": (N - 1) // 2,
+        "hvar": (N - 1) // 3,
         "ohvar": (N - 1) // 3,
-        "mvar": (N + 1) // 3 - 1 if (N + 1) % 3 == 0 else (N + 1) // 3,
-        "tvar": (N + 1) // 3,
+        "mvar": N // 3,  # N - 3m + 1 >= 1 terms
+        "tvar": N // 3,
         "totvar": (N - 1) // 2,
         "mtotvar": (N - 1) // 3,  # at least two windows of 3m phases (allantools drops one)
         "htotvar": (N - 2) // 3,  # at least two windows of 3m rates
@@ -195,7 +212,7 @@ def _filters(kind: str, m: int):
     """(positions (F, P), coefficients (F, P), weights (F,)) of the phase filters of one statistic."""
     if kind in ("oavar", "totvar"):
         return np.array([[0, m, 2 * m]]), np.array([[1.0, -2.0, 1.0]]), np.ones(1)
-    if kind == "ohvar":
+    if kind in ("ohvar", "hvar"):
         return np.array([[0, m, 2 * m, 3 * m]]), np.array([[-1.0, 3.0, -3.0, 1.0]]), np.ones(1)
     if kind in ("mvar", "tvar"):
         c = np.zeros(3 * m + 1)  # box(m) * (1, -2, 1 at 0, m, 2m): the phase filter of one MVAR term
@@ -383,13 +400,16 @@ def deviation(
                          + ("" if max_terms is None else f" within max_terms = {max_terms:g}"))
     mf = m.astype(float)
     av_sums = None  # the AV's sums where a kernel gives them on the way (for the noise identification)
-    if kind == "ohvar":
+    if kind == "hvar":
+        K = (N - 1) // m - 2
+        var = _k.hvar_sums(x, m) / (6.0 * mf * mf * K)
+    elif kind == "ohvar":
         K = N - 3 * m
         sums, av_sums = _k.ohvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
         var = sums / (6.0 * mf * mf * K)
     elif kind in ("mvar", "tvar"):
         K = N - 3 * m + 1
-        sums = _k.mvar_sums(x, m)
+        sums, av_sums = _k.mvar_sums(x, m)
         var = sums / (2.0 * mf**4 * K)
         if kind == "tvar":
             var = var * (mf * dt) ** 2 / 3.0
@@ -427,8 +447,13 @@ def deviation(
         kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
     else:
         kinds = list(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
-    edf_kind = {"totvar": "oavar", "theobr": "theo1"}.get(kind, kind)
-    e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m, K, kinds)])
+    edf_kind = {"totvar": "oavar", "theobr": "theo1", "hvar": "ohvar"}.get(kind, kind)
+    # hvar: its K terms are the m = 1 statistic of the phase decimated by m, whose G is that of the same
+    # noise type scaled (white PM, white FM; flicker FM up to a quadratic in the lag, which the third
+    # difference cancels): exact for them. RW FM approximately: the decimated G is m^3 (|d|^3 - |d|/m^2)/12,
+    # the canonical discrete one (|d|^3 - |d|)/12.
+    m_edf = np.ones_like(m) if kind == "hvar" else m
+    e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m_edf, K, kinds)])
     return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
                        kind=kind)
 
