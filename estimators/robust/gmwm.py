@@ -144,7 +144,7 @@ from scipy import integrate, optimize, stats
 from avbench.estimators.allan import _kernels
 from avbench.estimators.allan.variance import cluster_sizes
 from avbench.estimators.base import register
-from avbench.estimators.likelihood.gmwm import GMWM, WaveletVariance
+from avbench.estimators.likelihood.gmwm import GMWM, REAL_SENSOR_MODEL, WaveletVariance
 
 __all__ = ["GMWMRobust", "GMWMDespiked", "hampel_outliers", "masked_allan_variance", "robust_allan_variance",
            "tuning", "m_scale", "PSI"]
@@ -442,10 +442,10 @@ class GMWMDespiked(GMWM):
 
     uses_allan_variance = False  # reads the samples themselves (its own robust AV / spike mask)
 
-    def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6,
-                 half_window=5, threshold=5.0, gap_tol=5e-3):
+    def __init__(self, *, model=REAL_SENSOR_MODEL, min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
+                 lines="auto", half_window=5, threshold=5.0, gap_tol=5e-3):
         super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting,
-                         n_starts=n_starts)
+                         n_starts=n_starts, lines=lines)
         self.half_window = half_window
         self.threshold = threshold
         self.gap_tol = gap_tol
