@@ -351,6 +351,11 @@ class GMWM(Estimator):
         diag["min_m"] = int(diag["m"][0])
         if line is not None:
             diag["line_test"] = line
+            if line["significant"] and "SN" in latents:
+                # the fitted frequency on its bound (LINE_FREQUENCY_FACTOR): the bump's shape is not one
+                # pure tone at the line (results/real/README.md: the ADIS16405 accelerometers)
+                f0 = diag["params"]["SN.f0"]
+                line["f0_at_bound"] = bool(abs(math.log(f0 / line["f0"])) >= math.log(LINE_FREQUENCY_FACTOR) * (1 - 1e-6))
         if self.min_m in ("auto", "adequate"):
             diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
