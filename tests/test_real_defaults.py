@@ -84,9 +84,9 @@ def test_defaults_on_short_real_records_plausible_or_flagged(minutes):
     method gives N in 1.9-3.0 deg/sqrt(h) and B in 15-80 deg/h, or flags what is outside (B "not
     resolved" with its interval, or a poor fit). The issue's target is in range on >= 90 % of the
     slices: on the three axes of one record that is all three, which the 60-minute slice is held to
-    (the 30-minute one of run 1 z is the one exception over the six runs, flagged: it is not; the
-    share over all six runs is ``real_runs --slices``, results/real/slices.md). Before issue 24's
-    last round ``gmwm_despiked`` kept the plain ``WN+GM+RW`` model and said "B not resolved" on x."""
+    (at 30 minutes run 1 z is the one exception over the six runs, and it is flagged; the share over
+    all six runs is ``real_runs --slices``, results/real/slices.md). Before issue 24's third round
+    ``gmwm_despiked`` kept the plain ``WN+GM+RW`` model and said "B not resolved" on x."""
     from avbench.recordings.fit import fit_axis
     from avbench.recordings.report import coefficient_flags
     from avbench.studies.real_runs import SLICE_B_RANGE, SLICE_N_RANGE
