@@ -34,6 +34,10 @@ CACHE_SIZE = 512
 _PAIRS: OrderedDict = OrderedDict()
 #: grid points per block of the integration (bounds the work arrays: k x CHUNK floats)
 CHUNK = 1 << 17
+#: bytes of Haar filter gains kept between calls (per cluster sizes and grid; :func:`_gains`)
+GAIN_CACHE_BYTES = 64 << 20
+_GAINS: OrderedDict = OrderedDict()
+_gain_bytes = 0
 
 
 def _haar_gain(m, w, s):
@@ -62,20 +66,64 @@ def _factor(term):
     return float(c), unit, True
 
 
+def _gains(m, n_grid):
+    """``[(w, G)]`` per block of the midpoint grid: the frequencies and the Haar gains |H_m(w)|^2 of
+    every cluster size (k x block). The same values as computing them on each call (they are: each
+    row is the same elementwise arithmetic), kept per (grid, cluster size) for the last
+    :data:`GAIN_CACHE_BYTES`: GMWM's second step on each candidate set of scales (the same grid, one
+    scale fewer each time) and the fit check integrate on the same grid, and the gains (sin^4 at
+    k x n_grid points) were most of the cost of a direct sum."""
+    global _gain_bytes
+    omega_all = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
+    starts = range(0, n_grid, CHUNK)
+    missing = np.array([v for v in np.unique(m) if (n_grid, float(v)) not in _GAINS])
+    new = {}
+    if missing.size:
+        for a in starts:
+            w = omega_all[a : a + CHUNK]
+            G = _haar_gain(missing[:, None], w[None, :], np.sin(w / 2)[None, :])
+            for v, row in zip(missing, G):
+                new.setdefault(float(v), []).append(row)
+    rows = []
+    for v in m:
+        key = (n_grid, float(v))
+        blocks = new.get(float(v))
+        if blocks is None:
+            blocks = _GAINS.get(key)
+            if blocks is None:  # dropped meanwhile by another thread
+                blocks = [_haar_gain(v, omega_all[a : a + CHUNK], np.sin(omega_all[a : a + CHUNK] / 2))
+                          for a in starts]
+        rows.append(blocks)
+    row_bytes = n_grid * 8
+    if row_bytes * m.size <= GAIN_CACHE_BYTES // 2:
+        for v, blocks in new.items():
+            _GAINS[(n_grid, v)] = blocks
+            _gain_bytes += row_bytes
+        for v in m:
+            try:
+                _GAINS.move_to_end((n_grid, float(v)))
+            except KeyError:
+                pass
+        while _gain_bytes > GAIN_CACHE_BYTES:
+            try:
+                (grid, _), _ = _GAINS.popitem(last=False)
+            except KeyError:
+                break
+            _gain_bytes -= grid * 8
+    return [(omega_all[a : a + CHUNK], np.stack([r[b] for r in rows])) for b, a in enumerate(starts)]
+
+
 def _grid_size(m, grid_per_cycle, max_grid) -> int:
     return int(min(max(grid_per_cycle * m.max(), 4096), max_grid))
 
 
 def _pair_integrals(shapes, pairs, m, dt, n_grid) -> dict:
     """``{(a, b): P_ab}`` for index pairs into ``shapes`` (unit-amplitude terms), one pass over the grid."""
-    omega_all = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
     out = {p: np.zeros((m.size, m.size)) for p in pairs}
     used = sorted({i for p in pairs for i in p})
-    for a in range(0, n_grid, CHUNK):
-        w = omega_all[a : a + CHUNK]
+    for w, G in _gains(m, n_grid):
         f = w / (2 * np.pi * dt)
         S = {i: shapes[i].psd(f, dt) / (2 * dt) for i in used}
-        G = _haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :])
         for i, j in pairs:
             out[(i, j)] += (G * (S[i] * S[j])) @ G.T
     for v in out.values():
@@ -173,12 +221,9 @@ def _line_cross(gyro, m) -> np.ndarray:
 
 def _direct(gyro, m, n_grid) -> np.ndarray:
     """(1/pi) * integral of |H_j|^2 |H_k|^2 S^2 by one midpoint sum of the total spectrum, in blocks."""
-    omega_all = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
     out = np.zeros((m.size, m.size))
-    for a in range(0, n_grid, CHUNK):
-        w = omega_all[a : a + CHUNK]
+    for w, G in _gains(m, n_grid):
         S = gyro.psd(w / (2 * np.pi * gyro.dt)) / (2 * gyro.dt)
-        G = _haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :])
         out += (G * S**2) @ G.T
     out *= 1.0 / n_grid  # (1/pi) * integral = mean over the grid
     return out
