@@ -37,7 +37,6 @@ CHUNK = 1 << 17
 #: bytes of Haar filter gains kept between calls (per cluster sizes and grid; :func:`_gains`)
 GAIN_CACHE_BYTES = 64 << 20
 _GAINS: OrderedDict = OrderedDict()
-_gain_bytes = 0
 
 
 def _haar_gain(m, w, s):
@@ -68,49 +67,38 @@ def _factor(term):
 
 def _gains(m, n_grid):
     """``[(w, G)]`` per block of the midpoint grid: the frequencies and the Haar gains |H_m(w)|^2 of
-    every cluster size (k x block). The same values as computing them on each call (they are: each
-    row is the same elementwise arithmetic), kept per (grid, cluster size) for the last
-    :data:`GAIN_CACHE_BYTES`: GMWM's second step on each candidate set of scales (the same grid, one
-    scale fewer each time) and the fit check integrate on the same grid, and the gains (sin^4 at
-    k x n_grid points) were most of the cost of a direct sum."""
-    global _gain_bytes
+    every cluster size (k x block). The same values as computing them on each call (they are: the
+    same elementwise arithmetic per row), kept per grid for the last cluster sizes asked
+    (:data:`GAIN_CACHE_BYTES` in all): a request for a run of consecutive cluster sizes of the kept
+    ones gets views of them. GMWM's second step on each candidate set of scales (the same grid, the
+    shortest scale dropped each time) and the fit check integrate on the same grid, and the gains
+    (sin^4 at k x n_grid points) were most of the cost of a direct sum."""
     omega_all = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
     starts = range(0, n_grid, CHUNK)
-    missing = np.array([v for v in np.unique(m) if (n_grid, float(v)) not in _GAINS])
-    new = {}
-    if missing.size:
-        for a in starts:
-            w = omega_all[a : a + CHUNK]
-            G = _haar_gain(missing[:, None], w[None, :], np.sin(w / 2)[None, :])
-            for v, row in zip(missing, G):
-                new.setdefault(float(v), []).append(row)
-    rows = []
-    for v in m:
-        key = (n_grid, float(v))
-        blocks = new.get(float(v))
-        if blocks is None:
-            blocks = _GAINS.get(key)
-            if blocks is None:  # dropped meanwhile by another thread
-                blocks = [_haar_gain(v, omega_all[a : a + CHUNK], np.sin(omega_all[a : a + CHUNK] / 2))
-                          for a in starts]
-        rows.append(blocks)
-    row_bytes = n_grid * 8
-    if row_bytes * m.size <= GAIN_CACHE_BYTES // 2:
-        for v, blocks in new.items():
-            _GAINS[(n_grid, v)] = blocks
-            _gain_bytes += row_bytes
-        for v in m:
+    for key, (m_kept, blocks) in list(_GAINS.items()):
+        if key[0] != n_grid or not m.size:
+            continue
+        i = int(np.searchsorted(m_kept, m[0])) if np.all(np.diff(m_kept) > 0) else -1
+        if 0 <= i and i + m.size <= m_kept.size and np.array_equal(m_kept[i : i + m.size], m):
             try:
-                _GAINS.move_to_end((n_grid, float(v)))
-            except KeyError:
+                _GAINS.move_to_end(key)
+            except KeyError:  # dropped meanwhile by another thread: ``blocks`` holds them
                 pass
-        while _gain_bytes > GAIN_CACHE_BYTES:
+            return [(omega_all[a : a + CHUNK], G[i : i + m.size]) for a, G in zip(starts, blocks)]
+    blocks = []
+    for a in starts:
+        w = omega_all[a : a + CHUNK]
+        blocks.append(_haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :]))
+    if m.size * n_grid * 8 <= GAIN_CACHE_BYTES // 2:
+        key = (n_grid, m.tobytes())
+        _GAINS[key] = (m.copy(), blocks)
+        _GAINS.move_to_end(key)
+        while sum(v[0].size * k[0] * 8 for k, v in list(_GAINS.items())) > GAIN_CACHE_BYTES:
             try:
-                (grid, _), _ = _GAINS.popitem(last=False)
+                _GAINS.popitem(last=False)
             except KeyError:
                 break
-            _gain_bytes -= grid * 8
-    return [(omega_all[a : a + CHUNK], np.stack([r[b] for r in rows])) for b, a in enumerate(starts)]
+    return [(omega_all[a : a + CHUNK], G) for a, G in zip(starts, blocks)]
 
 
 def _grid_size(m, grid_per_cycle, max_grid) -> int:
@@ -147,11 +135,10 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
     nothing. For white noise the diagonal agrees with the NIST SP 1065 edf, Var = 2 AV^2 / edf
     (checked in the tests).
 
-    ``reuse=False``: one midpoint sum of the squared total spectrum, nothing kept (the same values to
-    round-off, at the full cost). GMWM's second step asks for it: its optimum along the flat
-    directions of its objective (a coefficient the data hardly resolve) moves with the round-off of
-    its weights, by up to ~1e-4 relative on the coverage study's records, and the committed studies'
-    GMWM numbers are kept bit for bit; its cost is its model evaluations, not this sum.
+    ``reuse=False``: one midpoint sum of the squared total spectrum, nothing kept but the Haar gains
+    (the same values to round-off). GMWM's second step asks for it: its model has a Gauss-Markov term
+    whose shape changes with every fit, so the pairs with it would be integrated anew each time (one
+    product per pair instead of one for the sum).
     """
     m = np.asarray(m, dtype=float)
     n_grid = _grid_size(m, grid_per_cycle, max_grid)
@@ -220,10 +207,12 @@ def _line_cross(gyro, m) -> np.ndarray:
 
 
 def _direct(gyro, m, n_grid) -> np.ndarray:
-    """(1/pi) * integral of |H_j|^2 |H_k|^2 S^2 by one midpoint sum of the total spectrum, in blocks."""
+    """(1/pi) * integral of |H_j|^2 |H_k|^2 S^2 by one midpoint sum of the total spectrum, in blocks
+    (as Y Y^T with Y = |H|^2 S: a symmetric rank-k product)."""
     out = np.zeros((m.size, m.size))
     for w, G in _gains(m, n_grid):
         S = gyro.psd(w / (2 * np.pi * gyro.dt)) / (2 * gyro.dt)
-        out += (G * S**2) @ G.T
+        Y = G * S
+        out += Y @ Y.T
     out *= 1.0 / n_grid  # (1/pi) * integral = mean over the grid
     return out

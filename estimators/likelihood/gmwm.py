@@ -517,7 +517,7 @@ def _solve(fun, u0, lo, hi, jac):
 
 
 class _LatentAV:
-    """The exact discrete AV of a latent model at ``tau`` as a function of the log-parameters ``u``
+    r"""The exact discrete AV of a latent model at ``tau`` as a function of the log-parameters ``u``
     (``__call__``), and its Jacobian d AV / d u (:meth:`jacobian`), for :func:`_solve`.
 
     Every latent's AV is its first parameter (its amplitude) squared times the AV of the same latent at
@@ -539,31 +539,32 @@ class _LatentAV:
     def __init__(self, latents, tau, dt, tau_fl, extra=None):
         self.m = build_gyro(latents, np.ones(sum(len(LATENTS[lat][0]) for lat in latents)), dt, tau_fl).m_of(tau)
         self.dt, self.tau_fl, self.latents, self.extra = dt, tau_fl, latents, extra
-        self.blocks = []  # (index of the amplitude, index of the shape parameter or None, fixed unit AV)
+        # (index of the amplitude, index of the shape parameter or None, unit AV or the unit term)
+        self.blocks = []
         i = 0
         for lat in latents:
             k = len(LATENTS[lat][0])
             if k == 1:
                 term = build_gyro((lat,), [1.0], dt, tau_fl).terms[0]
                 self.blocks.append((i, None, term.avar(self.m, dt)))
-            else:
-                self.blocks.append((i, i + 1, None))
+            else:  # the unit term at any shape value: type(unit)(**{**params, shape_parameter: value})
+                self.blocks.append((i, i + 1, build_gyro((lat,), [1.0, 1.0], dt, tau_fl).terms[0]))
             i += k
         self._shape = {}  # block -> (shape value, unit AV, d unit AV / d ln p)
 
-    def _unit(self, b, lat, p):
+    def _unit(self, b, unit, p):
         kept = self._shape.get(b)
         if kept is None or kept[0] != p:
-            term = build_gyro((lat,), [1.0, p], self.dt, self.tau_fl).terms[0]
+            term = type(unit)(**{**unit._params(), unit.shape_parameter: p})
             kept = (p, *term.avar_shape_derivative(self.m, self.dt))
             self._shape[b] = kept
         return kept[1], kept[2]
 
     def __call__(self, u):
         out = np.zeros(self.m.size)
-        for b, (lat, (i, j, unit)) in enumerate(zip(self.latents, self.blocks)):
+        for b, (i, j, unit) in enumerate(self.blocks):
             if j is not None:
-                unit = self._unit(b, lat, math.exp(u[j]))[0]
+                unit = self._unit(b, unit, math.exp(u[j]))[0]
             out += math.exp(2.0 * u[i]) * unit
         if self.extra is not None:
             out += math.exp(2.0 * u[self.extra[0]]) * self.extra[1]
@@ -571,10 +572,10 @@ class _LatentAV:
 
     def jacobian(self, u):
         jac = np.zeros((self.m.size, len(u)))
-        for b, (lat, (i, j, unit)) in enumerate(zip(self.latents, self.blocks)):
+        for b, (i, j, unit) in enumerate(self.blocks):
             scale = math.exp(2.0 * u[i])
             if j is not None:
-                unit, d_unit = self._unit(b, lat, math.exp(u[j]))
+                unit, d_unit = self._unit(b, unit, math.exp(u[j]))
                 jac[:, j] = scale * d_unit
             jac[:, i] = 2.0 * scale * unit
         if self.extra is not None:
