@@ -516,7 +516,7 @@ def _param_index(latents, name):
 
 def _solve(fun, u0, lo, hi, jac):
     return least_squares(fun, np.clip(u0, lo + 1e-9, hi - 1e-9), jac=jac, bounds=(lo, hi), method="trf",
-                         x_scale=1.0, xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=2000)
+                         x_scale=1.0, xtol=1e-10, ftol=1e-12, gtol=1e-10, max_nfev=2000)
 
 
 class _LatentAV:
