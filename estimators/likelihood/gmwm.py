@@ -60,8 +60,11 @@ covariance was 2-11 times too small where the sinusoid shapes the curve). With `
 test of :mod:`avbench.estimators.likelihood.lines`.
 Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts,
 with the analytic Jacobian of the model's exact AV (:class:`_LatentAV`; issue 25: it replaced forward differences,
-~80 % of the cost, whose truncation error stopped some fits short of the minimum -- on replicate 0 of
-grand_comparison the criterion J fell from 83.10 to 81.60 on SRS2000 and from 23.48 to 23.18 on ADIS16405_Z).
+~80 % of the cost, whose truncation error stopped some fits short of the minimum: on replicate 0 of
+grand_comparison the criterion J, each fit with its own second-step weights, fell from 83.10 to 81.60 on SRS2000
+and from 23.48 to 23.18 on ADIS16405_Z, and a white + random-walk record's K, left at its floor before, is found),
+and ``ftol=1e-12``: a coefficient the data cannot resolve lies along a flat direction of the criterion, and with
+the cost's own stopping rule at 1e-10 its end point moved by 4e-7 between units of the same record.
 """
 
 from __future__ import annotations
