@@ -106,3 +106,21 @@ def test_kept_gains_give_the_same_covariance():
     kept = [covariance.av_covariance(gyro, m[i:], 100_000, reuse=False) for i in range(3)]
     for a, b in zip(fresh, kept):
         np.testing.assert_array_equal(a, b)
+
+
+def test_gains_too_large_to_keep_come_block_by_block(monkeypatch):
+    """Past the budget nothing is kept and the gains are made per block (bounded work arrays), with
+    the same covariance."""
+    gyro = build_gyro(("WN", "RW"), [1e-3, 1e-6], 0.1)
+    m = 2.0 ** np.arange(0, 15)
+    covariance._GAINS.clear()
+    kept = covariance.av_covariance(gyro, m, 400_000, reuse=False)
+    covariance._GAINS.clear()
+    monkeypatch.setattr(covariance, "GAIN_CACHE_BYTES", 1024)
+    monkeypatch.setattr(covariance, "CHUNK", 1 << 12)
+    blocks = covariance._gains(m, covariance._grid_size(m, 8, 1 << 21))
+    assert not isinstance(blocks, list) and not covariance._GAINS
+    assert next(iter(blocks))[1].shape == (m.size, 1 << 12)
+    monkeypatch.setattr(covariance, "CHUNK", 1 << 17)
+    np.testing.assert_allclose(covariance.av_covariance(gyro, m, 400_000, reuse=False), kept, rtol=1e-12)
+    assert not covariance._GAINS

@@ -72,7 +72,9 @@ def _gains(m, n_grid):
     (:data:`GAIN_CACHE_BYTES` in all): a request for a run of consecutive cluster sizes of the kept
     ones gets views of them. GMWM's second step on each candidate set of scales (the same grid, the
     shortest scale dropped each time) and the fit check integrate on the same grid, and the gains
-    (sin^4 at k x n_grid points) were most of the cost of a direct sum."""
+    (sin^4 at k x n_grid points) were most of the cost of a direct sum. Gains larger than half the
+    budget (long records: up to 2^21 points per size) are not kept and come one block at a time, so
+    that the work arrays stay k x :data:`CHUNK`."""
     omega_all = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
     starts = range(0, n_grid, CHUNK)
     for key, (m_kept, blocks) in list(_GAINS.items()):
@@ -85,19 +87,22 @@ def _gains(m, n_grid):
             except KeyError:  # dropped meanwhile by another thread: ``blocks`` holds them
                 pass
             return [(omega_all[a : a + CHUNK], G[i : i + m.size]) for a, G in zip(starts, blocks)]
-    blocks = []
-    for a in starts:
+
+    def block(a):
         w = omega_all[a : a + CHUNK]
-        blocks.append(_haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :]))
-    if m.size * n_grid * 8 <= GAIN_CACHE_BYTES // 2:
-        key = (n_grid, m.tobytes())
-        _GAINS[key] = (m.copy(), blocks)
-        _GAINS.move_to_end(key)
-        while sum(v[0].size * k[0] * 8 for k, v in list(_GAINS.items())) > GAIN_CACHE_BYTES:
-            try:
-                _GAINS.popitem(last=False)
-            except KeyError:
-                break
+        return _haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :])
+
+    if m.size * n_grid * 8 > GAIN_CACHE_BYTES // 2:  # too large to keep: one block at a time, as before
+        return ((omega_all[a : a + CHUNK], block(a)) for a in starts)
+    blocks = [block(a) for a in starts]
+    key = (n_grid, m.tobytes())
+    _GAINS[key] = (m.copy(), blocks)
+    _GAINS.move_to_end(key)
+    while sum(v[0].size * k[0] * 8 for k, v in list(_GAINS.items())) > GAIN_CACHE_BYTES:
+        try:
+            _GAINS.popitem(last=False)
+        except KeyError:
+            break
     return [(omega_all[a : a + CHUNK], G) for a, G in zip(starts, blocks)]
 
 
