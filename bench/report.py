@@ -72,7 +72,8 @@ LIMITS = {
     "25, ~10 ms less per fit, bit-identical).",
     "gmwm_cost": "Since issue 25 not the model: the latent model's exact AV and its analytic Jacobian (per-latent "
     "unit curves computed once, the Gauss-Markov curve and its d/d ln Tc in one compiled pass) replaced "
-    "least_squares' forward differences (~80 % of the cost before: 2.48 -> 0.36 CPU-s on this record, same process). "
+    "least_squares' forward differences (~80 % of the cost before: 2.48 -> 0.37 CPU-s on this record, process time "
+    "of main against this code in the same session; the wall figure here is at load average 9). "
     "What is left: scipy's trust-region iterations themselves (~1 100 over ~70 solves: min_m='auto' tries ~10 "
     "sets of scales, 6 starts each plus the second step; each iteration an SVD and bound bookkeeping, ~0.2 ms) and "
     "the ten second-step weight matrices (one direct sum of the squared model spectrum over 65 536 grid points each, "
@@ -539,7 +540,8 @@ def write_outputs(cases, machine: dict, out: Path, quick: bool, seconds: float, 
 
         runs = run_history({"machine": machine})
         md[-1] += " The figures come from these runs (later ones replace the benchmarks they re-ran): " + "; ".join(
-            f"{r['when']} ({', '.join(r['benchmarks'])}; load average {r['loadavg_1_5_15']} at its end)" for r in runs) + "."
+            f"{r['when']} ({', '.join(r['benchmarks'])}; load average {r['loadavg_1_5_15']} at its end"
+            + (f"; {r['note']}" if r.get("note") else "") + ")" for r in runs) + "."
     md += [""]
     md += ["## Targets", "", "| target | measured | met | what limits it |", "|---|---|---|---|"]
     for t in tg:
