@@ -43,8 +43,9 @@ LIMITS = {
     "pass): ~6-9 likelihood passes' worth for p = 4-5 -- the p covariance derivatives cost ~p k^3 per step "
     "until they settle, a few thousand steps -- against 2p + 1 for the central differences of before, ~30 "
     "iterations; the Hessian is 2p scores. The diagonal-weight GMWM start and the fit check are a fixed share "
-    "(the start's analytic Jacobian, issue 25: the studies' model QN+WN+GM+RW+DR on this record 2.71 -> 1.94 CPU-s, "
-    "the default model 1.06 -> 1.01; estimates of the default model unchanged to 4e-11 relative).",
+    "(the start's analytic Jacobian, issue 25: the studies' model QN+WN+GM+RW+DR on this record 2.71 -> 1.91 CPU-s, "
+    "the default model 1.06 -> 0.93; estimates of the default model unchanged to 3e-9 relative, of the studies' "
+    "model to 7e-10 but for its unresolved Q, 3 %).",
     "whittle": "One FFT of the record; then Fisher scoring in log-parameters, each step one compiled pass over the "
     "n/2 Fourier frequencies with the terms' closed-form spectra; the ramp's exact variance costs two FFTs of twice "
     "the record per model reported, and with selection there is one fit per candidate term set.",
