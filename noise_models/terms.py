@@ -151,17 +151,25 @@ class NoiseTerm:
         Jacobian column a fit in log-parameters needs (GMWM, :mod:`avbench.estimators.likelihood.gmwm`).
 
         Default: a central difference in ln p (relative step ``1e-4``: truncation ~1e-9 relative for
-        curves smooth in ln p) of :meth:`avar`; a term overrides it with the analytic derivative
-        (:class:`GaussMarkov`). A ValueError if the term has no shape parameter."""
+        curves smooth in ln p) of :meth:`avar`, one-sided where a step leaves the values the term
+        accepts (a sinusoid at the Nyquist frequency; truncation ~1e-4 there); a term overrides it with
+        the analytic derivative (:class:`GaussMarkov`). A ValueError if the term has no shape parameter."""
         name = self.shape_parameter
         if name is None:
             raise ValueError(f"{type(self).__name__}: no shape parameter (its AV is its amplitude squared "
                              "times a fixed curve)")
         params = self._params()
         h = 1e-4
-        up = type(self)(**{**params, name: params[name] * math.exp(h)}).avar(m, dt)
-        down = type(self)(**{**params, name: params[name] * math.exp(-h)}).avar(m, dt)
-        return self.avar(m, dt), (up - down) / (2.0 * h)
+        value = self.avar(m, dt)
+
+        def at(step):
+            try:
+                return type(self)(**{**params, name: params[name] * math.exp(step)}).avar(m, dt), step
+            except ValueError:  # outside the values the term accepts: the other side only
+                return value, 0.0
+
+        (up, a), (down, b) = at(h), at(-h)
+        return value, (up - down) / (a - b)
 
     def spectral_lines(self, dt) -> list[tuple[float, float]]:
         """Spectral lines [(frequency Hz, variance)] beside :meth:`psd` (none but for sinusoids)."""

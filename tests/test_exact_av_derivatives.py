@@ -61,6 +61,16 @@ def test_default_derivative_is_a_central_difference(term):
     assert np.all(np.abs(dav - _richardson(term, m, 0.01)) <= 1e-6 * scale)
 
 
+def test_default_derivative_is_one_sided_at_the_edge_of_the_values_a_term_accepts():
+    """A sinusoid at the Nyquist frequency (GMWM's upper bound for f0): the backward difference."""
+    term = Sinusoidal(amplitude=1.0, frequency=50.0)
+    m = np.arange(1, 9)
+    av, dav = term.avar_shape_derivative(m, 0.01)
+    below = Sinusoidal(amplitude=1.0, frequency=50.0 * math.exp(-1e-4)).avar(m, 0.01)
+    np.testing.assert_array_equal(dav, (av - below) / 1e-4)
+    assert np.all(np.isfinite(dav))
+
+
 def test_a_term_without_shape_parameter_says_so():
     from avbench.noise_models import AngleRandomWalk
 
