@@ -110,6 +110,87 @@ def hvar_sums(x, ms):
     return out
 
 
+@njit(cache=True, fastmath=_FM, inline="always")
+def _ssq_block_diffs(z):
+    """(sum_k (z[k+2] - 2z[k+1] + z[k])^2, sum_k (z[k+3] + z[k+2] - z[k+1] - z[k])^2,
+    sum_k (z[k+1] - z[k])^2) over ``z`` (size >= 3), in one read.
+
+    On blocks z of m: the Hadamard term of m; the difference of adjacent blocks of 2m starting at k m
+    (the AV's term at 2m for every start offset that is a multiple of m: size - 3 terms); the AV's term
+    at m for start offsets that are multiples of m (size - 1 terms).
+    """
+    a = z[3:]
+    b = z[2:-1]
+    c = z[1:-2]
+    d = z[:-3]
+    acc2 = 0.0
+    acch = 0.0
+    acc1 = 0.0
+    for k in range(a.size):
+        d2 = b[k] - 2.0 * c[k] + d[k]
+        dh = (a[k] + b[k]) - (c[k] + d[k])
+        d1 = c[k] - d[k]
+        acc2 += d2 * d2
+        acch += dh * dh
+        acc1 += d1 * d1
+    p = z.size
+    d2 = z[p - 1] - 2.0 * z[p - 2] + z[p - 3]
+    for k in range(max(p - 3, 0), p - 1):
+        d1 = z[k + 1] - z[k]
+        acc1 += d1 * d1
+    return acc2 + d2 * d2, acch, acc1
+
+
+@njit(cache=True, fastmath=_FM)
+def hvar_octave_sums(w, mu, levels, buf):
+    """(Hadamard, Allan) sums at m = 1, 2, 4, ..., 2^(levels-1) from block sums of the rate (no phase).
+
+    Hadamard (non-overlapping, SP1065 eq. 18): on the unit phase S (x / dt), its decimated third
+    difference is the second difference of consecutive block sums, S[(i+3)m] - 3S[(i+2)m] +
+    3S[(i+1)m] - S[im] = y_{i+2} - 2y_{i+1} + y_i with y_i = sum_{k=im}^{(i+1)m-1} (w_k - mu) (n // m
+    full blocks, n // m - 2 terms: ``hvar_sums``' count).
+    Allan (for the edf's noise identification): the sum of squared differences of adjacent blocks of
+    m at every start offset that is a multiple of m/2 -- from the blocks of m/2 (n // (m/2) - 3 terms;
+    at m = 1 every offset: n - 1 terms) -- an unbiased AV estimate with about twice the non-overlapping
+    AV's terms.
+    Blocks of 2m are sums of pairs of blocks of m: n/2 + n/4 + ... additions in all, no cumulative sum
+    (and no large phase values whose differences cost digits). Level 0 is read from ``w`` itself (the
+    mean cancels in the differences). ``buf``: work array of at least n // 2 entries.
+    """
+    n = w.size
+    h = np.zeros(levels)
+    a = np.zeros(levels)
+    if levels == 0 or n < 2:
+        return h, a
+    if n >= 3:
+        h0, a1, a0 = _ssq_block_diffs(w)
+        h[0] = h0
+        a[0] = a0
+        if levels > 1:
+            a[1] = a1
+    c = n // 2
+    for i in range(c):
+        buf[i] = (w[2 * i] - mu) + (w[2 * i + 1] - mu)
+    for lev in range(1, levels):
+        if c < 3:  # no term left (the callers ask for m <= n // 3)
+            break
+        hh, aa, _ = _ssq_block_diffs(buf[:c])
+        h[lev] = hh
+        if lev + 1 < levels:
+            a[lev + 1] = aa
+        half = c // 2
+        for i in range(half):
+            buf[i] = buf[2 * i] + buf[2 * i + 1]
+        c = half
+    return h, a
+
+
+def hvar_octave_av_terms(n, levels):
+    """Number of terms of each of ``hvar_octave_sums``' AV sums: n - 1 at m = 1, n // (m/2) - 3 beyond."""
+    m = 1 << np.arange(levels)
+    return np.where(m == 1, n - 1, n // np.maximum(m // 2, 1) - 3)
+
+
 def hvar_sum_numpy(x, m):
     xd = x[::m]
     d = xd[3:] - 3 * xd[2:-1] + 3 * xd[1:-2] - xd[:-3]

@@ -104,6 +104,7 @@ from avbench.estimators.allan import _kernels
 from avbench.estimators.allan.variance import (
     AllanResult,
     _checked_record_and_mean,
+    _cumsum_buffer,
     _noise_from_slope,
     allan_variance,
     cluster_sizes,
@@ -144,7 +145,20 @@ def _sample_phase(rate, dt):
     times a count, so it is computed on S with m^2 in place of tau^2: one pass fewer than scaling.
     """
     rate, dt, mean = _checked_record_and_mean(rate, dt)
-    return _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1)), rate.size, dt
+    return _unit_phase(rate, mean), rate.size, dt
+
+
+def _unit_phase(rate, mean):
+    """S of a checked record and its mean (``_sample_phase`` after the checks)."""
+    return _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1))
+
+
+def _octave_levels(m) -> int:
+    """1 + log2(max m) when every m is a power of two (the block-sum pass covers them), else 0."""
+    m = np.asarray(m)
+    if m.size == 0 or np.any(m < 1) or np.any(m & (m - 1)):
+        return 0
+    return int(m.max()).bit_length()
 
 
 def phase_of(rate, dt):
@@ -390,7 +404,8 @@ def deviation(
     check_taus(taus)
     if kind == "oavar":
         return allan_variance(rate, dt, taus, points_per_decade=points_per_decade, noise=noise, confidence=confidence)
-    x, n, dt = _sample_phase(rate, dt)  # the phase in units of dt: tau^2 -> m^2 below
+    rate, dt, mean = _checked_record_and_mean(rate, dt)
+    n = rate.size
     N = n + 1
     m = _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m)
     if max_terms is not None:
@@ -400,9 +415,18 @@ def deviation(
                          + ("" if max_terms is None else f" within max_terms = {max_terms:g}"))
     mf = m.astype(float)
     av_sums = None  # the AV's sums where a kernel gives them on the way (for the noise identification)
+    # the phase in units of dt (tau^2 -> m^2 below), except for hvar on octave m (block sums of the rate)
+    levels = _octave_levels(m) if kind == "hvar" else 0
+    x = None if levels else _unit_phase(rate, mean)
     if kind == "hvar":
-        K = (N - 1) // m - 2
-        var = _k.hvar_sums(x, m) / (6.0 * mf * mf * K)
+        K = n // m - 2
+        if levels:  # blocks of 2m from pairs of blocks of m; the non-overlapping AV from the same sums
+            h, a = _k.hvar_octave_sums(rate, mean, levels, _cumsum_buffer(n // 2 + 1))
+            lev = np.log2(m).astype(np.int64)
+            sums, av_sums = h[lev], a[lev]
+        else:  # any other grid: the noise identified from the overlapping AV (below), as for ohvar
+            sums = _k.hvar_sums(x, m)
+        var = sums / (6.0 * mf * mf * K)
     elif kind == "ohvar":
         K = N - 3 * m
         sums, av_sums = _k.ohvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
@@ -440,7 +464,12 @@ def deviation(
     if not edf:
         nan = np.full(m.size, np.nan)
         return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), nan, nan, True, n, dt, confidence, kind=kind)
-    if noise == "auto":
+    if noise == "auto" and levels:
+        # the AV's slope as for every statistic, the AV from hvar's own block sums (at every start offset
+        # that is a multiple of m/2: an unbiased AV with about twice the non-overlapping AV's terms)
+        count = _k.hvar_octave_av_terms(n, levels)[np.log2(m).astype(np.int64)]
+        kinds = list(_noise_from_slope(mf * dt, av_sums / (2.0 * mf * mf * count), n // m))
+    elif noise == "auto":
         m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
         table = _noise_kinds(x, dt, m_av, n, None if av_sums is None else dict(zip(m.tolist(), av_sums)))
         keys = np.array(sorted(table))
