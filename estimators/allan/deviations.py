@@ -311,15 +311,19 @@ def _rho_squares(kind: str, m: int, noise: str, kmax: int):
     """(E[V], sum_{f,g} w_f w_g rho_fg(k)^2 for k = 0..kmax): the K-free part of the edf."""
     pos, coef, w = _filters(kind, m)
     P = int(pos.max()) + 1
-    C = np.zeros((len(w), P))
-    np.add.at(C, (np.arange(len(w))[:, None], pos), coef)
-    L = 2 * P - 1
-    Fc = np.fft.rfft(C, 2 * L)
-    # A_fg(d) = sum_a C_f[a] C_g[a + d], d = -(P-1)..P-1 (integer filters: rounded back to exact)
-    A = np.fft.irfft(np.conj(Fc)[:, None, :] * Fc[None, :, :], 2 * L)
-    A = np.concatenate((A[..., -(P - 1) :], A[..., :P]), axis=-1) if P > 1 else A[..., :1]
-    if np.all(C == np.rint(C)):
-        A = np.rint(A)
+    if len(w) == 1:  # one integer filter: its exact autocorrelation, A(-d) = A(d) (no FFT)
+        A1 = _single_filter_acf(kind, m)
+        A = np.concatenate((A1[:0:-1], A1))[None, None, :]
+    else:
+        C = np.zeros((len(w), P))
+        np.add.at(C, (np.arange(len(w))[:, None], pos), coef)
+        L = 2 * P - 1
+        Fc = np.fft.rfft(C, 2 * L)
+        # A_fg(d) = sum_a C_f[a] C_g[a + d], d = -(P-1)..P-1 (integer filters: rounded back to exact)
+        A = np.fft.irfft(np.conj(Fc)[:, None, :] * Fc[None, :, :], 2 * L)
+        A = np.concatenate((A[..., -(P - 1) :], A[..., :P]), axis=-1) if P > 1 else A[..., :1]
+        if np.all(C == np.rint(C)):
+            A = np.rint(A)
     # rho(k) = sum_d A(d) G(k + d), d = -(P-1)..P-1: G once on the lags -(P-1)..kmax+P-1, then windows
     G = _canonical_gcov(noise, np.arange(-(P - 1), kmax + P))
     windows = np.lib.stride_tricks.sliding_window_view(G, 2 * P - 1)  # (kmax+1, 2P-1), row k: G(k-P+1..k+P-1)
