@@ -475,3 +475,28 @@ def test_hvar_identifies_the_noise_type_from_its_own_block_sums(term, noise):
     told = deviation(w, dt, "hvar", "octave", noise=noise)
     keep = n // auto.m >= 64
     np.testing.assert_array_equal(auto.edf[keep], told.edf[keep])
+
+
+@pytest.mark.parametrize("n", [16, 17, 100, 1201])
+def test_mvar_box_sums_equal_the_exactly_rounded_definition(n):
+    """The octave box-sum kernel against SP1065 eq. 14 summed with math.fsum (block edges: blocks of 7 and
+    64 start indices against boxes up to 256 wide; one block; the record's end), and against the chain."""
+    import math
+
+    rng = np.random.default_rng(n)
+    x, _, _ = phase_of(rng.standard_normal(n) + np.cumsum(rng.standard_normal(n)) * 0.1 + 50.0, 0.1)
+    N = x.size
+    levels = min(9, (N // 3).bit_length())
+    ref, ref_av = [], []
+    for lev in range(levels):
+        m = 1 << lev
+        v = [math.fsum(x[j + 2 * m : j + 3 * m]) - 2 * math.fsum(x[j + m : j + 2 * m]) + math.fsum(x[j : j + m])
+             for j in range(N - 3 * m + 1)]
+        ref.append(math.fsum(np.square(v)))
+        ref_av.append(_av_sum(x, m))
+    for block in (7, 64, K.BLOCK_MVAR_BOX, N):
+        got, av = K.mvar_sums_box_octaves(x, levels, block)
+        np.testing.assert_allclose(got, ref, rtol=1e-13)
+        np.testing.assert_allclose(av, ref_av, rtol=1e-12)
+    chain, _ = K.mvar_sums_blocked(x, (1 << np.arange(levels)).astype(np.int64))
+    np.testing.assert_allclose(chain, ref, rtol=1e-11)

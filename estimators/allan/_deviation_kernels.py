@@ -321,10 +321,79 @@ def mvar_sums_blocked(x, ms, block=BLOCK_MVAR):
     return out, av
 
 
+#: octave m up to this are summed from box sums built level by level in each block (``mvar_sums_box_octaves``)
+MVAR_BOX_MAX = 256
+#: start indices per block of ``mvar_sums_box_octaves`` (its two level buffers of block + 3 MVAR_BOX_MAX: 28 KB, in L1)
+BLOCK_MVAR_BOX = 1024
+
+
+@njit(cache=True, fastmath=_FM)
+def mvar_sums_box_octaves(x, levels, block=BLOCK_MVAR_BOX):
+    """(modified-AV, Allan) sums at m = 1, 2, 4, ..., 2^(levels-1), from box sums of the phase.
+
+    SP1065 eq. 14's inner sum is v_j = Z_{j+2m} - 2 Z_{j+m} + Z_j with Z_j = sum_{i=j}^{j+m-1} x[i] (the
+    box sum of m phases), and the box of 2m is two boxes of m: Z^{2m}_j = Z^m_j + Z^m_{j+m}. For each
+    block of start indices, the phases the block needs (block + 3 M, M the largest m) are copied relative to
+    the block's first phase (the filters cancel constants: no large values whose differences cost digits),
+    then level by level one SIMD pass makes the boxes of 2m from those of m and one SIMD pass sums v^2:
+    O(1) operations per term and level, no carried chain (``mvar_sums_blocked``, ~2 cycles per term,
+    for the other m). Allan: sum_{j<N-2m} (x[j+2m] - 2x[j+m] + x[j])^2 from the same block of x.
+    """
+    N = x.size
+    out = np.zeros(levels)
+    av = np.zeros(levels)
+    if levels == 0 or N < 3:
+        return out, av
+    top = 1 << (levels - 1)
+    W = block + 3 * top
+    buf = np.empty((2, W))
+    for b0 in range(0, N - 2, block):
+        L = min(W, N - b0)
+        _shifted_into(buf[0, :L], x[b0 : b0 + L], x[b0])
+        cur = L  # buf[t % 2, :cur] are the level's boxes Z_{b0+i}
+        for t in range(levels):
+            m = 1 << t
+            z = buf[t % 2]
+            nj = min(block, N - 3 * m + 1 - b0)  # v_j for j in [b0, b0 + nj)
+            if nj > 0:
+                out[t] += _ssq_second(z[2 * m : 2 * m + nj], z[m : m + nj], z[:nj])
+            na = min(block, N - 2 * m - b0)  # the AV's j in [b0, b0 + na)
+            if na > 0:
+                av[t] += _ssq_second(x[b0 + 2 * m : b0 + 2 * m + na], x[b0 + m : b0 + m + na], x[b0 : b0 + na])
+            if t + 1 < levels and cur > m:
+                nxt = cur - m
+                _pair_into(buf[(t + 1) % 2, :nxt], z[:nxt], z[m : m + nxt])
+                cur = nxt
+    return out, av
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _shifted_into(out, a, c):
+    for k in range(a.size):
+        out[k] = a[k] - c
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _pair_into(out, a, b):
+    for k in range(a.size):
+        out[k] = a[k] + b[k]
+
+
 def mvar_sums(x, ms):
-    """(modified-AV, Allan) sums for every m of ``ms``: blocked for few taus, one pass per m beyond."""
+    """(modified-AV, Allan) sums for every m of ``ms``: octave m up to ``MVAR_BOX_MAX`` from box sums
+    (``mvar_sums_box_octaves``), the others by the carried chain, blocked for few taus, one pass per m beyond."""
     ms = np.ascontiguousarray(ms, dtype=np.int64)
-    return mvar_sums_blocked(x, ms, BLOCK_MVAR if ms.size <= MAX_BLOCKED_TAUS else x.size)
+    box = ((ms & (ms - 1)) == 0) & (ms >= 1) & (ms <= MVAR_BOX_MAX)
+    if ms.size > MAX_BLOCKED_TAUS or not box.any():
+        return mvar_sums_blocked(x, ms, BLOCK_MVAR if ms.size <= MAX_BLOCKED_TAUS else x.size)
+    out = np.empty(ms.size)
+    av = np.empty(ms.size)
+    ob, ab = mvar_sums_box_octaves(x, int(ms[box].max()).bit_length())
+    lev = np.log2(ms[box]).astype(np.int64)
+    out[box], av[box] = ob[lev], ab[lev]
+    if not box.all():
+        out[~box], av[~box] = mvar_sums_blocked(x, ms[~box], BLOCK_MVAR)
+    return out, av
 
 
 def mvar_sum_numpy(x, m):

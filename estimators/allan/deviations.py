@@ -148,9 +148,9 @@ def _sample_phase(rate, dt):
     return _unit_phase(rate, mean), rate.size, dt
 
 
-def _unit_phase(rate, mean):
-    """S of a checked record and its mean (``_sample_phase`` after the checks)."""
-    return _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1))
+def _unit_phase(rate, mean, out=None):
+    """S of a checked record and its mean (``_sample_phase`` after the checks), into ``out`` if given."""
+    return _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1) if out is None else out)
 
 
 def _octave_levels(m) -> int:
@@ -421,7 +421,9 @@ def deviation(
     av_sums = None  # the AV's sums where a kernel gives them on the way (for the noise identification)
     # the phase in units of dt (tau^2 -> m^2 below), except for hvar on octave m (block sums of the rate)
     levels = _octave_levels(m) if kind == "hvar" else 0
-    x = None if levels else _unit_phase(rate, mean)
+    # (into the engine's per-thread scratch buffer: x never leaves this call; a fresh 8 MB array at n = 1e6
+    # costs its page faults, ~0.5-1 ms)
+    x = None if levels else _unit_phase(rate, mean, _cumsum_buffer(n + 1))
     if kind == "hvar":
         K = n // m - 2
         if levels:  # blocks of 2m from pairs of blocks of m; the non-overlapping AV from the same sums
