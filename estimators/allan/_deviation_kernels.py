@@ -19,6 +19,17 @@ Performance notes (``python -m avbench.bench --only Deviations``; serial, no thr
   sequential chain over it as four chains over the buffer's quarters (``mvar_sums_blocked``).
   Measured at n = 1e6, octave m (CPU time, loaded machine): 17 ms for both sums where the previous octave
   box-sum passes (one memory pass per octave) took 21 ms for the modified AV alone and the AV pass 5 ms more;
+* for octave m up to ``MVAR_BOX_MAX`` the modified AV is instead summed from box sums of the phase
+  built level by level inside each block (the box of 2m is two boxes of m; ``mvar_sums_box_octaves``):
+  three SIMD passes per level over an L1 buffer, ~0.4 ms per level at n = 1e6 against ~0.75 ms for the
+  chain; for larger m the buffer (block + 3m) outgrows the block and the chain is kept. Measured (CPU,
+  n = 1e6, octave m, best block/limit of 1024-8192 x 32-256): both sums 13.4-13.5 ms against 16.4 ms with
+  the chain for every m;
+* the non-overlapping Hadamard variance (hdev) on octave m reads the rate, not the phase: blocks of 2m
+  are pairs of blocks of m, and its third differences are second differences of consecutive blocks
+  (``hvar_octave_sums``; the AV for the edf's noise identification from the same blocks): ~1.5 ms CPU at
+  n = 1e6 for all 19 octaves, where the cumulative sum and the strided reads took ~5 ms and the
+  overlapping-AV pass for the noise type ~4 ms more;
 * Theo1 is its definition, (N - m) m / 2 terms per m: one SIMD pass per lag d over each block of
   start indices (the pair sums x[i] + x[i+m] formed once).
 """
