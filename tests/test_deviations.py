@@ -448,7 +448,8 @@ def test_hvar_octave_block_sums_equal_the_decimated_references(n):
     x, _, _ = phase_of(w, 1.0)
     levels = (n // 3).bit_length()
     buf = np.full(n, np.nan)  # the work array's contents must not matter
-    h, a = K.hvar_octave_sums(w, float(np.mean(w)), levels, buf)
+    h, a, total = K.hvar_octave_sums(w, levels, buf)
+    assert total == pytest.approx(float(np.sum(w)), rel=1e-12)
     for lev in range(levels):
         m = 1 << lev
         assert h[lev] == pytest.approx(K.hvar_sum_numpy(x, m), rel=1e-12)
@@ -500,3 +501,14 @@ def test_mvar_box_sums_equal_the_exactly_rounded_definition(n):
         np.testing.assert_allclose(av, ref_av, rtol=1e-12)
     chain, _ = K.mvar_sums_blocked(x, (1 << np.arange(levels)).astype(np.int64))
     np.testing.assert_allclose(chain, ref, rtol=1e-11)
+
+
+@pytest.mark.parametrize("taus", ["octave", "decade"])
+def test_hvar_names_a_non_finite_sample(taus):
+    """hdev's octave pass tests finiteness in its own read of the record: a NaN or an infinity is still
+    named (index), as by every other statistic."""
+    for bad in (np.nan, np.inf):
+        w = np.random.default_rng(1).standard_normal(500)
+        w[123] = bad
+        with pytest.raises(ValueError, match="non-finite.*index 123"):
+            deviation(w, 0.1, "hdev", taus)

@@ -122,18 +122,13 @@ def hvar_sums(x, ms):
 
 
 @njit(cache=True, fastmath=_FM, inline="always")
-def _ssq_block_diffs(z):
-    """(sum_k (z[k+2] - 2z[k+1] + z[k])^2, sum_k (z[k+3] + z[k+2] - z[k+1] - z[k])^2,
-    sum_k (z[k+1] - z[k])^2) over ``z`` (size >= 3), in one read.
-
-    On blocks z of m: the Hadamard term of m; the difference of adjacent blocks of 2m starting at k m
-    (the AV's term at 2m for every start offset that is a multiple of m: size - 3 terms); the AV's term
-    at m for start offsets that are multiples of m (size - 1 terms).
-    """
-    a = z[3:]
-    b = z[2:-1]
-    c = z[1:-2]
-    d = z[:-3]
+def _ssq_block_diffs_range(z, k0, k1):
+    """(sum_k (z[k+2] - 2z[k+1] + z[k])^2, sum_k (z[k+3] + z[k+2] - z[k+1] - z[k])^2, sum_k (z[k+1] - z[k])^2)
+    for k0 <= k < k1 (z must reach k1 + 2)."""
+    a = z[k0 + 3 : k1 + 3]
+    b = z[k0 + 2 : k1 + 2]
+    c = z[k0 + 1 : k1 + 1]
+    d = z[k0:k1]
     acc2 = 0.0
     acch = 0.0
     acc1 = 0.0
@@ -144,44 +139,83 @@ def _ssq_block_diffs(z):
         acc2 += d2 * d2
         acch += dh * dh
         acc1 += d1 * d1
+    return acc2, acch, acc1
+
+
+@njit(cache=True, inline="always")
+def _block_diffs_tail(z):
+    """The terms ``_ssq_block_diffs_range(z, 0, size - 3)`` leaves: the second difference at size - 3 and
+    the first differences at size - 3 and size - 2 (size >= 3)."""
     p = z.size
     d2 = z[p - 1] - 2.0 * z[p - 2] + z[p - 3]
+    acc1 = 0.0
     for k in range(max(p - 3, 0), p - 1):
         d1 = z[k + 1] - z[k]
         acc1 += d1 * d1
-    return acc2 + d2 * d2, acch, acc1
+    return d2 * d2, acc1
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _ssq_block_diffs(z):
+    """``_ssq_block_diffs_range`` over all of ``z`` (size >= 3) with its tail: on blocks z of m, (the
+    Hadamard sum of m (size - 2 terms), the AV sum of 2m at every start that is a multiple of m (size - 3
+    terms), the non-overlapping AV sum of m (size - 1 terms))."""
+    h, a2, a1 = _ssq_block_diffs_range(z, 0, max(z.size - 3, 0))
+    t2, t1 = _block_diffs_tail(z)
+    return h + t2, a2, a1 + t1
+
+
+#: samples per chunk of ``hvar_octave_sums``' first level (its sums and pairs read each chunk once, from L1)
+HVAR_CHUNK = 2048
 
 
 @njit(cache=True, fastmath=_FM)
-def hvar_octave_sums(w, mu, levels, buf):
-    """(Hadamard, Allan) sums at m = 1, 2, 4, ..., 2^(levels-1) from block sums of the rate (no phase).
+def hvar_octave_sums(w, levels, buf):
+    """(Hadamard, Allan) sums at m = 1, 2, 4, ..., 2^(levels-1) from block sums of the rate (no phase), and
+    the sum of ``w`` (not finite exactly when a sample is not, barring overflow: the caller's record check).
 
     Hadamard (non-overlapping, SP1065 eq. 18): on the unit phase S (x / dt), its decimated third
     difference is the second difference of consecutive block sums, S[(i+3)m] - 3S[(i+2)m] +
-    3S[(i+1)m] - S[im] = y_{i+2} - 2y_{i+1} + y_i with y_i = sum_{k=im}^{(i+1)m-1} (w_k - mu) (n // m
-    full blocks, n // m - 2 terms: ``hvar_sums``' count).
+    3S[(i+1)m] - S[im] = y_{i+2} - 2y_{i+1} + y_i with y_i = sum_{k=im}^{(i+1)m-1} w_k (n // m full
+    blocks, n // m - 2 terms: ``hvar_sums``' count).
     Allan (for the edf's noise identification): the sum of squared differences of adjacent blocks of
     m at every start offset that is a multiple of m/2 -- from the blocks of m/2 (n // (m/2) - 3 terms;
     at m = 1 every offset: n - 1 terms) -- an unbiased AV estimate with about twice the non-overlapping
     AV's terms.
-    Blocks of 2m are sums of pairs of blocks of m: n/2 + n/4 + ... additions in all, no cumulative sum
-    (and no large phase values whose differences cost digits). Level 0 is read from ``w`` itself (the
-    mean cancels in the differences). ``buf``: work array of at least n // 2 entries.
+    Blocks of 2m are sums of pairs of blocks of m: n/2 + n/4 + ... additions in all, no cumulative sum.
+    The differences cancel the mean; the blocks from m = 4 on are centred (the mean, known after the first
+    level's pass, taken off when the blocks of 2 are paired) so that long blocks hold no large values whose
+    differences cost digits. The first level is read in chunks (its differences, its pairs and its sum
+    from L1): one read of the record. ``buf``: work array of at least n // 2 entries.
     """
     n = w.size
     h = np.zeros(levels)
     a = np.zeros(levels)
-    if levels == 0 or n < 2:
-        return h, a
+    c = n // 2
+    total = 0.0
     if n >= 3:
-        h0, a1, a0 = _ssq_block_diffs(w)
-        h[0] = h0
-        a[0] = a0
+        h0 = 0.0
+        a1 = 0.0
+        a0 = 0.0
+        for k0 in range(0, n, HVAR_CHUNK):
+            k1 = min(k0 + HVAR_CHUNK, n - 3)
+            if k1 > k0:
+                x2, xh, x1 = _ssq_block_diffs_range(w, k0, k1)
+                h0 += x2
+                a1 += xh
+                a0 += x1
+            total += _pairs_into(buf, w, k0 // 2, min(k0 + HVAR_CHUNK, n) // 2)
+        t2, t1 = _block_diffs_tail(w)
+        if levels > 0:
+            h[0] = h0 + t2
+            a[0] = a0 + t1
         if levels > 1:
             a[1] = a1
-    c = n // 2
-    for i in range(c):
-        buf[i] = (w[2 * i] - mu) + (w[2 * i + 1] - mu)
+    else:
+        total = _pairs_into(buf, w, 0, c)
+    if n % 2:
+        total += w[n - 1]
+    mu = total / n
     for lev in range(1, levels):
         if c < 3:  # no term left (the callers ask for m <= n // 3)
             break
@@ -190,10 +224,22 @@ def hvar_octave_sums(w, mu, levels, buf):
         if lev + 1 < levels:
             a[lev + 1] = aa
         half = c // 2
+        off = 4.0 * mu if lev == 1 else 0.0  # blocks of 2 still hold 2 mu each
         for i in range(half):
-            buf[i] = buf[2 * i] + buf[2 * i + 1]
+            buf[i] = (buf[2 * i] + buf[2 * i + 1]) - off
         c = half
-    return h, a
+    return h, a, total
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _pairs_into(buf, w, i0, i1):
+    """buf[i] = w[2i] + w[2i+1] for i0 <= i < i1; returns their sum."""
+    acc = 0.0
+    for i in range(i0, i1):
+        v = w[2 * i] + w[2 * i + 1]
+        buf[i] = v
+        acc += v
+    return acc
 
 
 def hvar_octave_av_terms(n, levels):

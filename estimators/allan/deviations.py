@@ -100,6 +100,7 @@ in :mod:`~avbench.estimators.allan._deviation_kernels`.
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -109,6 +110,7 @@ from avbench.estimators.allan.variance import (
     AllanResult,
     _checked_record_and_mean,
     _cumsum_buffer,
+    _record_rules,
     _noise_from_slope,
     allan_variance,
     cluster_sizes,
@@ -412,7 +414,11 @@ def deviation(
     check_taus(taus)
     if kind == "oavar":
         return allan_variance(rate, dt, taus, points_per_decade=points_per_decade, noise=noise, confidence=confidence)
-    rate, dt, mean = _checked_record_and_mean(rate, dt)
+    fast = _record_rules(rate, dt) if kind == "hvar" else None  # hvar's octave pass tests finiteness itself
+    if fast is None:
+        rate, dt, mean = _checked_record_and_mean(rate, dt)
+    else:
+        (rate, dt), mean = fast, None
     n = rate.size
     N = n + 1
     m = _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m)
@@ -425,13 +431,18 @@ def deviation(
     av_sums = None  # the AV's sums where a kernel gives them on the way (for the noise identification)
     # the phase in units of dt (tau^2 -> m^2 below), except for hvar on octave m (block sums of the rate)
     levels = _octave_levels(m) if kind == "hvar" else 0
+    if levels:
+        h, a, total = _k.hvar_octave_sums(rate, levels, _cumsum_buffer(n // 2 + 1))
+        if not math.isfinite(total):  # a non-finite sample (the full check names it) or an overflowed sum
+            levels = 0
+    if mean is None and not levels:
+        rate, dt, mean = _checked_record_and_mean(rate, dt)
     # (into the engine's per-thread scratch buffer: x never leaves this call; a fresh 8 MB array at n = 1e6
     # costs its page faults, ~0.5-1 ms)
     x = None if levels else _unit_phase(rate, mean, _cumsum_buffer(n + 1))
     if kind == "hvar":
         K = n // m - 2
-        if levels:  # blocks of 2m from pairs of blocks of m; the non-overlapping AV from the same sums
-            h, a = _k.hvar_octave_sums(rate, mean, levels, _cumsum_buffer(n // 2 + 1))
+        if levels:  # blocks of 2m from pairs of blocks of m (above); the AV from the same blocks
             lev = np.log2(m).astype(np.int64)
             sums, av_sums = h[lev], a[lev]
         else:  # any other grid: the noise identified from the overlapping AV (below), as for ohvar
