@@ -32,11 +32,21 @@ def output_folder(args) -> Path:
     return Path(FULL_OUT)
 
 
+def _notes(args) -> str:
+    """--notes' text; else the output folder's notes.md (kept beside the report, so that a --merge run
+    does not drop the notes sections); else none."""
+    if getattr(args, "notes", None):
+        return Path(args.notes).read_text()
+    kept = Path(args.out) / "notes.md"
+    return kept.read_text() if kept.is_file() else ""
+
+
 def _arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="tiny sizes, < 1 minute (smoke test; no timing claims)")
     p.add_argument("--out", help=f"output folder (default {FULL_OUT} for a full run, a new temporary folder for --quick)")
     p.add_argument("--only", help="comma-separated benchmark class names to run (default: all)")
-    p.add_argument("--notes", help="a Markdown file whose text is added under the targets table")
+    p.add_argument("--notes", help="a Markdown file whose text is added under the targets table "
+                                   "(default: notes.md in the output folder, if there is one)")
     p.add_argument("--report-only", action="store_true",
                    help="rewrite README.md, results.csv and scaling.png from --out/results.json; run nothing")
     p.add_argument("--merge", action="store_true",
@@ -61,7 +71,7 @@ def run(args) -> int:
 
         prev = json.loads((Path(args.out) / "results.json").read_text())
         cases = harness.load_cases(Path(args.out) / "results.json")
-        notes = Path(args.notes).read_text() if getattr(args, "notes", None) else ""
+        notes = _notes(args)
         report.write_outputs(cases, prev["machine"], Path(args.out), prev["quick"], prev["seconds"], notes)
         print(f"rewrote {args.out}/README.md, results.json, results.csv, scaling.png")
         return 0
@@ -86,7 +96,7 @@ def run(args) -> int:
                 {"when": machine["when"], "loadavg_1_5_15": machine["loadavg_1_5_15"],
                  "benchmarks": sorted(c.__name__ for c in chosen)}]
         cases = kept + cases
-    notes = Path(args.notes).read_text() if getattr(args, "notes", None) else ""
+    notes = _notes(args)
     payload = report.write_outputs(cases, machine, Path(args.out), args.quick, time.perf_counter() - t0, notes)
     for t in payload["targets"]:
         print(f"{t['target']}: {t['measured']} (met: {t['met']})")
