@@ -440,7 +440,7 @@ def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
     assert "theobr" in capsys.readouterr().err and not (tmp_path / "o2" / "long_deviations.csv").exists()
 
 
-@pytest.mark.parametrize("n", [16, 17, 31, 1200, 1201, 4099])
+@pytest.mark.parametrize("n", [16, 17, 31, 1200, 1201, 4099, 4096 * 3 + 5, 70001])
 def test_hvar_octave_block_sums_equal_the_decimated_references(n):
     """The block-sum pass (blocks of 2m from pairs of blocks of m) against SP1065 eq. 18 on the decimated
     phase and the non-overlapping AV's sum of squared differences of adjacent cluster sums."""
