@@ -93,8 +93,9 @@ limit (the F x F cross-correlations of 6m filters cost F^2 P). Intervals: chi^2 
 the AV engine.
 
 Cost (``python -m avbench.bench --only Deviations``): every statistic is computed on the unscaled
-cumulative sum S (x = dt S; tau^2 -> m^2), one pass to make it; the compiled passes are described
-in :mod:`~avbench.estimators.allan._deviation_kernels`.
+cumulative sum S (x = dt S; tau^2 -> m^2), one pass to make it, except hvar on octave m, whose pass reads
+the rate itself (block sums; its sum doubles as the record's finiteness test); the compiled passes are
+described in :mod:`~avbench.estimators.allan._deviation_kernels`.
 """
 
 from __future__ import annotations
