@@ -20,9 +20,11 @@ LIMITS = {
                     "_gm_f_over_c2 series), and every fit's check builds the AV covariance under the fitted model "
                     "(allan/covariance.av_covariance: _haar_gain, _pair_integrals); reading, the six AVs and the static "
                     "check are a small share. See the breakdown.",
-    "deviations": "SIMD passes over the phase, blocked over the start index for all taus (ohvar, totvar, mvar, "
-                  "with the AV for the edf read from the same slices; mvar's running sum is a sequential chain per tau, "
-                  "carried 16 steps per dependent addition); hvar reads N/m points per tau; "
+    "deviations": "Memory passes: SIMD passes over the phase, blocked over the start index for all taus (ohvar, "
+                  "totvar, mvar, with the AV for the edf read from the same slices; mvar from box sums built level by "
+                  "level in L1 for octave m <= 256, a chain carried 16 steps per dependent addition beyond); hvar one "
+                  "read of the rate (block sums paired level by level; its sum is the finiteness test); then the "
+                  "edf's Python (~1-1.5 ms: hvar's largest share). "
                   "Theo1 is (N - m) m / 2 terms per tau and MTOT/HTOT 15 m per window by definition (O(N^2) over "
                   "octaves), and allantools' theo1/mtotdev/htotdev are pure-Python loops, timed on <= 3000 / 1000 "
                   "samples only.",

@@ -218,8 +218,10 @@ class Deviations:
     QUADRATIC_MAX_N = {"theo1": 10**4, "mtotvar": 10**4, "htotvar": 10**4}
     QUADRATIC_ALLANTOOLS_MAX_N = {"theo1": 3000, "mtotvar": 1000, "htotvar": 1000}
 
-    def repeats_for(self, *p):
-        return 3 if p[-1] < 10**7 else 1
+    def repeats_for(self, kind, n):
+        # the linear-cost statistics take milliseconds (allantools <= 1 s): a median of 9 alternated runs, so
+        # that one preemption on a loaded machine does not decide a ratio; the O(N^2) ones 3
+        return 9 if kind not in self.QUADRATIC_MAX_N and n <= 10**6 else 3
 
     def setup(self, kind, n):
         from avbench.estimators.allan.deviations import deviation

@@ -438,3 +438,77 @@ def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
     assert main(["deviations", str(long), "--fs", "100", "--units", "deg/s", "--deviation", "theobr",
                  "--out", str(tmp_path / "o2")]) == 2
     assert "theobr" in capsys.readouterr().err and not (tmp_path / "o2" / "long_deviations.csv").exists()
+
+
+@pytest.mark.parametrize("n", [16, 17, 31, 1200, 1201, 4099, 4096 * 3 + 5, 70001])
+def test_hvar_octave_block_sums_equal_the_decimated_references(n):
+    """The block-sum pass (blocks of 2m from pairs of blocks of m) against SP1065 eq. 18 on the decimated
+    phase and the non-overlapping AV's sum of squared differences of adjacent cluster sums."""
+    w = np.random.default_rng(n).standard_normal(n) + 3.0
+    x, _, _ = phase_of(w, 1.0)
+    levels = (n // 3).bit_length()
+    buf = np.full(n, np.nan)  # the work array's contents must not matter
+    h, a, total = K.hvar_octave_sums(w, levels, buf)
+    assert total == pytest.approx(float(np.sum(w)), rel=1e-12)
+    for lev in range(levels):
+        m = 1 << lev
+        assert h[lev] == pytest.approx(K.hvar_sum_numpy(x, m), rel=1e-12)
+        i = np.arange(0, n - 2 * m + 1, max(m // 2, 1))  # the AV's terms at starts that are multiples of m/2
+        assert i.size == K.hvar_octave_av_terms(n, levels)[lev]
+        assert a[lev] == pytest.approx(float(np.sum((x[i + 2 * m] - 2 * x[i + m] + x[i]) ** 2)), rel=1e-12)
+    # the octave path of ``deviation`` and its any-grid path give the same values (and edf for one noise type)
+    m = np.array([1 << lev for lev in range(levels)])
+    octave = deviation(w, 1.0, "hvar", "octave", noise="white_fm")
+    other = deviation(w, 1.0, "hvar", np.concatenate((m, [3])).astype(float), noise="white_fm")  # not all 2^k
+    keep = np.isin(other.m, octave.m)
+    np.testing.assert_allclose(other.avar[keep], octave.avar, rtol=1e-12)
+    np.testing.assert_array_equal(other.edf[keep], octave.edf)
+
+
+@pytest.mark.parametrize("term,noise", [(T.AngleRandomWalk(1e-3), "white_fm"), (T.RateRandomWalk(3e-4), "rw_fm"),
+                                        (T.Quantization(1e-4), "white_pm")], ids=["white_fm", "rw_fm", "white_pm"])
+def test_hvar_identifies_the_noise_type_from_its_own_block_sums(term, noise):
+    """hvar's edf with noise="auto" (the type read from the non-overlapping AV of its block sums) equals
+    its edf given the true type wherever the slope is trusted with room (>= 64 clusters)."""
+    n, dt = 1 << 14, 0.1
+    w = term.simulate(n, dt, np.random.default_rng(11))
+    auto = deviation(w, dt, "hvar", "octave")
+    told = deviation(w, dt, "hvar", "octave", noise=noise)
+    keep = n // auto.m >= 64
+    np.testing.assert_array_equal(auto.edf[keep], told.edf[keep])
+
+
+@pytest.mark.parametrize("n", [16, 17, 100, 1201])
+def test_mvar_box_sums_equal_the_exactly_rounded_definition(n):
+    """The octave box-sum kernel against SP1065 eq. 14 summed with math.fsum (block edges: blocks of 7 and
+    64 start indices against boxes up to 256 wide; one block; the record's end), and against the chain."""
+    import math
+
+    rng = np.random.default_rng(n)
+    x, _, _ = phase_of(rng.standard_normal(n) + np.cumsum(rng.standard_normal(n)) * 0.1 + 50.0, 0.1)
+    N = x.size
+    levels = min(9, (N // 3).bit_length())
+    ref, ref_av = [], []
+    for lev in range(levels):
+        m = 1 << lev
+        v = [math.fsum(x[j + 2 * m : j + 3 * m]) - 2 * math.fsum(x[j + m : j + 2 * m]) + math.fsum(x[j : j + m])
+             for j in range(N - 3 * m + 1)]
+        ref.append(math.fsum(np.square(v)))
+        ref_av.append(_av_sum(x, m))
+    for block in (7, 64, K.BLOCK_MVAR_BOX, N):
+        got, av = K.mvar_sums_box_octaves(x, levels, block)
+        np.testing.assert_allclose(got, ref, rtol=1e-13)
+        np.testing.assert_allclose(av, ref_av, rtol=1e-12)
+    chain, _ = K.mvar_sums_blocked(x, (1 << np.arange(levels)).astype(np.int64))
+    np.testing.assert_allclose(chain, ref, rtol=1e-11)
+
+
+@pytest.mark.parametrize("taus", ["octave", "decade"])
+def test_hvar_names_a_non_finite_sample(taus):
+    """hdev's octave pass tests finiteness in its own read of the record: a NaN or an infinity is still
+    named (index), as by every other statistic."""
+    for bad in (np.nan, np.inf):
+        w = np.random.default_rng(1).standard_normal(500)
+        w[123] = bad
+        with pytest.raises(ValueError, match="non-finite.*index 123"):
+            deviation(w, 0.1, "hdev", taus)

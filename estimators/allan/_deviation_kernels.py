@@ -19,6 +19,17 @@ Performance notes (``python -m avbench.bench --only Deviations``; serial, no thr
   sequential chain over it as four chains over the buffer's quarters (``mvar_sums_blocked``).
   Measured at n = 1e6, octave m (CPU time, loaded machine): 17 ms for both sums where the previous octave
   box-sum passes (one memory pass per octave) took 21 ms for the modified AV alone and the AV pass 5 ms more;
+* for octave m up to ``MVAR_BOX_MAX`` the modified AV is instead summed from box sums of the phase
+  built level by level inside each block (the box of 2m is two boxes of m; ``mvar_sums_box_octaves``):
+  three SIMD passes per level over an L1 buffer, ~0.4 ms per level at n = 1e6 against ~0.75 ms for the
+  chain; for larger m the buffer (block + 3m) outgrows the block and the chain is kept. Measured (CPU,
+  n = 1e6, octave m, best block/limit of 1024-8192 x 32-256): both sums 13.4-13.5 ms against 16.4 ms with
+  the chain for every m;
+* the non-overlapping Hadamard variance (hdev) on octave m reads the rate, not the phase: blocks of 2m
+  are pairs of blocks of m, and its third differences are second differences of consecutive blocks
+  (``hvar_octave_sums``; the AV for the edf's noise identification from the same blocks): ~1.5 ms CPU at
+  n = 1e6 for all 19 octaves, where the cumulative sum and the strided reads took ~5 ms and the
+  overlapping-AV pass for the noise type ~4 ms more;
 * Theo1 is its definition, (N - m) m / 2 terms per m: one SIMD pass per lag d over each block of
   start indices (the pair sums x[i] + x[i+m] formed once).
 """
@@ -108,6 +119,133 @@ def hvar_sums(x, ms):
             i += m
         out[t] = acc
     return out
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _ssq_block_diffs_range(z, k0, k1):
+    """(sum_k (z[k+2] - 2z[k+1] + z[k])^2, sum_k (z[k+3] + z[k+2] - z[k+1] - z[k])^2, sum_k (z[k+1] - z[k])^2)
+    for k0 <= k < k1 (z must reach k1 + 2)."""
+    a = z[k0 + 3 : k1 + 3]
+    b = z[k0 + 2 : k1 + 2]
+    c = z[k0 + 1 : k1 + 1]
+    d = z[k0:k1]
+    acc2 = 0.0
+    acch = 0.0
+    acc1 = 0.0
+    for k in range(a.size):
+        d2 = b[k] - 2.0 * c[k] + d[k]
+        dh = (a[k] + b[k]) - (c[k] + d[k])
+        d1 = c[k] - d[k]
+        acc2 += d2 * d2
+        acch += dh * dh
+        acc1 += d1 * d1
+    return acc2, acch, acc1
+
+
+@njit(cache=True, inline="always")
+def _block_diffs_tail(z):
+    """The terms ``_ssq_block_diffs_range(z, 0, size - 3)`` leaves: the second difference at size - 3 and
+    the first differences at size - 3 and size - 2 (size >= 3)."""
+    p = z.size
+    d2 = z[p - 1] - 2.0 * z[p - 2] + z[p - 3]
+    acc1 = 0.0
+    for k in range(max(p - 3, 0), p - 1):
+        d1 = z[k + 1] - z[k]
+        acc1 += d1 * d1
+    return d2 * d2, acc1
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _ssq_block_diffs(z):
+    """``_ssq_block_diffs_range`` over all of ``z`` (size >= 3) with its tail: on blocks z of m, (the
+    Hadamard sum of m (size - 2 terms), the AV sum of 2m at every start that is a multiple of m (size - 3
+    terms), the non-overlapping AV sum of m (size - 1 terms))."""
+    h, a2, a1 = _ssq_block_diffs_range(z, 0, max(z.size - 3, 0))
+    t2, t1 = _block_diffs_tail(z)
+    return h + t2, a2, a1 + t1
+
+
+#: samples per chunk of ``hvar_octave_sums``' first level (its sums and pairs read each chunk once, from L1)
+HVAR_CHUNK = 2048
+
+
+@njit(cache=True, fastmath=_FM)
+def hvar_octave_sums(w, levels, buf):
+    """(Hadamard, Allan) sums at m = 1, 2, 4, ..., 2^(levels-1) from block sums of the rate (no phase), and
+    the sum of ``w`` (not finite exactly when a sample is not, barring overflow: the caller's record check).
+
+    Hadamard (non-overlapping, SP1065 eq. 18): on the unit phase S (x / dt), its decimated third
+    difference is the second difference of consecutive block sums, S[(i+3)m] - 3S[(i+2)m] +
+    3S[(i+1)m] - S[im] = y_{i+2} - 2y_{i+1} + y_i with y_i = sum_{k=im}^{(i+1)m-1} w_k (n // m full
+    blocks, n // m - 2 terms: ``hvar_sums``' count).
+    Allan (for the edf's noise identification): the sum of squared differences of adjacent blocks of
+    m at every start offset that is a multiple of m/2 -- from the blocks of m/2 (n // (m/2) - 3 terms;
+    at m = 1 every offset: n - 1 terms) -- an unbiased AV estimate with about twice the non-overlapping
+    AV's terms.
+    Blocks of 2m are sums of pairs of blocks of m: n/2 + n/4 + ... additions in all, no cumulative sum.
+    The differences cancel the mean; the blocks from m = 4 on are centred (the mean, known after the first
+    level's pass, taken off when the blocks of 2 are paired) so that long blocks hold no large values whose
+    differences cost digits. The first level is read in chunks (its differences, its pairs and its sum
+    from L1): one read of the record. ``buf``: work array of at least n // 2 entries.
+    """
+    n = w.size
+    h = np.zeros(levels)
+    a = np.zeros(levels)
+    c = n // 2
+    total = 0.0
+    if n >= 3:
+        h0 = 0.0
+        a1 = 0.0
+        a0 = 0.0
+        for k0 in range(0, n, HVAR_CHUNK):
+            k1 = min(k0 + HVAR_CHUNK, n - 3)
+            if k1 > k0:
+                x2, xh, x1 = _ssq_block_diffs_range(w, k0, k1)
+                h0 += x2
+                a1 += xh
+                a0 += x1
+            total += _pairs_into(buf, w, k0 // 2, min(k0 + HVAR_CHUNK, n) // 2)
+        t2, t1 = _block_diffs_tail(w)
+        if levels > 0:
+            h[0] = h0 + t2
+            a[0] = a0 + t1
+        if levels > 1:
+            a[1] = a1
+    else:
+        total = _pairs_into(buf, w, 0, c)
+    if n % 2:
+        total += w[n - 1]
+    mu = total / n
+    for lev in range(1, levels):
+        if c < 3:  # no term left (the callers ask for m <= n // 3)
+            break
+        hh, aa, _ = _ssq_block_diffs(buf[:c])
+        h[lev] = hh
+        if lev + 1 < levels:
+            a[lev + 1] = aa
+        half = c // 2
+        off = 4.0 * mu if lev == 1 else 0.0  # blocks of 2 still hold 2 mu each
+        for i in range(half):
+            buf[i] = (buf[2 * i] + buf[2 * i + 1]) - off
+        c = half
+    return h, a, total
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _pairs_into(buf, w, i0, i1):
+    """buf[i] = w[2i] + w[2i+1] for i0 <= i < i1; returns their sum."""
+    acc = 0.0
+    for i in range(i0, i1):
+        v = w[2 * i] + w[2 * i + 1]
+        buf[i] = v
+        acc += v
+    return acc
+
+
+def hvar_octave_av_terms(n, levels):
+    """Number of terms of each of ``hvar_octave_sums``' AV sums: n - 1 at m = 1, n // (m/2) - 3 beyond."""
+    m = 1 << np.arange(levels)
+    return np.where(m == 1, n - 1, n // np.maximum(m // 2, 1) - 3)
 
 
 def hvar_sum_numpy(x, m):
@@ -240,10 +378,79 @@ def mvar_sums_blocked(x, ms, block=BLOCK_MVAR):
     return out, av
 
 
+#: octave m up to this are summed from box sums built level by level in each block (``mvar_sums_box_octaves``)
+MVAR_BOX_MAX = 256
+#: start indices per block of ``mvar_sums_box_octaves`` (its two level buffers of block + 3 MVAR_BOX_MAX: 28 KB, in L1)
+BLOCK_MVAR_BOX = 1024
+
+
+@njit(cache=True, fastmath=_FM)
+def mvar_sums_box_octaves(x, levels, block=BLOCK_MVAR_BOX):
+    """(modified-AV, Allan) sums at m = 1, 2, 4, ..., 2^(levels-1), from box sums of the phase.
+
+    SP1065 eq. 14's inner sum is v_j = Z_{j+2m} - 2 Z_{j+m} + Z_j with Z_j = sum_{i=j}^{j+m-1} x[i] (the
+    box sum of m phases), and the box of 2m is two boxes of m: Z^{2m}_j = Z^m_j + Z^m_{j+m}. For each
+    block of start indices, the phases the block needs (block + 3 M, M the largest m) are copied relative to
+    the block's first phase (the filters cancel constants: no large values whose differences cost digits),
+    then level by level one SIMD pass makes the boxes of 2m from those of m and one SIMD pass sums v^2:
+    O(1) operations per term and level, no carried chain (``mvar_sums_blocked``, ~2 cycles per term,
+    for the other m). Allan: sum_{j<N-2m} (x[j+2m] - 2x[j+m] + x[j])^2 from the same block of x.
+    """
+    N = x.size
+    out = np.zeros(levels)
+    av = np.zeros(levels)
+    if levels == 0 or N < 3:
+        return out, av
+    top = 1 << (levels - 1)
+    W = block + 3 * top
+    buf = np.empty((2, W))
+    for b0 in range(0, N - 2, block):
+        L = min(W, N - b0)
+        _shifted_into(buf[0, :L], x[b0 : b0 + L], x[b0])
+        cur = L  # buf[t % 2, :cur] are the level's boxes Z_{b0+i}
+        for t in range(levels):
+            m = 1 << t
+            z = buf[t % 2]
+            nj = min(block, N - 3 * m + 1 - b0)  # v_j for j in [b0, b0 + nj)
+            if nj > 0:
+                out[t] += _ssq_second(z[2 * m : 2 * m + nj], z[m : m + nj], z[:nj])
+            na = min(block, N - 2 * m - b0)  # the AV's j in [b0, b0 + na)
+            if na > 0:
+                av[t] += _ssq_second(x[b0 + 2 * m : b0 + 2 * m + na], x[b0 + m : b0 + m + na], x[b0 : b0 + na])
+            if t + 1 < levels and cur > m:
+                nxt = cur - m
+                _pair_into(buf[(t + 1) % 2, :nxt], z[:nxt], z[m : m + nxt])
+                cur = nxt
+    return out, av
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _shifted_into(out, a, c):
+    for k in range(a.size):
+        out[k] = a[k] - c
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _pair_into(out, a, b):
+    for k in range(a.size):
+        out[k] = a[k] + b[k]
+
+
 def mvar_sums(x, ms):
-    """(modified-AV, Allan) sums for every m of ``ms``: blocked for few taus, one pass per m beyond."""
+    """(modified-AV, Allan) sums for every m of ``ms``: octave m up to ``MVAR_BOX_MAX`` from box sums
+    (``mvar_sums_box_octaves``), the others by the carried chain, blocked for few taus, one pass per m beyond."""
     ms = np.ascontiguousarray(ms, dtype=np.int64)
-    return mvar_sums_blocked(x, ms, BLOCK_MVAR if ms.size <= MAX_BLOCKED_TAUS else x.size)
+    box = ((ms & (ms - 1)) == 0) & (ms >= 1) & (ms <= MVAR_BOX_MAX)
+    if ms.size > MAX_BLOCKED_TAUS or not box.any():
+        return mvar_sums_blocked(x, ms, BLOCK_MVAR if ms.size <= MAX_BLOCKED_TAUS else x.size)
+    out = np.empty(ms.size)
+    av = np.empty(ms.size)
+    ob, ab = mvar_sums_box_octaves(x, int(ms[box].max()).bit_length())
+    lev = np.log2(ms[box]).astype(np.int64)
+    out[box], av[box] = ob[lev], ab[lev]
+    if not box.all():
+        out[~box], av[~box] = mvar_sums_blocked(x, ms[~box], BLOCK_MVAR)
+    return out, av
 
 
 def mvar_sum_numpy(x, m):
