@@ -318,7 +318,7 @@ def _add_deviations_parser(sub) -> None:
     s.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
     s.add_argument("--sensor", default=None, choices=["gyro", "accel"], help="only this sensor (default: every one in the file)")
     s.add_argument("--deviation", default=DEVIATIONS_DEFAULT, metavar="NAMES",
-                   help=f"comma-separated: oadev, ohdev, mdev, tdev, totdev, mtotdev, htotdev, theo1, theobr "
+                   help=f"comma-separated: oadev, hdev, ohdev, mdev, tdev, totdev, mtotdev, htotdev, theo1, theobr "
                         f"(default {DEVIATIONS_DEFAULT})")
     s.add_argument("--taus", default="octave", choices=["octave", "decade"], help="tau grid (default octave)")
     s.add_argument("--out", default=".", help="output folder (default: .)")

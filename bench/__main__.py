@@ -37,7 +37,7 @@ def _arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--out", help=f"output folder (default {FULL_OUT} for a full run, a new temporary folder for --quick)")
     p.add_argument("--only", help="comma-separated benchmark class names to run (default: all)")
     p.add_argument("--notes", help="a Markdown file whose text is added under the targets table "
-                                    "(default: NOTES.md in --out, if there is one)")
+                                   "(default: notes.md in the output folder, if there is one)")
     p.add_argument("--report-only", action="store_true",
                    help="rewrite README.md, results.csv and scaling.png from --out/results.json; run nothing")
     p.add_argument("--merge", action="store_true",
@@ -53,6 +53,13 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _notes(args) -> str:
+    """The text of ``--notes``, else of ``notes.md`` in the output folder (kept beside the results, so
+    that a re-run or ``--report-only`` keeps the notes of earlier runs), else nothing."""
+    path = Path(args.notes) if getattr(args, "notes", None) else Path(args.out) / "notes.md"
+    return path.read_text() if getattr(args, "notes", None) or path.is_file() else ""
+
+
 def run(args) -> int:
     from avbench.bench import harness, report, suite
 
@@ -62,8 +69,7 @@ def run(args) -> int:
 
         prev = json.loads((Path(args.out) / "results.json").read_text())
         cases = harness.load_cases(Path(args.out) / "results.json")
-        notes = _notes(args)
-        report.write_outputs(cases, prev["machine"], Path(args.out), prev["quick"], prev["seconds"], notes)
+        report.write_outputs(cases, prev["machine"], Path(args.out), prev["quick"], prev["seconds"], _notes(args))
         print(f"rewrote {args.out}/README.md, results.json, results.csv, scaling.png")
         return 0
     t0 = time.perf_counter()
@@ -87,21 +93,11 @@ def run(args) -> int:
                 {"when": machine["when"], "loadavg_1_5_15": machine["loadavg_1_5_15"],
                  "benchmarks": sorted(c.__name__ for c in chosen)}]
         cases = kept + cases
-    notes = _notes(args)
-    payload = report.write_outputs(cases, machine, Path(args.out), args.quick, time.perf_counter() - t0, notes)
+    payload = report.write_outputs(cases, machine, Path(args.out), args.quick, time.perf_counter() - t0, _notes(args))
     for t in payload["targets"]:
         print(f"{t['target']}: {t['measured']} (met: {t['met']})")
     print(f"wrote {args.out}/README.md, results.json, results.csv, scaling.png")
     return 0
-
-
-def _notes(args) -> str:
-    """The text under the targets table: --notes, else the output folder's NOTES.md (kept across
-    re-runs and --merge, which rewrite README.md whole)."""
-    if getattr(args, "notes", None):
-        return Path(args.notes).read_text()
-    kept = Path(args.out) / "NOTES.md" if getattr(args, "out", None) else None
-    return kept.read_text() if kept is not None and kept.is_file() else ""
 
 
 def main(argv=None) -> int:

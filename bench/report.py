@@ -20,8 +20,11 @@ LIMITS = {
                     "_gm_f_over_c2 series), and every fit's check builds the AV covariance under the fitted model "
                     "(allan/covariance.av_covariance: _haar_gain, _pair_integrals); reading, the six AVs and the static "
                     "check are a small share. See the breakdown.",
-    "deviations": "Memory-bound SIMD passes over the phase, blocked over the start index for all taus (ohvar, totvar, "
-                  "with the AV for the edf read from the same slices), one fused pass per octave for mvar (box sums); "
+    "deviations": "Memory passes: SIMD passes over the phase, blocked over the start index for all taus (ohvar, "
+                  "totvar, mvar, with the AV for the edf read from the same slices; mvar from box sums built level by "
+                  "level in L1 for octave m <= 256, a chain carried 16 steps per dependent addition beyond); hvar one "
+                  "read of the rate (block sums paired level by level; its sum is the finiteness test); then the "
+                  "edf's Python (~1-1.5 ms: hvar's largest share). "
                   "Theo1 is (N - m) m / 2 terms per tau and MTOT/HTOT 15 m per window by definition (O(N^2) over "
                   "octaves), and allantools' theo1/mtotdev/htotdev are pure-Python loops, timed on <= 3000 / 1000 "
                   "samples only.",
@@ -42,8 +45,10 @@ LIMITS = {
     "also settle). The gradient is the analytic score (issue 25: the filter's derivative recursions in the same "
     "pass): ~6-9 likelihood passes' worth for p = 4-5 -- the p covariance derivatives cost ~p k^3 per step "
     "until they settle, a few thousand steps -- against 2p + 1 for the central differences of before, ~30 "
-    "iterations; the Hessian is 2p scores. The diagonal-weight GMWM start (~30 %) and the fit check are a "
-    "fixed share.",
+    "iterations; the Hessian is 2p scores. The diagonal-weight GMWM start and the fit check are a fixed share "
+    "(the start's analytic Jacobian, issue 25: the studies' model QN+WN+GM+RW+DR on this record 2.71 -> 1.91 CPU-s, "
+    "the default model 1.06 -> 0.93; estimates of the default model unchanged to 3e-9 relative, of the studies' "
+    "model to 7e-10 but for its unresolved Q, 3 %).",
     "whittle": "One FFT of the record; then Fisher scoring in log-parameters, each step one compiled pass over the "
     "n/2 Fourier frequencies with the terms' closed-form spectra; the ramp's exact variance costs two FFTs of twice "
     "the record per model reported, and with selection there is one fit per candidate term set.",
@@ -66,12 +71,17 @@ LIMITS = {
     "left is the fits' own work: on their default grid (taus='all', the non-overlapping AV at every cluster size) the "
     "AV at ~72 000 sizes and an lstsq of 72 000 x 3 (six in wls_edf); for nnls_rel, log_fit and slope_lines the "
     "check's linearised refits (2 per AV point) and Imhof's integral of the weighted chi^2 (scipy.integrate.quad "
-    "calling Python).",
-    "gmwm_cost": "Not the covariance: its model evaluations (the Gauss-Markov latent's exact discrete AV, a Taylor "
-    "series evaluated in NumPy for each evaluation) inside scipy's least_squares with finite-difference Jacobians, "
-    "for several starts on each candidate first scale (min_m='auto': ~9 scale sets, ~60 solves, ~4 500 model "
-    "evaluations, cProfile). The second step's weights stay one direct sum (reuse=False) so that committed GMWM "
-    "numbers do not move with round-off.",
+    "calling Python). Estimates must stay bit-identical (committed closed-form rows), so numpy's lstsq (LAPACK "
+    "gelsd: QR of the 72 000 x 5 rows, then an SVD) stays; wls_edf's edf per row is computed by column index (issue "
+    "25, ~10 ms less per fit, bit-identical).",
+    "gmwm_cost": "Since issue 25 not the model: the latent model's exact AV and its analytic Jacobian (per-latent "
+    "unit curves computed once, the Gauss-Markov curve and its d/d ln Tc in one compiled pass) replaced "
+    "least_squares' forward differences (~80 % of the cost before: 2.48 -> 0.37 CPU-s on this record, process time "
+    "of main against this code in the same session; the wall figure here is at load average 9). "
+    "What is left: scipy's trust-region iterations themselves (~1 100 over ~70 solves: min_m='auto' tries ~10 "
+    "sets of scales, 6 starts each plus the second step; each iteration an SVD and bound bookkeeping, ~0.2 ms) and "
+    "the ten second-step weight matrices (one direct sum of the squared model spectrum over 65 536 grid points each, "
+    "~10 ms; the Haar gains are kept between them).",
     "help": "The interpreter's own start (timed beside it) plus argparse and the CLI modules: the commands import "
     "numpy, pandas, the simulators and the estimators only when they run.",
     "import": "numpy (~0.15 CPU-s) and numba (~0.3 CPU-s, the simulators' compiled kernels); pandas, scipy.optimize, "
@@ -178,7 +188,7 @@ def targets(df: pd.DataFrame, quick: bool) -> list[dict]:
                                  f"({last['median_s']:.3f} s vs {last['baseline_median_s']:.3f} s)",
                      "met": bool(last["ratio"] >= 3) if int(last["param_n"]) >= 10**7 else None,
                      "limit": LIMITS["allan"]})
-    for kind in ("ohvar", "mvar", "totvar", "theo1", "mtotvar", "htotvar"):
+    for kind in ("hvar", "ohvar", "mvar", "totvar", "theo1", "mtotvar", "htotvar"):
         d = _pick(df, "Deviations", "time_deviation", kind=kind).pipe(_with_ratio) if len(df) else df
         if len(d):
             last = d.sort_values("param_n").iloc[-1]
@@ -534,7 +544,8 @@ def write_outputs(cases, machine: dict, out: Path, quick: bool, seconds: float, 
 
         runs = run_history({"machine": machine})
         md[-1] += " The figures come from these runs (later ones replace the benchmarks they re-ran): " + "; ".join(
-            f"{r['when']} ({', '.join(r['benchmarks'])}; load average {r['loadavg_1_5_15']} at its end)" for r in runs) + "."
+            f"{r['when']} ({', '.join(r['benchmarks'])}; load average {r['loadavg_1_5_15']} at its end"
+            + (f"; {r['note']}" if r.get("note") else "") + ")" for r in runs) + "."
     md += [""]
     md += ["## Targets", "", "| target | measured | met | what limits it |", "|---|---|---|---|"]
     for t in tg:

@@ -22,7 +22,10 @@ __all__ = ["avar_from_autocovariance", "check_m"]
 
 
 def check_m(m) -> np.ndarray:
-    """Cluster sizes as a 1-D int array of positive integers."""
+    """Cluster sizes as a 1-D int array of positive integers (an int64 array that is one already is
+    returned as it is: fits call the exact AV at the same cluster sizes thousands of times)."""
+    if type(m) is np.ndarray and m.dtype == np.int64 and m.ndim == 1 and m.size and m.min() >= 1:
+        return m
     arr = np.atleast_1d(np.asarray(m))
     if arr.ndim != 1 or arr.size == 0:
         raise ValueError(f"cluster sizes: expected a non-empty 1-D array, got shape {arr.shape}")

@@ -326,6 +326,7 @@ def theobr(terms, m, n: int, dt) -> np.ndarray:
 #: kind -> callable(terms, m, n, dt): the exact expected value of each statistic
 KINDS = {
     "oavar": lambda t, m, n, dt: oavar(t, m, dt),
+    "hvar": lambda t, m, n, dt: ohvar(t, m, dt),  # the same filter, fewer terms: the same expectation
     "ohvar": lambda t, m, n, dt: ohvar(t, m, dt),
     "mvar": lambda t, m, n, dt: mvar(t, m, dt),
     "tvar": lambda t, m, n, dt: tvar(t, m, dt),

@@ -142,6 +142,35 @@ class NoiseTerm:
         overrides it so that fits with different coefficients share the integrals)."""
         return 1.0, self
 
+    #: the parameter (a key of ``_params()``) that sets the shape of the term's AV curve beside its
+    #: amplitude (a correlation time, a frequency), or None: :meth:`avar_shape_derivative`
+    shape_parameter: ClassVar[str | None] = None
+
+    def avar_shape_derivative(self, m, dt) -> tuple[np.ndarray, np.ndarray]:
+        """``(avar, d avar / d ln p)`` at cluster sizes ``m`` for p the :attr:`shape_parameter`: the
+        Jacobian column a fit in log-parameters needs (GMWM, :mod:`avbench.estimators.likelihood.gmwm`).
+
+        Default: a central difference in ln p (relative step ``1e-4``: truncation ~1e-9 relative for
+        curves smooth in ln p) of :meth:`avar`, one-sided where a step leaves the values the term
+        accepts (a sinusoid at the Nyquist frequency; truncation ~1e-4 there); a term overrides it with
+        the analytic derivative (:class:`GaussMarkov`). A ValueError if the term has no shape parameter."""
+        name = self.shape_parameter
+        if name is None:
+            raise ValueError(f"{type(self).__name__}: no shape parameter (its AV is its amplitude squared "
+                             "times a fixed curve)")
+        params = self._params()
+        h = 1e-4
+        value = self.avar(m, dt)
+
+        def at(step):
+            try:
+                return type(self)(**{**params, name: params[name] * math.exp(step)}).avar(m, dt), step
+            except ValueError:  # outside the values the term accepts: the other side only
+                return value, 0.0
+
+        (up, a), (down, b) = at(h), at(-h)
+        return value, (up - down) / (a - b)
+
     def spectral_lines(self, dt) -> list[tuple[float, float]]:
         """Spectral lines [(frequency Hz, variance)] beside :meth:`psd` (none but for sinusoids)."""
         return []
@@ -485,6 +514,51 @@ def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:
     return out
 
 
+def _gm_shape_py(m, a, g, dg):
+    """g(m, a) = f(m) / (1 - phi)^2 (:func:`_gm_f_over_c2`, phi = exp(-a)) and its derivative dg/da,
+    per cluster size ``m`` (float array), written into ``g`` and ``dg``.
+
+    Element by element, the same two forms as :func:`_gm_f_over_c2`: where (2m+1) a < 1 the Taylor
+    series f = sum_{k>=3} (-a)^k / k! c_k, c_k = -m 2^k - 3 + 4 (m+1)^k - (2m+1)^k, and its term-by-term
+    derivative f' = sum_{k>=3} (-1)^k a^(k-1) / (k-1)! c_k (powers by recurrence); elsewhere
+    f = m (1 - phi^2) - phi (-4 expm1(-m a) + expm1(-2 m a)) and
+    f' = 2m phi^2 + 3 phi - 4(m+1) phi^(m+1) + (2m+1) phi^(2m+1)
+    = phi (2m expm1(-a) - 4(m+1) expm1(-m a) + (2m+1) expm1(-2 m a)) (no cancellation). Then
+    g' = f'/c^2 - 2 f phi / c^3 with c = 1 - phi. Each series stops where its next term is below
+    1e-18 of its sum (per element; :func:`_gm_f_over_c2` stops for the whole array at once: the values
+    agree to round-off, tests)."""
+    c = -math.expm1(-a)
+    phi = math.exp(-a)
+    for i in range(m.shape[0]):
+        mi = m[i]
+        if (2.0 * mi + 1.0) * a < 1.0:
+            p2, pm, p2m = 8.0, (mi + 1.0) ** 3, (2.0 * mi + 1.0) ** 3
+            term = a * a * a / 6.0  # a^k / k!
+            dterm = a * a / 2.0  # a^(k-1) / (k-1)!
+            f = 0.0
+            df = 0.0
+            sign = -1.0
+            for k in range(3, 60):
+                ck = -mi * p2 - 3.0 + 4.0 * pm - p2m
+                f += sign * term * ck
+                df += sign * dterm * ck
+                dterm = term
+                term *= a / (k + 1)
+                p2 *= 2.0
+                pm *= mi + 1.0
+                p2m *= 2.0 * mi + 1.0
+                sign = -sign
+                if term * p2m < 1e-18 * abs(f) and dterm * p2m < 1e-18 * abs(df):
+                    break
+        else:
+            e1 = math.expm1(-mi * a)
+            e2 = math.expm1(-2.0 * mi * a)
+            f = mi * (-math.expm1(-2.0 * a)) - phi * (-4.0 * e1 + e2)
+            df = phi * (2.0 * mi * math.expm1(-a) - 4.0 * (mi + 1.0) * e1 + (2.0 * mi + 1.0) * e2)
+        g[i] = f / (c * c)
+        dg[i] = df / (c * c) - 2.0 * f * phi / (c * c * c)
+
+
 class GaussMarkov(NoiseTerm):
     """First-order Gauss-Markov rate noise (Miao et al. 2015, eq. 6), stationary std sigma.
 
@@ -503,6 +577,7 @@ class GaussMarkov(NoiseTerm):
     """
 
     coefficient = "B"
+    shape_parameter = "tc"
 
     def __init__(self, sigma, tc):
         self.sigma = as_si("B", sigma)
@@ -531,6 +606,17 @@ class GaussMarkov(NoiseTerm):
         m = check_m(m)
         a = _check_dt(dt) / self.tc
         return self.sigma**2 * _gm_f_over_c2(m, a) / m.astype(float) ** 2
+
+    def avar_shape_derivative(self, m, dt):
+        """``(avar, d avar / d ln tc)``, analytic (compiled :func:`_gm_shape_py`): with a = dt / tc,
+        d/d ln tc = -a d/da. The AV agrees with :meth:`avar` to round-off (a compiled series whose
+        stopping rule is per cluster size; :meth:`avar` stays the exact truth of the studies)."""
+        mf = check_m(m).astype(float)
+        a = _check_dt(dt) / self.tc
+        g, dg = np.empty_like(mf), np.empty_like(mf)
+        _gm_shape_kernel(mf, a, g, dg)
+        scale = self.sigma**2 / (mf * mf)
+        return scale * g, scale * (-a) * dg
 
     def autocovariance(self, lags, dt) -> np.ndarray:
         return self.sigma**2 * self.phi(dt) ** np.asarray(lags, dtype=float)
@@ -769,7 +855,9 @@ try:  # compiled when numba is available (it is a dependency); same arithmetic e
     _ar1_kernel = njit(cache=True)(_ar1_kernel_py)
     _diff_kernel = njit(cache=True)(_diff_kernel_py)
     _walk_kernel = njit(cache=True)(_walk_kernel_py)
+    _gm_shape_kernel = njit(cache=True)(_gm_shape_py)
 except ImportError:  # pragma: no cover
+    _gm_shape_kernel = _gm_shape_py
     _diff_kernel = _diff_kernel_py
     _walk_kernel = _walk_kernel_py
     _sogm_kernel = _sogm_kernel_py
@@ -921,6 +1009,7 @@ class Sinusoidal(NoiseTerm):
     """
 
     coefficient = None
+    shape_parameter = "frequency"
 
     def __init__(self, amplitude, frequency):
         self.amplitude = as_si("B", amplitude)  # a rate, like B
@@ -1014,6 +1103,8 @@ class FilteredWhiteNoise(NoiseTerm):
     """
 
     coefficient = "N"
+    #: the first-order filter's time constant (fitted by gmwm_filtered); None for the other filters
+    shape_parameter = "tc"
 
     def __init__(self, N, *, length=None, taps=None, tc=None):
         self.N = as_si("N", N)

@@ -75,8 +75,8 @@ def add_parser(subparsers):
                    help="multiply the yaml's noise densities / random walks (default: no inflation); 'auto' (with --combine "
                         "and >= 3 recordings): by the between-run spread's 95 %% prediction limit over the mean")
     s.add_argument("--deviation", default=None, metavar="NAMES",
-                   help="also draw and tabulate these deviations on each axis (comma-separated: oadev, ohdev, mdev, "
-                        "tdev, totdev, mtotdev, htotdev, theo1, theobr), on the longest gap-free run; rows of "
+                   help="also draw and tabulate these deviations on each axis (comma-separated: oadev, hdev, ohdev, "
+                        "mdev, tdev, totdev, mtotdev, htotdev, theo1, theobr), on the longest gap-free run; rows of "
                         "<stem>_av.csv by 'statistic' (alone: avbench deviations FILE)")
     s.add_argument("--json", action="store_true", help="print only the JSON object on stdout")
     s.add_argument("--out", default=".", help="output folder for the plots and tables (default: .)")

@@ -131,7 +131,8 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
     gyro axis (the first: a user's record starts when the sensor is switched on).
 
     One row per record x axis x length x slice x method: N (deg/sqrt(h)), B (deg/h), whether each lies
-    in :data:`SLICE_N_RANGE` / :data:`SLICE_B_RANGE`, the coefficient flags and the poor-fit flag,
+    in :data:`SLICE_N_RANGE` / :data:`SLICE_B_RANGE`, the upper 95 % bound of a value flagged "not
+    resolved" (``N_upper``, ``B_upper``: the interval is [0, upper]), the coefficient flags and the poor-fit flag,
     and ``unflagged_outside``: a value outside its range with neither flag (what must not happen).
     """
     from avbench.noise_models.units import from_si
@@ -155,8 +156,13 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
                     poor = bool(d.get("poor_fit", False)) or fit.error is not None
                     n_in = bool(SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1])
                     b_in = bool(SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1])
+                    unresolved = d.get("unresolved") or {}
+                    upper = {c: _round(from_si(c, unresolved[c][1] / fit.scale, u))
+                             if flags[c] == "not resolved" and c in unresolved else math.nan
+                             for c, u in (("N", "deg/sqrt(h)"), ("B", "deg/h"))}
                     rows.append({"record": rec, "axis": axis, "minutes": mins, "slice": k, "method": name,
                                  "N": _round(N), "B": _round(B), "N_in_range": n_in, "B_in_range": b_in,
+                                 "N_upper": upper["N"], "B_upper": upper["B"],
                                  "N_flag": flags["N"], "B_flag": flags["B"], "poor_fit": poor,
                                  "fit_pvalue": _round(d.get("fit_pvalue", math.nan)),
                                  "unflagged_outside": bool(((not n_in and flags["N"] == "ok") or

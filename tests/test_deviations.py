@@ -17,8 +17,8 @@ from avbench.noise_models import terms as T
 
 allantools = pytest.importorskip("allantools")
 
-STATS = ("ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1")
-AT = {"ohvar": "ohdev", "mvar": "mdev", "tvar": "tdev", "totvar": "totdev", "mtotvar": "mtotdev", "htotvar": "htotdev",
+STATS = ("hvar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1")
+AT = {"hvar": "hdev", "ohvar": "ohdev", "mvar": "mdev", "tvar": "tdev", "totvar": "totdev", "mtotvar": "mtotdev", "htotvar": "htotdev",
       "theo1": "theo1"}
 
 
@@ -43,17 +43,32 @@ def test_equals_allantools(data, kind, taus):
         y = y[:300]
     r = deviation(y, 1.0, kind, taus)
     tau_at, dev_at, _, _ = getattr(allantools, AT[kind])(y, rate=1.0, data_type="freq", taus=r.m.astype(float))
-    assert np.array_equal(tau_at, r.m.astype(float))  # the same m (allantools labels Theo1 by m, not 0.75 m)
-    assert np.max(np.abs(r.deviation / dev_at - 1)) <= 1e-9
+    # allantools drops a value of a single term (remove_small_ns: hvar's largest m); SP1065 eq. 18 defines it
+    keep = r.J > 1 if kind == "hvar" else np.ones(r.m.size, bool)
+    assert np.array_equal(tau_at, r.m[keep].astype(float))  # the same m (allantools labels Theo1 by m, not 0.75 m)
+    assert np.max(np.abs(r.deviation[keep] / dev_at - 1)) <= 1e-9
 
 
-# SP1065 (Riley 2008) p. 108, the 1000-point set at tau = 1, 10, 100 (TOTDEV: the doubly reflected form)
+# NIST SP 1065 (Riley 2008) section 12.4, p. 108: the 1000-point set at averaging factors 1, 10, 100, printed to
+# 7 significant digits (TOTDEV: the doubly reflected form). allantools' tests/nbs14/test_nbs14_1000point.py carries
+# the same values. HDEV is the non-overlapping Hadamard deviation (allantools hdev).
 PUBLISHED = {
+    "hvar": [2.943883e-01, 1.052754e-01, 3.910860e-02],
     "ohvar": [2.943883e-01, 9.581083e-02, 3.237638e-02],
     "mvar": [2.922319e-01, 6.172376e-02, 2.170921e-02],
     "tvar": [1.687202e-01, 3.563623e-01, 1.253382e00],
     "totvar": [2.922319e-01, 9.134743e-02, 3.406530e-02],
 }
+#: SP1065's MTOTDEV, TTOTDEV and HTOTDEV for the same set are printed divided by the square root of their
+#: bias factor for white FM (the set is uniform white FM): MTOT 0.73, HTOT 0.995 (SP1065 section 5.2.11 and
+#: 5.2.12 tables; Riley, "Confidence intervals and bias corrections for the Stable32 variance functions",
+#: also in allantools' mtotdev/htotdev docstrings). HTOTDEV at factor 1 is OHDEV (no factor). avbench reports
+#: the statistics as defined, without the factor (as allantools and Stable32's "no bias correction" runs).
+PUBLISHED_BIAS_CORRECTED = {
+    "mtotvar": ([2.418528e-01, 6.499161e-02, 2.287774e-02], [0.73, 0.73, 0.73]),
+    "htotvar": ([2.943883e-01, 9.614787e-02, 3.058103e-02], [1.0, 0.995, 0.995]),
+}
+PUBLISHED_TTOTDEV = [1.396338e-01, 3.752293e-01, 1.320847e00]
 
 
 @pytest.mark.parametrize("kind", sorted(PUBLISHED))
@@ -61,6 +76,35 @@ def test_sp1065_published_1000_point_values(kind):
     r = deviation(nbs_1000(), 1.0, kind, [1.0, 10.0, 100.0])
     assert r.m.tolist() == [1, 10, 100]
     np.testing.assert_allclose(r.deviation, PUBLISHED[kind], rtol=1e-6)
+
+
+@pytest.mark.parametrize("kind", sorted(PUBLISHED_BIAS_CORRECTED))
+def test_sp1065_published_bias_corrected_1000_point_values(kind):
+    values, bias = PUBLISHED_BIAS_CORRECTED[kind]
+    r = deviation(nbs_1000(), 1.0, kind, [1.0, 10.0, 100.0], edf=False)
+    assert r.m.tolist() == [1, 10, 100]
+    np.testing.assert_allclose(r.deviation / np.sqrt(bias), values, rtol=1e-6)
+    if kind == "mtotvar":  # TTOTDEV = tau / sqrt(3) * MTOTDEV (SP1065 eq. 28)
+        np.testing.assert_allclose(r.m / np.sqrt(3) * r.deviation / np.sqrt(0.73), PUBLISHED_TTOTDEV, rtol=1e-6)
+
+
+def test_sp1065_published_1000_point_allan_deviations():
+    """ADEV and OADEV of the same table, from the AV engine (the deviation family's 'oavar')."""
+    from avbench.estimators.allan.variance import allan_variance
+
+    for overlapping, values in ((False, [2.922319e-01, 9.965736e-02, 3.897804e-02]),
+                                (True, [2.922319e-01, 9.159953e-02, 3.241343e-02])):
+        r = allan_variance(nbs_1000(), 1.0, [1.0, 10.0, 100.0], overlapping)
+        assert r.m.tolist() == [1, 10, 100]
+        np.testing.assert_allclose(r.deviation, values, rtol=1e-6)
+
+
+def test_theo1_1000_point_values_of_stable32():
+    """SP1065 prints no Theo1 for the 1000-point set; allantools' NBS14 test carries Stable32's (v1.60, no bias
+    correction, 5 digits) at m = 10, 100, 1000 (tau = 0.75 m)."""
+    r = deviation(nbs_1000(), 1.0, "theo1", 0.75 * np.array([10.0, 100.0, 1000.0]), edf=False)
+    assert r.m.tolist() == [10, 100, 1000]
+    np.testing.assert_allclose(r.deviation, [1.0757e-01, 3.1789e-02, 5.0524e-03], rtol=5e-5)
 
 
 def _av_sum(x, m):
@@ -78,10 +122,10 @@ def test_kernels_equal_numpy_references(m):
         h, a = K.ohvar_sums(x, ms, block)
         np.testing.assert_allclose(h, [K.ohvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-12)
         np.testing.assert_allclose(a, av_ref, rtol=1e-12)
-    for block in (3, 2048):  # the four-lane path (record >= 8m + 64 terms) and the one-lane path
-        for mi in ms:
-            assert K.mvar_sum(x, int(mi), block) == pytest.approx(K.mvar_sum_numpy(x, int(mi)), rel=1e-11)
-    np.testing.assert_allclose(K.mvar_sums(x, ms), [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
+    for block in (3, 70, K.BLOCK_MVAR, x.size):  # one chain (< 64 steps a block) and four; blocked, one pass
+        mv, a = K.mvar_sums_blocked(x, ms, block)
+        np.testing.assert_allclose(mv, [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
+        np.testing.assert_allclose(a, av_ref, rtol=1e-12)
     ms = np.array([1, m, 2 * m], dtype=np.int64)
     av_ref = [_av_sum(x, int(mi)) for mi in ms]
     for block in (7, 4096):
@@ -94,14 +138,14 @@ def test_kernels_equal_numpy_references(m):
             assert K.theo1_sum(x, me, block) == pytest.approx(K.theo1_sum_numpy(x, me), rel=1e-12)
 
 
-def test_octave_box_sum_mvar_equals_reference():
+def test_blocked_mvar_equals_reference_on_every_grid():
+    """Octave, irregular and 'all'-like grids (many taus: one pass per m), down to a single term (3m = N)."""
     x, _, _ = phase_of(np.random.default_rng(3).standard_normal(3000), 0.1)
-    for ms in ([1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 999], [4, 64, 512], [2]):
+    for ms in ([1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1000], [4, 64, 512], [2], list(range(1, 200))):
         ms = np.array(ms, dtype=np.int64)
-        octave = K._powers_of_two_increasing(ms)
-        assert octave == bool(np.all((ms & (ms - 1)) == 0))
-        got = K.mvar_sums_octave(x, ms) if octave else K.mvar_sums(x, ms)
+        got, av = K.mvar_sums(x, ms)
         np.testing.assert_allclose(got, [K.mvar_sum_numpy(x, int(mi)) for mi in ms], rtol=1e-11)
+        np.testing.assert_allclose(av, [_av_sum(x, int(mi)) for mi in ms], rtol=1e-12)
 
 
 @pytest.mark.parametrize("m", [1, 2, 3, 5, 16])
@@ -225,7 +269,7 @@ def test_ramp_value_is_exact(kind):
     got = deviation(ramp.simulate(600, 0.1, np.random.default_rng(0)), 0.1, kind,
                     m * 0.1 * (0.75 if kind == "theo1" else 1.0)).avar
     truth = ev.KINDS[kind]([ramp], m, 600, 0.1)
-    if kind in ("ohvar", "htotvar"):  # both blind to a ramp: their exact value is 0 up to rounding
+    if kind in ("hvar", "ohvar", "htotvar"):  # all blind to a ramp: their exact value is 0 up to rounding
         assert np.all(np.abs(truth) <= 1e-12 * ramp.avar(m, 0.1))
         x, _, _ = phase_of(ramp.simulate(600, 0.1, np.random.default_rng(0)), 0.1)
         assert np.all(got <= (32 * np.finfo(float).eps * np.max(np.abs(x)) / (m * 0.1)) ** 2)
@@ -279,6 +323,33 @@ def test_quadratic_form_edf_of_the_av_predicts_its_ensemble_variance_rw_fm():
     ratio = vals.var(axis=0, ddof=1) / (2 * term.avar(m, dt) ** 2 / edf)
     se = np.sqrt(2 / (reps - 1) + 12 / (edf * reps))
     assert np.all(np.abs(ratio - 1) < 4 * se), (ratio, se)
+
+
+@pytest.mark.parametrize("term,noise", [(T.AngleRandomWalk(1e-3), "white_fm"), (T.RateRandomWalk(3e-4), "rw_fm")],
+                         ids=["white_fm", "rw_fm"])
+def test_hvar_edf_predicts_its_ensemble_variance(term, noise):
+    """The non-overlapping Hadamard variance's edf (the m = 1 OHVAR edf of the decimated phase, K terms)
+    against the variance of 400 values; the tolerance from the sampling spread of a sample variance."""
+    n, reps, dt = 2000, 400, 0.1
+    m = np.array([4, 16])
+    rng = np.random.default_rng(5)
+    rs = [deviation(term.simulate(n, dt, rng), dt, "hvar", m * dt, noise=noise) for _ in range(reps)]
+    vals = np.array([r.avar for r in rs])
+    edf = rs[0].edf
+    truth = ev.KINDS["hvar"]([term], m, n, dt)
+    ratio = vals.var(axis=0, ddof=1) / (2 * truth**2 / edf)
+    se = np.sqrt(2 / (reps - 1) + 12 / (edf * reps))
+    assert np.all(np.abs(ratio - 1) < 4 * se), (ratio, se, edf)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("n", [16, 17, 18, 19, 20, 33])
+def test_every_value_on_the_all_grid_is_finite_and_has_terms(kind, n):
+    """Down to the largest m each definition allows (tvar had one m with no term: an infinite value)."""
+    if kind == "theobr":
+        n = 95
+    r = deviation(np.random.default_rng(n).standard_normal(n), 1.0, kind, "all", edf=False)
+    assert np.all(r.J >= 1) and np.all(np.isfinite(r.avar)) and np.all(r.avar > 0), (r.m, r.J, r.avar)
 
 
 def test_bad_input_is_named():
@@ -367,3 +438,77 @@ def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
     assert main(["deviations", str(long), "--fs", "100", "--units", "deg/s", "--deviation", "theobr",
                  "--out", str(tmp_path / "o2")]) == 2
     assert "theobr" in capsys.readouterr().err and not (tmp_path / "o2" / "long_deviations.csv").exists()
+
+
+@pytest.mark.parametrize("n", [16, 17, 31, 1200, 1201, 4099, 4096 * 3 + 5, 70001])
+def test_hvar_octave_block_sums_equal_the_decimated_references(n):
+    """The block-sum pass (blocks of 2m from pairs of blocks of m) against SP1065 eq. 18 on the decimated
+    phase and the non-overlapping AV's sum of squared differences of adjacent cluster sums."""
+    w = np.random.default_rng(n).standard_normal(n) + 3.0
+    x, _, _ = phase_of(w, 1.0)
+    levels = (n // 3).bit_length()
+    buf = np.full(n, np.nan)  # the work array's contents must not matter
+    h, a, total = K.hvar_octave_sums(w, levels, buf)
+    assert total == pytest.approx(float(np.sum(w)), rel=1e-12)
+    for lev in range(levels):
+        m = 1 << lev
+        assert h[lev] == pytest.approx(K.hvar_sum_numpy(x, m), rel=1e-12)
+        i = np.arange(0, n - 2 * m + 1, max(m // 2, 1))  # the AV's terms at starts that are multiples of m/2
+        assert i.size == K.hvar_octave_av_terms(n, levels)[lev]
+        assert a[lev] == pytest.approx(float(np.sum((x[i + 2 * m] - 2 * x[i + m] + x[i]) ** 2)), rel=1e-12)
+    # the octave path of ``deviation`` and its any-grid path give the same values (and edf for one noise type)
+    m = np.array([1 << lev for lev in range(levels)])
+    octave = deviation(w, 1.0, "hvar", "octave", noise="white_fm")
+    other = deviation(w, 1.0, "hvar", np.concatenate((m, [3])).astype(float), noise="white_fm")  # not all 2^k
+    keep = np.isin(other.m, octave.m)
+    np.testing.assert_allclose(other.avar[keep], octave.avar, rtol=1e-12)
+    np.testing.assert_array_equal(other.edf[keep], octave.edf)
+
+
+@pytest.mark.parametrize("term,noise", [(T.AngleRandomWalk(1e-3), "white_fm"), (T.RateRandomWalk(3e-4), "rw_fm"),
+                                        (T.Quantization(1e-4), "white_pm")], ids=["white_fm", "rw_fm", "white_pm"])
+def test_hvar_identifies_the_noise_type_from_its_own_block_sums(term, noise):
+    """hvar's edf with noise="auto" (the type read from the non-overlapping AV of its block sums) equals
+    its edf given the true type wherever the slope is trusted with room (>= 64 clusters)."""
+    n, dt = 1 << 14, 0.1
+    w = term.simulate(n, dt, np.random.default_rng(11))
+    auto = deviation(w, dt, "hvar", "octave")
+    told = deviation(w, dt, "hvar", "octave", noise=noise)
+    keep = n // auto.m >= 64
+    np.testing.assert_array_equal(auto.edf[keep], told.edf[keep])
+
+
+@pytest.mark.parametrize("n", [16, 17, 100, 1201])
+def test_mvar_box_sums_equal_the_exactly_rounded_definition(n):
+    """The octave box-sum kernel against SP1065 eq. 14 summed with math.fsum (block edges: blocks of 7 and
+    64 start indices against boxes up to 256 wide; one block; the record's end), and against the chain."""
+    import math
+
+    rng = np.random.default_rng(n)
+    x, _, _ = phase_of(rng.standard_normal(n) + np.cumsum(rng.standard_normal(n)) * 0.1 + 50.0, 0.1)
+    N = x.size
+    levels = min(9, (N // 3).bit_length())
+    ref, ref_av = [], []
+    for lev in range(levels):
+        m = 1 << lev
+        v = [math.fsum(x[j + 2 * m : j + 3 * m]) - 2 * math.fsum(x[j + m : j + 2 * m]) + math.fsum(x[j : j + m])
+             for j in range(N - 3 * m + 1)]
+        ref.append(math.fsum(np.square(v)))
+        ref_av.append(_av_sum(x, m))
+    for block in (7, 64, K.BLOCK_MVAR_BOX, N):
+        got, av = K.mvar_sums_box_octaves(x, levels, block)
+        np.testing.assert_allclose(got, ref, rtol=1e-13)
+        np.testing.assert_allclose(av, ref_av, rtol=1e-12)
+    chain, _ = K.mvar_sums_blocked(x, (1 << np.arange(levels)).astype(np.int64))
+    np.testing.assert_allclose(chain, ref, rtol=1e-11)
+
+
+@pytest.mark.parametrize("taus", ["octave", "decade"])
+def test_hvar_names_a_non_finite_sample(taus):
+    """hdev's octave pass tests finiteness in its own read of the record: a NaN or an infinity is still
+    named (index), as by every other statistic."""
+    for bad in (np.nan, np.inf):
+        w = np.random.default_rng(1).standard_normal(500)
+        w[123] = bad
+        with pytest.raises(ValueError, match="non-finite.*index 123"):
+            deviation(w, 0.1, "hdev", taus)

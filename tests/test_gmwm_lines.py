@@ -53,12 +53,23 @@ def test_gmwm_filtered_adds_a_sinusoid_on_evidence_only():
     lt = e.diagnostics_["line_test"]
     assert lt["included"] and lt["significant"]
     assert e.diagnostics_["params"]["SN.f0"] == pytest.approx(3.3, rel=0.05)
+    assert lt["f0_at_bound"] is False  # a pure tone: the fitted f0 inside its window around the line
     assert not e.diagnostics_["poor_fit"]
     plain = estimators.get("gmwm_filtered").fit(base.simulate(n, np.random.default_rng(9)), DT)
     assert not plain.diagnostics_["line_test"]["included"]
     assert "SN.A" not in plain.diagnostics_["params"]
     kept = estimators.get("gmwm_filtered", lines="model").fit(with_line.simulate(n, np.random.default_rng(8)), DT)
     assert "SN.A" not in kept.diagnostics_["params"]  # lines="model": the model as given
+
+
+def test_sinusoid_frequency_on_its_bound_is_reported(monkeypatch):
+    # a window of 1e-9 around the line (at least 0.1 % wide, _bounds): any fitted f0 lies on its edge
+    import avbench.estimators.likelihood.gmwm as gmwm_module
+
+    x = Gyro(dt=DT, terms=list(_broadband().terms) + [Sinusoidal(3e-3, 3.3)]).simulate(100_000, np.random.default_rng(8))
+    monkeypatch.setattr(gmwm_module, "LINE_FREQUENCY_FACTOR", 1.0 + 1e-9)
+    lt = estimators.get("gmwm_filtered").fit(x, DT).diagnostics_["line_test"]
+    assert lt["f0_at_bound"] is True
 
 
 def test_adequate_cutoff_keeps_every_scale_when_the_model_fits():

@@ -82,8 +82,11 @@ def test_defaults_on_real_accelerometers_plausible_or_flagged(name):
 def test_defaults_on_short_real_records_plausible_or_flagged(minutes):
     """The records robotics users make: the first 30 / 60 minutes of ADIS run 1. Every default
     method gives N in 1.9-3.0 deg/sqrt(h) and B in 15-80 deg/h, or flags what is outside (B "not
-    resolved" with its interval, or a poor fit). The share in range over the six runs is measured by
-    ``real_runs --slices`` (results/real/slices.md), not asserted here."""
+    resolved" with its interval, or a poor fit). The issue's target is in range on >= 90 % of the
+    slices: on the three axes of one record that is all three, which the 60-minute slice is held to
+    (at 30 minutes run 1 z is the one exception over the six runs, and it is flagged; the share over
+    all six runs is ``real_runs --slices``, results/real/slices.md). Before issue 24's third round
+    ``gmwm_despiked`` kept the plain ``WN+GM+RW`` model and said "B not resolved" on x."""
     from avbench.recordings.fit import fit_axis
     from avbench.recordings.report import coefficient_flags
     from avbench.studies.real_runs import SLICE_B_RANGE, SLICE_N_RANGE
@@ -100,3 +103,4 @@ def test_defaults_on_short_real_records_plausible_or_flagged(minutes):
             inside = SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1] and SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1]
             flagged = fit.estimator.diagnostics_.get("poor_fit") or "not resolved" in flags.values()
             assert inside or flagged, (axis, name, N, B)
+            assert inside or minutes != 60, (axis, name, N, B)

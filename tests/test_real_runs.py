@@ -121,6 +121,9 @@ def test_slices_and_spectral_lines(layout, tmp_path):
     assert len(sl) == 2 * 3 * 2 and set(sl["minutes"]) == {1}  # 2 runs x 3 gyro axes x 2 slices
     # the generated gyros have N = 2, 3, 4 deg/sqrt(h): 4 lies outside 1.9-3.0
     assert not sl[sl.axis == "z"]["N_in_range"].any()
+    for c in ("N", "B"):  # a value the record does not resolve carries its upper bound, and only such a value
+        unresolved = sl[f"{c}_flag"] == "not resolved"
+        assert (sl[f"{c}_upper"].notna() == unresolved).all() and (sl[f"{c}_upper"][unresolved] > 0).all()
     summary = real_runs.slice_summary(sl)
     assert summary["records"].sum() == len(sl)
     # the sinusoid

@@ -169,7 +169,14 @@ def test_committed_study_regenerates(study, tmp_path):
     _check(study, tmp_path)
 
 
+#: a slow study's first block on 2 workers takes minutes on a quiet machine (the 24 h comparison's, with
+#: its MLE fits, the longest) and several times that on a loaded one: the suite's 600 s default is for
+#: unit tests
+REGENERATION_TIMEOUT_S = 4 * 3600
+
+
 @pytest.mark.slow
+@pytest.mark.timeout(REGENERATION_TIMEOUT_S)
 @pytest.mark.parametrize("study", SLOW + PENDING)
 def test_committed_study_regenerates_slow(study, tmp_path):
     if study in PENDING and not (ROOT / "results" / study / "meta.json").is_file():

@@ -12,11 +12,24 @@ Performance notes (``python -m avbench.bench --only Deviations``; serial, no thr
   SIMD lanes (results move at rounding level, ~1e-15 relative);
 * the Hadamard and total-variance sums are blocked over the start index for few taus (octave,
   decade): a block of start indices visits every m while its slices of x are in cache;
-* the modified AV's inner sum is a second difference of box sums of x; on an octave grid the box
-  sums of 2m are pairs of those of m, so each octave is two SIMD passes (``mvar_sums_octave``). For
-  other grids it is a running sum (a sequential chain) split into four independent lanes over
-  quarters of the record, each started from its own directly summed window and fed by blocks of
-  third differences computed as SIMD (``mvar_sum``);
+* the modified AV is the running sum of SP1065 / allantools (its inner sum carried along the
+  start index by third differences), blocked over the start index like the Hadamard sums: per
+  block and m, the third differences (and the AV's squared second differences, which the edf's
+  noise identification needs: no separate AV pass) in one SIMD pass into an L1 buffer, then the
+  sequential chain over it as four chains over the buffer's quarters (``mvar_sums_blocked``).
+  Measured at n = 1e6, octave m (CPU time, loaded machine): 17 ms for both sums where the previous octave
+  box-sum passes (one memory pass per octave) took 21 ms for the modified AV alone and the AV pass 5 ms more;
+* for octave m up to ``MVAR_BOX_MAX`` the modified AV is instead summed from box sums of the phase
+  built level by level inside each block (the box of 2m is two boxes of m; ``mvar_sums_box_octaves``):
+  three SIMD passes per level over an L1 buffer, ~0.4 ms per level at n = 1e6 against ~0.75 ms for the
+  chain; for larger m the buffer (block + 3m) outgrows the block and the chain is kept. Measured (CPU,
+  n = 1e6, octave m, best block/limit of 1024-8192 x 32-256): both sums 13.4-13.5 ms against 16.4 ms with
+  the chain for every m;
+* the non-overlapping Hadamard variance (hdev) on octave m reads the rate, not the phase: blocks of 2m
+  are pairs of blocks of m, and its third differences are second differences of consecutive blocks
+  (``hvar_octave_sums``; the AV for the edf's noise identification from the same blocks): ~1.5 ms CPU at
+  n = 1e6 for all 19 octaves, where the cumulative sum and the strided reads took ~5 ms and the
+  overlapping-AV pass for the noise type ~4 ms more;
 * Theo1 is its definition, (N - m) m / 2 terms per m: one SIMD pass per lag d over each block of
   start indices (the pair sums x[i] + x[i+m] formed once).
 """
@@ -30,6 +43,8 @@ from avbench.estimators.allan._kernels import _ssq_second_diff as _ssq_second
 BLOCK = 4096
 #: up to this many taus the blocked kernels are used; beyond (the "all" grid) one pass per tau
 MAX_BLOCKED_TAUS = 128
+#: start indices per block of the modified AV (its buffer of third differences stays in L1)
+BLOCK_MVAR = 2048
 _FM = {"reassoc", "contract"}
 
 
@@ -88,6 +103,157 @@ def ohvar_sums(x, ms, block=BLOCK):
     return out, av
 
 
+@njit(cache=True)
+def hvar_sums(x, ms):
+    """Non-overlapping Hadamard sums: sum_{i = 0, m, 2m, ..., i + 3m <= N-1} (x[i+3m] - 3x[i+2m] + 3x[i+m] - x[i])^2
+    (SP1065 eq. 18 on the phase decimated by m; (N-1)//m - 2 terms, N/m reads per m)."""
+    N = x.size
+    out = np.zeros(ms.size)
+    for t in range(ms.size):
+        m = ms[t]
+        acc = 0.0
+        i = 0
+        while i + 3 * m <= N - 1:
+            d = x[i + 3 * m] - 3.0 * x[i + 2 * m] + 3.0 * x[i + m] - x[i]
+            acc += d * d
+            i += m
+        out[t] = acc
+    return out
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _ssq_block_diffs_range(z, k0, k1):
+    """(sum_k (z[k+2] - 2z[k+1] + z[k])^2, sum_k (z[k+3] + z[k+2] - z[k+1] - z[k])^2, sum_k (z[k+1] - z[k])^2)
+    for k0 <= k < k1 (z must reach k1 + 2)."""
+    a = z[k0 + 3 : k1 + 3]
+    b = z[k0 + 2 : k1 + 2]
+    c = z[k0 + 1 : k1 + 1]
+    d = z[k0:k1]
+    acc2 = 0.0
+    acch = 0.0
+    acc1 = 0.0
+    for k in range(a.size):
+        d2 = b[k] - 2.0 * c[k] + d[k]
+        dh = (a[k] + b[k]) - (c[k] + d[k])
+        d1 = c[k] - d[k]
+        acc2 += d2 * d2
+        acch += dh * dh
+        acc1 += d1 * d1
+    return acc2, acch, acc1
+
+
+@njit(cache=True, inline="always")
+def _block_diffs_tail(z):
+    """The terms ``_ssq_block_diffs_range(z, 0, size - 3)`` leaves: the second difference at size - 3 and
+    the first differences at size - 3 and size - 2 (size >= 3)."""
+    p = z.size
+    d2 = z[p - 1] - 2.0 * z[p - 2] + z[p - 3]
+    acc1 = 0.0
+    for k in range(max(p - 3, 0), p - 1):
+        d1 = z[k + 1] - z[k]
+        acc1 += d1 * d1
+    return d2 * d2, acc1
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _ssq_block_diffs(z):
+    """``_ssq_block_diffs_range`` over all of ``z`` (size >= 3) with its tail: on blocks z of m, (the
+    Hadamard sum of m (size - 2 terms), the AV sum of 2m at every start that is a multiple of m (size - 3
+    terms), the non-overlapping AV sum of m (size - 1 terms))."""
+    h, a2, a1 = _ssq_block_diffs_range(z, 0, max(z.size - 3, 0))
+    t2, t1 = _block_diffs_tail(z)
+    return h + t2, a2, a1 + t1
+
+
+#: samples per chunk of ``hvar_octave_sums``' first level (its sums and pairs read each chunk once, from L1)
+HVAR_CHUNK = 2048
+
+
+@njit(cache=True, fastmath=_FM)
+def hvar_octave_sums(w, levels, buf):
+    """(Hadamard, Allan) sums at m = 1, 2, 4, ..., 2^(levels-1) from block sums of the rate (no phase), and
+    the sum of ``w`` (not finite exactly when a sample is not, barring overflow: the caller's record check).
+
+    Hadamard (non-overlapping, SP1065 eq. 18): on the unit phase S (x / dt), its decimated third
+    difference is the second difference of consecutive block sums, S[(i+3)m] - 3S[(i+2)m] +
+    3S[(i+1)m] - S[im] = y_{i+2} - 2y_{i+1} + y_i with y_i = sum_{k=im}^{(i+1)m-1} w_k (n // m full
+    blocks, n // m - 2 terms: ``hvar_sums``' count).
+    Allan (for the edf's noise identification): the sum of squared differences of adjacent blocks of
+    m at every start offset that is a multiple of m/2 -- from the blocks of m/2 (n // (m/2) - 3 terms;
+    at m = 1 every offset: n - 1 terms) -- an unbiased AV estimate with about twice the non-overlapping
+    AV's terms.
+    Blocks of 2m are sums of pairs of blocks of m: n/2 + n/4 + ... additions in all, no cumulative sum.
+    The differences cancel the mean; the blocks from m = 4 on are centred (the mean, known after the first
+    level's pass, taken off when the blocks of 2 are paired) so that long blocks hold no large values whose
+    differences cost digits. The first level is read in chunks (its differences, its pairs and its sum
+    from L1): one read of the record. ``buf``: work array of at least n // 2 entries.
+    """
+    n = w.size
+    h = np.zeros(levels)
+    a = np.zeros(levels)
+    c = n // 2
+    total = 0.0
+    if n >= 3:
+        h0 = 0.0
+        a1 = 0.0
+        a0 = 0.0
+        for k0 in range(0, n, HVAR_CHUNK):
+            k1 = min(k0 + HVAR_CHUNK, n - 3)
+            if k1 > k0:
+                x2, xh, x1 = _ssq_block_diffs_range(w, k0, k1)
+                h0 += x2
+                a1 += xh
+                a0 += x1
+            total += _pairs_into(buf, w, k0 // 2, min(k0 + HVAR_CHUNK, n) // 2)
+        t2, t1 = _block_diffs_tail(w)
+        if levels > 0:
+            h[0] = h0 + t2
+            a[0] = a0 + t1
+        if levels > 1:
+            a[1] = a1
+    else:
+        total = _pairs_into(buf, w, 0, c)
+    if n % 2:
+        total += w[n - 1]
+    mu = total / n
+    for lev in range(1, levels):
+        if c < 3:  # no term left (the callers ask for m <= n // 3)
+            break
+        hh, aa, _ = _ssq_block_diffs(buf[:c])
+        h[lev] = hh
+        if lev + 1 < levels:
+            a[lev + 1] = aa
+        half = c // 2
+        off = 4.0 * mu if lev == 1 else 0.0  # blocks of 2 still hold 2 mu each
+        for i in range(half):
+            buf[i] = (buf[2 * i] + buf[2 * i + 1]) - off
+        c = half
+    return h, a, total
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _pairs_into(buf, w, i0, i1):
+    """buf[i] = w[2i] + w[2i+1] for i0 <= i < i1; returns their sum."""
+    acc = 0.0
+    for i in range(i0, i1):
+        v = w[2 * i] + w[2 * i + 1]
+        buf[i] = v
+        acc += v
+    return acc
+
+
+def hvar_octave_av_terms(n, levels):
+    """Number of terms of each of ``hvar_octave_sums``' AV sums: n - 1 at m = 1, n // (m/2) - 3 beyond."""
+    m = 1 << np.arange(levels)
+    return np.where(m == 1, n - 1, n // np.maximum(m // 2, 1) - 3)
+
+
+def hvar_sum_numpy(x, m):
+    xd = x[::m]
+    d = xd[3:] - 3 * xd[2:-1] + 3 * xd[1:-2] - xd[:-3]
+    return float(np.sum(d * d))
+
+
 def ohvar_sum_numpy(x, m):
     k = x.size - 3 * m
     d = x[3 * m : 3 * m + k] - 3 * x[2 * m : 2 * m + k] + 3 * x[m : m + k] - x[:k]
@@ -107,155 +273,184 @@ def _window_second_sum(x, j, m):
 
 
 @njit(cache=True, fastmath=_FM, inline="always")
-def _third_into(out, a, b, c, d):
+def _third_into_and_second(out, a, b, c, d):
+    """out[k] = a[k] - 3b[k] + 3c[k] - d[k]; returns sum_k (b[k] - 2c[k] + d[k])^2 (one read for both)."""
+    acc = 0.0
     for k in range(a.size):
         out[k] = a[k] - 3.0 * b[k] + 3.0 * c[k] - d[k]
-
-
-@njit(cache=True)
-def _mvar_run(x, m, j0, j1, v):
-    """sum_{j=j0}^{j1-1} v_j^2 carrying v_{j+1} = v_j + (third difference at j), v = v_{j0}."""
-    acc = 0.0
-    for j in range(j0, j1):
-        acc += v * v
-        if j + 3 * m < x.size:
-            v += x[j + 3 * m] - 3.0 * x[j + 2 * m] + 3.0 * x[j + m] - x[j]
+        w = b[k] - 2.0 * c[k] + d[k]
+        acc += w * w
     return acc
 
 
-@njit(cache=True)
-def mvar_sum(x, m, block=2048):
-    """sum_{j=0}^{N-3m} [sum_{i=j}^{j+m-1} (x[i+2m] - 2x[i+m] + x[i])]^2 (SP1065 eq. 14).
-
-    The inner sum v_j is carried along j: moving the window by one adds the third difference
-    x[j+3m] - 3x[j+2m] + 3x[j+m] - x[j] (the loop-unrolled form of SP1065 / adev_lib). Four lanes
-    carry it over the four quarters of j at once (each lane's first v summed directly, so no lane
-    depends on another), when the record holds at least 8m + 64 terms; else one lane.
-    """
-    N = x.size
-    K = N - 3 * m + 1
-    if K < 8 * m + 64:
-        return _mvar_run(x, m, 0, K, _window_second_sum(x, 0, m))
-    C = K // 4
-    v0 = _window_second_sum(x, 0, m)
-    v1 = _window_second_sum(x, C, m)
-    v2 = _window_second_sum(x, 2 * C, m)
-    v3 = _window_second_sum(x, 3 * C, m)
-    a0 = 0.0
-    a1 = 0.0
-    a2 = 0.0
-    a3 = 0.0
-    buf = np.empty((4, block))
-    T = C - 1  # lock-step steps: every update of every lane reads inside the record
-    for t0 in range(0, T, block):
-        nb = min(block, T - t0)
-        for lane in range(4):
-            j = lane * C + t0
-            _third_into(buf[lane, :nb], x[j + 3 * m : j + 3 * m + nb], x[j + 2 * m : j + 2 * m + nb],
-                        x[j + m : j + m + nb], x[j : j + nb])
-        b0 = buf[0]
-        b1 = buf[1]
-        b2 = buf[2]
-        b3 = buf[3]
-        for k in range(nb):
-            a0 += v0 * v0
-            v0 += b0[k]
-            a1 += v1 * v1
-            v1 += b1[k]
-            a2 += v2 * v2
-            v2 += b2[k]
-            a3 += v3 * v3
-            v3 += b3[k]
-    # lanes 0-2 end with one term left (their next v is the next lane's first); lane 3 runs to K
-    a3 += _mvar_run(x, m, 3 * C + T, K, v3)
-    return ((a0 + v0 * v0) + (a1 + v1 * v1)) + ((a2 + v2 * v2) + a3)
+#: steps per group of the modified AV's carried chain (``_group_terms``)
+CHAIN_GROUP = 16
 
 
 @njit(cache=True, fastmath=_FM)
-def _pair_sums(out, y, cur, L):
-    """out[k] = y[k] + y[k + cur], k < L: the box sums of 2 cur from those of cur."""
-    a = y[:L]
-    b = y[cur : cur + L]
-    o = out[:L]
-    for k in range(L):
-        o[k] = a[k] + b[k]
+def _group_terms(steps, A, B, T, ng):
+    """Per group g of G = CHAIN_GROUP steps s: partial sums P_r = s_0 + ... + s_{r-1} (r = 1..G-1),
+    A_g = sum_r P_r, B_g = sum_r P_r^2, T_g = the group's total (independent groups: SIMD across them)."""
+    G = CHAIN_GROUP
+    for g in range(ng):
+        b = G * g
+        p = 0.0
+        a = 0.0
+        q = 0.0
+        for r in range(G - 1):
+            p += steps[b + r]
+            a += p
+            q += p * p
+        A[g] = a
+        B[g] = q
+        T[g] = p + steps[b + G - 1]
+
+
+@njit(cache=True)
+def _carried_squares(steps, v, A, B, T):
+    """(sum_{k<K} v_k^2, v_K) for v_0 = v, v_{k+1} = v_k + steps[k], K = steps.size.
+
+    The chain is carried a group of G steps at a time: with v the group's first value,
+    sum_{r<G} (v + P_r)^2 = G v^2 + 2 v A_g + B_g (``_group_terms``), so the sequential part is one
+    step per G terms; the last K mod G steps one at a time. The expansion's rounding is relative to
+    the group's squares (v^2, P^2), of the order of the terms summed. ``A``, ``B``, ``T``: work
+    arrays of at least K // G entries. Measured in place (CPU time, n = 1e6, octave m): the blocked
+    pass 17 ms, against 19.5 ms with four chains over the quarters of the block.
+    """
+    K = steps.size
+    G = CHAIN_GROUP
+    ng = K // G
+    _group_terms(steps, A, B, T, ng)
+    acc = 0.0
+    for g in range(ng):
+        acc += (G * v * v + 2.0 * v * A[g]) + B[g]
+        v += T[g]
+    for k in range(G * ng, K):
+        acc += v * v
+        v += steps[k]
+    return acc, v
 
 
 @njit(cache=True, fastmath=_FM)
-def _box_ssq_and_pairs(out, y, m, K):
-    """sum_{k<K} (y[k+2m] - 2y[k+m] + y[k])^2, writing out[k] = y[k] + y[k+m] on the way (one pass)."""
-    a = y[:K]
-    b = y[m : m + K]
-    c = y[2 * m : 2 * m + K]
-    o = out[:K]
-    acc = 0.0
-    for k in range(K):
-        o[k] = a[k] + b[k]
-        v = c[k] - 2.0 * b[k] + a[k]
-        acc += v * v
-    return acc
+def mvar_sums_blocked(x, ms, block=BLOCK_MVAR):
+    """(modified-AV, Allan) sums for every m of ``ms`` in one blocked pass over the start index j.
 
-
-@njit(cache=True)
-def _box_level(src, dst, m, K, L, want, more):
-    """One octave of ``mvar_sums_octave``: the sum of squares at m (if wanted) and the box sums of 2m."""
-    acc = 0.0
-    done = 0
-    if want and more:
-        acc = _box_ssq_and_pairs(dst, src, m, K)
-        done = K
-    elif want:
-        acc = _ssq_second(src[2 * m : 2 * m + K], src[m : m + K], src[:K])
-    if more and L > done:
-        _pair_sums(dst[done:], src[done:], m, L - done)
-    return acc
-
-
-@njit(cache=True)
-def mvar_sums_octave(x, ms):
-    """``mvar_sum`` for increasing powers of two ``ms``, by the box sums of x (no running sum).
-
-    The inner sum is a second difference of box sums, sum_{i=j}^{j+m-1} (x[i+2m] - 2x[i+m] + x[i])
-    = y[j+2m] - 2y[j+m] + y[j] with y[i] = x[i] + ... + x[i+m-1]; the box sums of 2m are pairs of
-    those of m, y2[i] = y[i] + y[i+m], read from the same two streams. So each octave is one SIMD
-    pass (squares of the second differences at m, box sums of 2m), and every value is a sum of at
-    most m phases (no subtraction of large prefix sums, no long running sum).
+    Modified AV: sum_{j=0}^{N-3m} v_j^2, v_j = sum_{i=j}^{j+m-1} (x[i+2m] - 2x[i+m] + x[i]) (SP1065
+    eq. 14); v is carried along j, v_{j+1} = v_j + (x[j+3m] - 3x[j+2m] + 3x[j+m] - x[j]) (the
+    running sum of SP1065 / adev_lib / allantools), its first value summed directly. Allan: sum_{j<N-2m}
+    (x[j+2m] - 2x[j+m] + x[j])^2 (the overlapping AV's, for the edf's noise identification), read
+    from the same slices. Each block of start indices visits every m while its four slices of x
+    are in cache: the third differences of the block into a buffer (SIMD, with the AV's squares),
+    then the carried chain over them (``_carried_squares``). ``block >= x.size``: one pass per m.
     """
     N = x.size
-    out = np.zeros(ms.size)
-    bufs = (x.copy(), np.empty(N))
-    which = 0  # bufs[which] holds the N - cur + 1 box sums of length cur
-    cur = 1
-    t = 0
-    top = ms[ms.size - 1]
-    while cur <= top:
-        want = ms[t] == cur
-        more = cur < top
-        K = N - 3 * cur + 1
-        L = N - 2 * cur + 1  # box sums of 2 cur
-        if which == 0:
-            acc = _box_level(bufs[0], bufs[1], cur, K, L, want, more)
-        else:
-            acc = _box_level(bufs[1], bufs[0], cur, K, L, want, more)
-        if want:
-            out[t] = acc
-            t += 1
-        which = 1 - which
-        cur *= 2
-    return out
+    T = ms.size
+    out = np.zeros(T)
+    av = np.zeros(T)
+    v = np.empty(T)
+    if T == 0:
+        return out, av
+    for t in range(T):
+        v[t] = _window_second_sum(x, 0, ms[t])
+    block = max(1, min(block, N))
+    buf = np.empty(block)
+    wa = np.empty(block // CHAIN_GROUP + 1)
+    wb = np.empty(block // CHAIN_GROUP + 1)
+    wt = np.empty(block // CHAIN_GROUP + 1)
+    jmax = N - 3 * ms.min()
+    for b0 in range(0, jmax, block):
+        for t in range(T):
+            m = ms[t]
+            b1 = min(b0 + block, N - 3 * m)
+            if b1 > b0:
+                nb = b1 - b0
+                av[t] += _third_into_and_second(buf[:nb], x[b0 + 3 * m : b1 + 3 * m], x[b0 + 2 * m : b1 + 2 * m],
+                                                x[b0 + m : b1 + m], x[b0:b1])
+                s, v[t] = _carried_squares(buf[:nb], v[t], wa, wb, wt)
+                out[t] += s
+    for t in range(T):
+        m = ms[t]
+        out[t] += v[t] * v[t]  # the last term, j = N - 3m
+        lo = max(N - 3 * m, 0)
+        hi = N - 2 * m
+        if hi > lo:
+            av[t] += _ssq_second(x[lo + 2 * m : hi + 2 * m], x[lo + m : hi + m], x[lo:hi])
+    return out, av
 
 
-def _powers_of_two_increasing(ms) -> bool:
-    ms = np.asarray(ms)
-    return bool(ms.size and np.all(ms >= 1) and np.all((ms & (ms - 1)) == 0) and np.all(np.diff(ms) > 0))
+#: octave m up to this are summed from box sums built level by level in each block (``mvar_sums_box_octaves``)
+MVAR_BOX_MAX = 256
+#: start indices per block of ``mvar_sums_box_octaves`` (its two level buffers of block + 3 MVAR_BOX_MAX: 28 KB, in L1)
+BLOCK_MVAR_BOX = 1024
+
+
+@njit(cache=True, fastmath=_FM)
+def mvar_sums_box_octaves(x, levels, block=BLOCK_MVAR_BOX):
+    """(modified-AV, Allan) sums at m = 1, 2, 4, ..., 2^(levels-1), from box sums of the phase.
+
+    SP1065 eq. 14's inner sum is v_j = Z_{j+2m} - 2 Z_{j+m} + Z_j with Z_j = sum_{i=j}^{j+m-1} x[i] (the
+    box sum of m phases), and the box of 2m is two boxes of m: Z^{2m}_j = Z^m_j + Z^m_{j+m}. For each
+    block of start indices, the phases the block needs (block + 3 M, M the largest m) are copied relative to
+    the block's first phase (the filters cancel constants: no large values whose differences cost digits),
+    then level by level one SIMD pass makes the boxes of 2m from those of m and one SIMD pass sums v^2:
+    O(1) operations per term and level, no carried chain (``mvar_sums_blocked``, ~2 cycles per term,
+    for the other m). Allan: sum_{j<N-2m} (x[j+2m] - 2x[j+m] + x[j])^2 from the same block of x.
+    """
+    N = x.size
+    out = np.zeros(levels)
+    av = np.zeros(levels)
+    if levels == 0 or N < 3:
+        return out, av
+    top = 1 << (levels - 1)
+    W = block + 3 * top
+    buf = np.empty((2, W))
+    for b0 in range(0, N - 2, block):
+        L = min(W, N - b0)
+        _shifted_into(buf[0, :L], x[b0 : b0 + L], x[b0])
+        cur = L  # buf[t % 2, :cur] are the level's boxes Z_{b0+i}
+        for t in range(levels):
+            m = 1 << t
+            z = buf[t % 2]
+            nj = min(block, N - 3 * m + 1 - b0)  # v_j for j in [b0, b0 + nj)
+            if nj > 0:
+                out[t] += _ssq_second(z[2 * m : 2 * m + nj], z[m : m + nj], z[:nj])
+            na = min(block, N - 2 * m - b0)  # the AV's j in [b0, b0 + na)
+            if na > 0:
+                av[t] += _ssq_second(x[b0 + 2 * m : b0 + 2 * m + na], x[b0 + m : b0 + m + na], x[b0 : b0 + na])
+            if t + 1 < levels and cur > m:
+                nxt = cur - m
+                _pair_into(buf[(t + 1) % 2, :nxt], z[:nxt], z[m : m + nxt])
+                cur = nxt
+    return out, av
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _shifted_into(out, a, c):
+    for k in range(a.size):
+        out[k] = a[k] - c
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _pair_into(out, a, b):
+    for k in range(a.size):
+        out[k] = a[k] + b[k]
 
 
 def mvar_sums(x, ms):
-    """``mvar_sum`` for every m of ``ms``: by octave box sums for an octave grid, else one pass per m."""
+    """(modified-AV, Allan) sums for every m of ``ms``: octave m up to ``MVAR_BOX_MAX`` from box sums
+    (``mvar_sums_box_octaves``), the others by the carried chain, blocked for few taus, one pass per m beyond."""
     ms = np.ascontiguousarray(ms, dtype=np.int64)
-    if _powers_of_two_increasing(ms):
-        return mvar_sums_octave(x, ms)
-    return np.array([mvar_sum(x, int(m)) for m in ms])
+    box = ((ms & (ms - 1)) == 0) & (ms >= 1) & (ms <= MVAR_BOX_MAX)
+    if ms.size > MAX_BLOCKED_TAUS or not box.any():
+        return mvar_sums_blocked(x, ms, BLOCK_MVAR if ms.size <= MAX_BLOCKED_TAUS else x.size)
+    out = np.empty(ms.size)
+    av = np.empty(ms.size)
+    ob, ab = mvar_sums_box_octaves(x, int(ms[box].max()).bit_length())
+    lev = np.log2(ms[box]).astype(np.int64)
+    out[box], av[box] = ob[lev], ab[lev]
+    if not box.all():
+        out[~box], av[~box] = mvar_sums_blocked(x, ms[~box], BLOCK_MVAR)
+    return out, av
 
 
 def mvar_sum_numpy(x, m):

@@ -34,6 +34,9 @@ CACHE_SIZE = 512
 _PAIRS: OrderedDict = OrderedDict()
 #: grid points per block of the integration (bounds the work arrays: k x CHUNK floats)
 CHUNK = 1 << 17
+#: bytes of Haar filter gains kept between calls (per cluster sizes and grid; :func:`_gains`)
+GAIN_CACHE_BYTES = 64 << 20
+_GAINS: OrderedDict = OrderedDict()
 
 
 def _haar_gain(m, w, s):
@@ -62,20 +65,58 @@ def _factor(term):
     return float(c), unit, True
 
 
+def _gains(m, n_grid):
+    """``[(w, G)]`` per block of the midpoint grid: the frequencies and the Haar gains |H_m(w)|^2 of
+    every cluster size (k x block). The same values as computing them on each call (they are: the
+    same elementwise arithmetic per row), kept per grid for the last cluster sizes asked
+    (:data:`GAIN_CACHE_BYTES` in all): a request for a run of consecutive cluster sizes of the kept
+    ones gets views of them. GMWM's second step on each candidate set of scales (the same grid, the
+    shortest scale dropped each time) and the fit check integrate on the same grid, and the gains
+    (sin^4 at k x n_grid points) were most of the cost of a direct sum. Gains larger than half the
+    budget (long records: up to 2^21 points per size) are not kept and come one block at a time, so
+    that the work arrays stay k x :data:`CHUNK`."""
+    omega_all = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
+    starts = range(0, n_grid, CHUNK)
+    for key, (m_kept, blocks) in list(_GAINS.items()):
+        if key[0] != n_grid or not m.size:
+            continue
+        i = int(np.searchsorted(m_kept, m[0])) if np.all(np.diff(m_kept) > 0) else -1
+        if 0 <= i and i + m.size <= m_kept.size and np.array_equal(m_kept[i : i + m.size], m):
+            try:
+                _GAINS.move_to_end(key)
+            except KeyError:  # dropped meanwhile by another thread: ``blocks`` holds them
+                pass
+            return [(omega_all[a : a + CHUNK], G[i : i + m.size]) for a, G in zip(starts, blocks)]
+
+    def block(a):
+        w = omega_all[a : a + CHUNK]
+        return _haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :])
+
+    if m.size * n_grid * 8 > GAIN_CACHE_BYTES // 2:  # too large to keep: one block at a time, as before
+        return ((omega_all[a : a + CHUNK], block(a)) for a in starts)
+    blocks = [block(a) for a in starts]
+    key = (n_grid, m.tobytes())
+    _GAINS[key] = (m.copy(), blocks)
+    _GAINS.move_to_end(key)
+    while sum(v[0].size * k[0] * 8 for k, v in list(_GAINS.items())) > GAIN_CACHE_BYTES:
+        try:
+            _GAINS.popitem(last=False)
+        except KeyError:
+            break
+    return [(omega_all[a : a + CHUNK], G) for a, G in zip(starts, blocks)]
+
+
 def _grid_size(m, grid_per_cycle, max_grid) -> int:
     return int(min(max(grid_per_cycle * m.max(), 4096), max_grid))
 
 
 def _pair_integrals(shapes, pairs, m, dt, n_grid) -> dict:
     """``{(a, b): P_ab}`` for index pairs into ``shapes`` (unit-amplitude terms), one pass over the grid."""
-    omega_all = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
     out = {p: np.zeros((m.size, m.size)) for p in pairs}
     used = sorted({i for p in pairs for i in p})
-    for a in range(0, n_grid, CHUNK):
-        w = omega_all[a : a + CHUNK]
+    for w, G in _gains(m, n_grid):
         f = w / (2 * np.pi * dt)
         S = {i: shapes[i].psd(f, dt) / (2 * dt) for i in used}
-        G = _haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :])
         for i, j in pairs:
             out[(i, j)] += (G * (S[i] * S[j])) @ G.T
     for v in out.values():
@@ -99,11 +140,10 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
     nothing. For white noise the diagonal agrees with the NIST SP 1065 edf, Var = 2 AV^2 / edf
     (checked in the tests).
 
-    ``reuse=False``: one midpoint sum of the squared total spectrum, nothing kept (the same values to
-    round-off, at the full cost). GMWM's second step asks for it: its optimum along the flat
-    directions of its objective (a coefficient the data hardly resolve) moves with the round-off of
-    its weights, by up to ~1e-4 relative on the coverage study's records, and the committed studies'
-    GMWM numbers are kept bit for bit; its cost is its model evaluations, not this sum.
+    ``reuse=False``: one midpoint sum of the squared total spectrum, nothing kept but the Haar gains
+    (the same values to round-off). GMWM's second step asks for it: its model has a Gauss-Markov term
+    whose shape changes with every fit, so the pairs with it would be integrated anew each time (one
+    product per pair instead of one for the sum).
     """
     m = np.asarray(m, dtype=float)
     n_grid = _grid_size(m, grid_per_cycle, max_grid)
@@ -172,13 +212,12 @@ def _line_cross(gyro, m) -> np.ndarray:
 
 
 def _direct(gyro, m, n_grid) -> np.ndarray:
-    """(1/pi) * integral of |H_j|^2 |H_k|^2 S^2 by one midpoint sum of the total spectrum, in blocks."""
-    omega_all = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
+    """(1/pi) * integral of |H_j|^2 |H_k|^2 S^2 by one midpoint sum of the total spectrum, in blocks
+    (as Y Y^T with Y = |H|^2 S: a symmetric rank-k product)."""
     out = np.zeros((m.size, m.size))
-    for a in range(0, n_grid, CHUNK):
-        w = omega_all[a : a + CHUNK]
+    for w, G in _gains(m, n_grid):
         S = gyro.psd(w / (2 * np.pi * gyro.dt)) / (2 * gyro.dt)
-        G = _haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :])
-        out += (G * S**2) @ G.T
+        Y = G * S
+        out += Y @ Y.T
     out *= 1.0 / n_grid  # (1/pi) * integral = mean over the grid
     return out

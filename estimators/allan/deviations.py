@@ -6,6 +6,9 @@ x_k = dt * sum_{j<k} (w_j - mean w), N = n + 1 phase points (allantools ``freque
 mean removal changes none of the statistics, whose filters cancel constants and linear phase).
 Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
 
+* ``hvar`` (non-overlapping) Hadamard variance, SP1065 eq. 18: the same third differences on the phase
+  decimated by m, x_i, x_{i+m}, ...: 1/(6 tau^2 (M-3)) sum_{i=1}^{M-3} (...)^2, M = floor((N-1)/m) + 1
+  (allantools ``hdev``, Stable32 HDEV).
 * ``ohvar`` overlapping Hadamard variance, SP1065 eq. 20:
   1/(6 tau^2 (N-3m)) sum_{i=1}^{N-3m} (x_{i+3m} - 3x_{i+2m} + 3x_{i+m} - x_i)^2.
   A third difference: blind to a constant rate and to a linear rate ramp (R).
@@ -35,16 +38,29 @@ Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
   allantools, so that the two agree on the same m):
   1/(0.75 (N-m) (m dt)^2) sum_{i=1}^{N-m} sum_{d=0}^{m/2-1} [(x_i - x_{i-d+m/2}) + (x_{i+m} - x_{i+d+m/2})]^2 / (m/2-d),
   reported at tau = 0.75 m dt (SP1065: "Theo1 at tau = 0.75 m tau0"; allantools labels it m dt).
-  Cost: (N - m) m / 2 terms per m (the definition: SIMD passes per lag d over cache-sized blocks of
-  start indices, about 10x the previous scalar loop at n = 1e4), so Theo1 over an octave grid
-  reaching m ~ N is O(N^2):
-  ``theo1_max_m`` bounds it. No exact fast form is used: expanding the square into lagged products
-  (one FFT for the cross-correlations of x_i + x_{i+m} with x, prefix sums for the squares) leaves
-  O(m^2 / 2) edge corrections for the x_{i+m/2-d} x_{i+m/2+d} products, so it is no cheaper at the
-  long m that dominate, and it subtracts sums of squared phases (~ N) to get squared increments
-  (~ m), losing ~log10(N/m) digits -- beyond the 1e-9 agreement with allantools at N = 1e6. The
-  fast TheoBR of Taylor & Howe (2010) decimates the phase before Theo1 at long tau: a different
-  statistic (an approximation), not implemented.
+  Cost: (N - m) m / 2 terms per m, the definition, which is also the fastest exact form found
+  (``_deviation_kernels.theo1_sum``: the pair sums x_i + x_{i+m} formed once, then one SIMD pass per
+  lag d over cache-sized blocks of start indices). Measured (CPU time, this 2-core machine at 2.3 GHz,
+  octave m): 0.16 ns per term at n = 1e4 (3.7e7 terms, 6 ms) and 3e4 (3.1e8 terms, 49 ms), about 0.37
+  cycles per term, the machine's SIMD throughput for 3 loads and 3 floating-point operations per term;
+  four lags per pass (one read of the pair sums for four) measured no faster. So Theo1 over an octave
+  grid reaching m ~ N is O(N^2) (0.34-0.37 N^2 terms for n = 1e4-1e6: 6 ms at n = 1e4, ~1 min at
+  1e6); ``theo1_max_m`` and ``max_terms`` bound it. The alternatives and why they are not used:
+  (a) expanding the square into lagged products (the cross terms by one FFT correlation per m,
+  O(N log N), the squares by prefix sums) leaves edge corrections of O(m^2 / 4) per m (the products
+  x_{i+m/2-d} x_{i+m/2+d} over the shifted ranges); taking per m the cheaper of it and the direct
+  form, an octave grid costs 0.09-0.13 N^2 instead of 0.34-0.37 N^2 (3-4x less, FFTs aside). But it
+  subtracts sums of squared phases (~N sigma^2 for white FM) to get squared increments (~m sigma^2):
+  ~log10(N/m) digits lost for white FM, ~3 log10(N/m) for random-walk FM (x ~ N^1.5). Measured at
+  n = 1e5 (the expanded sums as dot products, against the definition): white FM 6e-11 relative at
+  m = 2; random-walk FM 2e-2 at m = 2, 9e-7 at m = 64, 3e-10 at m = 1024, where the definition's
+  kernel agrees with its NumPy reference to ~1e-15 (3e-12 for RW FM at m = 2) -- not an exact
+  method in floating point, so not used;
+  (b) in increments, the same statistic is sum_{L=1}^{m/2} (1/L) sum_i (D_{i+m-L}(L) - D_i(L))^2 with
+  D_i(L) = x_{i+L} - x_i (L = m/2 - d): m/2 structure functions of L-increments at gap m - L, the
+  same (N - m) m / 2 terms; its expansion has the same edge and cancellation costs as (a);
+  (c) the fast TheoBR / TheoH of Taylor & Howe (2010) decimate the phase before Theo1 at long tau:
+  another statistic (an approximation), not implemented.
 * ``theobr`` bias-removed Theo1 (Howe & Tasset 2004; SP1065 §5.2.12):
   TheoBR(m) = [1/(k+1) sum_{i=0}^{k} OAVAR(m = 9+3i) / Theo1(m = 12+4i)] Theo1(m), k = floor(0.1 N/3 - 3)
   (N >= 90 phases), at tau = 0.75 m dt. The ratio needs Theo1 at k + 1 ~ N/30 sizes up to m ~ 0.13 N:
@@ -60,7 +76,11 @@ which is the computation of Greenhall & Riley (2003, "Uncertainty of stability v
 finite differences", the algorithm SP1065 §5.3 defers to) carried out with the power-law G of the
 noise type identified at that tau (white PM: G = [d=0]; white FM: -|d|/2; flicker FM: d^2 ln|d|;
 random-walk FM: (|d|^3 - |d|)/12, the exact discrete RRW). The noise type is read from the local
-slope of the overlapping AV, as ``allan_variance`` does. For long filters of the scale-free types
+slope of the overlapping AV, as ``allan_variance`` does (same rule, ``_noise_from_slope``); for hvar on
+octave m the AV is the one its block-sum pass gives on the way (adjacent blocks of m at every start that
+is a multiple of m/2: unbiased, about twice the non-overlapping AV's terms, no pass over the record of its
+own; measured: the type given by the slope where >= 64 blocks agree with the true one in 30 of 30 white-FM
+and white-PM records and 29 of 30 random-walk-FM records of 2^14 samples). For long filters of the scale-free types
 (white, flicker, random-walk FM) the edf is evaluated at m' = 64 with K' = K m'/m (Greenhall's
 "m' = infinity" limit); for Theo1 under white PM this scaling is an approximation that
 underestimates the edf (wider intervals) when m > 64. The total variance is given the edf of the
@@ -73,13 +93,15 @@ limit (the F x F cross-correlations of 6m filters cost F^2 P). Intervals: chi^2 
 the AV engine.
 
 Cost (``python -m avbench.bench --only Deviations``): every statistic is computed on the unscaled
-cumulative sum S (x = dt S; tau^2 -> m^2), one pass to make it; the compiled passes are described
-in :mod:`~avbench.estimators.allan._deviation_kernels`.
+cumulative sum S (x = dt S; tau^2 -> m^2), one pass to make it, except hvar on octave m, whose pass reads
+the rate itself (block sums; its sum doubles as the record's finiteness test); the compiled passes are
+described in :mod:`~avbench.estimators.allan._deviation_kernels`.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -88,6 +110,8 @@ from avbench.estimators.allan import _kernels
 from avbench.estimators.allan.variance import (
     AllanResult,
     _checked_record_and_mean,
+    _cumsum_buffer,
+    _record_rules,
     _noise_from_slope,
     allan_variance,
     cluster_sizes,
@@ -99,12 +123,12 @@ __all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "e
            "theobr_bias_sizes", "check_feasible"]
 
 #: the statistics
-KINDS = ("oavar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
+KINDS = ("oavar", "hvar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
 #: names users type (allantools' deviations) -> kind
 DEVIATION_NAMES = {
     "oadev": "oavar",
     "ohdev": "ohvar",
-    "hdev": "ohvar",
+    "hdev": "hvar",
     "mdev": "mvar",
     "tdev": "tvar",
     "totdev": "totvar",
@@ -128,7 +152,20 @@ def _sample_phase(rate, dt):
     times a count, so it is computed on S with m^2 in place of tau^2: one pass fewer than scaling.
     """
     rate, dt, mean = _checked_record_and_mean(rate, dt)
-    return _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1)), rate.size, dt
+    return _unit_phase(rate, mean), rate.size, dt
+
+
+def _unit_phase(rate, mean, out=None):
+    """S of a checked record and its mean (``_sample_phase`` after the checks), into ``out`` if given."""
+    return _kernels.centred_cumsum(rate, mean, np.empty(rate.size + 1) if out is None else out)
+
+
+def _octave_levels(m) -> int:
+    """1 + log2(max m) when every m is a power of two (the block-sum pass covers them), else 0."""
+    m = np.asarray(m)
+    if m.size == 0 or np.any(m < 1) or np.any(m & (m - 1)):
+        return 0
+    return int(m.max()).bit_length()
 
 
 def phase_of(rate, dt):
@@ -141,9 +178,10 @@ def phase_of(rate, dt):
 def _max_m(kind: str, N: int) -> int:
     return {
         "oavar": (N - 1) // 2,
+        "hvar": (N - 1) // 3,
         "ohvar": (N - 1) // 3,
-        "mvar": (N + 1) // 3 - 1 if (N + 1) % 3 == 0 else (N + 1) // 3,
-        "tvar": (N + 1) // 3,
+        "mvar": N // 3,  # N - 3m + 1 >= 1 terms
+        "tvar": N // 3,
         "totvar": (N - 1) // 2,
         "mtotvar": (N - 1) // 3,  # at least two windows of 3m phases (allantools drops one)
         "htotvar": (N - 2) // 3,  # at least two windows of 3m rates
@@ -195,7 +233,7 @@ def _filters(kind: str, m: int):
     """(positions (F, P), coefficients (F, P), weights (F,)) of the phase filters of one statistic."""
     if kind in ("oavar", "totvar"):
         return np.array([[0, m, 2 * m]]), np.array([[1.0, -2.0, 1.0]]), np.ones(1)
-    if kind == "ohvar":
+    if kind in ("ohvar", "hvar"):
         return np.array([[0, m, 2 * m, 3 * m]]), np.array([[-1.0, 3.0, -3.0, 1.0]]), np.ones(1)
     if kind in ("mvar", "tvar"):
         c = np.zeros(3 * m + 1)  # box(m) * (1, -2, 1 at 0, m, 2m): the phase filter of one MVAR term
@@ -280,15 +318,19 @@ def _rho_squares(kind: str, m: int, noise: str, kmax: int):
     """(E[V], sum_{f,g} w_f w_g rho_fg(k)^2 for k = 0..kmax): the K-free part of the edf."""
     pos, coef, w = _filters(kind, m)
     P = int(pos.max()) + 1
-    C = np.zeros((len(w), P))
-    np.add.at(C, (np.arange(len(w))[:, None], pos), coef)
-    L = 2 * P - 1
-    Fc = np.fft.rfft(C, 2 * L)
-    # A_fg(d) = sum_a C_f[a] C_g[a + d], d = -(P-1)..P-1 (integer filters: rounded back to exact)
-    A = np.fft.irfft(np.conj(Fc)[:, None, :] * Fc[None, :, :], 2 * L)
-    A = np.concatenate((A[..., -(P - 1) :], A[..., :P]), axis=-1) if P > 1 else A[..., :1]
-    if np.all(C == np.rint(C)):
-        A = np.rint(A)
+    if len(w) == 1:  # one integer filter: its exact autocorrelation, A(-d) = A(d) (no FFT)
+        A1 = _single_filter_acf(kind, m)
+        A = np.concatenate((A1[:0:-1], A1))[None, None, :]
+    else:
+        C = np.zeros((len(w), P))
+        np.add.at(C, (np.arange(len(w))[:, None], pos), coef)
+        L = 2 * P - 1
+        Fc = np.fft.rfft(C, 2 * L)
+        # A_fg(d) = sum_a C_f[a] C_g[a + d], d = -(P-1)..P-1 (integer filters: rounded back to exact)
+        A = np.fft.irfft(np.conj(Fc)[:, None, :] * Fc[None, :, :], 2 * L)
+        A = np.concatenate((A[..., -(P - 1) :], A[..., :P]), axis=-1) if P > 1 else A[..., :1]
+        if np.all(C == np.rint(C)):
+            A = np.rint(A)
     # rho(k) = sum_d A(d) G(k + d), d = -(P-1)..P-1: G once on the lags -(P-1)..kmax+P-1, then windows
     G = _canonical_gcov(noise, np.arange(-(P - 1), kmax + P))
     windows = np.lib.stride_tricks.sliding_window_view(G, 2 * P - 1)  # (kmax+1, 2P-1), row k: G(k-P+1..k+P-1)
@@ -373,7 +415,12 @@ def deviation(
     check_taus(taus)
     if kind == "oavar":
         return allan_variance(rate, dt, taus, points_per_decade=points_per_decade, noise=noise, confidence=confidence)
-    x, n, dt = _sample_phase(rate, dt)  # the phase in units of dt: tau^2 -> m^2 below
+    fast = _record_rules(rate, dt) if kind == "hvar" else None  # hvar's octave pass tests finiteness itself
+    if fast is None:
+        rate, dt, mean = _checked_record_and_mean(rate, dt)
+    else:
+        (rate, dt), mean = fast, None
+    n = rate.size
     N = n + 1
     m = _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m)
     if max_terms is not None:
@@ -383,13 +430,32 @@ def deviation(
                          + ("" if max_terms is None else f" within max_terms = {max_terms:g}"))
     mf = m.astype(float)
     av_sums = None  # the AV's sums where a kernel gives them on the way (for the noise identification)
-    if kind == "ohvar":
+    # the phase in units of dt (tau^2 -> m^2 below), except for hvar on octave m (block sums of the rate)
+    levels = _octave_levels(m) if kind == "hvar" else 0
+    if levels:
+        h, a, total = _k.hvar_octave_sums(rate, levels, _cumsum_buffer(n // 2 + 1))
+        if not math.isfinite(total):  # a non-finite sample (the full check names it) or an overflowed sum
+            levels = 0
+    if mean is None and not levels:
+        rate, dt, mean = _checked_record_and_mean(rate, dt)
+    # (into the engine's per-thread scratch buffer: x never leaves this call; a fresh 8 MB array at n = 1e6
+    # costs its page faults, ~0.5-1 ms)
+    x = None if levels else _unit_phase(rate, mean, _cumsum_buffer(n + 1))
+    if kind == "hvar":
+        K = n // m - 2
+        if levels:  # blocks of 2m from pairs of blocks of m (above); the AV from the same blocks
+            lev = np.log2(m).astype(np.int64)
+            sums, av_sums = h[lev], a[lev]
+        else:  # any other grid: the noise identified from the overlapping AV (below), as for ohvar
+            sums = _k.hvar_sums(x, m)
+        var = sums / (6.0 * mf * mf * K)
+    elif kind == "ohvar":
         K = N - 3 * m
         sums, av_sums = _k.ohvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
         var = sums / (6.0 * mf * mf * K)
     elif kind in ("mvar", "tvar"):
         K = N - 3 * m + 1
-        sums = _k.mvar_sums(x, m)
+        sums, av_sums = _k.mvar_sums(x, m)
         var = sums / (2.0 * mf**4 * K)
         if kind == "tvar":
             var = var * (mf * dt) ** 2 / 3.0
@@ -420,15 +486,25 @@ def deviation(
     if not edf:
         nan = np.full(m.size, np.nan)
         return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), nan, nan, True, n, dt, confidence, kind=kind)
-    if noise == "auto":
+    if noise == "auto" and levels:
+        # the AV's slope as for every statistic, the AV from hvar's own block sums (at every start offset
+        # that is a multiple of m/2: an unbiased AV with about twice the non-overlapping AV's terms)
+        count = _k.hvar_octave_av_terms(n, levels)[np.log2(m).astype(np.int64)]
+        kinds = list(_noise_from_slope(mf * dt, av_sums / (2.0 * mf * mf * count), n // m))
+    elif noise == "auto":
         m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
         table = _noise_kinds(x, dt, m_av, n, None if av_sums is None else dict(zip(m.tolist(), av_sums)))
         keys = np.array(sorted(table))
         kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
     else:
         kinds = list(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
-    edf_kind = {"totvar": "oavar", "theobr": "theo1"}.get(kind, kind)
-    e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m, K, kinds)])
+    edf_kind = {"totvar": "oavar", "theobr": "theo1", "hvar": "ohvar"}.get(kind, kind)
+    # hvar: its K terms are the m = 1 statistic of the phase decimated by m, whose G is that of the same
+    # noise type scaled (white PM, white FM; flicker FM up to a quadratic in the lag, which the third
+    # difference cancels): exact for them. RW FM approximately: the decimated G is m^3 (|d|^3 - |d|/m^2)/12,
+    # the canonical discrete one (|d|^3 - |d|)/12.
+    m_edf = np.ones_like(m) if kind == "hvar" else m
+    e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m_edf, K, kinds)])
     return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
                        kind=kind)
 

@@ -353,14 +353,23 @@ def _checked_record_and_mean(rate, dt):
     finite (barring overflow near 1e308, which falls back to the full check): no boolean
     temporary and no separate mean pass. Anything else goes through :func:`check_record`.
     """
-    arr = rate if isinstance(rate, np.ndarray) else None
-    if arr is not None and arr.dtype == np.float64 and arr.ndim == 1 and arr.size >= 16:
-        total = _kernels.finite_sum(arr)
+    fast = _record_rules(rate, dt)
+    if fast is not None:
+        total = _kernels.finite_sum(fast[0])
         if math.isfinite(total):
-            _, dt = check_record(arr[:16], dt)  # dt and the record's shape/dtype rules
-            return arr, dt, total / arr.size
+            return fast[0], fast[1], total / fast[0].size
     rate, dt = check_record(rate, dt)
     return rate, dt, _kernels.finite_sum(rate) / rate.size
+
+
+def _record_rules(rate, dt):
+    """(record, dt) of a 1-D float64 ndarray of >= 16 samples after every rule of ``check_record`` but
+    finiteness, which the caller's own compiled pass over the record tests (a non-finite sum: then
+    ``check_record`` names the bad sample); None for anything else (``check_record`` then does it all)."""
+    if isinstance(rate, np.ndarray) and rate.dtype == np.float64 and rate.ndim == 1 and rate.size >= 16:
+        _, dt = check_record(rate[:16], dt)  # dt and the record's shape/dtype rules
+        return rate, dt
+    return None
 
 
 _SCRATCH = threading.local()

@@ -145,8 +145,9 @@ class WLS(_AVCurveFit):
 _NOISE_OF_TERM = {"Q": "white_pm", "N": "white_fm", "B": "flicker_fm", "K": "rw_fm", "R": "rw_fm"}
 
 
-def _edf_nonoverlapping(J: np.ndarray, noise: np.ndarray) -> np.ndarray:
-    """EDF of the non-overlapping AV from J clusters, by noise type.
+def _edf_nonoverlapping(J: np.ndarray, white_pm: np.ndarray) -> np.ndarray:
+    """EDF of the non-overlapping AV from J clusters, by noise type (``white_pm``: True where the
+    noise is white PM, else white FM's value).
 
     Exact for white FM, 2(J-1)^2/(3J-4) (adjacent differences correlate with rho = -1/2), and for
     white PM, 2(J-1)^2 / [(J-1) + (8/9)(J-2) + (1/18)(J-3)] (rho_1 = -2/3, rho_2 = 1/6); the
@@ -155,7 +156,7 @@ def _edf_nonoverlapping(J: np.ndarray, noise: np.ndarray) -> np.ndarray:
     J = J.astype(float)
     fm = 2 * (J - 1) ** 2 / np.maximum(3 * J - 4, 1)
     pm = 2 * (J - 1) ** 2 / np.maximum((J - 1) + 8 / 9 * (J - 2) + (J - 3) / 18, 1)
-    return np.maximum(np.where(noise == "white_pm", pm, fm), 1.0)
+    return np.maximum(np.where(white_pm, pm, fm), 1.0)
 
 
 @register("wls_edf")
@@ -195,11 +196,11 @@ def edf_of_rows(av, X, beta, terms):
     contrib = X * np.maximum(beta, 0)[None, :]
     model = contrib.sum(axis=1)
     level = np.where(model > 0, model, av.avar)
-    dominant = noise_of_column[contrib.argmax(axis=1)]
+    column = contrib.argmax(axis=1)  # the dominant term's column (an index: 72 000 rows on taus="all")
     if av.overlapping:
-        edf = edf_overlapping(av.m, av.n_samples, dominant)
+        edf = edf_overlapping(av.m, av.n_samples, noise_of_column[column])
     else:
-        edf = _edf_nonoverlapping(av.J, dominant)
+        edf = _edf_nonoverlapping(av.J, (noise_of_column == "white_pm")[column])
     return level, edf
 
 
