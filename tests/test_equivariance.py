@@ -259,32 +259,20 @@ def test_every_estimator_gives_the_same_answer_in_every_unit(name):
 REAL = os.environ.get("AVBENCH_REAL_DATA")
 
 
-#: fits that the last bits of this record decide (measured 2026-11-25; not the unit: see results/README.md)
-ROUNDOFF_FRAGILE = {
-    "gmwm_despiked": "axis z: the diagonal-weighted first step has six starts ending within 2.5e-9 of one cost, "
-                     "at points of one flat valley (B through the Gauss-Markov term traded against K); the "
-                     "model-weighted second step from them ends at J = 12.0873 (B ~ 165 deg/h, K ~ 0) or 12.0982 "
-                     "(K ~ 354 deg/h^1.5, B ~ 0) with the last bits of the samples. Refining every tied start "
-                     "and keeping the least J did not settle it (each refinement's weights depend on its start; "
-                     "tried 2026-11-25, issue 28, and not kept)",
-    "gmwm_robust": "axis z: model AV moves by 4e-4 between units, 3.5e-5 under two round-off draws (the same "
-                   "near-tied optima as gmwm_despiked)",
-}
-# (the MLE, here until the same day: L-BFGS-B stopped at a saddle whose place the last bits decided; its
-# end point is now polished to the maximum, estimators/likelihood/mle.py _newton_polish)
+# (no fit here is left to the last bits of this record any more: the MLE's L-BFGS-B end point, a saddle
+# whose place they decided, is polished to the maximum (estimators/likelihood/mle.py _newton_polish);
+# gmwm_despiked and gmwm_robust, whose multi-start fell into one of two near-tied optima on axis z with
+# them, agree to <= 1e-8 since issue 25's analytic Jacobian and issue 24's model for gmwm_despiked;
+# measured 2026-11-25)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [
-    "nekf_multitau", "gmwm_filtered", "mle",
-    *[pytest.param(k, marks=pytest.mark.xfail(reason=v, strict=False)) for k, v in ROUNDOFF_FRAGILE.items()],
-])
+@pytest.mark.parametrize("name", ["nekf_multitau", "gmwm_filtered", "mle", "gmwm_despiked", "gmwm_robust"])
 def test_the_issues_defects_on_adis_run_1_are_gone(name):
     """Issue 28: the first 30 minutes of ADIS run 1 in deg/s, rad/s and mrad/s gave answers that
     differed by 3 % of the AV (nekf_multitau), 0.9 % (mle), 85-100 % in B at its floor (GMWM
     family). Every axis is now reported the same way in the three units, to each fit's own
-    round-off (nekf_multitau's model AV moves by up to 1 % when the last bit of the samples does);
-    the fits in ROUNDOFF_FRAGILE are decided by the last bits of this record, in any unit."""
+    round-off (nekf_multitau's model AV moves by up to 1 % when the last bit of the samples does)."""
     if not REAL:
         pytest.skip("AVBENCH_REAL_DATA is not set (the folder of the real recordings)")
     path = Path(REAL) / "adis16405-calgary" / "adis_16405_imu1.npz"
