@@ -71,9 +71,20 @@ maximised by L-BFGS-B over the log-parameters, to a tighter tolerance than stats
 (each evaluation costs milliseconds), with the analytic score: each filter (exact initial, augmented)
 carries the derivative recursions of its state (and diffuse columns), covariance, gain and forecast
 variance in each parameter (Harvey 1989, Sec. 3.4.6), so one compiled pass gives the likelihood and
-its gradient. Standard errors are from the observed information (the Hessian in the
-log-parameters by central differences of the analytic score) by the delta method; the drift, a diffuse state, gets the filtered
-GLS estimate and its filtered standard deviation.
+its gradient. L-BFGS-B's end point is then polished to the maximum by trust-region Newton steps
+(:func:`_newton_polish`; issue 28: on 30 minutes of a real ADIS16405 record L-BFGS-B stopped at a
+saddle 2.9e3 below the maximum in log-likelihood, at a place the last bits of the samples decided);
+a variance the likelihood drives to zero is set to exactly zero (``diagnostics_["pinned_to_zero"]``;
+the contract's floor rule then reports it not resolved, with its bound). Standard errors are from the
+observed information (the Hessian in the log-parameters by central differences of the analytic
+score) by the delta method; the drift, a diffuse state, gets the filtered GLS estimate and its
+filtered standard deviation.
+
+Where the maximum lies can surprise: on that record (and on axis x) the white noise goes to zero and
+the Gauss-Markov term takes its place with a correlation time under one sample (0.6 dt): the short-time
+noise is better described as slightly correlated than as white (the sensor's own filtering), and the
+"B" of such a term (0.664 sigma) is not a bias instability. That is the model's maximum-likelihood
+answer; the values L-BFGS-B reported before were not a maximum of anything.
 """
 
 from __future__ import annotations
@@ -132,7 +143,9 @@ class MLE(Estimator):
     ----------
     diagnostics_ : dict
         ``std_err`` (pandas.Series like ``coefficients_``), ``params`` (sigma, Tc, ...), ``block``,
-        ``loglike``, ``converged``, ``start`` (the GMWM starting coefficients).
+        ``loglike``, ``converged``, ``start`` (the GMWM starting coefficients), ``polish_iterations``
+        (trust-region Newton iterations after L-BFGS-B), ``pinned_to_zero`` (parameters the
+        likelihood drove to zero: "N", "sigma", "K", ...).
 
     Examples
     --------
@@ -203,7 +216,7 @@ class MLE(Estimator):
         cov = fit["cov"]
         # a non-positive variance (flat or non-concave likelihood, e.g. a term at zero) has no
         # standard error: NaN, not 0
-        var = np.diag(cov) if np.all(np.isfinite(cov)) else np.full(len(vals), np.nan)
+        var = np.diag(cov)
         se_log = dict(zip(system.names, np.sqrt(np.where(var > 0, var, np.nan))))
         from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA
 
@@ -224,6 +237,8 @@ class MLE(Estimator):
             "block": m,
             "loglike": llf + y.size * math.log(scale),
             "converged": fit["converged"],
+            "polish_iterations": fit["polish_iterations"],
+            "pinned_to_zero": [k[4:] for k in fit["pinned"]],
             "start": start.coefficients_,
         }
         if not np.isfinite(llf):
@@ -231,11 +246,14 @@ class MLE(Estimator):
         else:
             p = diag["params"]
             names = {"QN": ("Q",), "WN": ("N",), "GM": ("sigma", "tc"), "RW": ("K",)}
-            values = [p[k] for lat in latents if lat in names for k in names[lat]]
+            # a term the polish set to zero is no term of the fitted model (its parameters still count)
+            kept = [lat for lat in latents if lat not in names or p[names[lat][0]] > 0]
+            values = [p[k] for lat in kept if lat in names for k in names[lat]]
             if "DR" in latents:
                 values.append(coefs["R"])
-            gyro = build_gyro(latents, values, dt)
-            diag.update(assess_fit(rate, dt, gyro.avar, gyro, len(values), (m * dt, math.inf)))
+            n_par = sum(len(names.get(lat, ("R",))) for lat in latents)
+            gyro = build_gyro(kept, values, dt)
+            diag.update(assess_fit(rate, dt, gyro.avar, gyro, n_par, (m * dt, math.inf)))
             diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
         return coefs, {}, diag
 
@@ -281,32 +299,53 @@ def _score(f, p, rel=_EPS_GRAD):
     return g
 
 
-def observed_cov(loglike, p, score=None) -> np.ndarray:
-    """Inverse observed information of ``loglike`` at ``p``: the Hessian by central differences of
-    the score, symmetrised; NaN where it is not finite.
-
-    ``score``: the analytic score (a function of the log-parameters); its central differences
-    (relative step eps^(1/3), the optimum for an exact gradient) err by ~eps^(2/3) relative.
-    Without it, the score is itself central differences of ``loglike`` (statsmodels
-    ``cov_type="approx"``, ``approx_centered=True``), whose nested round-off (~eps^(1/2) relative to
-    the log-likelihood's scale, divided by the steps) dominates along the likelihood's flat
-    directions.
-    """
-    if score is None:
-        h = _EPS_HESS * np.maximum(np.abs(p), 0.1)
-        score = lambda q: _score(loglike, q)  # noqa: E731
-    else:
-        h = _EPS_GRAD * np.maximum(np.abs(p), 0.1)
+def score_hessian(score, p, rel=_EPS_GRAD) -> np.ndarray:
+    """Hessian of the function whose gradient is ``score`` at ``p``: central differences of the
+    score (relative step ``rel``; eps^(1/3), the optimum for an exact gradient, errs by ~eps^(2/3)
+    relative), symmetrised."""
+    h = rel * np.maximum(np.abs(p), 0.1)
     hess = np.empty((p.size, p.size))
     for i in range(p.size):
         e = np.zeros(p.size)
         e[i] = h[i]
         hess[i] = (score(p + e) - score(p - e)) / (2 * h[i])
-    hess = (hess + hess.T) / 2
+    return (hess + hess.T) / 2
+
+
+def observed_cov(loglike, p, score=None, hess=None) -> np.ndarray:
+    """Inverse observed information of ``loglike`` at ``p``: the Hessian by central differences of
+    the score, symmetrised; NaN where it is not finite.
+
+    ``score``: the analytic score (a function of the log-parameters); its central differences
+    (:func:`score_hessian`) err by ~eps^(2/3) relative. Without it, the score is itself central
+    differences of ``loglike`` (statsmodels ``cov_type="approx"``, ``approx_centered=True``), whose
+    nested round-off (~eps^(1/2) relative to the log-likelihood's scale, divided by the steps)
+    dominates along the likelihood's flat directions. ``hess``: the Hessian at ``p`` if the caller
+    has it already.
+    """
+    if hess is None and score is None:
+        hess = score_hessian(lambda q: _score(loglike, q), p, _EPS_HESS)
+    elif hess is None:
+        hess = score_hessian(score, p)
     try:
         return -np.linalg.pinv(hess) if np.all(np.isfinite(hess)) else np.full(hess.shape, np.nan)
     except np.linalg.LinAlgError:
         return np.full(hess.shape, np.nan)
+
+
+#: the Newton polish stops at a maximum (negative definite Hessian) where the Newton step's
+#: predicted gain is below this relative to the log-likelihood: its own round-off (~1e-12 relative),
+#: under which no step can be told from a worse one. The step may then still be ~1e-3 of a standard
+#: error (the gain is quadratic in it); the finishing steps below take it to round-off
+POLISH_GAIN = 1e-12
+#: at a maximum, plain Newton steps on the analytic score go on until the step is below this in every
+#: log-parameter (relative change of the parameter), at most FINISH_MAXITER of them
+FINISH_STEP, FINISH_MAXITER = 1e-10, 6
+#: at most this many Newton (trust-region) iterations after the quasi-Newton stage
+POLISH_MAXITER = 60
+#: a variance whose removal lowers the log-likelihood by at most this much is set to zero by the
+#: polish (a likelihood-ratio statistic of 2e-4, four decades under any test's threshold)
+PIN_LOGLIKE = 1e-4
 
 
 def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
@@ -318,8 +357,11 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
     gradients of before -- statsmodels' forward differences, then central ones -- left ~sqrt(eps)
     of gradient noise that the likelihood's flat directions turned into ~1e-4 relative parameter
     noise). The covariance of the log-parameters is the inverse of the observed information, the
-    Hessian by central differences of the analytic score (:func:`observed_cov`). Returns ``params``, ``cov``, ``loglike`` (scaled units),
-    ``converged``, ``final_state`` and ``final_cov`` (last filtered state and covariance).
+    Hessian by central differences of the analytic score (:func:`observed_cov`). L-BFGS-B's end
+    point is polished to the maximum by trust-region Newton steps (:func:`_newton_polish`). Returns
+    ``params``, ``cov``, ``loglike`` (scaled units), ``converged``, ``final_state`` and ``final_cov``
+    (last filtered state and covariance), ``polish_iterations`` and ``lbfgs_loglike`` (the
+    log-likelihood where L-BFGS-B stopped).
     ``method`` selects the Kalman filter (:meth:`BlockMeanSystem.loglike`; the filters give the same
     likelihood to ~1e-14 relative, "exact_initial" is the slower path of before, kept for the tests
     and the benchmark).
@@ -329,10 +371,6 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
     nobs = y.size
     y = np.ascontiguousarray(y, dtype=float)
 
-    def loglike(p):
-        with np.errstate(all="ignore"):
-            return system.loglike(y, p, scale, method=method)
-
     def objective_and_score(p):
         with np.errstate(all="ignore"):
             v, g = system.score(y, p, scale, method=method)
@@ -341,17 +379,150 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
 
     res = minimize(objective_and_score, np.asarray(x0, dtype=float), jac=True, method="L-BFGS-B",
                    options={"maxiter": int(maxiter), "gtol": 1e-8, "ftol": 1e-14})
-    # at this tolerance the line search may stop on the likelihood's own round-off (~1e-12
-    # relative): converged when the gradient per observation is small, as statsmodels' pgtol 1e-5
-    converged = bool(res.success or np.max(np.abs(res.jac)) < 1e-5)
-    p = res.x
-
-    def score(q):
-        with np.errstate(all="ignore"):
-            return system.score(y, q, scale, method=method)[1]
-
-    cov = observed_cov(loglike, p, score)
+    p, polish = _newton_polish(objective_and_score, res.x, list(system.names), nobs)
+    converged = polish["converged"]
+    free = polish["free"]
+    cov = np.full((p.size, p.size), np.nan)  # a pinned term has no standard error
+    if free.any():
+        cov[np.ix_(free, free)] = observed_cov(None, p[free], hess=-nobs * polish["hess"])
     a, P = np.empty(system.k), np.empty((system.k, system.k))
     llf = system.loglike(y, p, scale, (a, P), method=method)
     return {"params": p, "cov": cov, "loglike": float(llf), "converged": converged,
-            "final_state": a, "final_cov": P}
+            "final_state": a, "final_cov": P, "polish_iterations": polish["iterations"],
+            "pinned": polish["pinned"], "lbfgs_loglike": float(-res.fun * nobs)}
+
+
+def _newton_polish(objective_and_score, p, names, nobs):
+    """Take the quasi-Newton end point ``p`` to the maximum: trust-region Newton steps
+    (``scipy.optimize.minimize(method="trust-exact")``, More & Sorensen 1983) on ``objective_and_score``
+    (minus the log-likelihood per observation and its analytic score) with the Hessian by central
+    differences of the score (:func:`score_hessian`), until it is at a maximum where the Newton
+    step's predicted gain is below the log-likelihood's round-off (:data:`POLISH_GAIN`, a tolerance
+    relative to the information: 1/2 g' H^-1 g); a term the likelihood drives to zero is set to
+    zero (the boundary rule below). Where L-BFGS-B already stopped at the maximum, this costs one
+    Hessian, the one the standard errors need anyway.
+
+    Why: L-BFGS-B stops when a step no longer lowers the objective by 1e-14 relative, which on the
+    likelihood's stiff and flat directions together (information eigenvalues from ~1e5 down to ~20
+    and below, per log-parameter) can happen far from the maximum -- at a saddle, on the first 30
+    minutes of ADIS16405 run 1 axis z, 2.9e3 below the maximum in log-likelihood with a gradient of
+    ~10 (issue 28); there the last bits of the samples (or their unit) decided where it stopped.
+    A trust region handles the saddle (an indefinite Hessian) and converges quadratically once
+    near the maximum, so that the end point no longer depends on the path.
+
+    Boundary rule: the maximum may lie at a variance of zero (log-parameter -inf: on that record the
+    white noise, whose share the Gauss-Markov term with a correlation time under one sample takes
+    over), which Newton steps approach by 0.5 in the log-parameter per iteration, forever. After each
+    iteration, a noise scale (``log_Q``, ``log_N``, ``log_sigma``, ``log_K``) whose gradient still
+    pushes it down and whose removal lowers the log-likelihood by at most :data:`PIN_LOGLIKE` is set
+    to zero (log-parameter -inf; with ``log_sigma`` its ``log_tc`` is frozen too) and the rest are
+    maximised again. The answer is the maximum over the remaining terms, which does not depend on
+    the iteration where the term was pinned. Returns ``(p, info)``: ``p`` with -inf for pinned
+    terms, info holding ``hess`` (of the objective over the free parameters, ``free`` their mask),
+    ``iterations``, ``pinned`` (names) and ``converged``.
+    """
+    from scipy.optimize import minimize
+
+    start = np.array(p, dtype=float)
+    p = start.copy()
+    free = np.ones(p.size, dtype=bool)
+    scales = [i for i, k in enumerate(names) if k in ("log_Q", "log_N", "log_sigma", "log_K")]
+    pinned, iterations, converged = [], 0, False
+    f0 = objective_and_score(p)[0]
+    cache = {}
+
+    def sub(q):
+        v, g = objective_and_score(_fill(p, free, q))
+        return v, g[free]
+
+    def hess(q):
+        key = (q.tobytes(), free.tobytes())
+        if key not in cache:
+            cache.clear()
+            cache[key] = score_hessian(lambda r: sub(r)[1], q)
+        return cache[key]
+
+    def at_maximum(q):
+        """The Newton step's predicted gain is below the objective's round-off, at a maximum."""
+        v, g = sub(q)
+        w, V = np.linalg.eigh(hess(q))
+        if not (np.all(np.isfinite(w)) and w[0] > 0):
+            return False
+        return 0.5 * float(np.sum((V.T @ g) ** 2 / w)) <= POLISH_GAIN * abs(v)
+
+    def finish(q):
+        """Plain Newton steps from a maximum whose remaining gain round-off hides: the analytic score
+        is far more precise than the log-likelihood's value, and the step it gives is taken as it is
+        (no comparison of values), until it is below FINISH_STEP in every log-parameter. The Hessian
+        of the first step serves them all (one score per step: the steps are round-off sized, over
+        which the Hessian does not change; the covariance takes the one at the end point)."""
+        H = hess(q)
+        for _ in range(FINISH_MAXITER):
+            step = np.linalg.solve(H, sub(q)[1])
+            if not np.all(np.isfinite(step)):
+                break
+            q = q - step
+            if np.max(np.abs(step)) <= FINISH_STEP:
+                break
+        return q
+
+    def to_pin(q):
+        """Noise scales the gradient pushes down whose removal costs at most PIN_LOGLIKE."""
+        r = _fill(p, free, q)
+        v, g = objective_and_score(r)
+        out = []
+        for i in scales:
+            if free[i] and g[i] >= 0:
+                t = r.copy()
+                t[i] = -np.inf
+                if (objective_and_score(t)[0] - v) * nobs <= PIN_LOGLIKE:
+                    out.append(i)
+        return out
+
+    for _ in range(len(scales) + 1):
+        state = {"x": p[free].copy(), "pin": [], "done": False}
+
+        def after_step(intermediate_result):
+            q = state["x"] = intermediate_result.x.copy()
+            state["pin"] = to_pin(q)
+            if state["pin"]:
+                raise StopIteration
+            if at_maximum(q):
+                state["done"] = True
+                raise StopIteration
+
+        state["pin"] = to_pin(p[free])
+        if not state["pin"]:
+            if at_maximum(p[free]):
+                converged = True
+                break
+            res = minimize(sub, p[free], jac=True, hess=hess, method="trust-exact", callback=after_step,
+                           options={"gtol": 0.0, "maxiter": POLISH_MAXITER})
+            iterations += int(res.nit)
+            p[free] = state["x"]
+        if not state["pin"]:
+            converged = state["done"]
+            break
+        for i in state["pin"]:
+            p[i] = -np.inf
+            free[i] = False
+            pinned.append(names[i])
+            if names[i] == "log_sigma" and "log_tc" in names:
+                free[names.index("log_tc")] = False
+        if not free.any():
+            converged = True
+            break
+    if converged and free.any():
+        p[free] = finish(p[free])
+    f = objective_and_score(p)[0]
+    # never worse than the start (to the objective's round-off, which the last Newton steps do not see)
+    if not (np.isfinite(f) and f <= f0 + POLISH_GAIN * abs(f0) + PIN_LOGLIKE * len(pinned) / nobs):
+        p, free, pinned, converged = start, np.ones(p.size, dtype=bool), [], False
+    h = hess(p[free]) if free.any() else np.zeros((0, 0))
+    return p, {"hess": h, "free": free, "iterations": iterations, "pinned": pinned, "converged": converged}
+
+
+def _fill(p, free, q):
+    r = p.copy()
+    r[free] = q
+    return r
