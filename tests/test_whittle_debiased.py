@@ -282,3 +282,18 @@ def test_profile_fit_raises_a_term_from_its_floor_without_crawling():
     log = wf.fit(comps, a0, None, lo, fixed=2, tol=1e-10, hold_floor=False, max_iter=200)
     assert lin[4] and lin[3] < 60
     assert not log[4] and lin[2] > log[2]  # 200 log-scale steps: still short of the optimum
+
+
+def test_ramp_variance_with_a_variance_below_zero():
+    """A record whose signed maximum takes B (and Q) below 0 (20 min of the 50 Hz ADIS preset,
+    replicate 121 of coverage_defaults): the slope's variance counts those terms as absent in the
+    record's covariance, so the ramp's z-statistic and interval stay finite (they divided by 0)."""
+    from avbench.studies.config import load_config
+    from avbench.studies.runner import replicate_rng
+
+    cfg = load_config("studies/coverage_defaults.toml")
+    gs = next(g for g in cfg.gyros if g.label == "ADIS16405_X_50HZ")
+    x = gs.gyro.simulate(gs.n_samples, replicate_rng(cfg.seed, cfg.gyros.index(gs), 121))
+    e = estimators.get("whittle_debiased").fit(x, gs.gyro.dt)
+    assert e.coefficients_["B"] == 0.0 and np.isfinite(e.diagnostics_["ramp_z2"])
+    assert np.all(np.isfinite(e.conf_int().loc[list("QNBKR")].to_numpy()))

@@ -454,12 +454,15 @@ class WhittleFit:
         (:math:`c^T\\Sigma c = -\\sum_{s,t} c_s c_t\\gamma(|s-t|)`); the random walk (increments of
         variance :math:`a_K\\Delta t`) through the reverse cumulative sums of c, which also holds its
         end-point drift. ``a_walk`` overrides the random walk's variance (the ramp test uses the full
-        model's, see :meth:`Whittle._report`)."""
+        model's, see :meth:`Whittle._report`). Variances below 0 (``domain="spectrum"``) count as 0
+        in the covariance (the weights keep the fitted spectrum)."""
         from scipy import fft as sfft
 
         c = self.trend_weights(comps, a, tc)
         n, dt = self.n, self.dt
-        var = {x: float(v) for x, v in zip(comps, a)}
+        # the covariance of the record under the reported model: a variance below 0 (a fit in the
+        # domain of a positive spectrum, which the weights c keep) is the term's absence
+        var = {x: max(float(v), 0.0) for x, v in zip(comps, a)}
         if a_walk is not None:
             var["K"] = float(a_walk)
         m = sfft.next_fast_len(2 * n, real=True)
