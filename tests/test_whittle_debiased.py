@@ -1,6 +1,7 @@
 """De-biased Whittle likelihood, profile-likelihood intervals and per-term evidence (issue 23)."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -291,7 +292,7 @@ def test_ramp_variance_with_a_variance_below_zero():
     from avbench.studies.config import load_config
     from avbench.studies.runner import replicate_rng
 
-    cfg = load_config("studies/coverage_defaults.toml")
+    cfg = load_config(Path(__file__).resolve().parents[1] / "studies" / "coverage_defaults.toml")
     gs = next(g for g in cfg.gyros if g.label == "ADIS16405_X_50HZ")
     x = gs.gyro.simulate(gs.n_samples, replicate_rng(cfg.seed, cfg.gyros.index(gs), 121))
     e = estimators.get("whittle_debiased").fit(x, gs.gyro.dt)
