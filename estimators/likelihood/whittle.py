@@ -904,6 +904,10 @@ class Whittle(Estimator):
         Selection rule: BIC (default) or the 5 % likelihood-ratio test with the chi-bar-squared null.
     n_starts : int
         Starting values of Tc tried for a Gauss-Markov term.
+    domain : {"nonnegative", "spectrum"}
+        Where the variances are maximised: each >= 0 (default), or wherever the model spectrum is
+        positive at every Fourier frequency (Q, N, B, K may go below 0; reported truncated at 0, their
+        intervals on [0, inf)); see the module docstring, "Domain of the variances".
     reml : bool
         Maximise the restricted (residual) likelihood: the profile likelihood minus
         :math:`\\tfrac12\\log\\sum_k w_k|G_k|^2/S_k`, the log of the trend slope's information
@@ -1174,7 +1178,10 @@ class WhittleDebiased(Whittle):
     intervals: :class:`Whittle` with ``spectrum="debiased"`` (Sykulski et al. 2019, Biometrika
     106(2): the expected periodogram of the record replaces the spectrum), ``select=False`` and
     ``intervals="profile"`` (each term's interval on [0, inf) and its evidence, the likelihood ratio
-    of dropping it with its chi-bar-squared p-value, in ``diagnostics_["evidence"]``). Every setting of
+    of dropping it with its chi-bar-squared p-value, in ``diagnostics_["evidence"]``) and
+    ``domain="spectrum"`` (the maximum over variances that may go below 0 while the expected
+    periodogram stays positive, each reported truncated at 0: no half-normal trade between a term on
+    its boundary and its neighbour; module docstring, "Domain of the variances"). Every setting of
     :class:`Whittle` applies; only the defaults differ."""
 
     def __init__(self, *, terms="QNBKR", bias="flicker", select=False, criterion="bic", n_starts=4, reml=False,
