@@ -760,15 +760,15 @@ def profile_evidence(wf: WhittleFit, full: dict, level: float = 0.95, tol: float
         best[0] = max(best[0], ll0)
         a_floor = _FLOOR * float(top[i])
         u_hat = math.log(max(a_hat, a_floor))
+        # Wald std of log a_i and the regression of the other coordinates on it (signed: the
+        # information is in the variances, d log a_i = da_i / a_i)
         su = 1.0
         slope = None
-        if cov is not None and cov[i, i] > 0 and np.all(np.isfinite(cov[:, i])):
-            if not signed:
-                su = math.sqrt(cov[i, i])
-                slope = cov[:, i] / cov[i, i]
-            elif a_hat > 0:  # to the log of the profiled variance
-                su = math.sqrt(cov[i, i]) / a_hat
-                slope = cov[:, i] / cov[i, i] * a_hat
+        to_log = 1.0 if not signed else (a_hat if a_hat > 0 else math.nan)
+        if cov is not None and cov[i, i] > 0 and np.isfinite(to_log):
+            su = math.sqrt(cov[i, i]) / to_log
+            if np.all(np.isfinite(cov[:, i])):
+                slope = cov[:, i] / cov[i, i] * to_log
         su = min(max(su, 0.05), 5.0)
         # the profile path of the other parameters: the full fit's regression on u_i to start with,
         # then the line through the two nearest profile points already fitted (_profile_start)
