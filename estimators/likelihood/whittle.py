@@ -169,7 +169,8 @@ Reading / where it is not exact
   finite-sample effects pull B down by up to half a CRLB std where its CRLB relative std is 0.2-0.3:
   the profiled trend slope takes low-frequency power (``reml=True`` gives it back: -0.44 -> -0.25
   CRLB on the 50 Hz ADIS preset, -0.17 -> -0.03 on CRG20); a term near its boundary at 0 (K on the
-  ADIS presets at 20 min) trades power with B (-0.3 to -0.5, which REML does not change); and a
+  ADIS presets at 20 min) trades power with B (-0.3 to -0.5, which REML does not change;
+  ``domain="spectrum"`` removes it, see above); and a
   coefficient is the square root of a variance estimate (Jensen: about -rel.std/2 of a CRLB std).
   Terms forced where they are absent (``terms="QNBKR"`` on a gyro without Q or K) sit on that
   boundary too, and cost more: their estimates are >= 0 and take power from their neighbours.
