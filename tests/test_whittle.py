@@ -33,9 +33,16 @@ def test_kernel_matches_reference():
     D = wf.basis("GM", 31.0) - wf.basis("GM", 29.0)
     args = (a, Bm, D, 0.5, wf.X2, wf.GX, wf.G2, wf.w, float(wf.n))
     for grad in (False, True):
-        ref, got = whittle_pass_py(*args, grad), whittle_pass(*args, grad)
-        for r, o in zip(ref, got):
-            np.testing.assert_allclose(o, r, rtol=1e-10, atol=0)
+        for linear in (False, True):
+            ref, got = whittle_pass_py(*args, grad, linear), whittle_pass(*args, grad, linear)
+            for r, o in zip(ref, got):
+                np.testing.assert_allclose(o, r, rtol=1e-10, atol=0)
+    # the score and information in the variances themselves are those in their logs scaled by 1/a
+    _, _, _, s_log, f_log = whittle_pass(*args, True)
+    _, _, _, s_lin, f_lin = whittle_pass(*args, True, True)
+    d = np.append(a, 1.0)
+    np.testing.assert_allclose(s_lin, s_log / d, rtol=1e-10)
+    np.testing.assert_allclose(f_lin, f_log / np.outer(d, d), rtol=1e-10)
 
 
 def test_trend_regressor_is_the_dft_of_a_line():

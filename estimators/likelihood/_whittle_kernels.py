@@ -11,7 +11,9 @@ Two compiled passes over the Fourier frequencies (no temporaries), for :mod:`avb
     s_i = \\sum_k w_k g_{ik}(I_k/S_k - 1),\\quad
     F_{il} = \\sum_k w_k g_{ik}g_{lk},\\quad g_{ik} = \\frac{\\partial S_k/\\partial u_i}{S_k},
 
-with :math:`\\partial S/\\partial u_i = a_iB_{ik}` for the log-variances and ``c_tc * D_k`` for a
+with :math:`\\partial S/\\partial u_i = a_iB_{ik}` for the log-variances (``linear=False``) or
+:math:`B_{ik}` for the variances themselves (``linear=True``: the score and information in
+:math:`a`, defined where a variance is 0 or negative) and ``c_tc * D_k`` for a
 Gauss-Markov log-Tc (``D`` its derivative spectrum). :func:`whittle_pass_py` is the plain-NumPy
 twin used by the tests only.
 """
@@ -24,7 +26,7 @@ from numba import njit
 __all__ = ["whittle_pass", "whittle_pass_py"]
 
 
-def whittle_pass_py(a, Bm, D, c_tc, X2, GX, G2, w, n, grad):
+def whittle_pass_py(a, Bm, D, c_tc, X2, GX, G2, w, n, grad, linear=False):
     """Reference: ``(loglik, beta, sgg, score, info)`` with NumPy arrays (tests only)."""
     S = a @ Bm
     if np.any(S <= 0):
@@ -37,7 +39,7 @@ def whittle_pass_py(a, Bm, D, c_tc, X2, GX, G2, w, n, grad):
     q = a.size + (1 if D.size else 0)
     if not grad:
         return ll, beta, sgg, np.zeros(q), np.zeros((q, q))
-    g = a[:, None] * Bm / S
+    g = (Bm if linear else a[:, None] * Bm) / S
     if D.size:
         g = np.vstack([g, c_tc * D / S])
     r = w * (I / S - 1.0)
@@ -45,7 +47,7 @@ def whittle_pass_py(a, Bm, D, c_tc, X2, GX, G2, w, n, grad):
 
 
 @njit(cache=True)
-def _pass(a, Bm, D, c_tc, X2, GX, G2, w, n, grad, score, info):
+def _pass(a, Bm, D, c_tc, X2, GX, G2, w, n, grad, linear, score, info):
     """Log-likelihood, beta, sgg; with ``grad`` accumulates the score and the (lower) information."""
     p, K = Bm.shape
     has_tc = D.size > 0
@@ -74,7 +76,7 @@ def _pass(a, Bm, D, c_tc, X2, GX, G2, w, n, grad, score, info):
         if grad:
             r = w[k] * (IS - 1.0)
             for j in range(p):
-                gk[j] = a[j] * Bm[j, k] * iS
+                gk[j] = Bm[j, k] * iS if linear else a[j] * Bm[j, k] * iS
             if has_tc:
                 gk[p] = c_tc * D[k] * iS
             for i in range(q):
@@ -85,13 +87,13 @@ def _pass(a, Bm, D, c_tc, X2, GX, G2, w, n, grad, score, info):
     return ll, beta, sgg
 
 
-def whittle_pass(a, Bm, D, c_tc, X2, GX, G2, w, n, grad):
+def whittle_pass(a, Bm, D, c_tc, X2, GX, G2, w, n, grad, linear=False):
     """Compiled twin of :func:`whittle_pass_py`: two compiled passes over the frequencies (S and the
     GLS slope, then the likelihood, score and information), no temporaries."""
     q = a.size + (1 if D.size else 0)
     score = np.zeros(q)
     info = np.zeros((q, q))
-    ll, beta, sgg = _pass(a, Bm, D, float(c_tc), X2, GX, G2, w, n, grad, score, info)
+    ll, beta, sgg = _pass(a, Bm, D, float(c_tc), X2, GX, G2, w, n, grad, bool(linear), score, info)
     if grad and np.isfinite(ll):
         info = np.tril(info) + np.tril(info, -1).T
     return ll, beta, sgg, score, info

@@ -115,6 +115,31 @@ needs to rise (K as B is pushed down) made every step crawl. CPU time per fit on
 (the point fit is 0.05-0.4 s of it), against 0.3-1.7 s before (the same records, wall time; 2-3x
 fewer scoring steps for the bounds). The ramp's evidence and interval: below (``_evidence``).
 
+Domain of the variances (setting ``domain``)
+--------------------------------------------
+``domain="nonnegative"`` (``whittle``'s default): every variance :math:`\\ge 0`; a term the noise
+would take below 0 sits on its floor. That is a half-normal trade: whenever an absent or small term
+(Q, K) would go negative, it is held at 0 and its neighbour (N beside Q, B beside K) absorbs the
+difference one way only, so the neighbour is biased (measured on 20 min of the presets, the
+de-biased likelihood, every candidate kept: N of the ADIS presets -0.5 to -0.6 CRLB std with the
+absent Q, B -0.4 with the absent K). ``domain="spectrum"`` (``whittle_debiased``'s default): the
+maximum over the larger domain where the variances of Q, N, B, K may be negative as long as the
+model's expected periodogram (or spectrum) is positive at every Fourier frequency - the standard
+remedy in variance-component estimation, where estimates below 0 are allowed and truncated only
+when reported (Searle, Casella & McCulloch 1992, *Variance Components*): a true 0 is then an interior
+point of the extended domain, so the estimate keeps its asymptotically normal, unbiased law there
+instead of the boundary law of Self & Liang (1987). Scoring is in the variances themselves
+(:meth:`WhittleFit.fit`, ``signed``), from the non-negative maximum; a step that leaves the
+domain is halved. A Gauss-Markov variance keeps its floor (its Tc is undefined at 0). Reported:
+each coefficient :math:`\\sqrt{\\max(a_j, 0)}` (a variance at or below 0 is the coefficient 0,
+``absent``), and its profile interval on :math:`[0, \\infty)` with the other terms profiled over
+the same domain: :math:`\\{a \\ge 0: 2(\\ell^* - \\ell_p(a)) \\le \\chi^2_{1,0.95}\\}` with
+:math:`\\ell^*` the maximum of :math:`\\ell_p` over :math:`a \\ge 0` (the overall maximum when
+:math:`\\hat a_j > 0`, else :math:`\\ell_p(0)`: a term estimated below 0 gets :math:`[0,
+\\text{upper}]`, the boundary-aware bound, and no evidence, LR 0 and p = 1). A present term is
+then an interior point on both sides, so Wilks's law holds for its interval whatever its neighbours
+are; an absent one holds 0 with probability >= 97.5 %.
+
 Reading / where it is not exact
 -------------------------------
 * The Whittle likelihood replaces the Toeplitz covariance by a circulant one: ordinates at distinct
@@ -144,7 +169,8 @@ Reading / where it is not exact
   finite-sample effects pull B down by up to half a CRLB std where its CRLB relative std is 0.2-0.3:
   the profiled trend slope takes low-frequency power (``reml=True`` gives it back: -0.44 -> -0.25
   CRLB on the 50 Hz ADIS preset, -0.17 -> -0.03 on CRG20); a term near its boundary at 0 (K on the
-  ADIS presets at 20 min) trades power with B (-0.3 to -0.5, which REML does not change); and a
+  ADIS presets at 20 min) trades power with B (-0.3 to -0.5, which REML does not change;
+  ``domain="spectrum"`` removes it, see above); and a
   coefficient is the square root of a variance estimate (Jensen: about -rel.std/2 of a CRLB std).
   Terms forced where they are absent (``terms="QNBKR"`` on a gyro without Q or K) sit on that
   boundary too, and cost more: their estimates are >= 0 and take power from their neighbours.
@@ -265,8 +291,9 @@ class WhittleFit:
         rows = [self.basis(c, tc if c == "GM" else None) for c in comps]
         return np.ascontiguousarray(np.vstack(rows))
 
-    def evaluate(self, comps, a, tc=None, grad=False, Bm=None):
-        """``(loglik, beta, sgg, score, info)`` at variances ``a`` (normalised units), compiled."""
+    def evaluate(self, comps, a, tc=None, grad=False, Bm=None, linear=False):
+        """``(loglik, beta, sgg, score, info)`` at variances ``a`` (normalised units), compiled; the
+        score and information in the log-variances, or (``linear``) in the variances themselves."""
         from avbench.estimators.likelihood._whittle_kernels import whittle_pass
 
         Bm = self._matrix(comps, tc) if Bm is None else Bm
@@ -277,7 +304,7 @@ class WhittleFit:
             D = (self.basis("GM", tc * math.exp(h)) - self.basis("GM", tc * math.exp(-h))) / (2 * h)
             c_tc = float(a[list(comps).index("GM")])
         a = np.asarray(a, dtype=float)
-        out = whittle_pass(a, Bm, D, c_tc, self.X2, self.GX, self.G2, self.w, float(self.n), grad)
+        out = whittle_pass(a, Bm, D, c_tc, self.X2, self.GX, self.G2, self.w, float(self.n), grad, linear)
         if not self.reml or not np.isfinite(out[0]):
             return out
         # restricted likelihood: - 1/2 log of the slope's information, sum_k w_k |G_k|^2 / S_k
@@ -286,7 +313,7 @@ class WhittleFit:
         if grad:
             S = a @ Bm
             t = self.w * self.G2 / (S * S)
-            adj = 0.5 / sgg * (a * (Bm @ t))
+            adj = 0.5 / sgg * ((Bm @ t) if linear else a * (Bm @ t))
             if D.size:
                 adj = np.append(adj, 0.5 / sgg * c_tc * float(D @ t))
             score = score + adj
@@ -296,7 +323,8 @@ class WhittleFit:
         """Profile Whittle log-likelihood at variances ``a`` (normalised units) for ``comps``."""
         return self.evaluate(comps, a, tc)[0]
 
-    def fit(self, comps, a0, tc0=None, lo=None, max_iter=200, fixed=None, tol=1e-6, hold_floor=None):
+    def fit(self, comps, a0, tc0=None, lo=None, max_iter=200, fixed=None, tol=1e-6, hold_floor=None,
+            signed=False):
         """Fisher scoring in u = log a (and log Tc); returns (a, tc, loglik, n_iter, converged, detail).
         ``fixed``: index of a parameter held at its start value (a profile likelihood).
         ``hold_floor`` (default: True when ``fixed`` is given, the fits of :func:`profile_evidence`):
@@ -306,47 +334,61 @@ class WhittleFit:
         both vanish: in log a, a term at its floor that the profile needs to rise (K as B is pushed
         down) takes a huge Newton step that, once the step vector is capped, leaves every parameter
         crawling (890 instead of ~100 scoring steps for the profile bounds of one 20 min record of
-        the 50 Hz ADIS preset). The point fits keep the log-scale steps (their committed numbers)."""
-        linear_scale = fixed is not None if hold_floor is None else bool(hold_floor)
+        the 50 Hz ADIS preset). The point fits keep the log-scale steps (their committed numbers).
+        ``signed``: steps in the variances themselves with no floor: a variance of Q, N, B or K may
+        go below 0 as long as the model spectrum stays positive at every Fourier frequency (a step
+        that leaves that domain is halved; a Gauss-Markov variance keeps its floor, its Tc being
+        undefined at 0). ``detail["info"]`` is then the information in the variances."""
+        linear_scale = signed or (fixed is not None if hold_floor is None else bool(hold_floor))
         comps = list(comps)
         has_gm = "GM" in comps
-        u = np.log(np.asarray(a0, dtype=float))
-        if has_gm:
-            u = np.append(u, math.log(tc0))
-        lo = np.full(u.size, -np.inf) if lo is None else np.asarray(lo, dtype=float)
         p = len(comps)
+        lo = np.full(p + has_gm, -np.inf) if lo is None else np.asarray(lo, dtype=float)
+        if linear_scale:
+            # x = (variances, log Tc); a variance's floor in the variance itself (none if signed)
+            x = np.asarray(a0, dtype=float).copy()
+            xlo = np.exp(lo[:p])
+            if signed:
+                xlo[[c != "GM" for c in comps]] = -np.inf
+            if has_gm:
+                x = np.append(x, math.log(tc0))
+            xlo = np.append(xlo, lo[p:])
+            above_tol = np.where(np.isfinite(xlo), 1e-9 * np.maximum(np.abs(xlo), 1.0), 0.0)
+        else:
+            x = np.log(np.asarray(a0, dtype=float))
+            if has_gm:
+                x = np.append(x, math.log(tc0))
+            xlo = lo
+            above_tol = 1e-9
 
-        def unpack(uu):
-            return np.exp(uu[:p]), (math.exp(uu[p]) if has_gm else None)
+        def unpack(xx):
+            return (xx[:p] if linear_scale else np.exp(xx[:p])), (math.exp(xx[p]) if has_gm else None)
 
-        a, tc = unpack(u)
+        a, tc = unpack(x)
         Bm = self._matrix(comps, tc)
-        ll, beta, sgg, score, info = self.evaluate(comps, a, tc, grad=True, Bm=Bm)
+        ll, beta, sgg, score, info = self.evaluate(comps, a, tc, grad=True, Bm=Bm, linear=linear_scale)
         converged = False
         it = 0
         for it in range(1, max_iter + 1):
-            free = (u > lo + 1e-9) | (score > 0)  # at the floor, only a step upwards frees it
+            above = x > xlo + above_tol
+            free = above | (score > 0)  # at the floor, only a step upwards frees it
             if fixed is not None:
                 free[fixed] = False
             idx = np.flatnonzero(free)
             if idx.size == 0:
                 converged = True
                 break
-            # linear_scale: the variances' step in the variances themselves (d = a), a Tc's in log Tc
-            d = np.ones(u.size)
-            if linear_scale:
-                d[:p] = a
             try:
-                step_f = _newton_step(info / np.outer(d, d), score / d, idx)
+                step_f = _newton_step(info, score, idx)
             except np.linalg.LinAlgError:
                 break
-            decrement = float((score / d)[idx] @ step_f)  # Newton decrement: twice the expected gain
+            decrement = float(score[idx] @ step_f)  # Newton decrement: twice the expected gain
             if not np.isfinite(decrement):
                 break
             if decrement < tol:
                 converged = True
                 break
-            step = np.zeros_like(u)
+            step = np.zeros_like(x)
             step[idx] = step_f
             if not linear_scale:
                 big = np.max(np.abs(step))
@@ -355,36 +397,31 @@ class WhittleFit:
             elif has_gm:
                 step[p] = max(min(step[p], 3.0), -3.0)
             t = 1.0
-            if linear_scale:
+            if linear_scale and not signed:
                 # a variance falls at most tenfold per step (on towards its floor over the next ones)
-                down = (step[:p] < -0.9 * a) & (u[:p] > lo[:p] + 1e-9)
+                down = (step[:p] < -0.9 * a) & above[:p]
                 if np.any(down):
                     t = float(np.min(-0.9 * a[down] / step[:p][down]))
             t0 = t
             for _ in range(40):
-                if linear_scale:
-                    un = u + t * step
-                    un[:p] = np.log(np.maximum(a + t * step[:p], np.exp(lo[:p])))
-                    un = np.maximum(un, lo)
-                else:
-                    un = np.maximum(u + t * step, lo)
-                an, tcn = unpack(un)
+                xn = np.maximum(x + t * step, xlo)
+                an, tcn = unpack(xn)
                 Bn = self._matrix(comps, tcn) if has_gm else Bm
                 # the full step is usually taken: evaluate the score with it
-                trial = self.evaluate(comps, an, tcn, grad=(t == t0), Bm=Bn)
+                trial = self.evaluate(comps, an, tcn, grad=(t == t0), Bm=Bn, linear=linear_scale)
                 if np.isfinite(trial[0]) and trial[0] > ll:
                     break
                 t *= 0.5
             else:
                 converged = decrement < 1e-4  # no ascent left at machine precision
                 break
-            u, Bm = un, Bn
-            a, tc = unpack(u)
+            x, Bm = xn, Bn
+            a, tc = unpack(x)
             if t != t0:
-                trial = self.evaluate(comps, a, tc, grad=True, Bm=Bm)
+                trial = self.evaluate(comps, a, tc, grad=True, Bm=Bm, linear=linear_scale)
             ll, beta, sgg, score, info = trial
-        a, tc = unpack(u)
-        return a, tc, ll, it, converged, {"beta": beta, "sgg": sgg, "info": info}
+        a, tc = unpack(x)
+        return np.array(a, dtype=float), tc, ll, it, converged, {"beta": beta, "sgg": sgg, "info": info}
 
     # -- the trend slope -------------------------------------------------------------------------
     def trend_weights(self, comps, a, tc=None) -> np.ndarray:
@@ -418,12 +455,15 @@ class WhittleFit:
         (:math:`c^T\\Sigma c = -\\sum_{s,t} c_s c_t\\gamma(|s-t|)`); the random walk (increments of
         variance :math:`a_K\\Delta t`) through the reverse cumulative sums of c, which also holds its
         end-point drift. ``a_walk`` overrides the random walk's variance (the ramp test uses the full
-        model's, see :meth:`Whittle._report`)."""
+        model's, see :meth:`Whittle._report`). Variances below 0 (``domain="spectrum"``) count as 0
+        in the covariance (the weights keep the fitted spectrum)."""
         from scipy import fft as sfft
 
         c = self.trend_weights(comps, a, tc)
         n, dt = self.n, self.dt
-        var = {x: float(v) for x, v in zip(comps, a)}
+        # the covariance of the record under the reported model: a variance below 0 (a fit in the
+        # domain of a positive spectrum, which the weights c keep) is the term's absence
+        var = {x: max(float(v), 0.0) for x, v in zip(comps, a)}
         if a_walk is not None:
             var["K"] = float(a_walk)
         m = sfft.next_fast_len(2 * n, real=True)
@@ -495,9 +535,12 @@ def _gm_starts(T, dt, n_starts):
     return np.geomspace(max(20 * dt, T / 2000), T / 4, n_starts)
 
 
-def whittle_fit(wf: WhittleFit, comps, n_starts=4, warm=None, hold_floor=False):
+def whittle_fit(wf: WhittleFit, comps, n_starts=4, warm=None, hold_floor=False, signed=False):
     """Best fit of the spectral terms ``comps`` (names from Q, N, B, K, GM); dict of results
-    (``hold_floor``: :meth:`WhittleFit.fit`'s)."""
+    (``hold_floor``: :meth:`WhittleFit.fit`'s). ``signed``: the maximum over the domain where the
+    model spectrum is positive (variances of Q, N, B, K may be negative), scored from the maximum
+    over non-negative variances (which is found first, as without ``signed``); a term whose variance
+    ends at or below 0 is ``absent``."""
     comps = [c for c in ("Q", "N", "B", "GM", "K") if c in comps]
     T = wf.n * wf.dt
     tcs = _gm_starts(T, wf.dt, n_starts) if "GM" in comps else [None]
@@ -520,9 +563,18 @@ def whittle_fit(wf: WhittleFit, comps, n_starts=4, warm=None, hold_floor=False):
             retry = wf.fit(comps, a1, tc_start, lo, hold_floor=hold_floor)
             if retry[2] > ll:
                 a, tc_hat, ll, it, conv, d = retry
+        floor = _FLOOR * top * 1.0001
+        if signed:
+            s_fit = wf.fit(comps, a, tc_hat, lo, signed=True)
+            if np.isfinite(s_fit[2]) and s_fit[2] >= ll:
+                a, tc_hat, ll, it2, conv, d = s_fit
+                it += it2
+            else:  # no ascent into negative variances: the non-negative maximum, information in a
+                d = dict(d, info=wf.evaluate(comps, a, tc_hat, grad=True, linear=True)[4])
+            floor = np.where([c == "GM" for c in comps], floor, 0.0)
         if best is None or ll > best["loglik"]:
             best = dict(comps=comps, a=a, tc=tc_hat, loglik=ll, n_iter=it, converged=conv, detail=d,
-                        absent=[c for i, c in enumerate(comps) if a[i] <= _FLOOR * top[i] * 1.0001])
+                        absent=[c for i, c in enumerate(comps) if a[i] <= floor[i]], signed=bool(signed))
         if warm is not None:
             break
     return best
@@ -617,11 +669,13 @@ def _chibar2_pvalue(lr: float) -> float:
     return 1.0 if lr <= 0 else 0.5 * float(stats.chi2.sf(lr, 1))
 
 
-def _profile_start(visited, u, slope, lo):
-    """Start of the profile fit at :math:`u_i = u` (all parameters in log units): the other
+def _profile_start(visited, u, slope, lo, log_units=True):
+    """Start of the profile fit at :math:`u_i = u` (the profiled variance in log units): the other
     parameters on the line through the two visited profile points nearest to u (the profile path is
     smooth in u), or, with one point (the full fit), along the full fit's regression ``slope``
-    (:math:`\\mathrm{cov}(u, u_i)/\\mathrm{var}(u_i)`); kept above the floors ``lo``."""
+    (:math:`\\mathrm{cov}(x, u_i)/\\mathrm{var}(u_i)`); kept above the floors ``lo``. The other
+    parameters ``x`` are in log units, or (``log_units=False``, a fit in the signed domain) the
+    variances themselves (and log Tc), without floors."""
     near = sorted(visited, key=lambda v: abs(v[0] - u))[:2]
     u1, x1 = near[0]
     if len(near) == 2 and abs(near[1][0] - u1) > 1e-12:
@@ -631,6 +685,8 @@ def _profile_start(visited, u, slope, lo):
         x = x1 + slope * (u - u1)
     else:
         x = x1.copy()
+    if not log_units:
+        return x
     # a step of at most 1 log unit per parameter from the nearest point; a parameter at its floor
     # there stays (the predicted path of an absent term is not informative)
     x = np.clip(x, x1 - 1.0, x1 + 1.0)
@@ -665,60 +721,93 @@ def profile_evidence(wf: WhittleFit, full: dict, level: float = 0.95, tol: float
 
     q = float(stats.chi2.ppf(level, 1))
     comps = list(full["comps"])
+    p = len(comps)
+    has_gm = "GM" in comps
+    signed = bool(full.get("signed"))
     _, top = wf.start(comps, full["tc"])
     lo = np.log(_FLOOR * top)
-    if "GM" in comps:
+    if has_gm:
         lo = np.append(lo, math.log(wf.dt))
     best = [float(full["loglik"])]
     out = {}
     try:
-        cov = np.linalg.inv(full["detail"]["info"])
+        cov = np.linalg.inv(full["detail"]["info"])  # in log-variances, or (signed) the variances
     except np.linalg.LinAlgError:
         cov = None
+
+    def to_x(a, tc):
+        """The fit's coordinates: log-variances, or (signed) the variances; then log Tc."""
+        a = np.asarray(a, dtype=float)
+        x = a.copy() if signed else np.log(a)
+        return np.append(x, math.log(tc)) if tc is not None else x
+
+    a_full = np.asarray(full["a"], dtype=float)
+    x_full = to_x(a_full, full["tc"])
     for i, c in enumerate(comps):
-        a_hat = float(full["a"][i])
+        a_hat = float(a_full[i])
         absent = c in full["absent"]
+        # the signed domain's estimate at or below 0: the profile's maximum over a >= 0 is at 0
+        at_zero = signed and absent
         # the fit without c: the boundary point of the profile
         sub = [x for x in comps if x != c]
+        sub_fit = None
         if any(x in sub for x in ("N", "Q", "K", "B", "GM")):
             warm = {x: full["a"][comps.index(x)] for x in sub}
             warm["tc"] = full["tc"]
-            ll0 = whittle_fit(wf, sub, 1, warm=warm, hold_floor=True)["loglik"]
+            sub_fit = whittle_fit(wf, sub, 1, warm=warm, hold_floor=True, signed=signed)
+            ll0 = sub_fit["loglik"]
         else:
             ll0 = -np.inf
         best[0] = max(best[0], ll0)
-        u_hat = math.log(a_hat)
-        su = math.sqrt(cov[i, i]) if cov is not None and cov[i, i] > 0 else 1.0
+        a_floor = _FLOOR * float(top[i])
+        u_hat = math.log(max(a_hat, a_floor))
+        # Wald std of log a_i and the regression of the other coordinates on it (signed: the
+        # information is in the variances, d log a_i = da_i / a_i)
+        su = 1.0
+        slope = None
+        to_log = 1.0 if not signed else (a_hat if a_hat > 0 else math.nan)
+        if cov is not None and cov[i, i] > 0 and np.isfinite(to_log):
+            su = math.sqrt(cov[i, i]) / to_log
+            if np.all(np.isfinite(cov[:, i])):
+                slope = cov[:, i] / cov[i, i] * to_log
         su = min(max(su, 0.05), 5.0)
-        u_full = np.log(np.asarray(full["a"], dtype=float))
-        if full["tc"] is not None:
-            u_full = np.append(u_full, math.log(full["tc"]))
         # the profile path of the other parameters: the full fit's regression on u_i to start with,
         # then the line through the two nearest profile points already fitted (_profile_start)
-        slope = None
-        if cov is not None and cov[i, i] > 0 and np.all(np.isfinite(cov[:, i])):
-            slope = cov[:, i] / cov[i, i]
-        visited = [(u_hat, u_full)]
+        if at_zero and sub_fit is not None and np.isfinite(ll0):
+            a0 = np.insert(np.asarray(sub_fit["a"], dtype=float), i, a_floor)
+            visited = [(u_hat, to_x(a0, sub_fit["tc"] if has_gm else None))]
+        else:
+            visited = [(u_hat, x_full)]
 
         def prof(u, i=i, slope=slope, visited=visited):
-            u0 = _profile_start(visited, u, slope, lo)
-            u0[i] = u
-            a0 = np.exp(u0[: len(comps)])
-            tc0 = math.exp(u0[-1]) if "GM" in comps else None
+            x0 = _profile_start(visited, u, slope, lo, log_units=not signed)
+            x0[i] = math.exp(u) if signed else u
+            a0 = x0[:p] if signed else np.exp(x0[:p])
+            tc0 = math.exp(x0[-1]) if has_gm else None
+            if signed and not np.isfinite(wf.loglik(comps, a0, tc0)):
+                # the predicted start leaves the domain of a positive spectrum: the nearest point
+                # fitted, then that point without its negative variances (always inside)
+                near = min(visited, key=lambda v: abs(v[0] - u))[1].copy()
+                near[i] = math.exp(u)
+                a0 = near[:p]
+                if not np.isfinite(wf.loglik(comps, a0, tc0)):
+                    a0 = np.maximum(a0, 0.0)
             lo_i = lo.copy()
             lo_i[i] = -np.inf
-            r = wf.fit(comps, a0, tc0, lo_i, fixed=i, tol=1e-4)
+            r = wf.fit(comps, a0, tc0, lo_i, fixed=i, tol=1e-4, signed=signed)
             if np.isfinite(r[2]):
-                uu = np.log(np.asarray(r[0], dtype=float))
-                if r[1] is not None:
-                    uu = np.append(uu, math.log(r[1]))
-                visited.append((u, uu))
+                visited.append((u, to_x(r[0], r[1])))
                 best[0] = max(best[0], float(r[2]))
             return float(r[2])
 
         sq = math.sqrt(q)
+        own = [ll0]  # at_zero: the highest profile value over a >= 0 seen (at or next to 0)
 
-        def r_of(u):
+        def r_of(u, at_zero=at_zero, own=own):
+            if at_zero:
+                v = prof(u)
+                own[0] = max(own[0], v)
+                return math.sqrt(max(2 * (own[0] - v), 0.0)) - sq
             return math.sqrt(max(2 * (best[0] - prof(u)), 0.0)) - sq
 
         def root(u_in, direction):
@@ -762,8 +851,8 @@ def profile_evidence(wf: WhittleFit, full: dict, level: float = 0.95, tol: float
             return 0.5 * (u_in + u_out)
 
         upper = math.exp(root(u_hat, +1))
-        lr = max(2 * (best[0] - ll0), 0.0)
-        if absent or 2 * (best[0] - ll0) <= q:
+        lr = 0.0 if at_zero else max(2 * (best[0] - ll0), 0.0)
+        if absent or lr <= q:
             lower = 0.0
         else:
             lower = math.exp(root(u_hat, -1))
@@ -816,6 +905,10 @@ class Whittle(Estimator):
         Selection rule: BIC (default) or the 5 % likelihood-ratio test with the chi-bar-squared null.
     n_starts : int
         Starting values of Tc tried for a Gauss-Markov term.
+    domain : {"nonnegative", "spectrum"}
+        Where the variances are maximised: each >= 0 (default), or wherever the model spectrum is
+        positive at every Fourier frequency (Q, N, B, K may go below 0; reported truncated at 0, their
+        intervals on [0, inf)); see the module docstring, "Domain of the variances".
     reml : bool
         Maximise the restricted (residual) likelihood: the profile likelihood minus
         :math:`\\tfrac12\\log\\sum_k w_k|G_k|^2/S_k`, the log of the trend slope's information
@@ -851,7 +944,7 @@ class Whittle(Estimator):
     diagnostic_units = {"beta": 1}
 
     def __init__(self, *, terms="QNBKR", bias="flicker", select=True, criterion="bic", n_starts=4, reml=False,
-                 spectrum="plain", intervals="wald"):
+                 spectrum="plain", intervals="wald", domain="nonnegative"):
         self.terms = terms
         self.bias = bias
         self.select = select
@@ -860,6 +953,7 @@ class Whittle(Estimator):
         self.reml = reml
         self.spectrum = spectrum
         self.intervals = intervals
+        self.domain = domain
 
     def check_settings(self):
         """Raise ValueError naming the first bad setting (no data needed; fit calls it, and study
@@ -875,6 +969,8 @@ class Whittle(Estimator):
             raise ValueError(f"spectrum: expected 'plain' or 'debiased', got {self.spectrum!r}")
         if self.intervals not in ("wald", "profile"):
             raise ValueError(f"intervals: expected 'wald' or 'profile', got {self.intervals!r}")
+        if self.domain not in ("nonnegative", "spectrum"):
+            raise ValueError(f"domain: expected 'nonnegative' or 'spectrum', got {self.domain!r}")
         if self.criterion not in _PENALTY:
             raise ValueError(f"criterion: expected 'bic' or 'lr', got {self.criterion!r}")
         if isinstance(self.n_starts, bool) or not isinstance(self.n_starts, (int, np.integer)) or self.n_starts < 1:
@@ -886,6 +982,7 @@ class Whittle(Estimator):
     def _fit(self, rate, dt):
         terms = self.check_settings()
         wf = WhittleFit(rate, dt, reml=self.reml, debiased=self.spectrum == "debiased")
+        signed = self.domain == "spectrum"
         n = rate.size
         pen = _PENALTY[self.criterion](n)
 
@@ -902,7 +999,8 @@ class Whittle(Estimator):
         fulls = {}
         for shape in shapes:
             bname = "GM" if shape == "gauss_markov" else "B"
-            fulls[shape] = whittle_fit(wf, [bname if c == "B" else c for c in terms if c != "R"], self.n_starts)
+            fulls[shape] = whittle_fit(wf, [bname if c == "B" else c for c in terms if c != "R"], self.n_starts,
+                                       signed=signed)
         shape = min(fulls, key=lambda sh: bic(fulls[sh]))
         full = fulls[shape]
         fits = {tuple(full["comps"]): full}
@@ -920,7 +1018,7 @@ class Whittle(Estimator):
                     if key not in fits:
                         warm = {x: cur["a"][cur["comps"].index(x)] for x in sub}
                         warm["tc"] = cur["tc"]
-                        fits[key] = whittle_fit(wf, sub, self.n_starts, warm=warm)
+                        fits[key] = whittle_fit(wf, sub, self.n_starts, warm=warm, signed=signed)
                     cands.append(fits[key])
                 if not cands:
                     break
@@ -1081,10 +1179,13 @@ class WhittleDebiased(Whittle):
     intervals: :class:`Whittle` with ``spectrum="debiased"`` (Sykulski et al. 2019, Biometrika
     106(2): the expected periodogram of the record replaces the spectrum), ``select=False`` and
     ``intervals="profile"`` (each term's interval on [0, inf) and its evidence, the likelihood ratio
-    of dropping it with its chi-bar-squared p-value, in ``diagnostics_["evidence"]``). Every setting of
+    of dropping it with its chi-bar-squared p-value, in ``diagnostics_["evidence"]``) and
+    ``domain="spectrum"`` (the maximum over variances that may go below 0 while the expected
+    periodogram stays positive, each reported truncated at 0: no half-normal trade between a term on
+    its boundary and its neighbour; module docstring, "Domain of the variances"). Every setting of
     :class:`Whittle` applies; only the defaults differ."""
 
     def __init__(self, *, terms="QNBKR", bias="flicker", select=False, criterion="bic", n_starts=4, reml=False,
-                 spectrum="debiased", intervals="profile"):
+                 spectrum="debiased", intervals="profile", domain="spectrum"):
         super().__init__(terms=terms, bias=bias, select=select, criterion=criterion, n_starts=n_starts,
-                         reml=reml, spectrum=spectrum, intervals=intervals)
+                         reml=reml, spectrum=spectrum, intervals=intervals, domain=domain)
