@@ -19,6 +19,7 @@ replicate is recorded in the tidy table (column ``failure``) and the study goes 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import sys
@@ -79,6 +80,36 @@ class Task:
     @property
     def shard_name(self) -> str:
         return f"g{self.gyro_index:02d}_r{self.start:06d}-{self.stop:06d}.parquet"
+
+
+#: the modules whose code computes a study's rows: shards computed by other code are not resumed
+_CODE_PACKAGES = ("avbench.noise_models", "avbench.estimators")
+_CODE_MODULES = ("avbench.studies.runner", "avbench.studies.config", "avbench.studies.seeding")
+
+
+def code_key() -> str:
+    """Hash of the source of every module that computes a study's rows (the simulators, the
+    estimators, this runner, the config and the seeding). Shards live under
+    ``_shards/<config key>-<code key>/``: a study resumed after the code changed starts afresh
+    instead of mixing blocks of two versions (the config key alone cannot see that)."""
+    import importlib
+
+    h = hashlib.sha256()
+    files = []
+    for name in _CODE_PACKAGES:
+        root = Path(importlib.import_module(name).__file__).parent
+        files += [(f"{name}/{q.relative_to(root).as_posix()}", q) for q in root.rglob("*.py")]
+    for name in _CODE_MODULES:
+        files.append((name, Path(importlib.import_module(name).__file__)))
+    for label, path in sorted(files):
+        h.update(label.encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def shard_folder(out, cfg: StudyConfig) -> Path:
+    """Where the blocks of ``cfg`` computed by this code are saved under the output folder ``out``."""
+    return Path(out) / "_shards" / f"{cfg.result_key()}-{code_key()}"
 
 
 def tasks_of(cfg: StudyConfig) -> list[Task]:
@@ -319,7 +350,8 @@ def run_study(
 ) -> pd.DataFrame:
     """Run (or resume) a study; write the tidy table, tables and figures; return the tidy table.
 
-    Blocks already saved under ``<out>/_shards/<result key>/`` are not recomputed. ``backend``
+    Blocks already saved by the same code under ``<out>/_shards/<result key>-<code key>/``
+    (:func:`shard_folder`) are not recomputed. ``backend``
     "loky" runs ``n_jobs`` local processes (1: in this process); "dask" runs on the scheduler at
     ``scheduler`` (``tcp://host:port``), or on a local cluster of ``n_jobs`` worker processes.
     A worker that dies is replaced and its blocks retried up to ``max_retries`` times; then
@@ -327,7 +359,7 @@ def run_study(
     """
     n_jobs, backend, scheduler = resolve_execution(cfg, n_jobs, backend, scheduler)
     out = Path(out) if out is not None else Path("results") / cfg.name
-    shard_dir = out / "_shards" / cfg.result_key()
+    shard_dir = shard_folder(out, cfg)
     shard_dir.mkdir(parents=True, exist_ok=True)
     _remove_stale_tmp(shard_dir)
     about = shard_dir / "config.json"

@@ -18,6 +18,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from avbench.studies.runner import shard_folder
+
 from conftest import STUDY_COLS as COLS
 from conftest import study_toml
 from avbench.estimators.base import Estimator, register
@@ -194,7 +196,7 @@ def test_worker_death_every_time_is_reported_clearly(tmp_path, capsys):
     for g, r in sorted(dying)[:3]:
         assert f"{g} replicates {r}-{r}" in msg
     assert "attempt 2 of 2" in capsys.readouterr().err
-    shard_dir = tmp_path / "out" / "_shards" / cfg.result_key()
+    shard_dir = shard_folder(tmp_path / "out", cfg)
     saved = {p.name for p in shard_dir.glob("*.parquet")}
     for g in range(2):
         for r in range(4):
@@ -262,7 +264,7 @@ def test_shards_are_written_atomically(tmp_path, monkeypatch):
 def test_collect_rejects_a_shard_that_does_not_match_its_block(tmp_path):
     cfg = load_config(write(tmp_path, study_toml()))
     run_study(cfg, tmp_path / "out", progress=False, make_report=False)
-    shard_dir = tmp_path / "out" / "_shards" / cfg.result_key()
+    shard_dir = shard_folder(tmp_path / "out", cfg)
     tasks = tasks_of(cfg)
     wrong = pd.read_parquet(shard_dir / tasks[1].shard_name)
     wrong.to_parquet(shard_dir / tasks[0].shard_name, index=False)

@@ -15,6 +15,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from avbench.studies.runner import shard_folder
+
 import avbench.studies.runner as runner
 from conftest import STUDY_COLS as COLS
 from avbench.studies.config import load_config
@@ -76,7 +78,7 @@ def test_rerun_computes_only_missing_blocks(tmp_path, count_blocks):
     cfg = cfg_of(tmp_path, toml())
     full = run_study(cfg, tmp_path / "out", progress=False, make_report=False)
     assert len(count_blocks) == 3
-    shard_dir = tmp_path / "out" / "_shards" / cfg.result_key()
+    shard_dir = shard_folder(tmp_path / "out", cfg)
     kept = {p.name: p.stat().st_mtime_ns for p in shard_dir.glob("*.parquet")}
     (shard_dir / tasks_of(cfg)[1].shard_name).unlink()
     del kept[tasks_of(cfg)[1].shard_name]
@@ -102,13 +104,32 @@ def test_more_replicates_reuse_finished_blocks(tmp_path, count_blocks):
     pd.testing.assert_frame_equal(t10[COLS], fresh[COLS])
 
 
+def test_changed_code_gets_its_own_shards(tmp_path, count_blocks, monkeypatch):
+    """Blocks computed by other code are not resumed (the config key cannot see a change of an
+    estimator): the shard folder carries the hash of the code that computes the rows."""
+    cfg = cfg_of(tmp_path, toml())
+    run_study(cfg, tmp_path / "out", progress=False, make_report=False)
+    assert len(count_blocks) == 3
+    run_study(cfg, tmp_path / "out", progress=False, make_report=False)
+    assert len(count_blocks) == 3  # same code: resumed, nothing computed
+    monkeypatch.setattr(runner, "code_key", lambda: "other-code")
+    run_study(cfg, tmp_path / "out", progress=False, make_report=False)
+    assert len(count_blocks) == 6  # other code: computed afresh, in its own folder
+    assert len(list((tmp_path / "out" / "_shards").iterdir())) == 2
+
+
+def test_code_key_reads_the_estimators_source():
+    key = runner.code_key()
+    assert len(key) == 12 and key == runner.code_key()
+
+
 def test_changed_config_gets_its_own_shards(tmp_path, count_blocks):
     """Seed, settings, gyros, record length: a new hash and folder, never a mix; the replicate
     count, block size, backend and description do not change what a block holds."""
     base = cfg_of(tmp_path, toml())
     t0 = run_study(base, tmp_path / "out", progress=False, make_report=False)
     shards = tmp_path / "out" / "_shards"
-    before = {p.name: p.stat().st_mtime_ns for p in (shards / base.result_key()).iterdir()}
+    before = {p.name: p.stat().st_mtime_ns for p in (shard_folder(tmp_path / "out", base)).iterdir()}
     keys = {base.result_key()}
     for change in (dict(seed=4), dict(wls_terms="QN"), dict(n_samples=4096)):
         count_blocks.clear()
@@ -118,18 +139,18 @@ def test_changed_config_gets_its_own_shards(tmp_path, count_blocks):
         t = run_study(cfg, tmp_path / "out", progress=False, make_report=False)
         assert len(count_blocks) == 3  # all recomputed
         assert not t[COLS].equals(t0[COLS])
-    assert {p.name for p in shards.iterdir()} == keys
-    assert {p.name: p.stat().st_mtime_ns for p in (shards / base.result_key()).iterdir()} == before
+    assert {p.name.rsplit("-", 1)[0] for p in shards.iterdir()} == keys
+    assert {p.name: p.stat().st_mtime_ns for p in (shard_folder(tmp_path / "out", base)).iterdir()} == before
     for same in (dict(description="other words"),):
         assert cfg_of(tmp_path, toml(**same)).result_key() == base.result_key()
     assert cfg_of(tmp_path, toml(), backend="dask").result_key() == base.result_key()
     # a config.json beside the shards says which config they belong to
-    assert '"seed": 3' in (shards / base.result_key() / "config.json").read_text()
+    assert '"seed": 3' in (shard_folder(tmp_path / "out", base) / "config.json").read_text()
 
 
 def test_stale_temporary_files_are_cleaned(tmp_path):
     cfg = cfg_of(tmp_path, toml())
-    shard_dir = tmp_path / "out" / "_shards" / cfg.result_key()
+    shard_dir = shard_folder(tmp_path / "out", cfg)
     shard_dir.mkdir(parents=True)
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
     stale = shard_dir / f".g00_r000000-000002.parquet.{int(dead.stdout)}-1-abcdef12.tmp"
@@ -178,7 +199,7 @@ def test_killed_study_resumes_to_the_uninterrupted_result(tmp_path):
     config.write_text(text)
     cfg = load_config(config)
     out = tmp_path / "out"
-    shard_dir = out / "_shards" / cfg.result_key()
+    shard_dir = shard_folder(out, cfg)
     tasks = tasks_of(cfg)
 
     proc = _cli(out, config)
@@ -257,7 +278,7 @@ def test_stopped_parent_leaves_no_workers(tmp_path, sig):
     config = tmp_path / "study.toml"
     config.write_text(toml(seed=5, replicates=40, block_size=1, n_samples=200_000))
     out = tmp_path / "out"
-    shard_dir = out / "_shards" / load_config(config).result_key()
+    shard_dir = shard_folder(out, load_config(config))
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen(
         [sys.executable, "-m", "avbench.cli", "run", str(config), "--out", str(out), "--no-progress", "--jobs", "2"],
