@@ -51,11 +51,11 @@ ROOT = Path(__file__).resolve().parents[1]
 FAST = ["lv2015"]
 SLOW = ["lv2015_grids", "online_sensitivity", "miao2014_adis16405", "miao2015_adis16405", "miao2015_fog",
         "miao2015_existing", "grand_comparison", "coverage", "coverage_true_terms", "model_selection_30min",
-        "model_selection_2h", "model_selection_8h", "grand_comparison_2h", "grand_comparison_24h", "hadamard_twins",
+        "model_selection_2h", "model_selection_8h", "grand_comparison_2h", "grand_comparison_24h", "hadamard_twins", "coverage_defaults",
         "random_gyros"]
 #: configured studies whose full runs (CPU-hours on 2 cores) are not committed yet: each is skipped,
 #: saying so, until results/<study>/meta.json exists; then it joins SLOW
-PENDING: list[str] = ["coverage_defaults"]
+PENDING: list[str] = []
 
 
 def _numpy_wider_than_avx2() -> str:
