@@ -63,8 +63,10 @@ with the analytic Jacobian of the model's exact AV (:class:`_LatentAV`; issue 25
 ~80 % of the cost, whose truncation error stopped some fits short of the minimum: on replicate 0 of
 grand_comparison the criterion J, each fit with its own second-step weights, fell from 83.10 to 81.60 on SRS2000
 and from 23.48 to 23.18 on ADIS16405_Z, and a white + random-walk record's K, left at its floor before, is found),
-and ``ftol=1e-12``: a coefficient the data cannot resolve lies along a flat direction of the criterion, and with
-the cost's own stopping rule at 1e-10 its end point moved by 4e-7 between units of the same record.
+and solved to the optimum (:func:`_solve`, tolerances 1e-15): a coefficient the data cannot resolve lies along a
+flat direction of the criterion, and with stopping rules at 1e-10 its end point moved between units of the same
+record by more than round-off moves it (~1.2x the CPU of the 1e-10 rules: 4 presets x 3 records x gmwm and
+gmwm_filtered, 7.3 vs 6.1 CPU-s, no fit ending at max_nfev).
 """
 
 from __future__ import annotations
@@ -546,7 +548,7 @@ def _solve(fun, u0, lo, hi, jac):
     stopped where the last bits of the record decided (ADIS16405_X, 2^14 samples: the criterion J
     differed by 1.4e-7 relative between units of the same record, B by 1.5e-5, against 2.4e-7 under
     round-off of the input); at 1e-15 J agrees to 4e-9 and B to 1e-7 in every unit, as under round-off
-    (tests/test_equivariance.py's registry sweep), at the cost of a few more iterations."""
+    (tests/test_equivariance.py's registry sweep), for ~1.2x the CPU (module docstring)."""
     return least_squares(fun, np.clip(u0, lo + 1e-9, hi - 1e-9), jac=jac, bounds=(lo, hi), method="trf",
                          x_scale=1.0, xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=2000)
 
