@@ -623,3 +623,150 @@ def total_window_sums_numpy(v, m, phase):
     win = np.lib.stride_tricks.sliding_window_view(np.asarray(v, dtype=float), W)
     q = win @ C.T
     return float(np.sum(q * q) / (6.0 * m))
+
+
+# -- equivalent degrees of freedom (``deviations.edf_quadratic``) ------------------------------------------------
+#: noise types of the edf's generalized phase covariance G (``deviations._canonical_gcov``)
+WHITE_PM, WHITE_FM, FLICKER_FM, RW_FM = 0, 1, 2, 3
+#: the one phase filter of the single-filter statistics: second difference (oavar, totvar), third difference
+#: (ohvar, hvar), the modified AV's box(m) * second difference (mvar, tvar)
+SECOND_DIFF, THIRD_DIFF, MODIFIED = 0, 1, 2
+
+
+@njit(cache=True)
+def _gcov(noise, d):
+    """The canonical power-law phase generalized covariance G(d) (``deviations._canonical_gcov``); exact
+    (integers or halves) but for flicker FM."""
+    a = float(abs(d))
+    if noise == WHITE_PM:
+        return 1.0 if a == 0.0 else 0.0
+    if noise == WHITE_FM:
+        return -a / 2
+    if noise == FLICKER_FM:
+        return a * a * np.log(a) if a > 0.0 else 0.0
+    return (a * a * a - a) / 12
+
+
+@njit(cache=True)
+def filter_acf(shape, m):
+    """A(d), d = 0..span, the exact (integer) autocorrelation of the one phase filter of ``shape`` at m:
+    (1, -2, 1) at (0, m, 2m) -> 6, -4, 1 at 0, m, 2m; (-1, 3, -3, 1) at (0, m, 2m, 3m) -> 20, -15, 6, -1;
+    the modified AV's filter, sum_s a_s T(d - s m), a = {0: 6, +-1: -4, +-2: 1}, T(u) = max(m - |u|, 0)
+    (``noise_models.exact_variances.mvar_filter_acf``)."""
+    if shape == SECOND_DIFF:
+        A = np.zeros(2 * m + 1)
+        A[0] = 6.0
+        A[m] = -4.0
+        A[2 * m] = 1.0
+        return A
+    if shape == THIRD_DIFF:
+        A = np.zeros(3 * m + 1)
+        A[0] = 20.0
+        A[m] = -15.0
+        A[2 * m] = 6.0
+        A[3 * m] = -1.0
+        return A
+    A = np.zeros(3 * m + 1)
+    for s in range(-2, 3):
+        a = 6.0 if s == 0 else (-4.0 if abs(s) == 1 else 1.0)
+        lo = max(0, s * m - m + 1)
+        hi = min(3 * m, s * m + m - 1)
+        for d in range(lo, hi + 1):
+            A[d] += a * (m - abs(d - s * m))
+    return A
+
+
+@njit(cache=True)
+def rho_squares_single(shape, m, noise, kmax):
+    """(E[V] = rho(0), rho(k)^2 for k = 0..kmax) of one filter: rho(k) = sum_{|d| <= span} A(|d|) G(k + d).
+
+    Only the filter's nonzero lags are visited (every m-th for the difference filters). For white PM
+    rho = A; for white FM and random-walk FM every product and partial sum is an exact integer or half
+    (|rho| far below 2^53), so rho does not depend on the order of summation.
+    """
+    A = filter_acf(shape, m)
+    span = A.size - 1
+    nz = np.empty(2 * span + 1, dtype=np.int64)  # the lags d with A(|d|) != 0
+    c = 0
+    for d in range(-span, span + 1):
+        if A[abs(d)] != 0.0:
+            nz[c] = d
+            c += 1
+    T = np.zeros(kmax + 1)
+    rho0 = 0.0
+    if noise == WHITE_PM:
+        for k in range(min(kmax, span) + 1):
+            T[k] = A[k] * A[k]
+        return A[0], T
+    # G once on the lags -span..kmax+span
+    G = np.empty(kmax + 2 * span + 1)
+    for i in range(G.size):
+        G[i] = _gcov(noise, i - span)
+    Gr = G[::-1].copy()  # G backwards: both sides of a dense filter are forward slices
+    for k in range(kmax + 1):
+        if shape == MODIFIED:  # a dense filter: SIMD over its lags
+            r = _rho_dense(A, G, Gr, k + span)
+        else:
+            r = 0.0
+            for j in range(c):
+                d = nz[j]
+                r += A[abs(d)] * G[k + d + span]
+        if k == 0:
+            rho0 = r
+        T[k] = r * r
+    return rho0, T
+
+
+@njit(cache=True, fastmath=_FM)
+def _rho_dense(A, G, Gr, c):
+    """A(0) G[c] + sum_{d >= 1} A(d) (G[c + d] + G[c - d]), Gr = G backwards (not inlined at Numba's IR
+    level, which would drop its fastmath flags: the caller's sums must stay in order)."""
+    span = A.size - 1
+    hi = G[c + 1 : c + span + 1]
+    r0 = G.size - c  # Gr[r0 + d - 1] = G[c - d]
+    lo = Gr[r0 : r0 + span]
+    a = A[1:]
+    r = 0.0
+    for d in range(span):
+        r += a[d] * (hi[d] + lo[d])
+    return A[0] * G[c] + r
+
+
+@njit(cache=True)
+def edf_from_rho_squares(E, T, K):
+    """2 E^2 / Var V with Var V = (2/K^2) (K T_0 + 2 sum_{k=1}^{min(K-1, kmax)} (K - k) T_k), at least 1;
+    K if Var V is not positive (the quadratic form's edf, ``deviations.edf_quadratic``); 1 for K < 1."""
+    if K < 1:
+        return 1.0
+    kk = min(K - 1, T.size - 1)
+    s = 0.0
+    for k in range(1, kk + 1):
+        s += (K - k) * T[k]
+    var = 2.0 / (K * K) * (K * T[0] + 2 * s)
+    if not (var > 0):
+        return float(K)
+    return max(2 * E * E / var, 1.0)
+
+
+@njit(cache=True)
+def edf_single_filter(shape, m, K, noise, order, span_factor):
+    """The edf of each (m[j], K[j], noise[j]) of a single-filter statistic (``deviations.edf_quadratic``,
+    after its m' scaling), visited in ``order`` (sorted by (m, noise): rho is computed once per run of equal
+    keys). ``span_factor``: the filter's span in units of m (2 or 3); flicker FM's rho is summed to 8 spans + 50."""
+    out = np.empty(m.size)
+    last_m = -1
+    last_noise = -1
+    E = 0.0
+    T = np.zeros(1)
+    for j in order:
+        if K[j] < 1:
+            out[j] = 1.0
+            continue
+        if m[j] != last_m or noise[j] != last_noise:
+            span = span_factor * m[j]
+            kmax = 8 * span + 50 if noise[j] == FLICKER_FM else span
+            E, T = rho_squares_single(shape, m[j], noise[j], kmax)
+            last_m = m[j]
+            last_noise = noise[j]
+        out[j] = edf_from_rho_squares(E, T, K[j])
+    return out
