@@ -486,14 +486,14 @@ def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
     assert "theobr" in capsys.readouterr().err and not (tmp_path / "o2" / "long_deviations.csv").exists()
 
 
-@pytest.mark.parametrize("n", [16, 17, 31, 1200, 1201, 4099, 4096 * 3 + 5, 70001])
+@pytest.mark.parametrize("n", [16, 17, 31, 1200, 1201, 4095, 4096, 4099, 8191, 4096 * 3 + 5, 70001, 2**17 + 6, 2**19 + 3])
 def test_hvar_octave_block_sums_equal_the_decimated_references(n):
     """The block-sum pass (blocks of 2m from pairs of blocks of m) against SP1065 eq. 18 on the decimated
     phase and the non-overlapping AV's sum of squared differences of adjacent cluster sums."""
     w = np.random.default_rng(n).standard_normal(n) + 3.0
     x, _, _ = phase_of(w, 1.0)
     levels = (n // 3).bit_length()
-    buf = np.full(n, np.nan)  # the work array's contents must not matter
+    buf = np.full(K.hvar_octave_buffer_size(n), np.nan)  # the work array's contents must not matter
     h, a, total = K.hvar_octave_sums(w, levels, buf)
     assert total == pytest.approx(float(np.sum(w)), rel=1e-12)
     for lev in range(levels):

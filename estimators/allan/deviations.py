@@ -442,7 +442,7 @@ def deviation(
     # the phase in units of dt (tau^2 -> m^2 below), except for hvar on octave m (block sums of the rate)
     levels = _octave_levels(m) if kind == "hvar" else 0
     if levels:
-        h, a, total = _k.hvar_octave_sums(rate, levels, _cumsum_buffer(n // 2 + 1))
+        h, a, total = _k.hvar_octave_sums(rate, levels, _cumsum_buffer(_k.hvar_octave_buffer_size(n)))
         if not math.isfinite(total):  # a non-finite sample (the full check names it) or an overflowed sum
             levels = 0
     if mean is None and not levels:
