@@ -500,6 +500,10 @@ def deviation(
         # that is a multiple of m/2: an unbiased AV with about twice the non-overlapping AV's terms)
         count = _k.hvar_octave_av_terms(n, levels)[np.log2(m).astype(np.int64)]
         kinds = list(_noise_from_slope(mf * dt, av_sums / (2.0 * mf * mf * count), n // m))
+    elif noise == "auto" and av_sums is not None and kind not in ("theo1", "theobr") and m[-1] <= n // 2:
+        # the AV at every m came with the statistic's sums: the type per m from its slope directly (what
+        # ``_noise_kinds`` gives for these m, without its table)
+        kinds = list(_noise_from_slope(mf * dt, av_sums / (2.0 * mf * mf * (n - 2 * mf + 1)), n // m))
     elif noise == "auto":
         m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
         table = _noise_kinds(x, dt, m_av, n, None if av_sums is None else dict(zip(m.tolist(), av_sums)))
