@@ -470,17 +470,42 @@ def mvar_sums_box_octaves(x, levels, block=BLOCK_MVAR_BOX):
         for t in range(levels):
             m = 1 << t
             z = buf[t % 2]
-            nj = min(block, N - 3 * m + 1 - b0)  # v_j for j in [b0, b0 + nj)
-            if nj > 0:
-                out[t] += _ssq_second(z[2 * m : 2 * m + nj], z[m : m + nj], z[:nj])
-            na = min(block, N - 2 * m - b0)  # the AV's j in [b0, b0 + na)
-            if na > 0:
-                av[t] += _ssq_second(x[b0 + 2 * m : b0 + 2 * m + na], x[b0 + m : b0 + m + na], x[b0 : b0 + na])
-            if t + 1 < levels and cur > m:
-                nxt = cur - m
-                _pair_into(buf[(t + 1) % 2, :nxt], z[:nxt], z[m : m + nxt])
+            zn = buf[(t + 1) % 2]
+            nj = max(min(block, N - 3 * m + 1 - b0), 0)  # v_j for j in [b0, b0 + nj)
+            na = max(min(block, N - 2 * m - b0), 0)  # the AV's j in [b0, b0 + na)
+            nxt = cur - m if t + 1 < levels and cur > m else 0  # the next level's boxes
+            c = min(nj, na, nxt)  # the three in one pass, then each one's rest
+            if c > 0:
+                sv, sa = _box_level(zn[:c], z[:c], z[m : m + c], z[2 * m : 2 * m + c],
+                                    x[b0 : b0 + c], x[b0 + m : b0 + m + c], x[b0 + 2 * m : b0 + 2 * m + c])
+                out[t] += sv
+                av[t] += sa
+            if nj > c:
+                out[t] += _ssq_second(z[2 * m + c : 2 * m + nj], z[m + c : m + nj], z[c:nj])
+            if na > c:
+                av[t] += _ssq_second(x[b0 + 2 * m + c : b0 + 2 * m + na], x[b0 + m + c : b0 + m + na], x[b0 + c : b0 + na])
+            if nxt > 0:
+                if nxt > c:
+                    _pair_into(zn[c:nxt], z[c:nxt], z[m + c : m + nxt])
                 cur = nxt
     return out, av
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _box_level(out, z0, z1, z2, x0, x1, x2):
+    """One pass over a level of ``mvar_sums_box_octaves``: out = z0 + z1 (the next level's boxes), and
+    (sum (z2 - 2 z1 + z0)^2, sum (x2 - 2 x1 + x0)^2) (the modified AV's and the AV's terms)."""
+    sv = 0.0
+    sa = 0.0
+    for k in range(out.size):
+        a = z0[k]
+        b = z1[k]
+        out[k] = a + b
+        v = z2[k] - 2.0 * b + a
+        sv += v * v
+        y = x2[k] - 2.0 * x1[k] + x0[k]
+        sa += y * y
+    return sv, sa
 
 
 @njit(cache=True, fastmath=_FM, inline="always")
