@@ -21,15 +21,28 @@ Performance notes (``python -m avbench.bench --only Deviations``; serial, no thr
   box-sum passes (one memory pass per octave) took 21 ms for the modified AV alone and the AV pass 5 ms more;
 * for octave m up to ``MVAR_BOX_MAX`` the modified AV is instead summed from box sums of the phase
   built level by level inside each block (the box of 2m is two boxes of m; ``mvar_sums_box_octaves``):
-  three SIMD passes per level over an L1 buffer, ~0.4 ms per level at n = 1e6 against ~0.75 ms for the
-  chain; for larger m the buffer (block + 3m) outgrows the block and the chain is kept. Measured (CPU,
-  n = 1e6, octave m, best block/limit of 1024-8192 x 32-256): both sums 13.4-13.5 ms against 16.4 ms with
-  the chain for every m;
+  one SIMD pass per level over an L1 buffer (the next level's boxes, the modified AV's and the AV's
+  squares together), ~0.5 ms per level at n = 1e6 against ~0.8-1 ms per m for the chain; for larger m
+  the buffer (block + 3m) outgrows the block and the chain is kept. Measured (CPU, n = 1e6, octave m,
+  best block/limit of 1024-8192 x 32-256): both sums 13.4-13.5 ms against 16.4 ms with the chain for
+  every m; issue 26's last session: blocks/limits up to 16384/4096 (the levels in L2) measured the same
+  14.6-15.8 ms (loaded machine). Tried and not kept: the inner sums advanced 16 start indices at a time
+  in SIMD lanes, v_{j+16} = v_j + (third difference of the box sums of 16 phases), which needs a second
+  8 MB array read at four offsets per m: 14.5 ms against 8.2 ms for the chain's ten m >= 512 (the
+  chain's third differences and the AV's share the four slices of x: it is bound by them, not by its
+  sequential part, 0.35 ns per step from L1);
 * the non-overlapping Hadamard variance (hdev) on octave m reads the rate, not the phase: blocks of 2m
   are pairs of blocks of m, and its third differences are second differences of consecutive blocks
-  (``hvar_octave_sums``; the AV for the edf's noise identification from the same blocks): ~1.5 ms CPU at
-  n = 1e6 for all 19 octaves, where the cumulative sum and the strided reads took ~5 ms and the
-  overlapping-AV pass for the noise type ~4 ms more;
+  (``hvar_octave_sums``; the AV for the edf's noise identification from the same blocks). The record is
+  read once, in chunks of 4096 samples; the block levels up to m = 128 are made and differenced inside
+  each chunk (L1/L2), and only the next level is written out (n / 256 values). Measured (CPU, n = 1e6,
+  19 octaves, right after allantools' hdev has run as in the bench): 2.3-2.8 ms, against 2.8-3.2 ms
+  when every level was made over the whole record in a 4 MB work array (~1.6 ms either way when the
+  record is in cache);
+* the edf (``edf_single_filter``): rho(k) = sum_d A(d) G(k + d) from the filter's nonzero lags (every
+  m-th for the difference filters, SIMD over the dense modified-AV filter), once per distinct (m, noise)
+  of a call, then the K-sum per tau: ~0.05-0.12 ms for 19 octave taus (the Python per tau of before:
+  0.4-1.4 ms);
 * Theo1 is its definition, (N - m) m / 2 terms per m: one SIMD pass per lag d over each block of
   start indices (the pair sums x[i] + x[i+m] formed once).
 """
@@ -451,9 +464,10 @@ def mvar_sums_box_octaves(x, levels, block=BLOCK_MVAR_BOX):
     box sum of m phases), and the box of 2m is two boxes of m: Z^{2m}_j = Z^m_j + Z^m_{j+m}. For each
     block of start indices, the phases the block needs (block + 3 M, M the largest m) are copied relative to
     the block's first phase (the filters cancel constants: no large values whose differences cost digits),
-    then level by level one SIMD pass makes the boxes of 2m from those of m and one SIMD pass sums v^2:
-    O(1) operations per term and level, no carried chain (``mvar_sums_blocked``, ~2 cycles per term,
-    for the other m). Allan: sum_{j<N-2m} (x[j+2m] - 2x[j+m] + x[j])^2 from the same block of x.
+    then level by level one SIMD pass makes the boxes of 2m from those of m and sums v^2 and the AV's
+    squares (``_box_level``): O(1) operations per term and level, no carried chain (``mvar_sums_blocked``,
+    ~2 cycles per term, for the other m). Allan: sum_{j<N-2m} (x[j+2m] - 2x[j+m] + x[j])^2 from the same
+    block of x.
     """
     N = x.size
     out = np.zeros(levels)

@@ -90,7 +90,12 @@ HTOTVAR are exactly of the quadratic form above (per window, 6m filters of 3m (+
 coefficients come from ``noise_models.exact_variances.total_window_filters``: detrending and
 reflection are linear), so their edf is exact for their filters, with m' = 16 for the scale-free
 limit (the F x F cross-correlations of 6m filters cost F^2 P). Intervals: chi^2 with that edf, like
-the AV engine.
+the AV engine. Computation (``edf_quadratics``, all taus of a call at once): for the single-filter
+statistics one compiled call (``_deviation_kernels.edf_single_filter``): rho once per distinct (m, noise)
+from the filter's nonzero lags -- exact integers or halves for white PM, white FM and random-walk FM,
+so only flicker FM's logarithms and the order of the K-sum differ from a dense NumPy evaluation
+(<= 1e-14 relative, tested) -- then the K-sum per tau; the several-filter ones take rho from FFT
+cross-correlations once per distinct (m, noise).
 
 Cost (``python -m avbench.bench --only Deviations``): every statistic is computed on the unscaled
 cumulative sum S (x = dt S; tau^2 -> m^2), one pass to make it, except hvar on octave m, whose pass reads
