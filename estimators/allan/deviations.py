@@ -117,6 +117,7 @@ from avbench.estimators.allan.variance import (
     _checked_record_and_mean,
     _cumsum_buffer,
     _record_rules,
+    _noise_codes_from_slope,
     _noise_from_slope,
     allan_variance,
     cluster_sizes,
@@ -304,8 +305,13 @@ def edf_quadratics(kind: str, m, K, noise) -> np.ndarray:
     cross-correlations) once per distinct (m, noise). K < 1 gives 1.
     """
     m = np.asarray(m, dtype=np.int64).reshape(-1)
+    return _edf_codes(kind, m, K, _noise_codes(np.broadcast_to(np.asarray(noise, dtype=object), m.shape)))
+
+
+def _edf_codes(kind, m, K, codes) -> np.ndarray:
+    """``edf_quadratics`` with the noise types as codes (``_deviation_kernels.WHITE_PM`` ...)."""
+    m = np.asarray(m, dtype=np.int64).reshape(-1)
     K = np.asarray(K, dtype=np.int64).reshape(-1)
-    codes = _noise_codes(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
     if kind not in _SINGLE_FILTER and kind not in _MULTI_FILTER:
         raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
     mp = _MULTI_FILTER.get(kind, _M_PRIME)
@@ -504,25 +510,25 @@ def deviation(
         # the AV's slope as for every statistic, the AV from hvar's own block sums (at every start offset
         # that is a multiple of m/2: an unbiased AV with about twice the non-overlapping AV's terms)
         count = _k.hvar_octave_av_terms(n, levels)[np.log2(m).astype(np.int64)]
-        kinds = list(_noise_from_slope(mf * dt, av_sums / (2.0 * mf * mf * count), n // m))
+        codes = _noise_codes_from_slope(mf * dt, av_sums / (2.0 * mf * mf * count), n // m)
     elif noise == "auto" and av_sums is not None and kind not in ("theo1", "theobr") and m[-1] <= n // 2:
         # the AV at every m came with the statistic's sums: the type per m from its slope directly (what
         # ``_noise_kinds`` gives for these m, without its table)
-        kinds = list(_noise_from_slope(mf * dt, av_sums / (2.0 * mf * mf * (n - 2 * mf + 1)), n // m))
+        codes = _noise_codes_from_slope(mf * dt, av_sums / (2.0 * mf * mf * (n - 2 * mf + 1)), n // m)
     elif noise == "auto":
         m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
         table = _noise_kinds(x, dt, m_av, n, None if av_sums is None else dict(zip(m.tolist(), av_sums)))
         keys = np.array(sorted(table))
-        kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
+        codes = _noise_codes([table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av])
     else:
-        kinds = list(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
+        codes = _noise_codes(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
     edf_kind = {"totvar": "oavar", "theobr": "theo1", "hvar": "ohvar"}.get(kind, kind)
     # hvar: its K terms are the m = 1 statistic of the phase decimated by m, whose G is that of the same
     # noise type scaled (white PM, white FM; flicker FM up to a quadratic in the lag, which the third
     # difference cancels): exact for them. RW FM approximately: the decimated G is m^3 (|d|^3 - |d|/m^2)/12,
     # the canonical discrete one (|d|^3 - |d|)/12.
     m_edf = np.ones_like(m) if kind == "hvar" else m
-    e = edf_quadratics(edf_kind, m_edf, K, kinds)
+    e = _edf_codes(edf_kind, m_edf, K, codes)
     return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
                        kind=kind)
 
