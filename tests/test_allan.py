@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
 from avbench.estimators import RecursiveAllan, StreamingAllan, allan_variance
@@ -177,3 +179,39 @@ def test_reused_cumsum_buffer_leaves_earlier_results_intact():
     allan_variance(b, 1.0)
     np.testing.assert_array_equal(ra.avar, first)
     np.testing.assert_array_equal(allan_variance(a, 1.0).avar, first)
+
+
+def _noise_from_slope_reference(tau, avar, J):
+    """The noise-type rule in NumPy: np.gradient of the logarithms where J >= 16, rounded, clipped; the
+    longest trusted type beyond; white FM where the slope is not finite or fewer than two taus are trusted."""
+    out = np.array(["white_fm"] * len(tau), dtype=object)
+    g = np.flatnonzero(J >= 16)
+    if len(g) < 2:
+        return out
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slope = np.gradient(np.log(np.maximum(avar[g], np.finfo(float).tiny)), np.log(tau[g]))
+    slope = np.where(np.isfinite(slope), slope, -1.0)
+    names = {-2: "white_pm", -1: "white_fm", 0: "flicker_fm", 1: "rw_fm"}
+    kinds = [names[int(v)] for v in np.clip(np.rint(slope), -2, 1)]
+    out[g] = kinds
+    out[g[-1] + 1 :] = kinds[-1]
+    return out
+
+
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(2, 24), octave=st.booleans(), seed=st.integers(0, 2**31), special=st.sampled_from(["none", "zero", "inf", "nan"]))
+def test_compiled_noise_rule_is_numpys_gradient_rule(n, octave, seed, special):
+    """``_noise_codes_from_slope`` (the slope in a compiled pass) gives the types of the NumPy rule, on octave
+    taus (equal log spacing: NumPy's uniform form) and on irregular ones, with zero, infinite and NaN AVs."""
+    from avbench.estimators.allan.variance import NOISE_NAMES, _noise_codes_from_slope
+
+    rng = np.random.default_rng(seed)
+    m = 2.0 ** np.arange(n) if octave else np.unique(np.rint(np.cumsum(rng.uniform(1, 30, n))))
+    tau = m * 0.01
+    # slopes near the rounding boundaries as well as anywhere
+    avar = np.exp(np.cumsum(rng.choice([-2.5, -1.5, -0.5, 0.5, 1.5], m.size) * np.log(2) + rng.normal(0, 0.3, m.size)))
+    if special != "none":
+        avar[rng.integers(m.size)] = {"zero": 0.0, "inf": np.inf, "nan": np.nan}[special]
+    J = (4096 // m).astype(np.int64)
+    np.testing.assert_array_equal(NOISE_NAMES[_noise_codes_from_slope(tau, avar, J)],
+                                  _noise_from_slope_reference(tau, avar, J))

@@ -8,9 +8,12 @@ standard errors of a sample variance of a chi^2-like statistic.
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from avbench.estimators.allan import _deviation_kernels as K
-from avbench.estimators.allan.deviations import KINDS, deviation, edf_quadratic, phase_of
+from avbench.estimators.allan.deviations import (KINDS, _canonical_gcov, _filters, deviation, edf_quadratic, edf_quadratics,
+                                                  phase_of)
 from avbench.estimators.allan.variance import edf_overlapping
 from avbench.noise_models import exact_variances as ev
 from avbench.noise_models import terms as T
@@ -288,6 +291,49 @@ def test_quadratic_form_edf_agrees_with_sp1065_table_5_for_the_av(noise, tol):
         assert got == pytest.approx(float(edf_overlapping([m], n, noise)[0]), rel=tol)
 
 
+def _edf_reference(kind, m, K, noise):
+    """The quadratic-form edf of one filter in plain NumPy (module docstring of ``deviations``): the filter's
+    autocorrelation from its taps, rho = A * G densely over every lag, the K-sum by ``np.sum``."""
+    pos, coef, _ = _filters(kind, m)
+    pos, coef = pos[0], coef[0]
+    A1 = np.zeros(int(pos.max()) + 1)
+    lag = pos[:, None] - pos[None, :]
+    np.add.at(A1, lag[lag >= 0], (coef[:, None] * coef[None, :])[lag >= 0])
+    if K < 1:
+        return 1.0
+    if m > 64 and noise != "white_pm":
+        return _edf_reference(kind, 64, max(1, int(round(K * 64 / m))), noise)
+    P = A1.size
+    kmax = min(K - 1, 8 * (P - 1) + 50 if noise == "flicker_fm" else P - 1)
+    A = np.concatenate((A1[:0:-1], A1))
+    G = _canonical_gcov(noise, np.arange(-(P - 1), kmax + P))
+    rho = np.array([A @ G[k : k + 2 * P - 1] for k in range(kmax + 1)])
+    var = 2.0 / K**2 * (K * rho[0] ** 2 + 2 * np.sum((K - np.arange(1, kmax + 1)) * rho[1:] ** 2))
+    return float(K) if not var > 0 else max(2 * rho[0] ** 2 / var, 1.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(kind=st.sampled_from(["oavar", "totvar", "ohvar", "hvar", "mvar", "tvar"]), m=st.integers(1, 300),
+       K=st.integers(0, 10**7), noise=st.sampled_from(["white_pm", "white_fm", "flicker_fm", "rw_fm"]))
+def test_compiled_edf_equals_its_numpy_reference(kind, m, K, noise):
+    """The compiled edf of the single-filter statistics (rho from the filter's nonzero lags, the K-sum in
+    order) against the dense NumPy form: the same exact integers for white PM / white FM / RW FM before the
+    K-sum, flicker FM's logarithms and both sums' order apart (round-off: 1e-13)."""
+    assert edf_quadratics(kind, [m], [K], [noise])[0] == pytest.approx(_edf_reference(kind, m, K, noise), rel=1e-13)
+
+
+def test_edf_quadratics_is_edf_quadratic_at_every_point_and_names_a_bad_noise():
+    m, Kk = np.array([1, 2, 64, 65, 1000, 4]), np.array([10**6, 5, 0, 3000, 10**5, 7])
+    noise = ["white_fm", "rw_fm", "flicker_fm", "white_pm", "flicker_fm", "white_pm"]
+    for kind in ("ohvar", "mvar", "theo1", "mtotvar"):
+        mm = m + (m % 2) if kind == "theo1" else np.minimum(m, 20)
+        got = edf_quadratics(kind, mm, Kk, noise)
+        assert got.tolist() == [edf_quadratic(kind, int(a), int(b), c) for a, b, c in zip(mm, Kk, noise)]
+    np.testing.assert_array_equal(K.filter_acf(K.MODIFIED, 7), ev.mvar_filter_acf(7))
+    with pytest.raises(ValueError, match="noise: expected white_pm.*'pink'"):
+        edf_quadratics("ohvar", [4], [100], ["pink"])
+
+
 @pytest.mark.parametrize(
     "kind,term,noise",
     [("ohvar", T.AngleRandomWalk(1e-3), "white_fm"), ("mvar", T.AngleRandomWalk(1e-3), "white_fm"),
@@ -440,14 +486,14 @@ def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
     assert "theobr" in capsys.readouterr().err and not (tmp_path / "o2" / "long_deviations.csv").exists()
 
 
-@pytest.mark.parametrize("n", [16, 17, 31, 1200, 1201, 4099, 4096 * 3 + 5, 70001])
+@pytest.mark.parametrize("n", [16, 17, 31, 1200, 1201, 4095, 4096, 4099, 8191, 4096 * 3 + 5, 70001, 2**17 + 6, 2**19 + 3])
 def test_hvar_octave_block_sums_equal_the_decimated_references(n):
     """The block-sum pass (blocks of 2m from pairs of blocks of m) against SP1065 eq. 18 on the decimated
     phase and the non-overlapping AV's sum of squared differences of adjacent cluster sums."""
     w = np.random.default_rng(n).standard_normal(n) + 3.0
     x, _, _ = phase_of(w, 1.0)
     levels = (n // 3).bit_length()
-    buf = np.full(n, np.nan)  # the work array's contents must not matter
+    buf = np.full(K.hvar_octave_buffer_size(n), np.nan)  # the work array's contents must not matter
     h, a, total = K.hvar_octave_sums(w, levels, buf)
     assert total == pytest.approx(float(np.sum(w)), rel=1e-12)
     for lev in range(levels):

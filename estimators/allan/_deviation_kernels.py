@@ -21,15 +21,28 @@ Performance notes (``python -m avbench.bench --only Deviations``; serial, no thr
   box-sum passes (one memory pass per octave) took 21 ms for the modified AV alone and the AV pass 5 ms more;
 * for octave m up to ``MVAR_BOX_MAX`` the modified AV is instead summed from box sums of the phase
   built level by level inside each block (the box of 2m is two boxes of m; ``mvar_sums_box_octaves``):
-  three SIMD passes per level over an L1 buffer, ~0.4 ms per level at n = 1e6 against ~0.75 ms for the
-  chain; for larger m the buffer (block + 3m) outgrows the block and the chain is kept. Measured (CPU,
-  n = 1e6, octave m, best block/limit of 1024-8192 x 32-256): both sums 13.4-13.5 ms against 16.4 ms with
-  the chain for every m;
+  one SIMD pass per level over an L1 buffer (the next level's boxes, the modified AV's and the AV's
+  squares together), ~0.5 ms per level at n = 1e6 against ~0.8-1 ms per m for the chain; for larger m
+  the buffer (block + 3m) outgrows the block and the chain is kept. Measured (CPU, n = 1e6, octave m,
+  best block/limit of 1024-8192 x 32-256): both sums 13.4-13.5 ms against 16.4 ms with the chain for
+  every m; issue 26's last session: blocks/limits up to 16384/4096 (the levels in L2) measured the same
+  14.6-15.8 ms (loaded machine). Tried and not kept: the inner sums advanced 16 start indices at a time
+  in SIMD lanes, v_{j+16} = v_j + (third difference of the box sums of 16 phases), which needs a second
+  8 MB array read at four offsets per m: 14.5 ms against 8.2 ms for the chain's ten m >= 512 (the
+  chain's third differences and the AV's share the four slices of x: it is bound by them, not by its
+  sequential part, 0.35 ns per step from L1);
 * the non-overlapping Hadamard variance (hdev) on octave m reads the rate, not the phase: blocks of 2m
   are pairs of blocks of m, and its third differences are second differences of consecutive blocks
-  (``hvar_octave_sums``; the AV for the edf's noise identification from the same blocks): ~1.5 ms CPU at
-  n = 1e6 for all 19 octaves, where the cumulative sum and the strided reads took ~5 ms and the
-  overlapping-AV pass for the noise type ~4 ms more;
+  (``hvar_octave_sums``; the AV for the edf's noise identification from the same blocks). The record is
+  read once, in chunks of 4096 samples; the block levels up to m = 128 are made and differenced inside
+  each chunk (L1/L2), and only the next level is written out (n / 256 values). Measured (CPU, n = 1e6,
+  19 octaves, right after allantools' hdev has run as in the bench): 2.3-2.8 ms, against 2.8-3.2 ms
+  when every level was made over the whole record in a 4 MB work array (~1.6 ms either way when the
+  record is in cache);
+* the edf (``edf_single_filter``): rho(k) = sum_d A(d) G(k + d) from the filter's nonzero lags (every
+  m-th for the difference filters, SIMD over the dense modified-AV filter), once per distinct (m, noise)
+  of a call, then the K-sum per tau: ~0.05-0.12 ms for 19 octave taus (the Python per tau of before:
+  0.4-1.4 ms);
 * Theo1 is its definition, (N - m) m / 2 terms per m: one SIMD pass per lag d over each block of
   start indices (the pair sums x[i] + x[i+m] formed once).
 """
@@ -165,8 +178,30 @@ def _ssq_block_diffs(z):
     return h + t2, a2, a1 + t1
 
 
-#: samples per chunk of ``hvar_octave_sums``' first level (its sums and pairs read each chunk once, from L1)
-HVAR_CHUNK = 2048
+#: samples per chunk of ``hvar_octave_sums`` (the record is read once, chunk by chunk)
+HVAR_CHUNK = 4096
+#: block levels m = 2 .. 2^HVAR_CHUNK_LEVELS made and differenced inside each chunk (from L1/L2); the next
+#: level is written out (n / 2^(HVAR_CHUNK_LEVELS + 1) values) and the longer blocks are made from it
+HVAR_CHUNK_LEVELS = 7
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _ssq_dh(a, b, c, d):
+    """sum_k ((a[k] + b[k]) - (c[k] + d[k]))^2 over equal-length slices."""
+    acc = 0.0
+    for k in range(a.size):
+        v = (a[k] + b[k]) - (c[k] + d[k])
+        acc += v * v
+    return acc
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _pairs_minus(out, z, off):
+    """out[i] = (z[2i] + z[2i+1]) - off for i < out.size."""
+    a = z[0::2]
+    b = z[1::2]
+    for i in range(out.size):
+        out[i] = (a[i] + b[i]) - off
 
 
 @njit(cache=True, fastmath=_FM)
@@ -182,41 +217,85 @@ def hvar_octave_sums(w, levels, buf):
     m at every start offset that is a multiple of m/2 -- from the blocks of m/2 (n // (m/2) - 3 terms;
     at m = 1 every offset: n - 1 terms) -- an unbiased AV estimate with about twice the non-overlapping
     AV's terms.
-    Blocks of 2m are sums of pairs of blocks of m: n/2 + n/4 + ... additions in all, no cumulative sum.
-    The differences cancel the mean; the blocks from m = 4 on are centred (the mean, known after the first
-    level's pass, taken off when the blocks of 2 are paired) so that long blocks hold no large values whose
-    differences cost digits. The first level is read in chunks (its differences, its pairs and its sum
-    from L1): one read of the record. ``buf``: work array of at least n // 2 entries.
+    Blocks of 2m are sums of pairs of blocks of m. The record is read once, in chunks of ``HVAR_CHUNK``
+    samples: each chunk's samples give the m = 1 sums, their pairs the blocks of 2, and the blocks up to
+    m = 2^HVAR_CHUNK_LEVELS are made and differenced inside the chunk (each level carries its last three
+    blocks into the next chunk, so every term is counted once); the next level is written into ``buf``
+    (at least n / 2^(HVAR_CHUNK_LEVELS + 1) entries) and the longer blocks are made from it. The
+    differences cancel the mean; the blocks from m = 4 on are centred so that long blocks hold no large
+    values whose differences cost digits: inside the chunks with the first chunk's mean, the written-out
+    level then moved to the record's mean (known at the end). Measured (CPU, n = 1e6, 19 octaves, right
+    after allantools' hdev has run, as in the bench): 2.3-2.8 ms against 2.8-3.2 ms for the levels made
+    over the whole record (a 4 MB work array written and read back).
     """
-    n = w.size
+    N = w.size
     h = np.zeros(levels)
     a = np.zeros(levels)
-    c = n // 2
     total = 0.0
-    if n >= 3:
-        h0 = 0.0
-        a1 = 0.0
-        a0 = 0.0
-        for k0 in range(0, n, HVAR_CHUNK):
-            k1 = min(k0 + HVAR_CHUNK, n - 3)
-            if k1 > k0:
-                x2, xh, x1 = _ssq_block_diffs_range(w, k0, k1)
-                h0 += x2
-                a1 += xh
-                a0 += x1
-            total += _pairs_into(buf, w, k0 // 2, min(k0 + HVAR_CHUNK, n) // 2)
+    CH = HVAR_CHUNK
+    lin = max(0, min(HVAR_CHUNK_LEVELS, levels - 1))  # the block levels made inside each chunk
+    U = np.empty((lin + 2, 3 + CH // 2))  # row l: up to 3 carried blocks of level l, then the chunk's new ones
+    t = np.zeros(lin + 2, dtype=np.int64)  # blocks carried per level
+    mu0 = 0.0
+    h0 = 0.0
+    a1 = 0.0
+    a0 = 0.0
+    for k0 in range(0, N, CH):
+        k1 = min(k0 + CH, N - 3)
+        if k1 > k0:
+            x2, xh, x1 = _ssq_block_diffs_range(w, k0, k1)
+            h0 += x2
+            a1 += xh
+            a0 += x1
+        L = (min(k0 + CH, N) - k0) // 2  # blocks of 2 in this chunk (k0 is a multiple of every block length)
+        row = U[1]
+        s = 0.0
+        for i in range(L):
+            v = w[k0 + 2 * i] + w[k0 + 2 * i + 1]
+            row[3 + i] = v
+            s += v
+        total += s
+        if k0 == 0 and L > 0:
+            mu0 = s / (2 * L)
+        for lev in range(1, lin + 1):
+            row = U[lev]
+            tl = t[lev]
+            z = row[3 - tl : 3 + L]  # the carried blocks, then the new ones
+            ln = tl + L
+            lo = max(0, tl - 2)  # terms that end in a new block
+            if ln - 2 > lo:
+                h[lev] += _ssq_second(z[lo + 2 : ln], z[lo + 1 : ln - 1], z[lo : ln - 2])
+            lo = max(0, tl - 3)
+            if lev + 1 < levels and ln - 3 > lo:
+                a[lev + 1] += _ssq_dh(z[lo + 3 : ln], z[lo + 2 : ln - 1], z[lo + 1 : ln - 2], z[lo : ln - 3])
+            off = 4.0 * mu0 if lev == 1 else 0.0  # blocks of 2 still hold 2 mu each
+            L2 = L // 2
+            if lev < lin:
+                _pairs_minus(U[lev + 1, 3 : 3 + L2], row[3 : 3 + 2 * L2], off)
+            elif lin + 1 < levels:
+                j0 = k0 >> (lin + 1)
+                _pairs_minus(buf[j0 : j0 + L2], row[3 : 3 + 2 * L2], off)
+            nt = min(3, ln)  # carry the last (up to) 3 blocks into the slots before the next chunk's
+            src = 3 + L - nt
+            for q in range(nt):
+                row[3 - nt + q] = row[src + q]
+            t[lev] = nt
+            L = L2
+    if N >= 3 and levels > 0:
         t2, t1 = _block_diffs_tail(w)
-        if levels > 0:
-            h[0] = h0 + t2
-            a[0] = a0 + t1
+        h[0] = h0 + t2
+        a[0] = a0 + t1
         if levels > 1:
             a[1] = a1
-    else:
-        total = _pairs_into(buf, w, 0, c)
-    if n % 2:
-        total += w[n - 1]
-    mu = total / n
-    for lev in range(1, levels):
+    if N % 2:
+        total += w[N - 1]
+    if lin + 1 >= levels:
+        return h, a, total
+    c = N >> (lin + 1)
+    corr = (1 << (lin + 1)) * (total / N - mu0)  # centred on the first chunk's mean -> on the record's
+    for i in range(c):
+        buf[i] -= corr
+    for lev in range(lin + 1, levels):
         if c < 3:  # no term left (the callers ask for m <= n // 3)
             break
         hh, aa, _ = _ssq_block_diffs(buf[:c])
@@ -224,22 +303,15 @@ def hvar_octave_sums(w, levels, buf):
         if lev + 1 < levels:
             a[lev + 1] = aa
         half = c // 2
-        off = 4.0 * mu if lev == 1 else 0.0  # blocks of 2 still hold 2 mu each
         for i in range(half):
-            buf[i] = (buf[2 * i] + buf[2 * i + 1]) - off
+            buf[i] = buf[2 * i] + buf[2 * i + 1]
         c = half
     return h, a, total
 
 
-@njit(cache=True, fastmath=_FM, inline="always")
-def _pairs_into(buf, w, i0, i1):
-    """buf[i] = w[2i] + w[2i+1] for i0 <= i < i1; returns their sum."""
-    acc = 0.0
-    for i in range(i0, i1):
-        v = w[2 * i] + w[2 * i + 1]
-        buf[i] = v
-        acc += v
-    return acc
+def hvar_octave_buffer_size(n):
+    """Entries of the work array ``hvar_octave_sums`` needs for a record of n samples."""
+    return (n >> (HVAR_CHUNK_LEVELS + 1)) + 1
 
 
 def hvar_octave_av_terms(n, levels):
@@ -392,9 +464,10 @@ def mvar_sums_box_octaves(x, levels, block=BLOCK_MVAR_BOX):
     box sum of m phases), and the box of 2m is two boxes of m: Z^{2m}_j = Z^m_j + Z^m_{j+m}. For each
     block of start indices, the phases the block needs (block + 3 M, M the largest m) are copied relative to
     the block's first phase (the filters cancel constants: no large values whose differences cost digits),
-    then level by level one SIMD pass makes the boxes of 2m from those of m and one SIMD pass sums v^2:
-    O(1) operations per term and level, no carried chain (``mvar_sums_blocked``, ~2 cycles per term,
-    for the other m). Allan: sum_{j<N-2m} (x[j+2m] - 2x[j+m] + x[j])^2 from the same block of x.
+    then level by level one SIMD pass makes the boxes of 2m from those of m and sums v^2 and the AV's
+    squares (``_box_level``): O(1) operations per term and level, no carried chain (``mvar_sums_blocked``,
+    ~2 cycles per term, for the other m). Allan: sum_{j<N-2m} (x[j+2m] - 2x[j+m] + x[j])^2 from the same
+    block of x.
     """
     N = x.size
     out = np.zeros(levels)
@@ -411,17 +484,42 @@ def mvar_sums_box_octaves(x, levels, block=BLOCK_MVAR_BOX):
         for t in range(levels):
             m = 1 << t
             z = buf[t % 2]
-            nj = min(block, N - 3 * m + 1 - b0)  # v_j for j in [b0, b0 + nj)
-            if nj > 0:
-                out[t] += _ssq_second(z[2 * m : 2 * m + nj], z[m : m + nj], z[:nj])
-            na = min(block, N - 2 * m - b0)  # the AV's j in [b0, b0 + na)
-            if na > 0:
-                av[t] += _ssq_second(x[b0 + 2 * m : b0 + 2 * m + na], x[b0 + m : b0 + m + na], x[b0 : b0 + na])
-            if t + 1 < levels and cur > m:
-                nxt = cur - m
-                _pair_into(buf[(t + 1) % 2, :nxt], z[:nxt], z[m : m + nxt])
+            zn = buf[(t + 1) % 2]
+            nj = max(min(block, N - 3 * m + 1 - b0), 0)  # v_j for j in [b0, b0 + nj)
+            na = max(min(block, N - 2 * m - b0), 0)  # the AV's j in [b0, b0 + na)
+            nxt = cur - m if t + 1 < levels and cur > m else 0  # the next level's boxes
+            c = min(nj, na, nxt)  # the three in one pass, then each one's rest
+            if c > 0:
+                sv, sa = _box_level(zn[:c], z[:c], z[m : m + c], z[2 * m : 2 * m + c],
+                                    x[b0 : b0 + c], x[b0 + m : b0 + m + c], x[b0 + 2 * m : b0 + 2 * m + c])
+                out[t] += sv
+                av[t] += sa
+            if nj > c:
+                out[t] += _ssq_second(z[2 * m + c : 2 * m + nj], z[m + c : m + nj], z[c:nj])
+            if na > c:
+                av[t] += _ssq_second(x[b0 + 2 * m + c : b0 + 2 * m + na], x[b0 + m + c : b0 + m + na], x[b0 + c : b0 + na])
+            if nxt > 0:
+                if nxt > c:
+                    _pair_into(zn[c:nxt], z[c:nxt], z[m + c : m + nxt])
                 cur = nxt
     return out, av
+
+
+@njit(cache=True, fastmath=_FM, inline="always")
+def _box_level(out, z0, z1, z2, x0, x1, x2):
+    """One pass over a level of ``mvar_sums_box_octaves``: out = z0 + z1 (the next level's boxes), and
+    (sum (z2 - 2 z1 + z0)^2, sum (x2 - 2 x1 + x0)^2) (the modified AV's and the AV's terms)."""
+    sv = 0.0
+    sa = 0.0
+    for k in range(out.size):
+        a = z0[k]
+        b = z1[k]
+        out[k] = a + b
+        v = z2[k] - 2.0 * b + a
+        sv += v * v
+        y = x2[k] - 2.0 * x1[k] + x0[k]
+        sa += y * y
+    return sv, sa
 
 
 @njit(cache=True, fastmath=_FM, inline="always")
@@ -623,3 +721,150 @@ def total_window_sums_numpy(v, m, phase):
     win = np.lib.stride_tricks.sliding_window_view(np.asarray(v, dtype=float), W)
     q = win @ C.T
     return float(np.sum(q * q) / (6.0 * m))
+
+
+# -- equivalent degrees of freedom (``deviations.edf_quadratic``) ------------------------------------------------
+#: noise types of the edf's generalized phase covariance G (``deviations._canonical_gcov``)
+WHITE_PM, WHITE_FM, FLICKER_FM, RW_FM = 0, 1, 2, 3
+#: the one phase filter of the single-filter statistics: second difference (oavar, totvar), third difference
+#: (ohvar, hvar), the modified AV's box(m) * second difference (mvar, tvar)
+SECOND_DIFF, THIRD_DIFF, MODIFIED = 0, 1, 2
+
+
+@njit(cache=True)
+def _gcov(noise, d):
+    """The canonical power-law phase generalized covariance G(d) (``deviations._canonical_gcov``); exact
+    (integers or halves) but for flicker FM."""
+    a = float(abs(d))
+    if noise == WHITE_PM:
+        return 1.0 if a == 0.0 else 0.0
+    if noise == WHITE_FM:
+        return -a / 2
+    if noise == FLICKER_FM:
+        return a * a * np.log(a) if a > 0.0 else 0.0
+    return (a * a * a - a) / 12
+
+
+@njit(cache=True)
+def filter_acf(shape, m):
+    """A(d), d = 0..span, the exact (integer) autocorrelation of the one phase filter of ``shape`` at m:
+    (1, -2, 1) at (0, m, 2m) -> 6, -4, 1 at 0, m, 2m; (-1, 3, -3, 1) at (0, m, 2m, 3m) -> 20, -15, 6, -1;
+    the modified AV's filter, sum_s a_s T(d - s m), a = {0: 6, +-1: -4, +-2: 1}, T(u) = max(m - |u|, 0)
+    (``noise_models.exact_variances.mvar_filter_acf``)."""
+    if shape == SECOND_DIFF:
+        A = np.zeros(2 * m + 1)
+        A[0] = 6.0
+        A[m] = -4.0
+        A[2 * m] = 1.0
+        return A
+    if shape == THIRD_DIFF:
+        A = np.zeros(3 * m + 1)
+        A[0] = 20.0
+        A[m] = -15.0
+        A[2 * m] = 6.0
+        A[3 * m] = -1.0
+        return A
+    A = np.zeros(3 * m + 1)
+    for s in range(-2, 3):
+        a = 6.0 if s == 0 else (-4.0 if abs(s) == 1 else 1.0)
+        lo = max(0, s * m - m + 1)
+        hi = min(3 * m, s * m + m - 1)
+        for d in range(lo, hi + 1):
+            A[d] += a * (m - abs(d - s * m))
+    return A
+
+
+@njit(cache=True)
+def rho_squares_single(shape, m, noise, kmax):
+    """(E[V] = rho(0), rho(k)^2 for k = 0..kmax) of one filter: rho(k) = sum_{|d| <= span} A(|d|) G(k + d).
+
+    Only the filter's nonzero lags are visited (every m-th for the difference filters). For white PM
+    rho = A; for white FM and random-walk FM every product and partial sum is an exact integer or half
+    (|rho| far below 2^53), so rho does not depend on the order of summation.
+    """
+    A = filter_acf(shape, m)
+    span = A.size - 1
+    nz = np.empty(2 * span + 1, dtype=np.int64)  # the lags d with A(|d|) != 0
+    c = 0
+    for d in range(-span, span + 1):
+        if A[abs(d)] != 0.0:
+            nz[c] = d
+            c += 1
+    T = np.zeros(kmax + 1)
+    rho0 = 0.0
+    if noise == WHITE_PM:
+        for k in range(min(kmax, span) + 1):
+            T[k] = A[k] * A[k]
+        return A[0], T
+    # G once on the lags -span..kmax+span
+    G = np.empty(kmax + 2 * span + 1)
+    for i in range(G.size):
+        G[i] = _gcov(noise, i - span)
+    Gr = G[::-1].copy()  # G backwards: both sides of a dense filter are forward slices
+    for k in range(kmax + 1):
+        if shape == MODIFIED:  # a dense filter: SIMD over its lags
+            r = _rho_dense(A, G, Gr, k + span)
+        else:
+            r = 0.0
+            for j in range(c):
+                d = nz[j]
+                r += A[abs(d)] * G[k + d + span]
+        if k == 0:
+            rho0 = r
+        T[k] = r * r
+    return rho0, T
+
+
+@njit(cache=True, fastmath=_FM)
+def _rho_dense(A, G, Gr, c):
+    """A(0) G[c] + sum_{d >= 1} A(d) (G[c + d] + G[c - d]), Gr = G backwards (not inlined at Numba's IR
+    level, which would drop its fastmath flags: the caller's sums must stay in order)."""
+    span = A.size - 1
+    hi = G[c + 1 : c + span + 1]
+    r0 = G.size - c  # Gr[r0 + d - 1] = G[c - d]
+    lo = Gr[r0 : r0 + span]
+    a = A[1:]
+    r = 0.0
+    for d in range(span):
+        r += a[d] * (hi[d] + lo[d])
+    return A[0] * G[c] + r
+
+
+@njit(cache=True)
+def edf_from_rho_squares(E, T, K):
+    """2 E^2 / Var V with Var V = (2/K^2) (K T_0 + 2 sum_{k=1}^{min(K-1, kmax)} (K - k) T_k), at least 1;
+    K if Var V is not positive (the quadratic form's edf, ``deviations.edf_quadratic``); 1 for K < 1."""
+    if K < 1:
+        return 1.0
+    kk = min(K - 1, T.size - 1)
+    s = 0.0
+    for k in range(1, kk + 1):
+        s += (K - k) * T[k]
+    var = 2.0 / (K * K) * (K * T[0] + 2 * s)
+    if not (var > 0):
+        return float(K)
+    return max(2 * E * E / var, 1.0)
+
+
+@njit(cache=True)
+def edf_single_filter(shape, m, K, noise, order, span_factor):
+    """The edf of each (m[j], K[j], noise[j]) of a single-filter statistic (``deviations.edf_quadratic``,
+    after its m' scaling), visited in ``order`` (sorted by (m, noise): rho is computed once per run of equal
+    keys). ``span_factor``: the filter's span in units of m (2 or 3); flicker FM's rho is summed to 8 spans + 50."""
+    out = np.empty(m.size)
+    last_m = -1
+    last_noise = -1
+    E = 0.0
+    T = np.zeros(1)
+    for j in order:
+        if K[j] < 1:
+            out[j] = 1.0
+            continue
+        if m[j] != last_m or noise[j] != last_noise:
+            span = span_factor * m[j]
+            kmax = 8 * span + 50 if noise[j] == FLICKER_FM else span
+            E, T = rho_squares_single(shape, m[j], noise[j], kmax)
+            last_m = m[j]
+            last_noise = noise[j]
+        out[j] = edf_from_rho_squares(E, T, K[j])
+    return out

@@ -47,6 +47,41 @@ def finite_sum(x):
     return ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
 
 
+@njit(cache=True, error_model="numpy")
+def noise_codes_from_slope(log_tau, log_av):
+    """rint(slope) + 2 clipped to 0..3 (white PM, white FM, flicker FM, random-walk FM) for the local slope
+    np.gradient(log_av, log_tau), computed as NumPy computes it (second order inside, first order at the
+    ends; its equal-spacing form when every spacing equals the first); a non-finite slope counts as -1
+    (white FM). At least two points."""
+    g = log_av.size
+    dx0 = log_tau[1] - log_tau[0]
+    uniform = True
+    for i in range(g - 1):
+        if not (log_tau[i + 1] - log_tau[i] == dx0):
+            uniform = False
+    slope = np.empty(g)
+    if uniform:
+        for i in range(1, g - 1):
+            slope[i] = (log_av[i + 1] - log_av[i - 1]) / (2.0 * dx0)
+        slope[0] = (log_av[1] - log_av[0]) / dx0
+        slope[g - 1] = (log_av[g - 1] - log_av[g - 2]) / dx0
+    else:
+        for i in range(1, g - 1):
+            dx1 = log_tau[i] - log_tau[i - 1]
+            dx2 = log_tau[i + 1] - log_tau[i]
+            a = -(dx2) / (dx1 * (dx1 + dx2))
+            b = (dx2 - dx1) / (dx1 * dx2)
+            c = dx1 / (dx2 * (dx1 + dx2))
+            slope[i] = a * log_av[i - 1] + b * log_av[i] + c * log_av[i + 1]
+        slope[0] = (log_av[1] - log_av[0]) / dx0
+        slope[g - 1] = (log_av[g - 1] - log_av[g - 2]) / (log_tau[g - 1] - log_tau[g - 2])
+    out = np.empty(g, dtype=np.int64)
+    for i in range(g):
+        s = slope[i] if np.isfinite(slope[i]) else -1.0
+        out[i] = int(min(max(np.rint(s), -2.0), 1.0)) + 2
+    return out
+
+
 @njit(cache=True)
 def centred_cumsum(x, mu, S):
     """S[0] = 0, S[k+1] = S[k] + (x[k] - mu): one pass, bit-identical to np.cumsum(x - mu)."""

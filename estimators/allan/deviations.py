@@ -90,7 +90,12 @@ HTOTVAR are exactly of the quadratic form above (per window, 6m filters of 3m (+
 coefficients come from ``noise_models.exact_variances.total_window_filters``: detrending and
 reflection are linear), so their edf is exact for their filters, with m' = 16 for the scale-free
 limit (the F x F cross-correlations of 6m filters cost F^2 P). Intervals: chi^2 with that edf, like
-the AV engine.
+the AV engine. Computation (``edf_quadratics``, all taus of a call at once): for the single-filter
+statistics one compiled call (``_deviation_kernels.edf_single_filter``): rho once per distinct (m, noise)
+from the filter's nonzero lags -- exact integers or halves for white PM, white FM and random-walk FM,
+so only flicker FM's logarithms and the order of the K-sum differ from a dense NumPy evaluation
+(<= 1e-14 relative, tested) -- then the K-sum per tau; the several-filter ones take rho from FFT
+cross-correlations once per distinct (m, noise).
 
 Cost (``python -m avbench.bench --only Deviations``): every statistic is computed on the unscaled
 cumulative sum S (x = dt S; tau^2 -> m^2), one pass to make it, except hvar on octave m, whose pass reads
@@ -112,14 +117,15 @@ from avbench.estimators.allan.variance import (
     _checked_record_and_mean,
     _cumsum_buffer,
     _record_rules,
+    _noise_codes_from_slope,
     _noise_from_slope,
     allan_variance,
     cluster_sizes,
 )
 from avbench.estimators.validation import check_taus
-from avbench.noise_models.exact_variances import mvar_filter_acf, total_window_filters
+from avbench.noise_models.exact_variances import total_window_filters
 
-__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "clear_caches", "terms_per_tau",
+__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "edf_quadratics", "clear_caches", "terms_per_tau",
            "theobr_bias_sizes", "check_feasible"]
 
 #: the statistics
@@ -253,19 +259,6 @@ def _filters(kind: str, m: int):
     raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
 
 
-def _single_filter_acf(kind: str, m: int) -> np.ndarray:
-    """Autocorrelation A(d), d = 0..span, of the one phase filter of oavar/totvar, ohvar, mvar/tvar (exact)."""
-    if kind in ("mvar", "tvar"):
-        return mvar_filter_acf(m)
-    pos, coef, _ = _filters(kind, m)
-    pos, coef = pos[0], coef[0]
-    A = np.zeros(int(pos.max() - pos.min()) + 1)
-    lag = pos[:, None] - pos[None, :]
-    keep = lag >= 0
-    np.add.at(A, lag[keep], (coef[:, None] * coef[None, :])[keep])
-    return A
-
-
 def _canonical_gcov(noise: str, d):
     d = np.abs(np.asarray(d, dtype=float))
     if noise == "white_pm":
@@ -280,32 +273,62 @@ def _canonical_gcov(noise: str, d):
     raise ValueError(f"noise: expected white_pm, white_fm, flicker_fm or rw_fm, got {noise!r}")
 
 
+#: the single-filter statistics: (their filter's shape in the compiled edf, its span in units of m)
+_SINGLE_FILTER = {"oavar": (_k.SECOND_DIFF, 2), "totvar": (_k.SECOND_DIFF, 2), "ohvar": (_k.THIRD_DIFF, 3),
+                  "hvar": (_k.THIRD_DIFF, 3), "mvar": (_k.MODIFIED, 3), "tvar": (_k.MODIFIED, 3)}
+_NOISE_CODE = {"white_pm": _k.WHITE_PM, "white_fm": _k.WHITE_FM, "flicker_fm": _k.FLICKER_FM, "rw_fm": _k.RW_FM}
+
+
+def _noise_codes(noise) -> np.ndarray:
+    try:
+        return np.array([_NOISE_CODE[str(v)] for v in noise], dtype=np.int64)
+    except KeyError as e:
+        raise ValueError(f"noise: expected white_pm, white_fm, flicker_fm or rw_fm, got {e.args[0]!r}") from None
+
+
 @functools.lru_cache(maxsize=4096)
 def edf_quadratic(kind: str, m: int, K: int, noise: str) -> float:
-    """EDF 2 E[V]^2 / Var V of a stationary average of K squared phase filters (module docstring).
+    """EDF 2 E[V]^2 / Var V of a stationary average of K squared phase filters (module docstring);
+    :func:`edf_quadratics` at one point."""
+    return float(edf_quadratics(kind, [int(m)], [int(K)], [noise])[0])
+
+
+def edf_quadratics(kind: str, m, K, noise) -> np.ndarray:
+    """``edf_quadratic`` at every (m[j], K[j], noise[j]) at once (1-D arrays of equal length).
 
     rho_fg(k) = sum_d A_fg(d) G(k + d) with A_fg the cross-correlation of filters f and g; for the
     white, white-FM and random-walk-FM G, rho vanishes beyond the filter span (the filters cancel
-    constants and linear phase), for flicker FM it decays as k^-2 and is summed to 8 spans.
+    constants and linear phase), for flicker FM it decays as k^-2 and is summed to 8 spans + 50. The
+    single-filter statistics (oavar, totvar, ohvar, hvar, mvar, tvar) are one compiled call
+    (``_deviation_kernels.edf_single_filter``: rho once per distinct (m, noise), from the filter's nonzero
+    lags); the several-filter ones (theo1, theobr, mtotvar, htotvar) take rho from ``_rho_squares`` (FFT
+    cross-correlations) once per distinct (m, noise). K < 1 gives 1.
     """
-    m, K = int(m), int(K)
-    if K < 1:
-        return 1.0
+    m = np.asarray(m, dtype=np.int64).reshape(-1)
+    return _edf_codes(kind, m, K, _noise_codes(np.broadcast_to(np.asarray(noise, dtype=object), m.shape)))
+
+
+def _edf_codes(kind, m, K, codes) -> np.ndarray:
+    """``edf_quadratics`` with the noise types as codes (``_deviation_kernels.WHITE_PM`` ...)."""
+    m = np.asarray(m, dtype=np.int64).reshape(-1)
+    K = np.asarray(K, dtype=np.int64).reshape(-1)
+    if kind not in _SINGLE_FILTER and kind not in _MULTI_FILTER:
+        raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
     mp = _MULTI_FILTER.get(kind, _M_PRIME)
-    if m > mp and (noise != "white_pm" or kind in _MULTI_FILTER):
-        return edf_quadratic(kind, mp, max(1, int(round(K * mp / m))), noise)
-    if noise == "white_pm" and kind not in _MULTI_FILTER:  # G = [d = 0]: rho is the filter's own autocorrelation
-        A = _single_filter_acf(kind, m)
-        kk = np.arange(min(A.size, K))
-        A = A[: kk.size]
-        var = 2.0 / K**2 * (K * A[0] ** 2 + 2 * np.sum((K - kk[1:]) * A[1:] ** 2))
-        return float(max(2 * A[0] ** 2 / var, 1.0))
-    E, total = _rho_squares(kind, m, noise, min(K - 1, _kmax(kind, m, noise)))
-    kk = np.arange(total.size)
-    var = 2.0 / K**2 * (K * total[0] + 2 * np.sum((K - kk[1:]) * total[1:]))
-    if not (var > 0):
-        return float(K)
-    return float(max(2 * E * E / var, 1.0))
+    # the scale-free types' long filters: at m' with K' = K m'/m (white PM too for several filters)
+    scaled = (m > mp) & ((codes != _k.WHITE_PM) | (kind in _MULTI_FILTER)) & (K >= 1)
+    Ks = np.where(scaled, np.maximum(1, np.rint(K * mp / np.maximum(m, 1))), K).astype(np.int64)
+    ms = np.where(scaled, mp, m)
+    if kind in _SINGLE_FILTER:
+        shape, span = _SINGLE_FILTER[kind]
+        return _k.edf_single_filter(shape, ms, Ks, codes, np.lexsort((codes, ms)), span)
+    names = {v: k for k, v in _NOISE_CODE.items()}
+    out = np.ones(m.size)
+    for j in np.flatnonzero(Ks >= 1):
+        mi, nj = int(ms[j]), names[int(codes[j])]
+        E, total = _rho_squares(kind, mi, nj, _kmax(kind, mi, nj))
+        out[j] = _k.edf_from_rho_squares(E, total, int(Ks[j]))
+    return out
 
 
 def _kmax(kind, m, noise):
@@ -315,22 +338,19 @@ def _kmax(kind, m, noise):
 
 @functools.lru_cache(maxsize=256)
 def _rho_squares(kind: str, m: int, noise: str, kmax: int):
-    """(E[V], sum_{f,g} w_f w_g rho_fg(k)^2 for k = 0..kmax): the K-free part of the edf."""
+    """(E[V], sum_{f,g} w_f w_g rho_fg(k)^2 for k = 0..kmax): the K-free part of the edf of a statistic of
+    several filters (theo1, mtotvar, htotvar; the single-filter ones: ``_deviation_kernels.rho_squares_single``)."""
     pos, coef, w = _filters(kind, m)
     P = int(pos.max()) + 1
-    if len(w) == 1:  # one integer filter: its exact autocorrelation, A(-d) = A(d) (no FFT)
-        A1 = _single_filter_acf(kind, m)
-        A = np.concatenate((A1[:0:-1], A1))[None, None, :]
-    else:
-        C = np.zeros((len(w), P))
-        np.add.at(C, (np.arange(len(w))[:, None], pos), coef)
-        L = 2 * P - 1
-        Fc = np.fft.rfft(C, 2 * L)
-        # A_fg(d) = sum_a C_f[a] C_g[a + d], d = -(P-1)..P-1 (integer filters: rounded back to exact)
-        A = np.fft.irfft(np.conj(Fc)[:, None, :] * Fc[None, :, :], 2 * L)
-        A = np.concatenate((A[..., -(P - 1) :], A[..., :P]), axis=-1) if P > 1 else A[..., :1]
-        if np.all(C == np.rint(C)):
-            A = np.rint(A)
+    C = np.zeros((len(w), P))
+    np.add.at(C, (np.arange(len(w))[:, None], pos), coef)
+    L = 2 * P - 1
+    Fc = np.fft.rfft(C, 2 * L)
+    # A_fg(d) = sum_a C_f[a] C_g[a + d], d = -(P-1)..P-1 (integer filters: rounded back to exact)
+    A = np.fft.irfft(np.conj(Fc)[:, None, :] * Fc[None, :, :], 2 * L)
+    A = np.concatenate((A[..., -(P - 1) :], A[..., :P]), axis=-1) if P > 1 else A[..., :1]
+    if np.all(C == np.rint(C)):
+        A = np.rint(A)
     # rho(k) = sum_d A(d) G(k + d), d = -(P-1)..P-1: G once on the lags -(P-1)..kmax+P-1, then windows
     G = _canonical_gcov(noise, np.arange(-(P - 1), kmax + P))
     windows = np.lib.stride_tricks.sliding_window_view(G, 2 * P - 1)  # (kmax+1, 2P-1), row k: G(k-P+1..k+P-1)
@@ -433,7 +453,7 @@ def deviation(
     # the phase in units of dt (tau^2 -> m^2 below), except for hvar on octave m (block sums of the rate)
     levels = _octave_levels(m) if kind == "hvar" else 0
     if levels:
-        h, a, total = _k.hvar_octave_sums(rate, levels, _cumsum_buffer(n // 2 + 1))
+        h, a, total = _k.hvar_octave_sums(rate, levels, _cumsum_buffer(_k.hvar_octave_buffer_size(n)))
         if not math.isfinite(total):  # a non-finite sample (the full check names it) or an overflowed sum
             levels = 0
     if mean is None and not levels:
@@ -490,21 +510,25 @@ def deviation(
         # the AV's slope as for every statistic, the AV from hvar's own block sums (at every start offset
         # that is a multiple of m/2: an unbiased AV with about twice the non-overlapping AV's terms)
         count = _k.hvar_octave_av_terms(n, levels)[np.log2(m).astype(np.int64)]
-        kinds = list(_noise_from_slope(mf * dt, av_sums / (2.0 * mf * mf * count), n // m))
+        codes = _noise_codes_from_slope(mf * dt, av_sums / (2.0 * mf * mf * count), n // m)
+    elif noise == "auto" and av_sums is not None and kind not in ("theo1", "theobr") and m[-1] <= n // 2:
+        # the AV at every m came with the statistic's sums: the type per m from its slope directly (what
+        # ``_noise_kinds`` gives for these m, without its table)
+        codes = _noise_codes_from_slope(mf * dt, av_sums / (2.0 * mf * mf * (n - 2 * mf + 1)), n // m)
     elif noise == "auto":
         m_av = np.maximum(1, np.rint(tau / dt).astype(np.int64))
         table = _noise_kinds(x, dt, m_av, n, None if av_sums is None else dict(zip(m.tolist(), av_sums)))
         keys = np.array(sorted(table))
-        kinds = [table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av]
+        codes = _noise_codes([table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av])
     else:
-        kinds = list(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
+        codes = _noise_codes(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
     edf_kind = {"totvar": "oavar", "theobr": "theo1", "hvar": "ohvar"}.get(kind, kind)
     # hvar: its K terms are the m = 1 statistic of the phase decimated by m, whose G is that of the same
     # noise type scaled (white PM, white FM; flicker FM up to a quadratic in the lag, which the third
     # difference cancels): exact for them. RW FM approximately: the decimated G is m^3 (|d|^3 - |d|/m^2)/12,
     # the canonical discrete one (|d|^3 - |d|)/12.
     m_edf = np.ones_like(m) if kind == "hvar" else m
-    e = np.array([edf_quadratic(edf_kind, int(mi), int(Ki), str(nk)) for mi, Ki, nk in zip(m_edf, K, kinds)])
+    e = _edf_codes(edf_kind, m_edf, K, codes)
     return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
                        kind=kind)
 

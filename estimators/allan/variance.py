@@ -185,26 +185,35 @@ def edf_overlapping(m, n: int, noise) -> np.ndarray:
     return np.maximum(out, 1.0)
 
 
-def _noise_from_slope(tau, avar, J) -> np.ndarray:
-    """Noise type per tau from the local log-log slope of the AV (rounded to -2, -1, 0, +1).
+def _noise_codes_from_slope(tau, avar, J) -> np.ndarray:
+    """Noise type per tau from the local log-log slope of the AV (rounded to -2, -1, 0, +1), as codes 0..3
+    (white PM, white FM, flicker FM, random-walk FM: the slope + 2).
 
     The slope is only trusted where the AV values are precise (J >= 16 clusters); beyond, each tau
     takes the type identified at the longest trusted tau (a noisy tail would otherwise pass for
-    quantization noise and get an absurdly large edf).
+    quantization noise and get an absurdly large edf). The slope is NumPy's ``gradient`` of the
+    logarithms (``_kernels.noise_codes_from_slope``, tested equal to it); a non-finite one (an
+    overflowed AV) counts as white FM.
     """
-    names = {v: k for k, v in _SLOPE_OF.items()}
-    out = np.array(["white_fm"] * len(tau), dtype=object)
+    out = np.full(len(tau), 1, dtype=np.int64)
     good = np.flatnonzero(J >= 16)
     if len(good) < 2:
         return out
     g = good
-    with np.errstate(invalid="ignore", divide="ignore"):  # an overflowed (inf) AV: slope NaN -> white FM
-        slope = np.gradient(np.log(np.maximum(avar[g], np.finfo(float).tiny)), np.log(tau[g]))
-    slope = np.where(np.isfinite(slope), slope, -1.0)
-    kinds = [names[int(v)] for v in np.clip(np.rint(slope), -2, 1)]
-    out[g] = kinds
-    out[g[-1] + 1 :] = kinds[-1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        codes = _kernels.noise_codes_from_slope(np.log(tau[g]), np.log(np.maximum(avar[g], np.finfo(float).tiny)))
+    out[g] = codes
+    out[g[-1] + 1 :] = codes[-1]
     return out
+
+
+#: noise type names by code (``_noise_codes_from_slope``)
+NOISE_NAMES = np.array(sorted(_SLOPE_OF, key=_SLOPE_OF.get), dtype=object)
+
+
+def _noise_from_slope(tau, avar, J) -> np.ndarray:
+    """Noise type names per tau (``_noise_codes_from_slope``)."""
+    return NOISE_NAMES[_noise_codes_from_slope(tau, avar, J)]
 
 
 def _interval(avar, edf, confidence):
