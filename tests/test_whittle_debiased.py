@@ -309,3 +309,41 @@ def test_ramp_variance_with_a_variance_below_zero():
     e = estimators.get("whittle_debiased").fit(x, gs.gyro.dt)
     assert e.coefficients_["B"] == 0.0 and np.isfinite(e.diagnostics_["ramp_z2"])
     assert np.all(np.isfinite(e.conf_int().loc[list("QNBKR")].to_numpy()))
+
+
+@pytest.mark.parametrize("n", [64, 65])
+def test_sandwich_ratio_is_the_explicit_matrix_product(n):
+    """WhittleFit.godambe_ratio (closed-form DFT covariances, FFT Toeplitz products) equals
+    diag(H^-1 J H^-1) / diag(H^-1) with J built from the explicit covariance of the detrended DFT
+    ordinates M x, M = F - G c^T, of a record whose covariance is the model's dense matrix."""
+    from avbench.estimators.likelihood.whittle import WhittleFit, _autocovariance
+
+    dt, m = 0.1, 10
+    wf = WhittleFit(np.random.default_rng(0).standard_normal(n), dt, debiased=True)
+    comps, a = ["Q", "N", "B", "K"], np.array([0.3, 1.0, 2.0, 0.5])
+    idx = np.arange(n)
+    lag = np.abs(np.subtract.outer(idx, idx))
+    sigma = sum(a[j] * (dt * (np.minimum.outer(idx, idx) + 1.0) if c == "K" else _autocovariance(c, n, dt)[lag])
+                for j, c in enumerate(comps))
+    F = np.exp(-2j * np.pi * np.outer(np.arange(1, m + 1), idx) / n)
+    M = F - np.outer(wf.G[:m], wf.trend_weights(comps, a))
+    EY, PY = M @ sigma @ M.conj().T, M @ sigma @ M.T
+    Bm = wf._matrix(comps, None)
+    S = a @ Bm
+    cov = (np.abs(EY) ** 2 + np.abs(PY) ** 2) / n**2 - np.diag(S[:m] ** 2)
+    H = (Bm * (wf.w / S**2)) @ Bm.T
+    b = Bm[:, :m] * (wf.w[:m] / S[:m] ** 2)
+    Hi = np.linalg.inv(H)
+    want = np.diag(Hi @ (H + b @ cov @ b.T) @ Hi) / np.diag(Hi)
+    np.testing.assert_allclose(wf.godambe_ratio(comps, a, m=m), want, rtol=1e-9)
+
+
+def test_white_noise_ordinates_are_independent():
+    """A circulant covariance (white noise) leaves the DFT ordinates uncorrelated: A diagonal, P = 0."""
+    from avbench.estimators.likelihood.whittle import _low_dft_covariance
+
+    c = np.zeros(50)
+    c[0] = 2.0
+    A, P = _low_dft_covariance(c, 12)
+    np.testing.assert_allclose(A, np.diag(np.full(12, 100.0)), atol=1e-12)
+    np.testing.assert_allclose(P, 0.0, atol=1e-12)
