@@ -57,7 +57,10 @@ The AV covariance (weights, standard errors, the fit check) includes the line's 
 rest of the spectrum (:func:`avbench.estimators.allan.covariance.av_covariance`; without it the
 covariance was 2-11 times too small where the sinusoid shapes the curve). With ``lines="auto"``
 (:class:`GMWMFiltered`'s default) ``SN`` is added when the record's strongest spectral line passes the
-test of :mod:`avbench.estimators.likelihood.lines`.
+test of :mod:`avbench.estimators.likelihood.lines`. ``RS`` a resonance, band-pass Gauss-Markov noise
+(sigma, f0, tc; :class:`avbench.noise_models.Resonance`: a lightly damped mode's noise, no power at f = 0,
+no coefficient), added with ``resonance="auto"`` (:class:`GMWMFiltered`'s default) where a band stands out
+of the record's spectrum and lets the model keep shorter scales (:meth:`GMWM._resonance_choice`).
 Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts,
 with the analytic Jacobian of the model's exact AV (:class:`_LatentAV`; issue 25: it replaced forward differences,
 ~80 % of the cost, whose truncation error stopped some fits short of the minimum: on replicate 0 of
@@ -241,6 +244,24 @@ class GMWM(Estimator):
         frequency the usable taus see; ``diagnostics_["line_test"]`` says what was found and chosen.
         With ``SN`` in the model (given or added) and such a line found, the sinusoid is started at
         the line (frequency and amplitude) instead of at the eight strongest bumps of the AV curve.
+    resonance : {"model", "auto"}
+        "model" (default here): no resonance beyond ``model``'s. "auto": where the model drops scales
+        (its chosen shortest cut-off is not the first usable one), a resonance ``RS`` is tried when a
+        band of the record's spectrum stands at least :data:`RESONANCE_MIN_PROMINENCE` times above its
+        surroundings at level :data:`RESONANCE_TEST_LEVEL` (:func:`_resonance_starts`; away from a line
+        the model holds), and kept at the shortest cut-off below the model's own that (a) Hansen's J does
+        not reject at :data:`SCALE_TEST_LEVEL` keeping the longer half of the scales, as
+        ``min_m="adequate"``, (b) sees the band (shortest tau <= :data:`RESONANCE_SEEN` / f0) and (c)
+        passes the poor-fit check; else the model without it. Its centre frequency stays within
+        :data:`RESONANCE_FREQUENCY_FACTOR` of the band found. ``diagnostics_["resonance_test"]``: the
+        band (``band_f0``, ``prominence``, ``band_p_value``), each cut-off tried with its fit-check
+        p-value, whether RS was included, the fitted ``sigma, f0, tc``, and the two fits' J on the same
+        scales with the chi^2(3) p-value of their difference (indicative only: f0 and tc are undefined
+        without the term). On a record the model without it fits at every scale nothing is tried.
+    bias_evidence : bool
+        False (default here). True: the record's evidence between a Gauss-Markov and a flicker bias
+        instability, ``diagnostics_["bias_evidence"]`` (:meth:`GMWM._bias_evidence`: the same model
+        with GM and FL exchanged, on the same scales, GMM-AIC weights); the reported B is the model's own.
 
     Attributes
     ----------
@@ -266,6 +287,10 @@ class GMWM(Estimator):
     round_off_amplified = True  # an optimiser's end point (Estimator.round_off_amplified)
 
     uses_allan_variance = True
+
+    #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
+    diagnostic_units = {"line_test": {"amplitude": 1}, "resonance_test": {"sigma": 1},
+                        "bias_evidence": {"GM": {"B": 1}, "FL": {"B": 1}}}
 
     #: run the poor-fit check (:func:`avbench.estimators.allan.fit_check.assess_fit`); not a setting: an estimator
     #: that uses the GMWM fit only as its start sets it False on its instance
@@ -331,19 +356,7 @@ class GMWM(Estimator):
         best, tried = self._scale_choice(latents, *args, resonance)
         resonance_test = None
         if self.resonance == "auto" and "RS" not in latents:
-            base = (best, tried, latents)
             best, tried, latents, resonance_test = self._resonance_choice(latents, best, tried, rate, *args)
-            if resonance_test["included"] and self._assess:
-                # a resonance must not turn a fit that passes the poor-fit check into one it flags
-                with_rs = self._fit_check(best, latents, rate, dt, wv, usable, n)[0]
-                resonance_test["fit_pvalue_with"] = with_rs.get("fit_pvalue")
-                if with_rs.get("poor_fit"):
-                    without = self._fit_check(base[0], base[2], rate, dt, wv, usable, n)[0]
-                    resonance_test["fit_pvalue_without"] = without.get("fit_pvalue")
-                    if not without.get("poor_fit"):
-                        best, tried, latents = base
-                        resonance_test.update(included=False, reason="with the resonance the poor-fit check flags "
-                                              "the fit, without it the fit passes")
         bias_evidence = None
         if self.bias_evidence and {"GM", "FL"} & set(latents):
             found = self._resonance_band(rate, dt, tau_all[usable], line) if "RS" in latents else None
@@ -392,10 +405,10 @@ class GMWM(Estimator):
         return assess_fit(rate, dt, model_avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
                           reference=reference, cov_scale=wv.cov_scale), gyro
 
-    def _scale_choice(self, latents, wv, usable, n, dt, line, resonance=None, below=None):
+    def _scale_choice(self, latents, wv, usable, n, dt, line, resonance=None, below=None, accept=None, max_tau=np.inf):
         """(best fit, [(min_m, J, n_scales) tried]): the shortest scale the fit uses (setting ``min_m``,
         see the class docstring). ``below``: try only cut-offs shorter than this one, and return
-        (None, tried) when none of them is adequate (:meth:`_resonance_choice`)."""
+        (None, tried) when none of them is adequate and accepted by ``accept(fit)`` (:meth:`_resonance_choice`)."""
         from scipy.stats import chi2
 
         tau_all, avar_all, m_all, edf_all, cov_scale = wv.tau, wv.avar, wv.m, wv.edf, wv.cov_scale
@@ -407,7 +420,7 @@ class GMWM(Estimator):
             lows = [int(self.min_m)]
         if below is not None:
             k_all = int(np.count_nonzero(usable & (m_all >= lows[0]))) if lows else 0
-            lows = [v for v in lows if v < below]
+            lows = [v for v in lows if v < below and v * dt <= max_tau]
             tried = []
             for m0 in lows:
                 keep = usable & (m_all >= m0)
@@ -416,7 +429,8 @@ class GMWM(Estimator):
                 k = int(np.count_nonzero(keep))
                 fit["k"] = k
                 tried.append((m0, fit["J_stat"], k))
-                if 2 * k >= k_all and chi2.sf(fit["J_stat"], max(k - n_par, 1)) >= SCALE_TEST_LEVEL:
+                if (2 * k >= k_all and chi2.sf(fit["J_stat"], max(k - n_par, 1)) >= SCALE_TEST_LEVEL
+                        and (accept is None or accept(fit))):
                     return fit, tried
             return None, tried
         if not lows or np.count_nonzero(usable & (m_all >= lows[0])) < n_par + 1:
@@ -522,10 +536,27 @@ class GMWM(Estimator):
         if not (found.prominence >= RESONANCE_MIN_PROMINENCE and found.p_value < RESONANCE_TEST_LEVEL):
             report["reason"] = "no band of the spectrum stands out of its surroundings"
             return best, tried, latents, report
-        fit, rs_tried = self._scale_choice(rs_latents, wv, usable, n, dt, line, found, below=m0)
+        checks = {}
+
+        def passes(fit):
+            # the band is seen (the shortest tau fitted within RESONANCE_SEEN / f0: beyond, the term is only its
+            # 1/tau^2 tail, a shape with no resonance in it) and the poor-fit check passes (a resonance must not
+            # make a flagged fit)
+            if fit["diag"]["tau"][0] * fit["diag"]["params"]["RS.f0"] > RESONANCE_SEEN:
+                return False
+            if not self._assess:
+                return True
+            check = self._fit_check(fit, rs_latents, rate, dt, wv, usable, n)[0]
+            checks[int(fit["diag"]["m"][0])] = check.get("fit_pvalue")
+            return not check.get("poor_fit")
+
+        fit, rs_tried = self._scale_choice(rs_latents, wv, usable, n, dt, line, found, below=m0, accept=passes,
+                                           max_tau=RESONANCE_SEEN * RESONANCE_FREQUENCY_FACTOR / found.f0)
+        report["fit_pvalues_with"] = checks
         report["tried"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in rs_tried]
         if fit is None:
-            report["reason"] = "no shorter cut-off is adequate with a resonance"
+            report["reason"] = ("no shorter cut-off is adequate with a resonance (Hansen's J at level "
+                                f"{SCALE_TEST_LEVEL}) and passes the poor-fit check")
             return best, tried, latents, report
         m_rs = int(fit["diag"]["m"][0])
         j_without = next((j for a, j, _ in tried if a == m_rs), math.nan)
@@ -909,6 +940,10 @@ BIAS_EVIDENCE_WEIGHT = 0.95
 #: autocovariance's sine weight, (1 - rho^2) / (2 rho sin w), has no finite value)
 RESONANCE_MAX_FREQUENCY = 0.45
 
+#: a resonance is kept only where the shortest tau fitted is at most this over its centre frequency (twice its
+#: AV's peak tau, 0.371 / f0): beyond, only its 1/tau^2 tail is fitted, a shape with no resonance in it
+RESONANCE_SEEN = 0.75
+
 #: a resonance's centre frequency stays within this factor of the band found in the spectrum (and the band
 #: search keeps this factor away from a line the model holds): wide enough for the band's skew (the ADIS16405
 #: gyro z's peak bin and fitted f0 agree to 1-2 %), narrow enough that it cannot wander off to shape
@@ -1044,7 +1079,9 @@ class GMWMFiltered(GMWM):
     (issue 24): ``lines="auto"`` (a sinusoid ``SN`` when the record's strongest spectral line passes the
     line test: the ADIS16405 accelerometers' 0.47-0.57 Hz line) and ``min_m="adequate"`` (the shortest
     cut-off the model fits by Hansen's J; it differs from ``"auto"`` only where the all-scale fit is
-    rejected).
+    rejected), ``resonance="auto"`` (a band-pass Gauss-Markov term ``RS`` where a band stands out of the
+    spectrum and lets the model keep shorter scales: the ADIS16405 gyro z's 17-21 Hz band) and
+    ``bias_evidence=True`` (the record's weights for a Gauss-Markov against a flicker B).
     """
 
     def __init__(self, *, model=REAL_SENSOR_MODEL, min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
