@@ -189,3 +189,6 @@ def test_crlb_of_the_real_sensor_terms():
     assert crlb(Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, tc=0.03)]), n)["N"] > white * 1.01
     with_sine = crlb(Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), Sinusoidal(1e-3, 0.5)]), n)
     assert with_sine["N"] == pytest.approx(white, rel=1e-12)
+    # a resonance: its sigma, frequency and tc are nuisance parameters; N's bound can only grow
+    with_rs = crlb(Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), Resonance(5e-3, 20.0, 0.3)]), n)
+    assert with_rs["N"] > white * (1 + 1e-6) and list(with_rs.dropna().index) == ["N"]
