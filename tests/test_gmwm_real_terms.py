@@ -159,6 +159,16 @@ def test_resonance_is_added_on_evidence_and_keeps_the_short_scales():
     se = e.std_err_["N"]
     assert abs(e.coefficients_["N"] - 7e-4) < 4 * se, (e.coefficients_["N"], se)
     assert "resonance_test" not in estimators.get("gmwm").fit(x, DT).diagnostics_  # plain gmwm: unchanged
+    # the same record in mrad/s: the same choice, the rate-like entries times 1000, the others equal
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        milli = estimators.get("gmwm_filtered").fit(1000.0 * x, DT)
+    t2, ev, ev2 = milli.diagnostics_["resonance_test"], e.diagnostics_["bias_evidence"], milli.diagnostics_["bias_evidence"]
+    assert t2["included"] and t2["sigma"] == pytest.approx(1000 * test["sigma"], rel=1e-6)
+    assert t2["f0"] == pytest.approx(test["f0"], rel=1e-6) and t2["prominence"] == pytest.approx(test["prominence"], rel=1e-9)
+    assert ev2["preferred"] == ev["preferred"] and ev2["weight"] == pytest.approx(ev["weight"], rel=1e-6)
+    for k in ("GM", "FL"):
+        assert ev2[k]["B"] == pytest.approx(1000 * ev[k]["B"], rel=1e-6)
     # a broadband record whose model drops a scale anyway: no band stands out, nothing is added
     g = Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, length=3), GaussMarkov(sigma=5e-4, tc=2.0)])
     with warnings.catch_warnings():
