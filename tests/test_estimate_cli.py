@@ -208,20 +208,20 @@ def test_model_choice_is_reported(tmp_path, capsys):
 
     g = Gyro(dt=1 / FS, terms=[AngleRandomWalk(N=N_TRUE), GaussMarkov(sigma=1e-3, tc=5.0)])  # a visible GM hump
     x = g.simulate(100_000, np.random.default_rng(4))
-    got = {}
-    for units, data in (("rad/s", x), ("deg/s", _deg(x))):
-        f = tmp_path / f"r_{units[:3]}.npy"
-        np.save(f, data)
-        assert main(["estimate", str(f), "--fs", "100", "--units", units, "--method", "gmwm_filtered", "--json",
-                     "--out", str(tmp_path / units[:3])]) == 0
-        payload = json.loads(capsys.readouterr().out)
-        got[units] = payload["sensors"]["gyro"]["axes"]["x"]["methods"]["gmwm_filtered"]["model_choice"]
-    ev = got["rad/s"]["bias_evidence"]
+    f = tmp_path / "r.npy"
+    np.save(f, x)
+    assert main(["estimate", str(f), "--fs", "100", "--units", "rad/s", "--method", "gmwm_filtered",
+                 "--out", str(tmp_path / "rad")]) == 0
+    assert "B model: Gauss-Markov" in capsys.readouterr().out
+    payload = json.loads(next((tmp_path / "rad").glob("*_coefficients.json")).read_text())
+    rad = payload["sensors"]["gyro"]["axes"]["x"]["methods"]["gmwm_filtered"]["model_choice"]
+    f = tmp_path / "d.npy"
+    np.save(f, _deg(x))
+    assert main(["estimate", str(f), "--fs", "100", "--units", "deg/s", "--method", "gmwm_filtered", "--json",
+                 "--out", str(tmp_path / "deg")]) == 0
+    deg = json.loads(capsys.readouterr().out)["sensors"]["gyro"]["axes"]["x"]["methods"]["gmwm_filtered"]["model_choice"]
+    ev = rad["bias_evidence"]
     assert ev["preferred"] == "GM" and ev["GM"]["weight"] + ev["FL"]["weight"] == pytest.approx(1.0)
     b_fl = ev["FL"]["B"]
-    assert 0 < b_fl < 1e-3 and got["deg/s"]["bias_evidence"]["FL"]["B"] == pytest.approx(b_fl, rel=1e-6)
-    assert got["rad/s"]["resonance_test"]["included"] is False and "line_test" in got["rad/s"]
-    f = tmp_path / "r_rad.npy"
-    assert main(["estimate", str(f), "--fs", "100", "--units", "rad/s", "--method", "gmwm_filtered",
-                 "--out", str(tmp_path / "screen")]) == 0
-    assert "B model: Gauss-Markov" in capsys.readouterr().out
+    assert 0 < b_fl < 1e-3 and deg["bias_evidence"]["FL"]["B"] == pytest.approx(b_fl, rel=1e-6)
+    assert rad["resonance_test"]["included"] is False and "line_test" in rad
