@@ -515,11 +515,11 @@ class GMWM(Estimator):
         return out
 
     def _resonance_choice(self, latents, best, tried, rate, wv, usable, n, dt, line):
-        """``resonance="auto"``: (best, tried, latents) with a resonance ``RS`` added when the model
-        without it drops scales and the model with it keeps a shorter cut-off that Hansen's J does not
-        reject (level :data:`SCALE_TEST_LEVEL`, at least the longer half of the scales, as
-        ``min_m="adequate"``); else the fit without it. ``diagnostics_["resonance_test"]`` reports the
-        comparison (see the class docstring)."""
+        """``resonance="auto"``: (best, tried, latents, report) with a resonance ``RS`` added when the model
+        without it drops scales, a band stands out of the spectrum, and the model with it keeps a shorter
+        cut-off that Hansen's J does not reject (level :data:`SCALE_TEST_LEVEL`, at least the longer half of
+        the scales, as ``min_m="adequate"``), that sees the band and whose fit passes the poor-fit check;
+        else the fit without it. ``report`` is ``diagnostics_["resonance_test"]`` (the class docstring)."""
         from scipy.stats import chi2
 
         m0 = int(best["diag"]["m"][0])
