@@ -27,6 +27,7 @@ from avbench.noise_models.terms import (  # noqa: E402
     Quantization,
     RateRamp,
     RateRandomWalk,
+    Resonance,
     SecondOrderGaussMarkov,
     Sinusoidal,
 )
@@ -41,6 +42,7 @@ __all__ = [
     "Quantization",
     "RateRamp",
     "RateRandomWalk",
+    "Resonance",
     "SecondOrderGaussMarkov",
     "Sinusoidal",
     "presets",
@@ -60,6 +62,7 @@ TERM_TYPES = {
         Quantization,
         RateRamp,
         RateRandomWalk,
+        Resonance,
         SecondOrderGaussMarkov,
         Sinusoidal,
     )

@@ -35,6 +35,9 @@ Sinusoidal(A, f0)      A sin(2 pi f0 k dt + phi), phi uniform       A^2 sin^4(m 
                        (IEEE Std 952-1997, Annex C)                 w = 2 pi f0 dt
 FilteredWhiteNoise(N)  white noise N through the sensor's low-pass  N^2/tau - 3 C2 / m^2 (FIR, m >= L);
                        (moving average, FIR or first-order IIR)     the GM form (first-order IIR)
+Resonance(sigma, f0,   band-pass Gauss-Markov: ARMA(2,1), poles     Re[(1 + i c) GM form at complex phi]
+          tc)          rho e^{+-i w}, MA zero at 1 (a structural    (closed form below)
+                       mode's noise; no power at f = 0)
 =====================  ==========================================  =======================================
 """
 
@@ -62,6 +65,7 @@ __all__ = [
     "SecondOrderGaussMarkov",
     "Sinusoidal",
     "FilteredWhiteNoise",
+    "Resonance",
     "GM_PEAK_TAU_OVER_TC",
     "GM_PEAK_ADEV_OVER_SIGMA",
     "B_EQUIV_OVER_SIGMA",
@@ -170,6 +174,28 @@ class NoiseTerm:
 
         (up, a), (down, b) = at(h), at(-h)
         return value, (up - down) / (a - b)
+
+    @classmethod
+    def shape_parameters(cls) -> tuple[str, ...]:
+        """Every parameter beside the amplitude that shapes the AV curve: ``(shape_parameter,)`` or ``()``
+        by default; a term with two (:class:`Resonance`: frequency and damping time) overrides it."""
+        return () if cls.shape_parameter is None else (cls.shape_parameter,)
+
+    def avar_shape_gradient(self, m, dt) -> tuple[np.ndarray, list[np.ndarray]]:
+        """``(avar, [d avar / d ln p for p in shape_parameters()])``: :meth:`avar_shape_derivative` for a
+        term with one shape parameter; central differences in ln p (as there) for more."""
+        names = self.shape_parameters()
+        if len(names) == 1:
+            value, d = self.avar_shape_derivative(m, dt)
+            return value, [d]
+        params, h = self._params(), 1e-4
+        value = self.avar(m, dt)
+        out = []
+        for name in names:
+            up = type(self)(**{**params, name: params[name] * math.exp(h)}).avar(m, dt)
+            down = type(self)(**{**params, name: params[name] * math.exp(-h)}).avar(m, dt)
+            out.append((up - down) / (2 * h))
+        return value, out
 
     def spectral_lines(self, dt) -> list[tuple[float, float]]:
         """Spectral lines [(frequency Hz, variance)] beside :meth:`psd` (none but for sinusoids)."""
@@ -1192,3 +1218,134 @@ class FilteredWhiteNoise(NoiseTerm):
         if h is None:
             return self._gauss_markov(dt).stream(dt, rng)
         return _FIRStream(dt, rng, np.ascontiguousarray(h), self.N / math.sqrt(dt))
+
+
+# --- a resonance: band-pass (oscillatory) Gauss-Markov noise --------------------------------------
+
+
+def _gm_form(m: np.ndarray, alpha: complex) -> np.ndarray:
+    """F(m) = [m(1 - phi^2) - 3 phi + 4 phi^(m+1) - phi^(2m+1)] / [m^2 (1 - phi)^2] at phi = exp(-alpha),
+    complex alpha (Re alpha > 0): the Gauss-Markov AV per unit variance (:class:`GaussMarkov`), an
+    algebraic identity in phi that holds for complex phi too. The expm1 form (no cancellation in
+    1 - phi^k); callers keep (2m + 1)|alpha| >= 1, below which the form loses digits."""
+    mf = m.astype(float)
+    c = -np.expm1(-alpha)
+    f = mf * (-np.expm1(-2 * alpha)) - np.exp(-alpha) * (-4 * np.expm1(-mf * alpha) + np.expm1(-2 * mf * alpha))
+    return f / (mf * mf * c * c)
+
+
+class Resonance(NoiseTerm):
+    r"""Band-pass (oscillatory) Gauss-Markov rate noise: the noise of a lightly damped mode at f0.
+
+    A MEMS gyro's drive or sense mode, a mount's structural mode, a neighbouring rotor: power in a
+    band around f0 of width ~1/(pi tc) and none at f = 0 (it is not a bias). Beyond IEEE Std 952
+    (whose exponentially correlated term is the f0 = 0 member of the family). The discrete sequence
+    is the ARMA(2, 1)
+
+    .. math:: x_k = 2\rho\cos\omega\,x_{k-1} - \rho^2 x_{k-2} + s\,(e_k - e_{k-1}),\qquad
+        \rho = e^{-dt/t_c},\ \omega = 2\pi f_0\,dt ,
+
+    (poles rho e^{+-i omega}, the MA zero at 1 takes out the power at f = 0), s set so that the
+    stationary variance is sigma^2. Its autocovariance is
+
+    .. math:: r(k) = \sigma^2 \rho^{|k|} [\cos(\omega k) - c \sin(\omega |k|)] = \sigma^2\,
+        \mathrm{Re}[(1 + i c)\,\phi^{|k|}],\qquad \phi = \rho e^{i\omega},\quad
+        c = \frac{1 - \rho^2}{2 \rho \sin\omega},
+
+    c from the zero at f = 0 (sum over all lags of r = sigma^2 Re[(1 + i c)(1 + phi)/(1 - phi)] = 0). The
+    AV is linear in r and the first-order Gauss-Markov AV (:class:`GaussMarkov`) is an algebraic identity
+    in phi, so the exact discrete AV is
+
+    .. math:: \sigma^2(m) = \sigma^2\,\mathrm{Re}\,\{(1 + i c)\,F_m(\phi)\},\qquad
+        F_m(\phi) = \frac{m(1-\phi^2) - 3\phi + 4\phi^{m+1} - \phi^{2m+1}}{m^2 (1-\phi)^2}
+
+    (the extended-precision autocovariance route of ``exact_avar`` where (2m + 1)|ln phi| < 1, where the
+    closed form would lose digits). It peaks near tau = 0.371 / f0 as a sinusoid's and falls as 1/tau^2
+    beyond the band (no white-noise or bias share at long tau). Continuous limit (dt -> 0 at fixed f0,
+    tc): c -> 1 / (2 pi f0 tc), the velocity of a damped oscillator driven by white noise. ``frequency``
+    must lie below the Nyquist frequency (at it, sin omega = 0).
+
+    Parameters
+    ----------
+    sigma : float or (value, unit)
+        Stationary standard deviation of the rate (rad/s, or e.g. ``(300, "deg/h")``).
+    frequency : float
+        Centre frequency f0 in Hz, 0 < f0 < 1/(2 dt).
+    tc : float
+        Damping time in seconds (the band's half width at half power ~ 1/(2 pi tc)).
+    """
+
+    coefficient = None
+
+    def __init__(self, sigma, frequency, tc):
+        self.sigma = as_si("B", sigma)  # a rate, like B
+        if self.sigma == 0:
+            raise ValueError("sigma: expected a positive standard deviation, got 0")
+        self.frequency = _positive("frequency", frequency)
+        self.tc = _positive("tc", tc)
+
+    @classmethod
+    def shape_parameters(cls):
+        return ("frequency", "tc")
+
+    def _params(self):
+        return {"sigma": self.sigma, "frequency": self.frequency, "tc": self.tc}
+
+    def psd_factor(self):
+        return self.sigma**2, Resonance(sigma=1.0, frequency=self.frequency, tc=self.tc)
+
+    def _poles(self, dt):
+        """(rho, omega, c) of the sampling ``dt``; a ValueError at or above the Nyquist frequency."""
+        dt = _check_dt(dt)
+        if self.frequency >= 0.5 / dt * (1 - 1e-12):
+            raise ValueError(
+                f"frequency: {self.frequency} Hz is not below the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
+                "of this sampling; expected a frequency the samples resolve"
+            )
+        rho, w = math.exp(-dt / self.tc), 2 * math.pi * self.frequency * dt
+        return rho, w, -math.expm1(-2 * dt / self.tc) / (2 * rho * math.sin(w))
+
+    def autocovariance(self, lags, dt) -> np.ndarray:
+        """r at the given lags (or at 0..lags for an integer, as the FIR terms), exact."""
+        rho, w, c = self._poles(dt)
+        k = np.abs(np.arange(int(lags) + 1) if np.ndim(lags) == 0 else np.asarray(lags, dtype=float))
+        return self.sigma**2 * rho**k * (np.cos(w * k) - c * np.sin(w * k))
+
+    def avar(self, m, dt):
+        m = check_m(m)
+        rho, w, c = self._poles(dt)
+        alpha = complex(dt / self.tc, -w)  # phi = exp(-alpha) = rho e^{i w}
+        out = np.empty(m.size)
+        small = (2 * m + 1) * abs(alpha) < 1.0
+        if np.any(small):
+            out[small] = avar_from_autocovariance(self.autocovariance(int(2 * m[small].max()), dt), m[small])
+        if np.any(~small):
+            out[~small] = self.sigma**2 * np.real((1 + 1j * c) * _gm_form(m[~small], alpha))
+        return out
+
+    def psd(self, f, dt):
+        """One-sided: 2 dt [r(0) + 2 sum_{k>=1} r(k) cos(k theta)], summed in closed form."""
+        rho, w, c = self._poles(dt)
+        f, theta = _omega_dt(f, dt)
+        phi = rho * np.exp(1j * w)
+        z1, z2 = phi * np.exp(1j * theta), phi * np.exp(-1j * theta)
+        s = np.real((1 + 1j * c) * (z1 / (1 - z1) + z2 / (1 - z2)))
+        return 2 * dt * self.sigma**2 * (1 + s)
+
+    def arma(self, dt):
+        """(A, G, P): the state-space form of the ARMA(2, 1) (state (x_k, u_k), x_k = a1 x_{k-1} + u_{k-1}
+        + s e_k, u_k = a2 x_{k-1} - s e_k), its noise loading and stationary state covariance."""
+        from scipy.linalg import solve_discrete_lyapunov
+
+        rho, w, _ = self._poles(dt)
+        A = np.array([[2 * rho * math.cos(w), 1.0], [-rho * rho, 0.0]])
+        g = np.array([1.0, -1.0])
+        P1 = solve_discrete_lyapunov(A, np.outer(g, g))
+        s = self.sigma / math.sqrt(P1[0, 0])
+        return A, s * g, s * s * (P1 + P1.T) / 2
+
+    def stream(self, dt, rng):
+        dt = _check_dt(dt)
+        A, G, P = self.arma(dt)
+        chol = np.array([[G[0], 0.0], [G[1], 0.0]])  # one driving noise: x_k's and u_k's share e_k
+        return _SOGMStream(dt, rng, np.ascontiguousarray(A), chol, P)

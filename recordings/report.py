@@ -53,6 +53,33 @@ def _jsonable(v):
     return str(v)
 
 
+#: what an estimator reports about the model it chose (GMWM's ``diagnostics_``: the spectral line test, the
+#: resonance it added or not, the evidence between a Gauss-Markov and a flicker bias instability), copied
+#: into the JSON's ``model_choice`` and read in one screen note each (:func:`model_choice_notes`)
+MODEL_CHOICE_KEYS = ("line_test", "resonance_test", "bias_evidence")
+
+
+def model_choice_notes(md: dict, sensor: str) -> list[str]:
+    """Screen notes for the model a method chose (``md``: a method of the JSON payload): a resonance
+    it modelled, and which bias-instability model the record favours, with the weight and the other
+    model's B."""
+    notes = []
+    choice = md.get("model_choice") or {}
+    rs = choice.get("resonance_test") or {}
+    if rs.get("included") and rs.get("f0") is not None:
+        notes.append(f"resonance at {rs['f0']:.3g} Hz modelled")
+    ev = choice.get("bias_evidence") or {}
+    if ev.get("preferred") in ("GM", "FL"):
+        other = "FL" if ev["preferred"] == "GM" else "GM"
+        name = {"GM": "Gauss-Markov", "FL": "flicker"}
+        unit = DISPLAY_UNITS[sensor]["B"]
+        b_other = ev[other].get("B")
+        shown = "?" if b_other is None else f"{from_si('B', b_other, unit, sensor):.3g} {unit}"
+        notes.append(f"B model: {name[ev['preferred']]} (weight {ev['weight']:.2f}"
+                     f"{', decisive' if ev.get('decisive') else ', not decisive'}; {name[other]} B {shown})")
+    return notes
+
+
 def poor_fit(fit):
     """(flag, detail): flag True/False from ``diagnostics_["poor_fit"]``, None if the method does not check."""
     est = fit.estimator
@@ -183,6 +210,15 @@ def _method_entry(fit, sensor, n_samples):
         for key in ("fit_stat", "fit_dof", "fit_pvalue", "fit_reference"):
             if key in fit.estimator.diagnostics_:
                 out[key] = _jsonable(fit.estimator.diagnostics_[key])
+        choice = {k: _jsonable(fit.estimator.diagnostics_[k]) for k in MODEL_CHOICE_KEYS
+                  if k in fit.estimator.diagnostics_}
+        for key, part, name in (("bias_evidence", "GM", "B"), ("bias_evidence", "FL", "B"),
+                                ("resonance_test", None, "sigma"), ("line_test", None, "amplitude")):
+            d = (choice.get(key) or {}) if part is None else (choice.get(key) or {}).get(part) or {}
+            if d.get(name) is not None:  # in the unit of the record as fitted: to SI
+                d[name] = _num(float(d[name]) / fit.scale)
+        if choice:
+            out["model_choice"] = choice
     return out
 
 
@@ -224,6 +260,7 @@ def tables(data: dict) -> dict[str, pd.DataFrame]:
                         hi = from_si(c, e["interval_si"][1], e["unit"], sensor)
                         notes.append(f"{c} not resolved (<= {hi:.3g})")
                 notes.extend(zero_notes(md, sensor))
+                notes.extend(model_choice_notes(md, sensor))
                 if md["failure"]:
                     notes.append("failed")
                 if md["poor_fit"]:

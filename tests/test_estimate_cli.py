@@ -198,3 +198,30 @@ def test_no_coefficient_is_a_bare_zero(tmp_path, record, capsys):
             value = row[f"{c} ({_coef(payload, method, c)['unit']})"]
             if value == 0:
                 assert f"{c}: " in row["flags"] and "upper 95 % bound" in row["flags"].split(f"{c}: ", 1)[1]
+
+
+def test_model_choice_is_reported(tmp_path, capsys):
+    """gmwm_filtered's model choice reaches the JSON (``model_choice``: the line test, the resonance test,
+    the Gauss-Markov-vs-flicker evidence with its B in SI, the same in deg/s and rad/s) and the screen
+    (a "B model:" note)."""
+    from avbench.noise_models import GaussMarkov
+
+    g = Gyro(dt=1 / FS, terms=[AngleRandomWalk(N=N_TRUE), GaussMarkov(sigma=1e-3, tc=5.0)])  # a visible GM hump
+    x = g.simulate(100_000, np.random.default_rng(4))
+    f = tmp_path / "r.npy"
+    np.save(f, x)
+    assert main(["estimate", str(f), "--fs", "100", "--units", "rad/s", "--method", "gmwm_filtered",
+                 "--out", str(tmp_path / "rad")]) == 0
+    assert "B model: Gauss-Markov" in capsys.readouterr().out
+    payload = json.loads(next((tmp_path / "rad").glob("*_coefficients.json")).read_text())
+    rad = payload["sensors"]["gyro"]["axes"]["x"]["methods"]["gmwm_filtered"]["model_choice"]
+    f = tmp_path / "d.npy"
+    np.save(f, _deg(x))
+    assert main(["estimate", str(f), "--fs", "100", "--units", "deg/s", "--method", "gmwm_filtered", "--json",
+                 "--out", str(tmp_path / "deg")]) == 0
+    deg = json.loads(capsys.readouterr().out)["sensors"]["gyro"]["axes"]["x"]["methods"]["gmwm_filtered"]["model_choice"]
+    ev = rad["bias_evidence"]
+    assert ev["preferred"] == "GM" and ev["GM"]["weight"] + ev["FL"]["weight"] == pytest.approx(1.0)
+    b_fl = ev["FL"]["B"]
+    assert 0 < b_fl < 1e-3 and deg["bias_evidence"]["FL"]["B"] == pytest.approx(b_fl, rel=1e-6)
+    assert rad["resonance_test"]["included"] is False and "line_test" in rad

@@ -79,7 +79,7 @@ def test_a_term_without_shape_parameter_says_so():
 
 
 @pytest.mark.parametrize("latents", [("WN", "GM", "RW"), ("QN", "WN", "GM", "RW", "DR"), ("FW", "GM", "RW", "SN"),
-                                     ("WN", "FL", "RW")])
+                                     ("WN", "FL", "RW"), ("FW", "GM", "RW", "RS")])
 def test_latent_model_value_and_jacobian(latents):
     """GMWM's model: the value equals the latent gyro's exact AV to round-off, the Jacobian agrees
     with central differences of it (to 1e-6 of the AV; 1e-5 where a term's shape derivative is
@@ -88,7 +88,7 @@ def test_latent_model_value_and_jacobian(latents):
     dt, tau_fl = 0.01, 2000.0
     tau = dt * 2.0 ** np.arange(0, 14)
     values = {"QN": [3e-6], "WN": [2e-3], "GM": [1e-4, 12.0], "FL": [5e-5], "RW": [3e-5], "DR": [1e-7],
-              "FW": [2e-3, 0.02], "SN": [4e-4, 0.5]}
+              "FW": [2e-3, 0.02], "SN": [4e-4, 0.5], "RS": [5e-3, 20.0, 0.3]}
     v = np.array([x for lat in latents for x in values[lat]])
     u = np.log(v)
     model = _LatentAV(latents, tau, dt, tau_fl)
@@ -100,7 +100,7 @@ def test_latent_model_value_and_jacobian(latents):
         e = np.zeros_like(u)
         e[j] = h
         fd = (model(u + e) - model(u - e)) / (2 * h)
-        tol = 1e-5 if {"SN", "FW"} & set(latents) else 1e-6
+        tol = 1e-5 if {"SN", "FW", "RS"} & set(latents) else 1e-6
         assert np.all(np.abs(jac[:, j] - fd) <= tol * exact), (latents, j)
 
 

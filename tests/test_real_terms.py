@@ -16,6 +16,7 @@ from avbench.noise_models import (
     AngleRandomWalk,
     FilteredWhiteNoise,
     Gyro,
+    Resonance,
     Sinusoidal,
     TERM_TYPES,
 )
@@ -29,6 +30,8 @@ TERMS = {
     "moving_average": FilteredWhiteNoise(N=1e-4, length=4),
     "fir": FilteredWhiteNoise(N=1e-4, taps=[1, 2, 3, 2, 1]),  # Bartlett window
     "lowpass": FilteredWhiteNoise(N=1e-4, tc=0.03),
+    "resonance": Resonance(sigma=1e-3, frequency=19.0, tc=0.3),  # the ADIS16405 gyro z's 17-21 Hz band
+    "resonance_slow": Resonance(sigma=1e-3, frequency=0.4, tc=5.0),  # (2m+1)|ln phi| < 1: the sum route
 }
 
 
@@ -88,6 +91,31 @@ def test_sinusoid_closed_form_agrees_with_autocovariance_route():
     assert s.coefficients() == {}
 
 
+def test_resonance_closed_form_autocovariance_and_spectrum():
+    """The closed form equals the extended-precision autocovariance route; no power at f = 0 (the
+    autocovariance sums to 0, the spectrum vanishes there), the spectrum integrates to sigma^2 and
+    peaks at f0; the AV falls as 1/tau^2 beyond the band; f0 -> 0 and tc -> oo are not a bias."""
+    m = np.unique(np.r_[1, 2, 3, 5, 8, 16, 33, 64, 128, 1000, 4096])
+    for term in (TERMS["resonance"], TERMS["resonance_slow"], Resonance(2.0, 45.0, 0.05)):
+        r = term.autocovariance(2 * m.max(), DT)
+        np.testing.assert_allclose(term.avar(m, DT), avar_from_autocovariance(r, m), rtol=1e-10, atol=1e-16 * term.sigma**2)
+        assert r[0] == pytest.approx(term.sigma**2, rel=1e-14)
+    t = TERMS["resonance"]
+    assert abs(2 * t.autocovariance(200_000, DT).sum() - t.sigma**2) < 1e-12 * t.sigma**2
+    f = np.linspace(1e-6, 0.5 / DT, 400001)
+    p = t.psd(f, DT)
+    integral = np.trapezoid(p, f) if hasattr(np, "trapezoid") else np.trapz(p, f)
+    assert integral == pytest.approx(t.sigma**2, rel=1e-5)
+    assert p[0] < 1e-12 * p.max() and f[np.argmax(p)] == pytest.approx(19.0, abs=0.05)
+    big = np.array([4096, 8192])
+    av = t.avar(big, DT)
+    assert av[0] / av[1] == pytest.approx(4.0, rel=0.02)  # 1/tau^2: nothing of N or B
+    # the term's own stream has the stationary variance and the autocovariance
+    x = Gyro(dt=DT, terms=[t]).simulate(2**18, np.random.default_rng(5))
+    acf = np.array([np.dot(x[: x.size - k], x[k:]) / (x.size - k) for k in range(6)])
+    np.testing.assert_allclose(acf, t.autocovariance(5, DT), atol=6 * t.sigma**2 * math.sqrt(2 * 0.3 / DT / x.size))
+
+
 def test_filter_closed_forms_and_continuous_limits():
     N = 1e-3
     # moving average: AV = (N^2/tau)(1 - (L^2-1)/(2 L m)) for m >= L, and the autocovariance route agrees
@@ -126,6 +154,7 @@ def test_streaming_and_config_names():
         parts = list(g.stream(9001, np.random.default_rng(3), chunk_size=1000))
         assert np.array_equal(np.concatenate(parts), one), name
     assert TERM_TYPES["Sinusoidal"] is Sinusoidal and TERM_TYPES["FilteredWhiteNoise"] is FilteredWhiteNoise
+    assert TERM_TYPES["Resonance"] is Resonance
 
 
 @pytest.mark.parametrize(
@@ -135,6 +164,9 @@ def test_streaming_and_config_names():
         (lambda: Sinusoidal(0.0, 1.0), "amplitude"),
         (lambda: Sinusoidal(1.0, -1.0), "frequency"),
         (lambda: FilteredWhiteNoise(N=1e-4), "exactly one filter"),
+        (lambda: Resonance(1.0, 50.0, 0.3).avar([1], DT), "Nyquist"),
+        (lambda: Resonance(0.0, 5.0, 0.3), "sigma"),
+        (lambda: Resonance(1.0, 5.0, -0.3), "tc"),
         (lambda: FilteredWhiteNoise(N=1e-4, length=2, tc=0.1), "exactly one filter"),
         (lambda: FilteredWhiteNoise(N=1e-4, length=0), "length"),
         (lambda: FilteredWhiteNoise(N=1e-4, taps=[1, -1]), "taps"),
@@ -157,3 +189,6 @@ def test_crlb_of_the_real_sensor_terms():
     assert crlb(Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, tc=0.03)]), n)["N"] > white * 1.01
     with_sine = crlb(Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), Sinusoidal(1e-3, 0.5)]), n)
     assert with_sine["N"] == pytest.approx(white, rel=1e-12)
+    # a resonance: its sigma, frequency and tc are nuisance parameters; N's bound can only grow
+    with_rs = crlb(Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), Resonance(5e-3, 20.0, 0.3)]), n)
+    assert with_rs["N"] > white * (1 + 1e-6) and list(with_rs.dropna().index) == ["N"]

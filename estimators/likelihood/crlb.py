@@ -94,7 +94,8 @@ def _components(gyro) -> tuple[list[_Component], set[str]]:
         if scale_key not in params:
             raise ValueError(f"crlb: cannot find the scale parameter of {term!r}")
         free = {scale_key: params[scale_key]}
-        free.update({k: params[k] for k in _SHAPE_PARAMS if params.get(k) is not None})
+        shape = dict.fromkeys((*_SHAPE_PARAMS, *term.shape_parameters()))  # e.g. a resonance's frequency too
+        free.update({k: params[k] for k in shape if params.get(k) is not None})
         value = term.coefficients().get(coef, math.nan) if coef else math.nan
         comps.append(_Component(term, free, coef, value / params[scale_key] if coef else 1.0))
     return comps, unbounded

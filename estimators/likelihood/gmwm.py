@@ -57,7 +57,10 @@ The AV covariance (weights, standard errors, the fit check) includes the line's 
 rest of the spectrum (:func:`avbench.estimators.allan.covariance.av_covariance`; without it the
 covariance was 2-11 times too small where the sinusoid shapes the curve). With ``lines="auto"``
 (:class:`GMWMFiltered`'s default) ``SN`` is added when the record's strongest spectral line passes the
-test of :mod:`avbench.estimators.likelihood.lines`.
+test of :mod:`avbench.estimators.likelihood.lines`. ``RS`` a resonance, band-pass Gauss-Markov noise
+(sigma, f0, tc; :class:`avbench.noise_models.Resonance`: a lightly damped mode's noise, no power at f = 0,
+no coefficient), added with ``resonance="auto"`` (:class:`GMWMFiltered`'s default) where a band stands out
+of the record's spectrum and lets the model keep shorter scales (:meth:`GMWM._resonance_choice`).
 Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts,
 with the analytic Jacobian of the model's exact AV (:class:`_LatentAV`; issue 25: it replaced forward differences,
 ~80 % of the cost, whose truncation error stopped some fits short of the minimum: on replicate 0 of
@@ -113,8 +116,9 @@ LATENTS = {
     "DR": (("R",), "R"),
     "FW": (("N", "tf"), "N"),
     "SN": (("A", "f0"), None),
+    "RS": (("sigma", "f0", "tc"), None),
 }
-_ORDER = ("QN", "WN", "FW", "GM", "FL", "RW", "DR", "SN")
+_ORDER = ("QN", "WN", "FW", "GM", "FL", "RW", "DR", "SN", "RS")
 
 
 class WaveletVariance(NamedTuple):
@@ -162,7 +166,7 @@ def build_gyro(latents, values, dt, flicker_tau_max=None):
 
     ``flicker_tau_max``: the filter memory of a flicker latent "FL" (required with it)."""
     from avbench.noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp
-    from avbench.noise_models import FilteredWhiteNoise, RateRandomWalk, Sinusoidal
+    from avbench.noise_models import FilteredWhiteNoise, RateRandomWalk, Resonance, Sinusoidal
 
     it = iter(values)
     terms = []
@@ -186,6 +190,9 @@ def build_gyro(latents, values, dt, flicker_tau_max=None):
         elif lat == "SN":
             A, f0 = next(it), next(it)
             terms.append(Sinusoidal(amplitude=A, frequency=f0))
+        elif lat == "RS":
+            sigma, f0, tc = next(it), next(it), next(it)
+            terms.append(Resonance(sigma=sigma, frequency=f0, tc=tc))
     return Gyro(dt=dt, terms=terms)
 
 
@@ -237,6 +244,24 @@ class GMWM(Estimator):
         frequency the usable taus see; ``diagnostics_["line_test"]`` says what was found and chosen.
         With ``SN`` in the model (given or added) and such a line found, the sinusoid is started at
         the line (frequency and amplitude) instead of at the eight strongest bumps of the AV curve.
+    resonance : {"model", "auto"}
+        "model" (default here): no resonance beyond ``model``'s. "auto": where the model drops scales
+        (its chosen shortest cut-off is not the first usable one), a resonance ``RS`` is tried when a
+        band of the record's spectrum stands at least :data:`RESONANCE_MIN_PROMINENCE` times above its
+        surroundings at level :data:`RESONANCE_TEST_LEVEL` (:func:`_resonance_starts`; away from a line
+        the model holds), and kept at the shortest cut-off below the model's own that (a) Hansen's J does
+        not reject at :data:`SCALE_TEST_LEVEL` keeping the longer half of the scales, as
+        ``min_m="adequate"``, (b) sees the band (shortest tau <= :data:`RESONANCE_SEEN` / f0) and (c)
+        passes the poor-fit check; else the model without it. Its centre frequency stays within
+        :data:`RESONANCE_FREQUENCY_FACTOR` of the band found. ``diagnostics_["resonance_test"]``: the
+        band (``band_f0``, ``prominence``, ``band_p_value``), each cut-off tried with its fit-check
+        p-value, whether RS was included, the fitted ``sigma, f0, tc``, and the two fits' J on the same
+        scales with the chi^2(3) p-value of their difference (indicative only: f0 and tc are undefined
+        without the term). On a record the model without it fits at every scale nothing is tried.
+    bias_evidence : bool
+        False (default here). True: the record's evidence between a Gauss-Markov and a flicker bias
+        instability, ``diagnostics_["bias_evidence"]`` (:meth:`GMWM._bias_evidence`: the same model
+        with GM and FL exchanged, on the same scales, GMM-AIC weights); the reported B is the model's own.
 
     Attributes
     ----------
@@ -263,18 +288,24 @@ class GMWM(Estimator):
 
     uses_allan_variance = True
 
+    #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
+    diagnostic_units = {"line_test": {"amplitude": 1}, "resonance_test": {"sigma": 1},
+                        "bias_evidence": {"GM": {"B": 1}, "FL": {"B": 1}}}
+
     #: run the poor-fit check (:func:`avbench.estimators.allan.fit_check.assess_fit`); not a setting: an estimator
     #: that uses the GMWM fit only as its start sets it False on its instance
     _assess = True
 
     def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6,
-                 lines="model"):
+                 lines="model", resonance="model", bias_evidence=False):
         self.model = model
         self.min_clusters = min_clusters
         self.min_m = min_m
         self.weighting = weighting
         self.n_starts = n_starts
         self.lines = lines
+        self.resonance = resonance
+        self.bias_evidence = bias_evidence
 
     # -- settings --------------------------------------------------------------------------------
     def check_settings(self):
@@ -294,6 +325,10 @@ class GMWM(Estimator):
             raise ValueError(f"n_starts: expected a positive integer, got {self.n_starts!r}")
         if self.lines not in ("model", "auto"):
             raise ValueError(f"lines: expected 'model' or 'auto', got {self.lines!r}")
+        if self.resonance not in ("model", "auto"):
+            raise ValueError(f"resonance: expected 'model' or 'auto', got {self.resonance!r}")
+        if not isinstance(self.bias_evidence, bool):
+            raise ValueError(f"bias_evidence: expected True or False, got {self.bias_evidence!r}")
         return latents
 
     # -- fitting ---------------------------------------------------------------------------------
@@ -314,11 +349,92 @@ class GMWM(Estimator):
         line = None
         if "SN" in latents or self.lines == "auto":
             latents, line = self._line_choice(latents, rate, dt, tau_all[usable])
+        args = (wv, usable, n, dt, line)
+        resonance = None
+        if "RS" in latents:
+            resonance = self._resonance_band(rate, dt, tau_all[usable], line)
+        best, tried = self._scale_choice(latents, *args, resonance)
+        resonance_test = None
+        if self.resonance == "auto" and "RS" not in latents:
+            best, tried, latents, resonance_test = self._resonance_choice(latents, best, tried, rate, *args)
+        bias_evidence = None
+        if self.bias_evidence and {"GM", "FL"} & set(latents):
+            found = self._resonance_band(rate, dt, tau_all[usable], line) if "RS" in latents else None
+            bias_evidence = self._bias_evidence(latents, best, wv, usable, n, dt, line, found)
+        diag = best["diag"]
+        diag["min_m"] = int(diag["m"][0])
+        if line is not None:
+            diag["line_test"] = line
+            if line["significant"] and "SN" in latents:
+                # the fitted frequency on its bound (LINE_FREQUENCY_FACTOR): the bump's shape is not one
+                # pure tone at the line (results/real/README.md: the ADIS16405 accelerometers)
+                f0 = diag["params"]["SN.f0"]
+                line["f0_at_bound"] = bool(abs(math.log(f0 / line["f0"])) >= math.log(LINE_FREQUENCY_FACTOR) * (1 - 1e-6))
+        if self.min_m in ("auto", "adequate"):
+            diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
+        if bias_evidence is not None:
+            diag["bias_evidence"] = bias_evidence
+        if self.resonance == "auto":
+            diag["resonance_test"] = resonance_test or {"included": "RS" in latents, "reason": "in the model"}
+        if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
+            return best["coefs"], {}, diag
+        if "GM" in latents:
+            _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable)
+        _bound_terms_at_zero(diag, latents, best["coefs"], tau_all, avar_all, edf_all, usable, dt, 2.0 * n * dt)
+        check, gyro = self._fit_check(best, latents, rate, dt, wv, usable, n)
+        diag.update(check)
+        diag.update(wv.diagnostics or {})
+        diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
+        return best["coefs"], {}, diag
+
+    def _fit_check(self, best, latents, rate, dt, wv, usable, n):
+        """(the poor-fit check of :func:`assess_fit` for fit ``best`` of ``latents``, the fitted latent gyro)."""
+        diag = best["diag"]
+        gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
+        model_avar = gyro.avar
+        white = _white_latent(latents)
+        if wv.white_gain is not None and white is not None:
+            n_wn = diag["values"][_param_index(latents, white)]
+
+            def model_avar(tau):  # the fitted curve as the record's AV estimator sees it (see _fit_scales)
+                gain = np.interp(np.log(tau), np.log(wv.tau), wv.white_gain)
+                return gyro.avar(tau) + (gain - 1.0) * n_wn**2 / tau
+
+        reference = None if wv.reference_is_classical else (wv.tau, wv.avar, wv.m, n)
+        n_par = sum(len(LATENTS[lat][0]) for lat in latents)
+        return assess_fit(rate, dt, model_avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
+                          reference=reference, cov_scale=wv.cov_scale), gyro
+
+    def _scale_choice(self, latents, wv, usable, n, dt, line, resonance=None, below=None, accept=None, max_tau=np.inf,
+                      seed=None):
+        """(best fit, [(min_m, J, n_scales) tried]): the shortest scale the fit uses (setting ``min_m``,
+        see the class docstring). ``below``: try only cut-offs shorter than this one, and return
+        (None, tried) when none of them is adequate and accepted by ``accept(fit)`` (:meth:`_resonance_choice`);
+        ``seed``: the parameters of the other latents to start from (:meth:`_fit_scales`)."""
+        from scipy.stats import chi2
+
+        tau_all, avar_all, m_all, edf_all, cov_scale = wv.tau, wv.avar, wv.m, wv.edf, wv.cov_scale
+        gain_all = wv.white_gain
         n_par = sum(len(LATENTS[lat][0]) for lat in latents)
         if self.min_m in ("auto", "adequate"):
             lows = [int(v) for v in m_all if np.count_nonzero(usable & (m_all >= v)) >= n_par + 1]
         else:
             lows = [int(self.min_m)]
+        if below is not None:
+            k_all = int(np.count_nonzero(usable & (m_all >= lows[0]))) if lows else 0
+            lows = [v for v in lows if v < below and v * dt <= max_tau]
+            tried = []
+            for m0 in lows:
+                keep = usable & (m_all >= m0)
+                fit = self._fit_scales(latents, tau_all[keep], avar_all[keep], m_all[keep], edf_all[keep], n, dt,
+                                       cov_scale, None if gain_all is None else gain_all[keep], line, resonance, seed)
+                k = int(np.count_nonzero(keep))
+                fit["k"] = k
+                tried.append((m0, fit["J_stat"], k))
+                if (2 * k >= k_all and chi2.sf(fit["J_stat"], max(k - n_par, 1)) >= SCALE_TEST_LEVEL
+                        and (accept is None or accept(fit))):
+                    return fit, tried
+            return None, tried
         if not lows or np.count_nonzero(usable & (m_all >= lows[0])) < n_par + 1:
             k = np.count_nonzero(usable & (m_all >= (lows[0] if lows else 1)))
             raise ValueError(
@@ -328,13 +444,11 @@ class GMWM(Estimator):
             )
         # Scale choice (min_m="auto"): drop the shortest scale while the difference-in-J test
         # (Eichenbaum, Hansen & Singleton 1988) rejects it; see the class docstring.
-        from scipy.stats import chi2
-
         best, tried, chosen = None, [], False
         for m0 in lows:
             keep = usable & (m_all >= m0)
             fit = self._fit_scales(latents, tau_all[keep], avar_all[keep], m_all[keep], edf_all[keep], n, dt,
-                                   cov_scale, None if gain_all is None else gain_all[keep], line)
+                                   cov_scale, None if gain_all is None else gain_all[keep], line, resonance)
             k = int(np.count_nonzero(keep))
             tried.append((m0, fit["J_stat"], k))
             fit["k"] = k
@@ -355,38 +469,111 @@ class GMWM(Estimator):
                 chosen = True
                 continue
             best = fit
-        diag = best["diag"]
-        diag["min_m"] = int(diag["m"][0])
-        if line is not None:
-            diag["line_test"] = line
-            if line["significant"] and "SN" in latents:
-                # the fitted frequency on its bound (LINE_FREQUENCY_FACTOR): the bump's shape is not one
-                # pure tone at the line (results/real/README.md: the ADIS16405 accelerometers)
-                f0 = diag["params"]["SN.f0"]
-                line["f0_at_bound"] = bool(abs(math.log(f0 / line["f0"])) >= math.log(LINE_FREQUENCY_FACTOR) * (1 - 1e-6))
-        if self.min_m in ("auto", "adequate"):
-            diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
-        if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
-            return best["coefs"], {}, diag
-        if "GM" in latents:
-            _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable)
-        _bound_terms_at_zero(diag, latents, best["coefs"], tau_all, avar_all, edf_all, usable, dt, 2.0 * n * dt)
-        gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
-        model_avar = gyro.avar
-        white = _white_latent(latents)
-        if gain_all is not None and white is not None:
-            n_wn = diag["values"][_param_index(latents, white)]
+        return best, tried
 
-            def model_avar(tau):  # the fitted curve as the record's AV estimator sees it (see _fit_scales)
-                gain = np.interp(np.log(tau), np.log(tau_all), gain_all)
-                return gyro.avar(tau) + (gain - 1.0) * n_wn**2 / tau
+    def _resonance_band(self, rate, dt, tau, line=None) -> ResonanceBand | None:
+        """The record's most prominent spectral band seen by the taus ``tau`` (:func:`_resonance_starts`
+        in 0.371 / tau_max to :data:`RESONANCE_MAX_FREQUENCY` / dt), away from a line the model already
+        holds (``line`` included: its frequency +- :data:`RESONANCE_FREQUENCY_FACTOR`)."""
+        if not tau.size:
+            return None
+        exclude = None
+        if line is not None and line.get("included") and line.get("significant"):
+            exclude = (line["f0"] / RESONANCE_FREQUENCY_FACTOR, line["f0"] * RESONANCE_FREQUENCY_FACTOR)
+        return _resonance_starts(rate, dt, (0.371 / tau[-1], RESONANCE_MAX_FREQUENCY / dt), exclude)
 
-        reference = None if wv.reference_is_classical else (tau_all, avar_all, m_all, n)
-        diag.update(assess_fit(rate, dt, model_avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
-                               reference=reference, cov_scale=cov_scale))
-        diag.update(wv.diagnostics or {})
-        diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
-        return best["coefs"], {}, diag
+    def _bias_evidence(self, latents, best, wv, usable, n, dt, line, resonance):
+        """Which model of bias instability the record supports (``bias_evidence=True``): the same latents
+        with the Gauss-Markov term ``GM`` and the flicker term ``FL`` exchanged, fitted on the same scales,
+        compared by a GMM information criterion. Hansen's J of an efficient two-step fit is, to first
+        order, twice the log-likelihood ratio of the model against the unrestricted moments, so
+        AIC = J + 2 p (p the model's parameters; the GMM analogue of Akaike's criterion, the constant
+        of the moments cancelling between the two) and the Akaike weights exp(-AIC / 2), normalised,
+        say how much the record favours each (Andrews 1999, Econometrica 67, for J-based criteria; each
+        J here with its own model's second-step weights, equal to first order where either model is
+        right). Returns ``{"GM": {...}, "FL": {...}, "preferred", "weight", "decisive"}``, each model with
+        ``J_stat``, ``n_par``, ``aic``, ``weight`` and its ``B`` (SI: B_equiv for GM, B for FL);
+        ``decisive`` where the preferred model's weight is at least :data:`BIAS_EVIDENCE_WEIGHT`."""
+        other = tuple({"GM": "FL", "FL": "GM"}.get(lat, lat) for lat in latents)
+        other = parse_model(other)
+        keep = usable & (wv.m >= int(best["diag"]["m"][0]))
+        fit = self._fit_scales(other, wv.tau[keep], wv.avar[keep], wv.m[keep], wv.edf[keep], n, dt, wv.cov_scale,
+                               None if wv.white_gain is None else wv.white_gain[keep], line, resonance)
+        out = {}
+        for lats, f in ((latents, best), (other, fit)):
+            name = "GM" if "GM" in lats else "FL"
+            p = sum(len(LATENTS[lat][0]) for lat in lats)
+            out[name] = {"J_stat": float(f["J_stat"]), "n_par": p, "aic": float(f["J_stat"]) + 2.0 * p,
+                         "B": float(f["coefs"].get("B", math.nan))}
+        low = min(v["aic"] for v in out.values())
+        total = sum(math.exp(-(v["aic"] - low) / 2) for v in out.values())
+        for v in out.values():
+            v["weight"] = math.exp(-(v["aic"] - low) / 2) / total
+        preferred = max(out, key=lambda k: out[k]["weight"])
+        out.update({"preferred": preferred, "weight": out[preferred]["weight"],
+                    "decisive": bool(out[preferred]["weight"] >= BIAS_EVIDENCE_WEIGHT), "min_m": int(best["diag"]["m"][0])})
+        return out
+
+    def _resonance_choice(self, latents, best, tried, rate, wv, usable, n, dt, line):
+        """``resonance="auto"``: (best, tried, latents, report) with a resonance ``RS`` added when the model
+        without it drops scales, a band stands out of the spectrum, and the model with it keeps a shorter
+        cut-off that Hansen's J does not reject (level :data:`SCALE_TEST_LEVEL`, at least the longer half of
+        the scales, as ``min_m="adequate"``), that sees the band and whose fit passes the poor-fit check;
+        else the fit without it. ``report`` is ``diagnostics_["resonance_test"]`` (the class docstring)."""
+        from scipy.stats import chi2
+
+        m0 = int(best["diag"]["m"][0])
+        usable_m = wv.m[usable]
+        report = {"included": False, "min_m_without": m0, "J_without": float(best["J_stat"])}
+        if not usable_m.size or m0 <= int(usable_m.min()):
+            report["reason"] = "the model without a resonance keeps every scale"
+            return best, tried, latents, report
+        rs_latents = parse_model(latents + ("RS",))
+        found = self._resonance_band(rate, dt, wv.tau[usable], line)
+        if found is None:
+            report["reason"] = "no frequency to search"
+            return best, tried, latents, report
+        report.update({"band_f0": found.f0, "band_half_width": found.half_width,
+                       "prominence": found.prominence, "band_p_value": found.p_value})
+        if not (found.prominence >= RESONANCE_MIN_PROMINENCE and found.p_value < RESONANCE_TEST_LEVEL):
+            report["reason"] = "no band of the spectrum stands out of its surroundings"
+            return best, tried, latents, report
+        checks = {}
+
+        def passes(fit):
+            # the band is seen (the shortest tau fitted within RESONANCE_SEEN / f0: beyond, the term is only its
+            # 1/tau^2 tail, a shape with no resonance in it) and the poor-fit check passes (a resonance must not
+            # make a flagged fit)
+            if fit["diag"]["tau"][0] * fit["diag"]["params"]["RS.f0"] > RESONANCE_SEEN:
+                return False
+            if not self._assess:
+                return True
+            check = self._fit_check(fit, rs_latents, rate, dt, wv, usable, n)[0]
+            checks[int(fit["diag"]["m"][0])] = check.get("fit_pvalue")
+            return not check.get("poor_fit")
+
+        fit, rs_tried = self._scale_choice(rs_latents, wv, usable, n, dt, line, found, below=m0, accept=passes,
+                                           max_tau=RESONANCE_SEEN * RESONANCE_FREQUENCY_FACTOR / found.f0,
+                                           seed=best["diag"]["values"])
+        report["fit_pvalues_with"] = checks
+        report["tried"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in rs_tried]
+        if fit is None:
+            report["reason"] = ("no shorter cut-off is adequate with a resonance (Hansen's J at level "
+                                f"{SCALE_TEST_LEVEL}) and passes the poor-fit check")
+            return best, tried, latents, report
+        m_rs = int(fit["diag"]["m"][0])
+        j_without = next((j for a, j, _ in tried if a == m_rs), math.nan)
+        params = fit["diag"]["params"]
+        report.update({
+            "included": True, "min_m_with": m_rs, "J_with": float(fit["J_stat"]),
+            "J_without_same_scales": float(j_without),
+            # the D (distance-metric) statistic of the two nested fits on the same scales; with sigma = 0 on
+            # its boundary and f0, tc undefined without the term its chi^2(3) p-value is only indicative
+            "p_value": float(chi2.sf(j_without - fit["J_stat"], 3)) if math.isfinite(j_without) else math.nan,
+            "sigma": params["RS.sigma"], "f0": params["RS.f0"], "tc": params["RS.tc"],
+            "reason": "the resonance lets the model fit shorter scales",
+        })
+        return fit, tried + rs_tried, rs_latents, report
 
     def _line_choice(self, latents, rate, dt, tau):
         """(latents, line): the record's strongest spectral line (:mod:`avbench.estimators.likelihood.lines`)
@@ -406,14 +593,18 @@ class GMWM(Estimator):
                          "significant": bool(significant), "level": LINE_TEST_LEVEL,
                          "included": "SN" in latents}
 
-    def _fit_scales(self, latents, tau, avar, m, edf, n, dt, cov_scale, white_gain=None, line=None):
+    def _fit_scales(self, latents, tau, avar, m, edf, n, dt, cov_scale, white_gain=None, line=None, resonance=None,
+                    seed=None):
         """Two-step GMWM on the given scales; returns dict(coefs, J_stat, diag).
 
         ``white_gain`` (None or one value per tau): the record's AV estimator sees the white
-        (ARW) part of the model multiplied by it (:class:`WaveletVariance`)."""
+        (ARW) part of the model multiplied by it (:class:`WaveletVariance`). ``seed``: the fitted values of
+        every latent but a resonance ``RS`` (last in the parameter vector), the model it is added to: the
+        fit then starts there, with the resonance at each of ``resonance.starts`` (instead of the grid
+        of :func:`_starts`; 3 starts instead of 18 on an accelerometer axis with a line)."""
         n_par = sum(len(LATENTS[lat][0]) for lat in latents)
         T = n * dt
-        lo, hi = _bounds(latents, tau, avar, dt, T, line)
+        lo, hi = _bounds(latents, tau, avar, dt, T, line, resonance)
 
         tau_fl = 2.0 * T  # flicker latent: filter memory twice the record, as the presets
         extra = None
@@ -425,7 +616,11 @@ class GMWM(Estimator):
         # step 1: diagonal weights from the engine's edf, several starts
         L1 = np.sqrt(2.0 * avar**2 / edf * cov_scale)
         best = None
-        for u0 in _starts(latents, tau, avar, self.n_starts, lo, hi, line):
+        if seed is not None:
+            starts = [np.clip(np.log(np.r_[seed, rs]), lo + 1e-9, hi - 1e-9) for rs in resonance.starts]
+        else:
+            starts = _starts(latents, tau, avar, self.n_starts, lo, hi, line, () if resonance is None else resonance.starts)
+        for u0 in starts:
             sol = _solve(lambda u: (model_av(u) - avar) / L1, u0, lo, hi,
                          lambda u: model_av.jacobian(u) / L1[:, None])
             if best is None or sol.cost < best.cost:
@@ -576,32 +771,32 @@ class _LatentAV:
     def __init__(self, latents, tau, dt, tau_fl, extra=None):
         self.m = build_gyro(latents, np.ones(sum(len(LATENTS[lat][0]) for lat in latents)), dt, tau_fl).m_of(tau)
         self.dt, self.tau_fl, self.latents, self.extra = dt, tau_fl, latents, extra
-        # (index of the amplitude, index of the shape parameter or None, unit AV or the unit term)
+        # (index of the amplitude, indices of the shape parameters (empty for none), unit AV or the unit term)
         self.blocks = []
         i = 0
         for lat in latents:
             k = len(LATENTS[lat][0])
             if k == 1:
                 term = build_gyro((lat,), [1.0], dt, tau_fl).terms[0]
-                self.blocks.append((i, None, term.avar(self.m, dt)))
-            else:  # the unit term at any shape value: type(unit)(**{**params, shape_parameter: value})
-                self.blocks.append((i, i + 1, build_gyro((lat,), [1.0, 1.0], dt, tau_fl).terms[0]))
+                self.blocks.append((i, (), term.avar(self.m, dt)))
+            else:  # the unit term at any shape values: type(unit)(**{**params, shape_parameters: values})
+                self.blocks.append((i, tuple(range(i + 1, i + k)), build_gyro((lat,), [1.0] * k, dt, tau_fl).terms[0]))
             i += k
-        self._shape = {}  # block -> (shape value, unit AV, d unit AV / d ln p)
+        self._shape = {}  # block -> (shape values, unit AV, [d unit AV / d ln p])
 
     def _unit(self, b, unit, p):
         kept = self._shape.get(b)
         if kept is None or kept[0] != p:
-            term = type(unit)(**{**unit._params(), unit.shape_parameter: p})
-            kept = (p, *term.avar_shape_derivative(self.m, self.dt))
+            term = type(unit)(**{**unit._params(), **dict(zip(unit.shape_parameters(), p))})
+            kept = (p, *term.avar_shape_gradient(self.m, self.dt))
             self._shape[b] = kept
         return kept[1], kept[2]
 
     def __call__(self, u):
         out = np.zeros(self.m.size)
         for b, (i, j, unit) in enumerate(self.blocks):
-            if j is not None:
-                unit = self._unit(b, unit, math.exp(u[j]))[0]
+            if j:
+                unit = self._unit(b, unit, tuple(math.exp(u[k]) for k in j))[0]
             out += math.exp(2.0 * u[i]) * unit
         if self.extra is not None:
             out += math.exp(2.0 * u[self.extra[0]]) * self.extra[1]
@@ -611,9 +806,10 @@ class _LatentAV:
         jac = np.zeros((self.m.size, len(u)))
         for b, (i, j, unit) in enumerate(self.blocks):
             scale = math.exp(2.0 * u[i])
-            if j is not None:
-                unit, d_unit = self._unit(b, unit, math.exp(u[j]))
-                jac[:, j] = scale * d_unit
+            if j:
+                unit, d_unit = self._unit(b, unit, tuple(math.exp(u[k]) for k in j))
+                for k, d in zip(j, d_unit):
+                    jac[:, k] = scale * d
             jac[:, i] = 2.0 * scale * unit
         if self.extra is not None:
             jac[:, self.extra[0]] += 2.0 * math.exp(2.0 * u[self.extra[0]]) * self.extra[1]
@@ -624,7 +820,7 @@ class _LatentAV:
 LINE_FREQUENCY_FACTOR = 1.05
 
 
-def _bounds(latents, tau, avar, dt, T, line=None):
+def _bounds(latents, tau, avar, dt, T, line=None, resonance=None):
     """Box for the log-parameters: each scale at most the value explaining the whole AV curve alone
     (times 10), at least 1e-8 of that; Tc between the shortest tau fitted (>= dt) and 10 T: a Gauss-Markov
     term faster than every scale fitted looks like white noise plus a 1/tau^2 term there, i.e. like a
@@ -643,6 +839,8 @@ def _bounds(latents, tau, avar, dt, T, line=None):
             top = math.sqrt(np.max(avar) / 0.38)
         elif lat == "SN":
             top = math.sqrt(np.max(avar) / 0.525)  # the sinusoid's AV peaks at 0.525 A^2
+        elif lat == "RS":
+            top = math.sqrt(np.max(avar))  # a narrow resonance's AV peaks near its variance (1.05 sigma^2)
         elif lat == "FL":
             top = math.sqrt(np.max(avar) / PLATEAU)
         elif lat == "RW":
@@ -664,13 +862,24 @@ def _bounds(latents, tau, avar, dt, T, line=None):
                 f_hi = min(f_hi, line["f0"] * LINE_FREQUENCY_FACTOR)
             lo.append(math.log(f_lo))
             hi.append(math.log(max(f_hi, f_lo * 1.001)))
+        elif lat == "RS":
+            # centre frequency seen by the taus, below Nyquist, within RESONANCE_FREQUENCY_FACTOR of the band found
+            # in the spectrum (``resonance``); damping from a quality factor pi f0 tc of 1 (broader is no
+            # resonance: a Gauss-Markov or filter shape) to the record's length
+            f_lo, f_hi = 0.371 / tau[-1], RESONANCE_MAX_FREQUENCY / dt
+            if resonance is not None:
+                f_lo = max(f_lo, resonance.f0 / RESONANCE_FREQUENCY_FACTOR)
+                f_hi = min(f_hi, resonance.f0 * RESONANCE_FREQUENCY_FACTOR)
+            lo += [math.log(f_lo), math.log(max(dt, 1.0 / (math.pi * f_hi)))]
+            hi += [math.log(max(f_hi, f_lo * 1.001)), math.log(T)]
     return np.array(lo), np.array(hi)
 
 
-def _starts(latents, tau, avar, n_starts, lo, hi, line=None):
+def _starts(latents, tau, avar, n_starts, lo, hi, line=None, resonance=()):
     """Starting log-parameters read off the AV curve; Tc takes ``n_starts`` log-spaced values; a
     sinusoid starts at a significant spectral line ``line`` (:meth:`GMWM._line_choice`) if there is
-    one, else at the eight strongest bumps of the curve."""
+    one, else at the eight strongest bumps of the curve; a resonance ``RS`` at each of ``resonance``
+    ((sigma, f0, tc) read off the spectrum, :func:`_resonance_starts`)."""
     base = []
     for lat in latents:
         if lat == "QN":
@@ -683,6 +892,8 @@ def _starts(latents, tau, avar, n_starts, lo, hi, line=None):
             base.append([None, None])
         elif lat == "SN":
             base.append(["SN", "SN"])
+        elif lat == "RS":
+            base.append(["RS", "RS", "RS"])
         elif lat == "FL":
             base.append([math.sqrt(np.min(avar) / PLATEAU) / 2])
         elif lat == "RW":
@@ -719,7 +930,105 @@ def _starts(latents, tau, avar, n_starts, lo, hi, line=None):
                 v[j + 1] = min(max(f0, math.exp(lo[j + 1]) * 1.01), math.exp(hi[j + 1]) / 1.01)
                 with_sn.append(v)
         out = with_sn
+    if "RS" in latents:
+        j = flat.index("RS")
+        with_rs = []
+        for vals in out:
+            for start in resonance:
+                v = list(vals)
+                for k in range(3):
+                    v[j + k] = min(max(start[k], math.exp(lo[j + k]) * 1.01), math.exp(hi[j + k]) / 1.01)
+                with_rs.append(v)
+        out = with_rs
     return [np.log(np.array(v, dtype=float)) for v in out]
+
+
+#: the Akaike weight at which the record's evidence between a Gauss-Markov and a flicker bias instability is
+#: called decisive (``bias_evidence``): a difference in AIC of 5.9
+BIAS_EVIDENCE_WEIGHT = 0.95
+
+#: a resonance ``RS`` is centred below this fraction of the sampling rate (at the Nyquist frequency its
+#: autocovariance's sine weight, (1 - rho^2) / (2 rho sin w), has no finite value)
+RESONANCE_MAX_FREQUENCY = 0.45
+
+#: a resonance is kept only where the shortest tau fitted is at most this over its centre frequency (twice its
+#: AV's peak tau, 0.371 / f0): beyond, only its 1/tau^2 tail is fitted, a shape with no resonance in it
+RESONANCE_SEEN = 0.75
+
+#: a resonance's centre frequency stays within this factor of the band found in the spectrum (and the band
+#: search keeps this factor away from a line the model holds): wide enough for the band's skew (the ADIS16405
+#: gyro z's peak bin and fitted f0 agree to 1-2 %), narrow enough that it cannot wander off to shape
+#: another part of the curve (left free on an accelerometer started at its 0.56 Hz line, it went to 0.06 Hz)
+RESONANCE_FREQUENCY_FACTOR = 1.5
+
+
+#: a band is a resonance candidate only if its spectrum stands this many times above its surroundings
+#: (a lightly damped mode, not the slope of a filter: the ADIS16405 gyro z's 17-21 Hz band stands 10-18
+#: times above; the x and y axes' largest ratio in 1-45 Hz is 1.1-1.2)
+RESONANCE_MIN_PROMINENCE = 2.0
+#: and only if that prominence is significant at this level (:func:`_resonance_starts`)
+RESONANCE_TEST_LEVEL = 0.001
+
+
+class ResonanceBand(NamedTuple):
+    """The band of a record's spectrum that stands highest above its surroundings
+    (:func:`_resonance_starts`): ``f0`` (Hz), ``half_width`` (Hz, at half the excess power),
+    ``prominence`` (Welch spectrum over its running median at f0), ``p_value`` (that ratio under a
+    smooth spectrum), ``starts`` ((sigma, f0, tc) starting values of ``RS``)."""
+
+    f0: float
+    half_width: float
+    prominence: float
+    p_value: float
+    starts: list
+
+
+def _resonance_starts(rate, dt, band, exclude=None) -> ResonanceBand | None:
+    """The band of the record's spectrum that stands highest above its surroundings, and starting values
+    of a resonance ``RS`` there (a choice, not from a paper). Welch periodogram (Hann, 50 % overlap,
+    segments of up to 2048 samples), over its running median across a sixth of the frequencies (the
+    surroundings; not within half of it of 0 or Nyquist, where the median is one-sided and a steep
+    spectrum's slope would read as a band: at 100 Hz the search starts at 4.2 Hz); in ``band`` (Hz),
+    outside ``exclude`` ((lo, hi) Hz or None), the frequency where the ratio is largest is f0. Evidence: a Welch
+    ordinate of a smooth spectrum is S chi^2_nu / nu with nu ~ 1.9 x the number of segments for this window
+    and overlap; nu is taken as the number of segments (conservative), so the ratio r exceeds its value
+    with probability chi2.sf(r nu, nu), times the number of frequencies searched (Bonferroni). Starts:
+    the excess power over the surroundings within the half-power points gives sigma^2 (times 2: a
+    Lorentzian holds half its power within them), the half width at half power w gives tc = 1 / (2 pi w);
+    then the same f0 with a ten times longer and a ten times shorter tc. The fit decides."""
+    from scipy.ndimage import median_filter
+    from scipy.signal import welch
+    from scipy.stats import chi2
+
+    x = np.asarray(rate, dtype=float)
+    nper = int(min(2048, 2 ** math.floor(math.log2(max(x.size // 16, 16)))))
+    f, p = welch(x - x.mean(), fs=1.0 / dt, nperseg=nper)
+    size = max(3, (f.size // 6) | 1)
+    base = median_filter(p, size=size, mode="nearest")
+    ok = (f >= band[0]) & (f <= band[1]) & (base > 0)
+    ok[: size // 2] = ok[f.size - size // 2:] = False  # the surroundings one-sided: a slope reads as a band
+    if exclude is not None:
+        ok &= (f < exclude[0]) | (f > exclude[1])
+    if not ok.any():
+        return None
+    ratio = np.where(ok, p / np.where(base > 0, base, np.inf), 0.0)
+    k = int(np.argmax(ratio))
+    n_seg = max(1, (x.size - nper) // (nper // 2) + 1)
+    p_value = min(1.0, int(ok.sum()) * float(chi2.sf(ratio[k] * n_seg, n_seg)))
+    excess = np.clip(p - base, 0.0, None)
+    half = excess >= excess[k] / 2
+    a = k
+    while a > 0 and half[a - 1]:
+        a -= 1
+    b = k
+    while b < f.size - 1 and half[b + 1]:
+        b += 1
+    df = f[1] - f[0]
+    w = max((b - a + 1) * df / 2, df / 2)
+    sigma = math.sqrt(max(2.0 * float(excess[a:b + 1].sum()) * df, 1e-300))
+    tc = 1.0 / (2 * math.pi * w)
+    starts = [(sigma, float(f[k]), tc), (sigma, float(f[k]), 10 * tc), (sigma, float(f[k]), tc / 10)]
+    return ResonanceBand(float(f[k]), float(w), float(ratio[k]), p_value, starts)
 
 
 #: a parameter whose Jacobian column is below this fraction of the largest is taken as unidentified
@@ -781,10 +1090,12 @@ class GMWMFiltered(GMWM):
     (issue 24): ``lines="auto"`` (a sinusoid ``SN`` when the record's strongest spectral line passes the
     line test: the ADIS16405 accelerometers' 0.47-0.57 Hz line) and ``min_m="adequate"`` (the shortest
     cut-off the model fits by Hansen's J; it differs from ``"auto"`` only where the all-scale fit is
-    rejected).
+    rejected), ``resonance="auto"`` (a band-pass Gauss-Markov term ``RS`` where a band stands out of the
+    spectrum and lets the model keep shorter scales: the ADIS16405 gyro z's 17-21 Hz band) and
+    ``bias_evidence=True`` (the record's weights for a Gauss-Markov against a flicker B).
     """
 
     def __init__(self, *, model=REAL_SENSOR_MODEL, min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
-                 lines="auto"):
+                 lines="auto", resonance="auto", bias_evidence=True):
         super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting, n_starts=n_starts,
-                         lines=lines)
+                         lines=lines, resonance=resonance, bias_evidence=bias_evidence)
