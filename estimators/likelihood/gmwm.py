@@ -66,7 +66,10 @@ and from 23.48 to 23.18 on ADIS16405_Z, and a white + random-walk record's K, le
 and solved to the optimum (:func:`_solve`, tolerances 1e-15): a coefficient the data cannot resolve lies along a
 flat direction of the criterion, and with stopping rules at 1e-10 its end point moved between units of the same
 record by more than round-off moves it (~1.2x the CPU of the 1e-10 rules: 4 presets x 3 records x gmwm and
-gmwm_filtered, 7.3 vs 6.1 CPU-s, no fit ending at max_nfev).
+gmwm_filtered, 7.3 vs 6.1 CPU-s, no fit ending at max_nfev). A solve that does end at its evaluation limit has
+been creeping toward a bound along a direction whose effect vanishes (a term the data drive to 0, a filter time
+constant far below dt): :func:`_solve` restarts it on that bound and reports the fit converged when it then is
+(``diagnostics_["stop_reason"]``; ``failure`` only when not).
 """
 
 from __future__ import annotations
