@@ -39,11 +39,14 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
     of two) and scaled back reports every term the same way (modelled or not, non-physical, not
     resolved) and the fit the same way (converged, or failed: ``diagnostics_["failure"]``) and gives
     the same coefficients, standard errors, bounds of unresolved terms and model AV, to 1e-8
-    relative or, for a fit whose answer moves more than that when the last bit of its input does (an optimiser stopping on a flat direction, a filter that amplifies round-off),
-    to :data:`ROUNDOFF_FACTOR` times what it moves then, and a status only where round-off of the
-    input changes it too (measured on :data:`ROUNDOFF_DRAWS` records perturbed in the last bit; the
-    note then names the fragility). :meth:`Estimator.fit` standardises every record, so an estimator inherits this; a plugin
-    that overrides ``fit`` or keeps unit-carrying diagnostics of its own has to keep it;
+    relative or, for a fit whose answer moves more than that when the last bit of its input does
+    (an optimiser stopping on a flat direction, a filter that amplifies round-off), to
+    :data:`ROUNDOFF_FACTOR` times what it moves then, and a status only where round-off of the input
+    changes it too (measured on as many records perturbed in the last bit as units, at least
+    :data:`ROUNDOFF_DRAWS`; the note then names the fragility), or a "not resolved" label only where
+    its deciding statistic sits on the threshold (:func:`equivariance`). :meth:`Estimator.fit`
+    standardises every record, so an estimator inherits this; a plugin that overrides ``fit`` or
+    keeps unit-carrying diagnostics of its own has to keep it;
 ``recovery``
     on a simple simulated gyro (:func:`recovery_gyro`: angle random walk plus rate random walk,
     2^14 samples at 10 Hz, a fixed seed) every coefficient of the gyro the estimator reports
@@ -115,7 +118,11 @@ EQUIVARIANCE_SCALES = (math.pi / 180 * 1e-4, 180 / math.pi * 1e4)
 #: the estimators built on closed forms agree to 1e-12 or better)
 EQUIVARIANCE_RTOL = 1e-8
 #: an answer that moves more than EQUIVARIANCE_RTOL between units may move up to this many times
-#: what it moves when the last bit of the input does, over ROUNDOFF_DRAWS perturbed records
+#: what it moves when the last bit of the input does, over ROUNDOFF_DRAWS perturbed records (at least,
+#: and as many as the units compared: the largest of k moves between units is judged against the
+#: largest of as many under round-off, samples of one distribution where the fit's round-off is the
+#: cause -- with two draws against seven units, gmwm's B on the registry sweep's white + random-walk
+#: record moved 4.6e-8 between units against 2e-9 under round-off, 2e-8 with six draws)
 ROUNDOFF_FACTOR, ROUNDOFF_DRAWS = 10.0, 2
 _INDEX = list(COEFFICIENTS)
 #: the key of a fit's own status (failed or converged) beside its terms' in :func:`_answer`
@@ -667,7 +674,7 @@ def _on_threshold(k, ref, other, scale, tol):
 
 
 def equivariance(new, rate, dt, scales=EQUIVARIANCE_SCALES, rtol=EQUIVARIANCE_RTOL,
-                 roundoff_draws=ROUNDOFF_DRAWS, roundoff_factor=ROUNDOFF_FACTOR, seed=0):
+                 roundoff_draws=None, roundoff_factor=ROUNDOFF_FACTOR, seed=0):
     """``(problems, note)``: does a fresh estimator from ``new()`` give the same answer for ``rate``
     (SI) handed to it in units ``scales`` times SI, scaled back? (the ``equivariance`` check of the
     module docstring, also the registry-wide property test).
@@ -675,7 +682,8 @@ def equivariance(new, rate, dt, scales=EQUIVARIANCE_SCALES, rtol=EQUIVARIANCE_RT
     Compared: each coefficient's status (estimated, zero, not modelled, non-physical, not resolved)
     and the fit's (converged or failed), and coefficients, standard errors, the bounds of unresolved
     terms and the model AV at the record's octave taus (J >= 8) to ``rtol`` relative. If anything
-    differs, ``roundoff_draws`` fits of ``rate * (1 + 2**-52 z)`` (z standard normal: a change in
+    differs, ``roundoff_draws`` (default: as many as ``scales``, at least :data:`ROUNDOFF_DRAWS`)
+    fits of ``rate * (1 + 2**-52 z)`` (z standard normal: a change in
     the last bit, the size of the rounding the standardisation itself makes, and of the difference
     between a record in deg/s and the same record in rad/s) measure the fit's own sensitivity to
     round-off: a status that round-off of the input also changes, and a number that moves by at most
@@ -707,7 +715,8 @@ def equivariance(new, rate, dt, scales=EQUIVARIANCE_SCALES, rtol=EQUIVARIANCE_RT
         return [], f"equal to {max(worst.values(), default=0.0):.1g} relative in units {', '.join(f'{c:.3g}' for c in scales)} x SI"
     rng = np.random.default_rng(seed)
     noise, noise_flips, share_noise = {}, set(), {}
-    for _ in range(int(roundoff_draws)):
+    draws = max(ROUNDOFF_DRAWS, len(scales)) if roundoff_draws is None else int(roundoff_draws)
+    for _ in range(draws):
         other = answer(rate * (1.0 + 2.0**-52 * rng.standard_normal(rate.size)))
         for k, v in _share_moves(ref, other).items():
             share_noise[k] = max(share_noise.get(k, 0.0), v)
