@@ -340,31 +340,52 @@ class Estimator:
         c = self.coefficients_
         own = self.diagnostics_.get("zero_upper")  # bounds an estimator gives its zeros itself (whittle)
         own = set() if own is None else {k for k in getattr(own, "index", own) if math.isfinite(float(own[k]))}
-        finite = [k for k in c.index if math.isfinite(float(c[k])) and (float(c[k]) > 0.0 or k not in own)]
-        if not finite or n < 16:
+        shares = self.term_shares(n, dt)
+        judged = [k for k, s in shares.items() if s < UNSEEN_SHARE and (float(c[k]) > 0.0 or k not in own)]
+        if not judged:
             return
-        m = 2.0 ** np.arange(int(math.log2(n // 8)) + 1)
-        tau = m * dt
+        from scipy.stats import chi2
+
+        tau, model = self._octave_model(n, dt)
+        m = tau / dt
+        dof = np.floor(n / m) - 1
+        upper_av = model * dof / chi2.ppf(0.025, dof)
+        unresolved = dict(self.diagnostics_.get("unresolved") or {})
+        for k in judged:
+            unresolved[k] = (0.0, float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k])))))
+        self.diagnostics_["unresolved"] = unresolved
+
+    def _octave_model(self, n: int, dt: float):
+        """``(tau, model AV)`` at the octave taus of a record of ``n`` samples with at least 8 clusters,
+        or None when the fitted model cannot be evaluated there (finite and positive)."""
+        if n < 16:
+            return None
+        tau = 2.0 ** np.arange(int(math.log2(n // 8)) + 1) * dt
         try:
             model = np.asarray(self.model_avar(tau), dtype=float)
         except Exception:  # a model that cannot be evaluated is the model check's business
-            return
+            return None
         if model.shape != tau.shape or not np.all(np.isfinite(model) & (model > 0)):
-            return
-        unresolved = dict(self.diagnostics_.get("unresolved") or {})
-        upper_av = None
-        for k in finite:
-            term = BETA_SCALE[k] * float(c[k]) ** 2 * tau ** TAU_POWER[k]
-            if np.any(term >= UNSEEN_SHARE * model):
-                continue
-            if upper_av is None:
-                from scipy.stats import chi2
+            return None
+        return tau, model
 
-                dof = np.floor(n / m) - 1
-                upper_av = model * dof / chi2.ppf(0.025, dof)
-            unresolved[k] = (0.0, float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k])))))
-        if unresolved:
-            self.diagnostics_["unresolved"] = unresolved
+    def term_shares(self, n: int, dt: float) -> dict[str, float]:
+        """The statistic the floor rule (:meth:`_mark_unseen_terms`) decides on: for each finite
+        coefficient, the largest share of the fitted model's AV (:meth:`model_avar`) its five-term AV
+        takes at an octave tau of a record of ``n`` samples with at least 8 clusters (0 for a
+        coefficient of 0; empty when the model cannot be evaluated). Dimensionless: the same in every
+        unit, to the fit's own round-off (``check-estimator``'s equivariance check compares it where a
+        term's label differs between units, :func:`avbench.estimators.contract.equivariance`)."""
+        from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER
+
+        self._check_fitted()
+        at = self._octave_model(n, dt)
+        if at is None:
+            return {}
+        tau, model = at
+        c = self.coefficients_
+        return {k: float(np.max(BETA_SCALE[k] * float(c[k]) ** 2 * tau ** TAU_POWER[k] / model))
+                for k in c.index if math.isfinite(float(c[k]))}
 
     @classmethod
     def _rate_settings(cls) -> list[str]:
