@@ -77,6 +77,7 @@ constant far below dt): :func:`_solve` restarts it on that bound and reports the
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import NamedTuple
 
@@ -353,17 +354,15 @@ class GMWM(Estimator):
         if "SN" in latents or self.lines == "auto":
             latents, line = self._line_choice(latents, rate, dt, tau_all[usable])
         args = (wv, usable, n, dt, line)
-        resonance = None
-        if "RS" in latents:
-            resonance = self._resonance_band(rate, dt, tau_all[usable], line)
+        band = functools.cache(lambda: self._resonance_band(rate, dt, tau_all[usable], line))  # one Welch pass
+        resonance = band() if "RS" in latents else None
         best, tried = self._scale_choice(latents, *args, resonance)
         resonance_test = None
         if self.resonance == "auto" and "RS" not in latents:
-            best, tried, latents, resonance_test = self._resonance_choice(latents, best, tried, rate, *args)
+            best, tried, latents, resonance_test = self._resonance_choice(latents, best, tried, rate, *args, band)
         bias_evidence = None
         if self.bias_evidence and {"GM", "FL"} & set(latents):
-            found = self._resonance_band(rate, dt, tau_all[usable], line) if "RS" in latents else None
-            bias_evidence = self._bias_evidence(latents, best, wv, usable, n, dt, line, found)
+            bias_evidence = self._bias_evidence(latents, best, wv, usable, n, dt, line, band() if "RS" in latents else None)
         diag = best["diag"]
         diag["min_m"] = int(diag["m"][0])
         if line is not None:
@@ -517,12 +516,14 @@ class GMWM(Estimator):
                     "decisive": bool(out[preferred]["weight"] >= BIAS_EVIDENCE_WEIGHT), "min_m": int(best["diag"]["m"][0])})
         return out
 
-    def _resonance_choice(self, latents, best, tried, rate, wv, usable, n, dt, line):
+    def _resonance_choice(self, latents, best, tried, rate, wv, usable, n, dt, line, band):
         """``resonance="auto"``: (best, tried, latents, report) with a resonance ``RS`` added when the model
         without it drops scales, a band stands out of the spectrum, and the model with it keeps a shorter
         cut-off that Hansen's J does not reject (level :data:`SCALE_TEST_LEVEL`, at least the longer half of
         the scales, as ``min_m="adequate"``), that sees the band and whose fit passes the poor-fit check;
-        else the fit without it. ``report`` is ``diagnostics_["resonance_test"]`` (the class docstring)."""
+        else the fit without it. ``report`` is ``diagnostics_["resonance_test"]`` (the class docstring);
+        ``band()`` gives the record's band (:meth:`_resonance_band`), computed once per fit and shared with
+        the B-model evidence."""
         from scipy.stats import chi2
 
         m0 = int(best["diag"]["m"][0])
@@ -532,7 +533,7 @@ class GMWM(Estimator):
             report["reason"] = "the model without a resonance keeps every scale"
             return best, tried, latents, report
         rs_latents = parse_model(latents + ("RS",))
-        found = self._resonance_band(rate, dt, wv.tau[usable], line)
+        found = band()
         if found is None:
             report["reason"] = "no frequency to search"
             return best, tried, latents, report

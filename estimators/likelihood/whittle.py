@@ -232,20 +232,11 @@ def _expected_periodogram(coef: str, n: int, dt: float, tc: float | None = None)
     changes no ordinate k >= 1: the Fejer kernel vanishes there). White noise (:math:`1/\\Delta t`)
     and the random walk's pseudo-spectrum (exact after the trend regression, module docstring) are
     their own expected periodograms: the plain basis is returned for N and K."""
-    tau = np.arange(n, dtype=float)
-    if coef == "Q":
-        c = np.zeros(n)
-        c[0], c[1] = 2.0 / dt**2, -1.0 / dt**2
-    elif coef == "GM":
-        c = np.exp(-tau * dt / tc)
-    elif coef == "B":
-        from scipy.special import digamma
-
-        c = -(digamma(tau + 0.5) - digamma(0.5)) / math.pi
-    else:
+    if coef not in ("Q", "GM", "B"):
         f = np.arange(1, n // 2 + 1) / (n * dt)
         return _basis(coef, f, dt, tc)
-    h = (1.0 - tau / n) * c
+    c = _autocovariance(coef, n, dt, tc)
+    h = (1.0 - np.arange(n, dtype=float) / n) * c
     h[0] *= 0.5
     return 2.0 * np.fft.rfft(h).real[1:]
 
