@@ -103,11 +103,12 @@ def test_report_identical_for_jobs_1_and_2(tmp_path):
     import subprocess
     import sys
 
-    cfg = load_config(write(tmp_path, study_toml()))
+    small = {"replicates": 2, "block_size": 1}
+    cfg = load_config(write(tmp_path, study_toml()), small)
     run_study(cfg, tmp_path / "j1", n_jobs=1, progress=False)
     code = ("import sys; from avbench.studies.config import load_config; from avbench.studies.runner import run_study; "
-            f"run_study(load_config({str(tmp_path / 'study.toml')!r}), {str(tmp_path / 'j2')!r}, n_jobs=2, progress=False); "
-            "print('matplotlib' in sys.modules)")
+            f"run_study(load_config({str(tmp_path / 'study.toml')!r}, {small!r}), {str(tmp_path / 'j2')!r}, n_jobs=2, "
+            "progress=False); print('matplotlib' in sys.modules)")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert res.stdout.strip().splitlines()[-1] == "False"
     one, two = (json.loads((tmp_path / j / "meta.json").read_text())["outputs"] for j in ("j1", "j2"))
