@@ -122,7 +122,8 @@ def spread_figure(tidy: pd.DataFrame, gyro_label: str):
 
 
 def render_figure(cfg, tidy: pd.DataFrame, kind: str, gi: int, path: Path) -> Path:
-    """Draw and save one figure of :func:`avbench.studies.figure_files.figure_jobs` (``tidy`` may hold only that gyro's rows)."""
+    """Draw and save one figure of :func:`avbench.studies.figure_files.figure_jobs` (``tidy`` may
+    hold only that gyro's rows)."""
     g = cfg.gyros[gi]
     if kind == "spread":
         return _save(spread_figure(tidy, g.label), path)
