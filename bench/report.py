@@ -57,8 +57,12 @@ LIMITS = {
     "arma_em": "One compiled pass per sample: the Kalman update of the 2-state equivalent-ARMA model and the recursive EM statistics of "
     "Elliott & Krishnamurthy (its finite-dimensional filters); the default fit adds its AV-fit start.",
     "shakf": "One compiled pass (3 states): the recursive AV, the time update and a scalar measurement update per sample.",
-    "nekf": "The 33-state augmented covariance: per sample the Jacobian product G P (nq x n) and a dense rank-one "
-    "measurement update of the 33 x 33 P; the process noise is added by blocks.",
+    "nekf": "The 33-state augmented covariance, kept bit-identical (nekf feeds committed studies): per sample the "
+    "Jacobian product G P (nq x n; since issue 25 in register blocks of 32/16/4 columns, estimators/online/_vec4.py, "
+    "~0.45 -> ~0.25 us of ~1.25 us), a dense rank-one measurement update of the 33 x 33 P (~0.17 us: three memory "
+    "operations per 4 lanes, no structure to skip), the NN and its Jacobian (~0.17 us: five tanh and short loops), "
+    "G P G^T and P H (~0.1 us each, ordered scalar sums that may not be reassociated); the process noise is added by "
+    "blocks.",
     "csv": "pandas' C parser (one pass, float64 columns, no strings); the reader adds the sniffing of the first "
     "lines and the checks (blank lines, NaN) on the float columns.",
     "estimate": "The record (memory-mapped, float64, not copied), one cumulative sum of it per AV (n + 1 values) "
@@ -90,9 +94,12 @@ LIMITS = {
     "statsmodels and each estimator's module are imported on first use (lazy registry).",
     "first_call": "Loading the compiled kernels from numba's disk cache (`cache=True`: `__pycache__` beside the "
     "source, else `~/.cache/numba`, else a per-user temp folder) and importing the estimator's module.",
-    "scaling": "Serial parts in the parent: its imports, the config, saving blocks, and the report (tables and six "
-    "figures, several seconds); the workers start while the parent imports and stay warm for every block. On a "
-    "machine busy with other sessions, Linux's autogroup scheduler gives one session a fixed share of the cores "
+    "scaling": "Serial parts in the parent: its imports (~0.65 CPU-s), the config (~1.1 CPU-s: scipy.stats' import, "
+    "0.7, and the trial fits that check every estimator's settings before any work), collecting the shards (~0.1) and "
+    "the tables (~0.65); since issue 25 the workers draw the six figures (one task each, matplotlib imported by idle "
+    "workers after the last block is queued) while the parent writes the tables (the parent's report 2.7-3.4 -> "
+    "0.6-0.9 CPU-s, outputs byte-identical). The workers start while the parent imports and stay warm for every block. "
+    "On a machine busy with other sessions, Linux's autogroup scheduler gives one session a fixed share of the cores "
     "however many processes it runs, so the ratio only means something on a quiet machine.",
 }
 

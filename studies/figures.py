@@ -18,7 +18,7 @@ from avbench.estimators.allan.model import model_avar  # noqa: E402
 from avbench.noise_models.units import COEFFICIENTS  # noqa: E402
 from avbench.studies.seeding import replicate_rng  # noqa: E402
 
-__all__ = ["av_figure", "spread_figure", "study_figures", "series_style"]
+__all__ = ["av_figure", "spread_figure", "render_figure", "study_figures", "series_style"]
 
 _LINESTYLES = ("--", "-.", ":", (0, (5, 1, 1, 1, 1, 1)), (0, (8, 2)))
 
@@ -121,22 +121,20 @@ def spread_figure(tidy: pd.DataFrame, gyro_label: str):
     return fig
 
 
+def render_figure(cfg, tidy: pd.DataFrame, kind: str, gi: int, path: Path) -> Path:
+    """Draw and save one figure of :func:`avbench.studies.figure_files.figure_jobs` (``tidy`` may
+    hold only that gyro's rows)."""
+    g = cfg.gyros[gi]
+    if kind == "spread":
+        return _save(spread_figure(tidy, g.label), path)
+    d0 = tidy[(tidy["gyro"] == g.label) & (tidy["replicate"] == 0)]
+    fits = {e: dict(zip(de["coefficient"], de["estimate"])) for e, de in d0.groupby("estimator", sort=False)}
+    rate = g.gyro.simulate(g.n_samples, replicate_rng(cfg.seed, gi, 0))
+    return _save(av_figure(rate, g.gyro, fits, f"{cfg.name}: {g.label}"), path)
+
+
 def study_figures(cfg, tidy: pd.DataFrame, out: Path) -> list[Path]:
     """The AV and spread figures of every gyro in ``cfg.figure_gyros`` (default all); the paths written."""
-    out = Path(out)
-    written = []
-    wanted = cfg.figure_gyros or tuple(g.label for g in cfg.gyros)
-    for gi, g in enumerate(cfg.gyros):
-        if g.label not in wanted:
-            continue
-        d0 = tidy[(tidy["gyro"] == g.label) & (tidy["replicate"] == 0)]
-        if d0.empty:
-            continue
-        fits = {}
-        for e, de in d0.groupby("estimator", sort=False):
-            fits[e] = dict(zip(de["coefficient"], de["estimate"]))
-        rate = g.gyro.simulate(g.n_samples, replicate_rng(cfg.seed, gi, 0))
-        safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in g.label)
-        written.append(_save(av_figure(rate, g.gyro, fits, f"{cfg.name}: {g.label}"), out / f"av_{safe}.png"))
-        written.append(_save(spread_figure(tidy, g.label), out / f"spread_{safe}.png"))
-    return written
+    from avbench.studies.figure_files import figure_jobs
+
+    return [render_figure(cfg, tidy, kind, gi, path) for kind, gi, path in figure_jobs(cfg, tidy, out)]

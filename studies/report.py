@@ -377,13 +377,17 @@ def _truth_curve(gyro) -> dict:
     return {"truth_curve": f"unavailable: term {', '.join(missing)} has no exact Allan variance"}
 
 
-def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
+def write_report(cfg, tidy: pd.DataFrame, out: Path, executor=None) -> pd.DataFrame:
     """tidy.csv, table.csv, table.md, leaderboard.md, figures and (last) meta.json; returns the summary.
 
     The set changes as one: the marker ``meta.json`` is removed first and written last with the
     SHA-256 of every output, so an interrupted report is recognised (:func:`check_report`) instead
     of being read as a mix of two runs. Fit times go to ``timings.md`` / ``timings.csv``, outside
     the compared set.
+
+    ``executor``: a pool of local worker processes (``concurrent.futures``; the study's own, which
+    share this disk) that draws the figures, one task per figure, while this process writes the
+    tables; the same figures, drawn by the same code from the same rows. ``None``: drawn here.
     """
     out = Path(out)
     (out / MARKER).unlink(missing_ok=True)  # incomplete from here until the new marker is written
@@ -396,6 +400,7 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
     if "seconds" in tidy:
         stored["seconds"] = tidy["seconds"].to_numpy()
     tidy = stored
+    drawing = _start_figures(cfg, tidy, out, executor) if executor is not None else None
 
     bounds = crlb_table(cfg)  # computed once, for the tables and the scores
     summary = _crlb_column(bounds, summarize(tidy, getattr(cfg, "units", None)))
@@ -428,12 +433,41 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path) -> pd.DataFrame:
         t = timings(tidy)
         atomic_write_text(out / "timings.csv", t.to_csv(index=False, float_format="%.4g"))
         atomic_write_text(out / "timings.md", render_timings(t, meta))
-    from avbench.studies.figures import study_figures
+    if drawing is None:
+        from avbench.studies.figures import study_figures
 
-    written += study_figures(cfg, tidy, out)
+        written += study_figures(cfg, tidy, out)
+    else:
+        written += _finish(drawing)
     meta["outputs"] = {p.name: _sha256(p) for p in sorted(written, key=lambda p: p.name)}
     atomic_write_text(out / MARKER, json.dumps(meta, indent=2) + "\n")
     return summary
+
+
+def _draw_figure(cfg, tidy: pd.DataFrame, kind: str, gi: int, path: Path) -> Path:
+    """One figure, in a worker process (it imports matplotlib there, not in the study's process)."""
+    cfg.import_plugins()
+    from avbench.studies.figures import render_figure
+
+    return render_figure(cfg, tidy, kind, gi, path)
+
+
+def _start_figures(cfg, tidy: pd.DataFrame, out: Path, executor) -> list:
+    """Submit every figure of the report to ``executor``, each with its gyro's rows only."""
+    from avbench.studies.figure_files import figure_jobs
+
+    return [executor.submit(_draw_figure, cfg, tidy[tidy["gyro"] == cfg.gyros[gi].label], kind, gi, path)
+            for kind, gi, path in figure_jobs(cfg, tidy, out)]
+
+
+def _finish(futures: list) -> list[Path]:
+    """The paths the figure tasks wrote; the first error raised (the other tasks cancelled)."""
+    try:
+        return [f.result() for f in futures]
+    except BaseException:
+        for f in futures:
+            f.cancel()
+        raise
 
 
 def check_report(folder) -> dict:

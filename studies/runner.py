@@ -384,8 +384,13 @@ def run_study(
     tidy = collect(shard_dir, tasks, cfg)
     from avbench.studies.report import write_report, write_tidy
 
-    if make_report:
-        write_report(cfg, tidy, out)  # tidy.csv, tables, figures; meta.json last
+    if make_report:  # tidy.csv, tables, figures (drawn by the local workers, if any); meta.json last
+        pool = None
+        if backend == "loky" and n_jobs != 1:
+            from avbench.studies.workers import local_workers
+
+            pool = local_workers(n_jobs)
+        write_report(cfg, tidy, out, executor=pool)
     else:
         write_tidy(tidy, out)
     return tidy
@@ -468,17 +473,25 @@ def _local_runner(n_jobs: int):
     def run(cfg, tasks):
         from concurrent.futures import FIRST_COMPLETED, wait
 
-        from avbench.studies.workers import local_workers, worker_count
+        from avbench.studies.workers import local_workers, warm_report_imports, worker_count
 
         executor = local_workers(n_jobs)
-        window = 2 * worker_count(n_jobs)
-        todo, running = iter(tasks), set()
+        workers = worker_count(n_jobs)
+        window = 2 * workers
+        todo, running, warmed = iter(tasks), set(), 0
         try:
             while True:
+                exhausted = True
                 for t in todo:
                     running.add(executor.submit(_compute_block, cfg, t))
                     if len(running) >= window:
+                        exhausted = False
                         break
+                # no block left to queue: each worker that falls idle imports what the report's
+                # figures need now rather than after the last block (a task apart, never yielded)
+                while exhausted and warmed < workers - len(running):
+                    executor.submit(warm_report_imports)
+                    warmed += 1
                 if not running:
                     return
                 finished, running = wait(running, return_when=FIRST_COMPLETED)

@@ -22,7 +22,8 @@ import os
 import threading
 import time
 
-__all__ = ["local_workers", "started_early", "worker_count", "one_numba_thread", "PARENT_POLL_S", "IDLE_WORKER_TIMEOUT_S"]
+__all__ = ["local_workers", "started_early", "worker_count", "one_numba_thread", "warm_report_imports",
+           "PARENT_POLL_S", "IDLE_WORKER_TIMEOUT_S"]
 
 #: seconds between two checks, in a local worker, that the process running the study is alive
 PARENT_POLL_S = 0.5
@@ -33,6 +34,9 @@ IDLE_WORKER_TIMEOUT_S = 300
 #: modules each local worker imports as it starts, by name: the runner, which hands the workers their
 #: blocks (and imports this module), so the first block does not pay for its imports
 WARM_IMPORTS = ("avbench.studies.runner",)
+#: what a local worker imports when it has no block left: the report's figures (matplotlib), which the
+#: workers draw while the study's process writes the tables
+REPORT_IMPORTS = ("avbench.studies.figures",)
 
 
 def worker_count(n_jobs: int) -> int:
@@ -94,6 +98,12 @@ def _init_worker(parent_pid: int) -> None:
     threading.Thread(target=watch, name="avbench-exit-with-parent", daemon=True).start()
     one_numba_thread()
     for module in WARM_IMPORTS:  # imported once here, not with the first block
+        importlib.import_module(module)
+
+
+def warm_report_imports() -> None:
+    """Import :data:`REPORT_IMPORTS` (run by an idle local worker after the last block was queued)."""
+    for module in REPORT_IMPORTS:
         importlib.import_module(module)
 
 

@@ -13,6 +13,8 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from avbench import estimators
 from avbench.estimators import DivergenceWarning, IdentifiabilityWarning
@@ -76,6 +78,37 @@ def test_nekf_kernel_matches_reference(m):
     got = est.diagnostics_["trajectory"].to_numpy() / est._c_ref
     # the augmented covariance is ill-conditioned (cond ~1e11): round-off differences grow slowly
     np.testing.assert_allclose(got, traj, rtol=1e-7, atol=0)
+
+
+def _gp_plain(G, P):
+    """``M = G P`` as the plain loop sums it: over ``e`` in order from +0.0, zeros of ``G`` skipped."""
+    nq, n = G.shape
+    M = np.zeros((nq, n))
+    for a in range(nq):
+        for e in range(n):
+            if G[a, e] != 0.0:
+                M[a] += G[a, e] * P[e]
+    return M
+
+
+@settings(max_examples=60, deadline=None)
+@given(nq=st.integers(1, 5), n=st.integers(1, 70), seed=st.integers(0, 2**32 - 1),
+       zeros=st.floats(0.0, 0.9), special=st.sampled_from(["none", "inf", "nan"]))
+def test_nekf_register_blocked_product_is_the_plain_loop_bit_for_bit(nq, n, seed, zeros, special):
+    """``_gp_rows`` (register blocks of 32/16/4 columns, the last one overlapping) gives the
+    bits of the plain ordered sum for every width, exact zeros of G skipped even against
+    infinite or NaN entries of P."""
+    from avbench.estimators.online._kernels import _gp_rows
+
+    rng = np.random.default_rng(seed)
+    G = rng.standard_normal((nq, n)) * 10.0 ** rng.integers(-8, 8, (nq, n))
+    G[rng.random((nq, n)) < zeros] = 0.0
+    P = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-8, 8, (n, n))
+    if special != "none":
+        P[rng.integers(n), rng.integers(n)] = np.inf if special == "inf" else np.nan
+    M = np.full((nq, n), -7.0)
+    _gp_rows(G, P, M, nq, n)
+    assert M.tobytes() == _gp_plain(G, P).tobytes()
 
 
 # -- streaming ----------------------------------------------------------------------------------

@@ -95,6 +95,27 @@ def test_tidy_identical_for_jobs_1_and_2(tmp_path):
     assert not a[a["estimator"].isin(["ols", "wls"])]["failure"].astype(bool).any()
 
 
+def test_report_identical_for_jobs_1_and_2(tmp_path):
+    """With local workers the figures are drawn by the workers while this process writes the
+    tables: every output of the report (the hashes meta.json lists: tables, tidy, figures) is
+    byte-identical to the one drawn in process, and this process never imports matplotlib."""
+    import json
+    import subprocess
+    import sys
+
+    small = {"replicates": 2, "block_size": 1}
+    cfg = load_config(write(tmp_path, study_toml()), small)
+    run_study(cfg, tmp_path / "j1", n_jobs=1, progress=False)
+    code = ("import sys; from avbench.studies.config import load_config; from avbench.studies.runner import run_study; "
+            f"run_study(load_config({str(tmp_path / 'study.toml')!r}, {small!r}), {str(tmp_path / 'j2')!r}, n_jobs=2, "
+            "progress=False); print('matplotlib' in sys.modules)")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert res.stdout.strip().splitlines()[-1] == "False"
+    one, two = (json.loads((tmp_path / j / "meta.json").read_text())["outputs"] for j in ("j1", "j2"))
+    assert any(name.endswith(".png") for name in one)
+    assert one == two
+
+
 def test_same_numbers_for_any_block_size(tmp_path):
     """Replicate r of gyro g draws from its own stream: the blocking does not change any number."""
     a = run_study(load_config(write(tmp_path, study_toml(block_size=1))), tmp_path / "b1", progress=False, make_report=False)

@@ -35,6 +35,8 @@ import math
 import numpy as np
 from numba import njit
 
+from avbench.estimators.online._vec4 import v4_axpy, v4_store, v4_zero
+
 __all__ = ["FAILURES", "av_step", "shakf_run", "nekf_run", "is_posdef"]
 
 FAILURES = {
@@ -259,6 +261,78 @@ def _nn_jacobian(xa, nq, p, t, G, nn):
 
 
 @njit(cache=True)
+def _gp_row_block(G, P, M, a, n, c0, width):
+    """``M[a, c0:c0+width]`` (``width`` 32, 16 or 4) of ``M = G P``, each entry summed over ``e``
+    in order from +0.0, skipping the exact zeros of ``G[a]``, in registers (:mod:`._vec4`)."""
+    s0 = v4_zero()
+    s1 = v4_zero()
+    s2 = v4_zero()
+    s3 = v4_zero()
+    s4 = v4_zero()
+    s5 = v4_zero()
+    s6 = v4_zero()
+    s7 = v4_zero()
+    for e in range(n):  # `width` is loop-invariant: LLVM unswitches the loop into one per width
+        g = G[a, e]
+        if g != 0.0:
+            s0 = v4_axpy(s0, g, P, e, c0)
+            if width >= 16:
+                s1 = v4_axpy(s1, g, P, e, c0 + 4)
+                s2 = v4_axpy(s2, g, P, e, c0 + 8)
+                s3 = v4_axpy(s3, g, P, e, c0 + 12)
+            if width == 32:
+                s4 = v4_axpy(s4, g, P, e, c0 + 16)
+                s5 = v4_axpy(s5, g, P, e, c0 + 20)
+                s6 = v4_axpy(s6, g, P, e, c0 + 24)
+                s7 = v4_axpy(s7, g, P, e, c0 + 28)
+    v4_store(M, a, c0, s0)
+    if width >= 16:
+        v4_store(M, a, c0 + 4, s1)
+        v4_store(M, a, c0 + 8, s2)
+        v4_store(M, a, c0 + 12, s3)
+    if width == 32:
+        v4_store(M, a, c0 + 16, s4)
+        v4_store(M, a, c0 + 20, s5)
+        v4_store(M, a, c0 + 24, s6)
+        v4_store(M, a, c0 + 28, s7)
+
+
+@njit(cache=True)
+def _gp_rows(G, P, M, nq, n):
+    """``M = G P`` for the ``nq`` rows of the NN Jacobian ``G`` (``nq x n``, ``P`` ``n x n``).
+
+    Every entry is ``sum_e G[a, e] P[e, c]`` added in increasing ``e`` from +0.0, the exact zeros
+    of ``G`` skipped (their products would add +-0, or NaN against an infinite ``P``): the sums of
+    the plain loop, so bit-identical to it. Columns go in register blocks of 32, 16 and 4; the
+    last block may overlap the one before (the same sums, written twice): a block of 4 for the
+    last 1-4 columns, else of 16. Below 4 columns, the plain loop.
+    """
+    for a in range(nq):
+        if n < 4:
+            for c in range(n):
+                M[a, c] = 0.0
+            for e in range(n):
+                g = G[a, e]
+                if g != 0.0:
+                    for c in range(n):
+                        M[a, c] += g * P[e, c]
+            continue
+        c0 = 0
+        while c0 < n:
+            if c0 + 32 <= n:
+                _gp_row_block(G, P, M, a, n, c0, 32)
+                c0 += 32
+            elif c0 + 16 <= n or (n - c0 > 4 and n >= 16):
+                c0 = min(c0, n - 16)
+                _gp_row_block(G, P, M, a, n, c0, 16)
+                c0 += 16
+            else:
+                c0 = min(c0, n - 4)
+                _gp_row_block(G, P, M, a, n, c0, 4)
+                c0 += 4
+
+
+@njit(cache=True)
 def nekf_run(rate, zinv, A, m, acc, cnt, prev, kc, av,
              xa, P, Qs, qw, Rbar, nq, p, istate, every, traj, pd_every):
     """Neural extended Kalman filter of Miao et al. 2015, eqs 48-57, over one chunk of ``rate``.
@@ -296,14 +370,7 @@ def nekf_run(rate, zinv, A, m, acc, cnt, prev, kc, av,
         if istate[_SEEN] >= 2:
             _nn_jacobian(xa, nq, p, t, G, nn)
             # M = G P (nq x n); P <- P + E P + P E^T + E P E^T + Qbar, E = [G; 0]
-            for a in range(nq):
-                for c in range(n):
-                    M[a, c] = 0.0
-                for e in range(n):
-                    g = G[a, e]
-                    if g != 0.0:
-                        for c in range(n):
-                            M[a, c] += g * P[e, c]
+            _gp_rows(G, P, M, nq, n)
             for a in range(nq):  # G P G^T, computed once per pair so that P stays symmetric
                 for c in range(a, nq):
                     acc_g = 0.0
