@@ -191,9 +191,9 @@ def collect(out: Path) -> pd.DataFrame:
     if not parts:
         raise SystemExit(f"real_runs_spread: no shards under {out / '_shards' / 'spread'}")
     df = pd.concat([pd.read_csv(p) for p in parts], ignore_index=True)
-    order = {f: i for i, f in enumerate(FITS)}
-    return df.sort_values(["axis", "replicate", "fit", "coefficient"],
-                          key=lambda s: s.map(order) if s.name == "fit" else s).reset_index(drop=True)
+    rank = df["fit"].map({f: i for i, f in enumerate(FITS)})
+    return (df.assign(_rank=rank).sort_values(["axis", "replicate", "_rank", "coefficient"], kind="stable")
+            .drop(columns="_rank").reset_index(drop=True))
 
 
 # -- the summary ---------------------------------------------------------------------------------------------
@@ -246,10 +246,18 @@ def summary(df: pd.DataFrame, runs: int = 6, truth_table: dict | None = None) ->
     return pd.DataFrame(out)
 
 
-def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS) -> pd.DataFrame:
+def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS, real: pd.DataFrame | None = None, runs: int = 6) -> pd.DataFrame:
     """Per axis, coefficient and (today, before) pair, on the replicates both fitted: the two CVs, their
     difference today - before with its bootstrap standard error and 95 % percentile interval (replicates
-    resampled together: the pairing is kept), and the ratio of the sampling SDs."""
+    resampled together: the pairing is kept), the ratio of the sampling SDs and the correlation of the
+    two fits' values; then what ``runs`` runs show: the 95 % range of the difference of the two CVs
+    computed on ``runs`` replicates (:data:`BOOT` random sets of ``runs`` distinct replicates, the same
+    records fitted both ways), and, given ``real`` (``consistency.csv`` of the real runs), the CVs the
+    real runs gave for the two fits where both are methods there (``real_cv_today``, ``real_cv_before``)
+    and the share of simulated sets of ``runs`` whose difference is at least the real one (``p_real``)."""
+    cons = None
+    if real is not None:
+        cons = real[real.sensor == "gyro"].set_index(["axis", "method", "coefficient"])["cv_pct"]
     out = []
     for axis in sorted(set(df.axis), key=AXES.index):
         for coef in coefs:
@@ -270,7 +278,26 @@ def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS) -> pd.DataFrame:
                             "diff_high": _round(float(np.quantile(d, 0.975))),
                             "sd_ratio": _round(float(np.std(ab[0], ddof=1) / np.std(ab[1], ddof=1))),
                             "correlation": _round(float(np.corrcoef(ab)[0, 1]))})
+                if ab.shape[1] >= 2 * runs:  # sets of `runs` out of at least twice as many
+                    sets = _six_sets(ab.shape[1], runs)
+                    d6 = _cv(ab[0][sets]) - _cv(ab[1][sets])
+                else:
+                    d6 = np.full(1, math.nan)
+                real_new = cons.get((axis, new, coef), math.nan) if cons is not None else math.nan
+                real_old = cons.get((axis, old, coef), math.nan) if cons is not None else math.nan
+                real_d = real_new - real_old
+                out[-1].update({f"diff{runs}_low": _round(float(np.quantile(d6, 0.025))),
+                                f"diff{runs}_high": _round(float(np.quantile(d6, 0.975))),
+                                "real_cv_today": real_new, "real_cv_before": real_old,
+                                "p_real": _round(float(np.mean(d6 >= real_d)))
+                                if np.isfinite(real_d) and np.isfinite(d6).all() else math.nan})
     return pd.DataFrame(out)
+
+
+def _six_sets(n: int, runs: int, seed: int = SEED) -> np.ndarray:
+    """:data:`BOOT` random sets of ``runs`` distinct replicates out of ``n`` (rows of an index array)."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(98, n, runs)))
+    return np.argsort(rng.random((BOOT, n)), axis=1)[:, :runs]
 
 
 def truth_table(models: pd.DataFrame) -> dict:
@@ -317,7 +344,8 @@ def main(argv=None) -> int:
     df = collect(out) if args.tables_only else simulate(models, out, args.replicates, axes)
     df.to_csv(out / "spread_fits.csv", index=False)
     s = summary(df, truth_table=truth_table(models))
-    p = paired(df)
+    real = pd.read_csv(out / "consistency.csv") if (out / "consistency.csv").exists() else None
+    p = paired(df, real=real)
     s.to_csv(out / "spread.csv", index=False)
     p.to_csv(out / "spread_paired.csv", index=False)
     (out / "spread.md").write_text(_markdown(p) + "\n" + _markdown(s))
