@@ -32,9 +32,15 @@ replicate x fit x coefficient: value, standard error, flag, poor fit, shortest c
 kept) and, by :func:`summary` / :func:`paired`, ``spread.csv`` / ``spread.md``: per axis, fit and
 coefficient the mean, the sampling SD and CV over the replicates with standard errors (bootstrap over
 replicates, :data:`BOOT` resamples from :data:`SEED`), the CV a set of six runs would show on average
-(c4(6) x CV) with its 95 % range (chi-square, 5 dof), the median standard error the fit claims; and per
-axis, coefficient and default-method pair the paired difference of the CVs (today - before) with its
-bootstrap standard error and 95 % interval.
+(c4(6) x CV) with its 95 % range (chi-square, 5 dof), the median standard error the fit claims; and
+``spread_paired.csv`` (the first table of ``spread.md``): per axis, coefficient and default-method pair
+the paired difference of the CVs (today - before) with its bootstrap standard error and 95 % interval,
+the 95 % range of that difference as six runs show it (random sets of six replicates), and the real
+runs' CVs of the two fits from ``OUT/consistency.csv`` with the share of simulated six-run sets whose
+difference reaches the real one.
+
+Cost, measured (2 cores shared with other jobs, load 5-6, niced): one replicate of the three axes with
+the five fits ~50-60 s wall (gyro z ~25-30 s: the resonance choice; x and y ~12-15 s).
 """
 
 from __future__ import annotations
@@ -69,6 +75,15 @@ FITS = {
 #: (default method today, the one it replaced): the first default (whose values go into the yaml) was
 #: ``gmwm`` before issue 24; ``gmwm_despiked`` took ``gmwm_filtered``'s model in issue 24; ``nnls_rel`` did not change
 PAIRS = (("gmwm_filtered", "gmwm"), ("gmwm_despiked", "gmwm_despiked_pre24"))
+#: what makes B's spread differ between today's first default and the one before (``--variants``, gyro x
+#: and y): today's model from the cut-off ``gmwm`` chooses (m >= 16: the scales it adds, or the model?),
+#: and from m = 2 (the cut-off ``gmwm_filtered`` keeps on the real x runs)
+VARIANTS = {
+    "gmwm_filtered_m16": ("gmwm_filtered", {"min_m": 16}),
+    "gmwm_filtered_m2": ("gmwm_filtered", {"min_m": 2}),
+}
+VARIANT_PAIRS = (("gmwm_filtered_m16", "gmwm"), ("gmwm_filtered", "gmwm_filtered_m16"),
+                 ("gmwm_filtered_m2", "gmwm"), ("gmwm_filtered", "gmwm_filtered_m2"))
 #: parameters that are not rates (a record's scale leaves them unchanged): time constants and frequencies
 _SHAPE = ("tc", "tf", "f0")
 SIG = 6  # significant digits written
@@ -164,10 +179,11 @@ def replicate_rows(models: pd.DataFrame, axis: str, replicate: int, fits=None, n
     return rows
 
 
-def simulate(models: pd.DataFrame, out: Path, replicates: int, axes=AXES, fits=None) -> pd.DataFrame:
+def simulate(models: pd.DataFrame, out: Path, replicates: int, axes=AXES, fits=None, kind: str = "spread") -> pd.DataFrame:
     """Replicates 0 .. ``replicates``-1 of every axis (replicate-major, so that a stopped run has the
-    same number on each axis), one shard per (axis, replicate); shards already there are kept."""
-    shards = out / "_shards" / "spread"
+    same number on each axis), one shard per (axis, replicate) under ``OUT/_shards/<kind>``; shards
+    already there are kept."""
+    shards = out / "_shards" / kind
     shards.mkdir(parents=True, exist_ok=True)
     for r in range(replicates):
         for axis in axes:
@@ -182,16 +198,16 @@ def simulate(models: pd.DataFrame, out: Path, replicates: int, axes=AXES, fits=N
             b = rows[rows.coefficient == "B"].set_index("fit")
             print(f"{axis} r{r}: {time.time() - t0:.0f} s wall; B " + " ".join(
                 f"{k}={v:.4g}" for k, v in b["value"].items()), flush=True)
-    return collect(out)
+    return collect(out, kind)
 
 
-def collect(out: Path) -> pd.DataFrame:
+def collect(out: Path, kind: str = "spread") -> pd.DataFrame:
     """The shards as one table (axis, replicate, fit, coefficient order)."""
-    parts = sorted((out / "_shards" / "spread").glob("*.csv"))
+    parts = sorted((out / "_shards" / kind).glob("*.csv"))
     if not parts:
-        raise SystemExit(f"real_runs_spread: no shards under {out / '_shards' / 'spread'}")
+        raise SystemExit(f"real_runs_spread: no shards under {out / '_shards' / kind}")
     df = pd.concat([pd.read_csv(p) for p in parts], ignore_index=True)
-    rank = df["fit"].map({f: i for i, f in enumerate(FITS)})
+    rank = df["fit"].map({f: i for i, f in enumerate({**FITS, **VARIANTS})})
     return (df.assign(_rank=rank).sort_values(["axis", "replicate", "_rank", "coefficient"], kind="stable")
             .drop(columns="_rank").reset_index(drop=True))
 
@@ -211,9 +227,12 @@ def _boot_index(n: int, seed: int = SEED) -> np.ndarray:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(99, n))).integers(0, n, (BOOT, n))
 
 
-def _wide(df: pd.DataFrame, coef: str, axis: str) -> pd.DataFrame:
-    """Replicates x fits of one coefficient on one axis (replicates every fit has a value for)."""
+def _wide(df: pd.DataFrame, coef: str, axis: str, ok_only: bool = False) -> pd.DataFrame:
+    """Replicates x fits of one coefficient on one axis; with ``ok_only`` a value flagged (e.g. "not
+    resolved": the user gets an interval, not a value) is left out (NaN)."""
     sub = df[(df.axis == axis) & (df.coefficient == coef)]
+    if ok_only:
+        sub = sub.assign(value=sub["value"].where(sub["flag"] == "ok"))
     return sub.pivot(index="replicate", columns="fit", values="value")
 
 
@@ -230,6 +249,7 @@ def summary(df: pd.DataFrame, runs: int = 6, truth_table: dict | None = None) ->
         v = v[np.isfinite(v)]
         if v.size < 3:
             continue
+        ok = g["value"].to_numpy(dtype=float)[(g["flag"] == "ok").to_numpy() & np.isfinite(g["value"].to_numpy(dtype=float))]
         b = v[_boot_index(v.size)]
         sd, mean, cv = float(np.std(v, ddof=1)), float(np.mean(v)), float(_cv(v))
         se = np.nanmedian(g["std_err"].to_numpy(dtype=float)) if np.isfinite(g["std_err"]).any() else math.nan
@@ -242,11 +262,13 @@ def summary(df: pd.DataFrame, runs: int = 6, truth_table: dict | None = None) ->
                     f"cv{runs}_low_pct": _round(lo * cv), f"cv{runs}_high_pct": _round(hi * cv),
                     "median_se": _round(se), "sd_over_se": _round(sd / se) if np.isfinite(se) and se > 0 else math.nan,
                     "poor_fits": int(g["poor_fit"].sum()), "flagged": int((g["flag"] != "ok").sum()),
+                    "cv_ok_pct": _round(float(_cv(ok))) if ok.size >= 3 else math.nan,
                     "failed": int(g["failed"].sum())})
     return pd.DataFrame(out)
 
 
-def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS, real: pd.DataFrame | None = None, runs: int = 6) -> pd.DataFrame:
+def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS, real: pd.DataFrame | None = None, runs: int = 6,
+           ok_only: bool = False) -> pd.DataFrame:
     """Per axis, coefficient and (today, before) pair, on the replicates both fitted: the two CVs, their
     difference today - before with its bootstrap standard error and 95 % percentile interval (replicates
     resampled together: the pairing is kept), the ratio of the sampling SDs and the correlation of the
@@ -254,14 +276,16 @@ def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS, real: pd.DataFrame | None
     computed on ``runs`` replicates (:data:`BOOT` random sets of ``runs`` distinct replicates, the same
     records fitted both ways), and, given ``real`` (``consistency.csv`` of the real runs), the CVs the
     real runs gave for the two fits where both are methods there (``real_cv_today``, ``real_cv_before``)
-    and the share of simulated sets of ``runs`` whose difference is at least the real one (``p_real``)."""
+    and the share of simulated sets of ``runs`` whose difference is at least the real one (``p_real``).
+    ``ok_only``: only the replicates on which neither fit's value is flagged (``values`` "both ok"; else "all",
+    as ``consistency.csv`` counts every finite value)."""
     cons = None
     if real is not None:
         cons = real[real.sensor == "gyro"].set_index(["axis", "method", "coefficient"])["cv_pct"]
     out = []
     for axis in sorted(set(df.axis), key=AXES.index):
         for coef in coefs:
-            w = _wide(df, coef, axis)
+            w = _wide(df, coef, axis, ok_only)
             for new, old in pairs:
                 if new not in w or old not in w:
                     continue
@@ -271,7 +295,8 @@ def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS, real: pd.DataFrame | None
                 idx = _boot_index(ab.shape[1])
                 cv = _cv(ab)
                 d = _cv(ab[0][idx]) - _cv(ab[1][idx])
-                out.append({"axis": axis, "coefficient": coef, "today": new, "before": old, "replicates": ab.shape[1],
+                out.append({"axis": axis, "coefficient": coef, "today": new, "before": old,
+                            "values": "both ok" if ok_only else "all", "replicates": ab.shape[1],
                             "cv_today_pct": _round(float(cv[0])), "cv_before_pct": _round(float(cv[1])),
                             "diff_pct": _round(float(cv[0] - cv[1])), "diff_se": _round(float(np.std(d, ddof=1))),
                             "diff_low": _round(float(np.quantile(d, 0.025))),
@@ -327,6 +352,9 @@ def main(argv=None) -> int:
     ap.add_argument("--data", default=os.environ.get("AVBENCH_REAL_DATA"), help="folder of the recordings (--models)")
     ap.add_argument("--replicates", type=int, default=40, help="simulated runs per axis (default 40)")
     ap.add_argument("--axes", default=",".join(AXES), help="comma-separated gyro axes")
+    ap.add_argument("--variants", action="store_true",
+                    help="instead: the VARIANTS fits on the same simulated records (with --axes x,y); "
+                         "writes OUT/spread_variants*.csv/md")
     ap.add_argument("--tables-only", action="store_true", help="summarise the shards under OUT/_shards/spread only")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -341,11 +369,22 @@ def main(argv=None) -> int:
     bad = [a for a in axes if a not in AXES]
     if bad:
         raise SystemExit(f"real_runs_spread: --axes: expected some of {','.join(AXES)}, got {','.join(bad)}")
+    if args.variants:
+        fits = collect(out)
+        var = collect(out, "variants") if args.tables_only else simulate(models, out, args.replicates, axes, VARIANTS,
+                                                                          "variants")
+        var.to_csv(out / "spread_variants_fits.csv", index=False)
+        both = pd.concat([fits[fits.fit.isin(["gmwm_filtered", "gmwm"])], var], ignore_index=True)
+        both = both[both.set_index(["axis", "replicate"]).index.isin(var.set_index(["axis", "replicate"]).index)]
+        pv = pd.concat([paired(both, VARIANT_PAIRS), paired(both, VARIANT_PAIRS, ok_only=True)], ignore_index=True)
+        pv.to_csv(out / "spread_variants.csv", index=False)
+        (out / "spread_variants.md").write_text(_markdown(pv) + "\n" + _markdown(summary(var, truth_table=truth_table(models))))
+        return 0
     df = collect(out) if args.tables_only else simulate(models, out, args.replicates, axes)
     df.to_csv(out / "spread_fits.csv", index=False)
     s = summary(df, truth_table=truth_table(models))
     real = pd.read_csv(out / "consistency.csv") if (out / "consistency.csv").exists() else None
-    p = paired(df, real=real)
+    p = pd.concat([paired(df, real=real), paired(df, real=real, ok_only=True)], ignore_index=True)
     s.to_csv(out / "spread.csv", index=False)
     p.to_csv(out / "spread_paired.csv", index=False)
     (out / "spread.md").write_text(_markdown(p) + "\n" + _markdown(s))

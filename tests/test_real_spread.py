@@ -71,6 +71,12 @@ def test_summary_statistics_hold_on_known_normal_values():
     assert p["diff_low"] < p["diff_pct"] < p["diff_high"]
     assert abs(p["diff_pct"] - 2.0) < 4 * se_diff
     assert p["correlation"] == pytest.approx(0.6, abs=0.1)
+    # a value flagged "not resolved" counts in "all" (as consistency.csv counts it) and not in "both ok"
+    df.loc[(df.fit == "gmwm") & (df.replicate == 0), ["value", "flag"]] = [400.0, "not resolved"]
+    all_, ok = rs.paired(df, coefs=("B",)).iloc[0], rs.paired(df, coefs=("B",), ok_only=True).iloc[0]
+    assert (all_["values"], ok["values"]) == ("all", "both ok")
+    assert ok["replicates"] == n - 1 and all_["cv_before_pct"] > 2 * ok["cv_before_pct"]
+    assert ok["cv_before_pct"] == pytest.approx(p["cv_before_pct"], rel=0.05)
 
 
 def test_a_short_replicate_is_reproducible_and_fits_every_configuration(models):
