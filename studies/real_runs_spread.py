@@ -4,6 +4,7 @@ simulated ADIS16405 gyros, today's default methods against the configuration bef
 ``python -m avbench.studies.real_runs_spread --out results/real``             (simulate and fit; resumable)
 ``python -m avbench.studies.real_runs_spread --out results/real --models --data DIR``   (the models, from the runs)
 ``python -m avbench.studies.real_runs_spread --out results/real --tables-only``  (summary from the fits)
+``python -m avbench.studies.real_runs_spread --out results/real --variants --axes x,y``  (what moves B's spread)
 
 Why. On the six ADIS16405 runs (``results/real/consistency.md``) the run-to-run CV of a coefficient is a
 standard deviation of six values: its relative standard error is ~1/sqrt(2 x 5) ~ 32 %, and part of it is
@@ -38,6 +39,11 @@ the paired difference of the CVs (today - before) with its bootstrap standard er
 the 95 % range of that difference as six runs show it (random sets of six replicates), and the real
 runs' CVs of the two fits from ``OUT/consistency.csv`` with the share of simulated six-run sets whose
 difference reaches the real one.
+
+``--variants`` (gyro x and y, the same records): today's first default from fixed cut-offs (:data:`VARIANTS`:
+``min_m=16``, the old cut-off; ``min_m=2``, the real x runs'), paired with ``gmwm_filtered`` and ``gmwm``
+(:data:`VARIANT_PAIRS`): whether a difference of B's spread comes from the scales added or from the model;
+writes ``spread_variants.csv`` / ``.md`` and ``spread_variants_fits.csv``.
 
 Cost, measured (2 cores shared with other jobs, load 5-6, niced): one replicate of the three axes with
 the five fits ~50-60 s wall (gyro z ~25-30 s: the resonance choice; x and y ~12-15 s).
@@ -350,7 +356,7 @@ def main(argv=None) -> int:
     ap.add_argument("--models", action="store_true",
                     help="fit the six ADIS runs and write OUT/spread_models.csv (needs --data or $AVBENCH_REAL_DATA)")
     ap.add_argument("--data", default=os.environ.get("AVBENCH_REAL_DATA"), help="folder of the recordings (--models)")
-    ap.add_argument("--replicates", type=int, default=40, help="simulated runs per axis (default 40)")
+    ap.add_argument("--replicates", type=int, default=64, help="simulated runs per axis (default 64, as committed)")
     ap.add_argument("--axes", default=",".join(AXES), help="comma-separated gyro axes")
     ap.add_argument("--variants", action="store_true",
                     help="instead: the VARIANTS fits on the same simulated records (with --axes x,y); "
