@@ -30,7 +30,8 @@ The simulation: replicate ``r`` of axis ``a`` (index in :data:`AXES`) is :data:`
 issue 24 did not change and which is therefore fitted once). One shard per (axis, replicate) under
 ``OUT/_shards/spread/`` (git-ignored); a rerun resumes. Writes ``spread_fits.csv`` (one row per axis x
 replicate x fit x coefficient: value, standard error, flag, poor fit, shortest cluster size, resonance
-kept) and, by :func:`summary` / :func:`paired`, ``spread.csv`` / ``spread.md``: per axis, fit and
+kept; the shards also hold each fit's CPU seconds, left out here: the tables depend only on the seed) and,
+by :func:`summary` / :func:`paired`, ``spread.csv`` / ``spread.md``: per axis, fit and
 coefficient the mean, the sampling SD and CV over the replicates with standard errors (bootstrap over
 replicates, :data:`BOOT` resamples from :data:`SEED`), the CV a set of six runs would show on average
 (c4(6) x CV) with its 95 % range (chi-square, 5 dof), the median standard error the fit claims; and
@@ -379,7 +380,7 @@ def main(argv=None) -> int:
         fits = collect(out)
         var = collect(out, "variants") if args.tables_only else simulate(models, out, args.replicates, axes, VARIANTS,
                                                                           "variants")
-        var.to_csv(out / "spread_variants_fits.csv", index=False)
+        var.drop(columns="cpu_s").to_csv(out / "spread_variants_fits.csv", index=False)
         both = pd.concat([fits[fits.fit.isin(["gmwm_filtered", "gmwm"])], var], ignore_index=True)
         both = both[both.set_index(["axis", "replicate"]).index.isin(var.set_index(["axis", "replicate"]).index)]
         pv = pd.concat([paired(both, VARIANT_PAIRS), paired(both, VARIANT_PAIRS, ok_only=True)], ignore_index=True)
@@ -387,7 +388,7 @@ def main(argv=None) -> int:
         (out / "spread_variants.md").write_text(_markdown(pv) + "\n" + _markdown(summary(var, truth_table=truth_table(models))))
         return 0
     df = collect(out) if args.tables_only else simulate(models, out, args.replicates, axes)
-    df.to_csv(out / "spread_fits.csv", index=False)
+    df.drop(columns="cpu_s").to_csv(out / "spread_fits.csv", index=False)  # CPU seconds: in the shards only
     s = summary(df, truth_table=truth_table(models))
     real = pd.read_csv(out / "consistency.csv") if (out / "consistency.csv").exists() else None
     p = pd.concat([paired(df, real=real), paired(df, real=real, ok_only=True)], ignore_index=True)
