@@ -84,13 +84,16 @@ FITS = {
 PAIRS = (("gmwm_filtered", "gmwm"), ("gmwm_despiked", "gmwm_despiked_pre24"))
 #: what makes B's spread differ between today's first default and the one before (``--variants``, gyro x
 #: and y): today's model from the cut-off ``gmwm`` chooses (m >= 16: the scales it adds, or the model?),
-#: and from m = 2 (the cut-off ``gmwm_filtered`` keeps on the real x runs)
+#: from m = 2 (the cut-off ``gmwm_filtered`` keeps on the real x runs), and ``gmwm`` from m = 16 (its own
+#: choice is 16 or 32): ``FW`` against ``WN`` on the same scales
 VARIANTS = {
     "gmwm_filtered_m16": ("gmwm_filtered", {"min_m": 16}),
     "gmwm_filtered_m2": ("gmwm_filtered", {"min_m": 2}),
+    "gmwm_m16": ("gmwm", {"min_m": 16}),
 }
 VARIANT_PAIRS = (("gmwm_filtered_m16", "gmwm"), ("gmwm_filtered", "gmwm_filtered_m16"),
-                 ("gmwm_filtered_m2", "gmwm"), ("gmwm_filtered", "gmwm_filtered_m2"))
+                 ("gmwm_filtered_m2", "gmwm"), ("gmwm_filtered", "gmwm_filtered_m2"),
+                 ("gmwm_filtered_m16", "gmwm_m16"), ("gmwm_m16", "gmwm"))
 #: parameters that are not rates (a record's scale leaves them unchanged): time constants and frequencies
 _SHAPE = ("tc", "tf", "f0")
 SIG = 6  # significant digits written
@@ -195,10 +198,12 @@ def simulate(models: pd.DataFrame, out: Path, replicates: int, axes=AXES, fits=N
     for r in range(replicates):
         for axis in axes:
             p = shards / f"{axis}_{r:04d}.csv"
-            if p.exists():
+            old = pd.read_csv(p) if p.exists() else None
+            todo = {k: v for k, v in (FITS if fits is None else fits).items() if old is None or k not in set(old.fit)}
+            if not todo:
                 continue
             t0 = time.time()
-            rows = pd.DataFrame(replicate_rows(models, axis, r, fits))
+            rows = pd.concat([old, pd.DataFrame(replicate_rows(models, axis, r, todo))], ignore_index=True)
             tmp = p.with_suffix(".tmp")
             rows.to_csv(tmp, index=False)
             os.replace(tmp, p)
