@@ -140,8 +140,8 @@ the same domain: :math:`\\{a \\ge 0: 2(\\ell^* - \\ell_p(a)) \\le \\chi^2_{1,0.9
 then an interior point on both sides, so Wilks's law holds for its interval whatever its neighbours
 are; an absent one holds 0 with probability >= 97.5 %.
 
-Intervals over both domains (setting ``interval_domain``; ``"union"`` is ``whittle_debiased``'s
-default, ``"fit"`` the fit's domain alone): with ``domain="spectrum"`` each term's interval is the
+Intervals over both domains (setting ``interval_domain="union"``; the default ``"fit"`` is the
+fit's domain alone, measured below and **not the default**): with ``domain="spectrum"`` each term's interval is the
 union of its profile intervals over the signed domain (above) and over non-negative variances (the
 physical parameter space; the maximum there is the one the signed fit starts from), its evidence the
 weaker of the two (:func:`_union_evidence`). Wilks's law is asymptotic; in a finite record a
@@ -1119,8 +1119,8 @@ class Whittle(Estimator):
     interval_domain : {"fit", "union"}
         With ``intervals="profile"`` and ``domain="spectrum"``: each term's interval over the fit's
         domain (``"fit"``, default) or the union of its intervals over the signed and the
-        non-negative domain (``"union"``, ``whittle_debiased``'s default; module docstring,
-        "Intervals over both domains"). The estimates are the same.
+        non-negative domain (``"union"``; module docstring, "Intervals over both domains": it
+        over-covers where a neighbour is absent, so it is not the default). The estimates are the same.
     reml : bool
         Maximise the restricted (residual) likelihood: the profile likelihood minus
         :math:`\\tfrac12\\log\\sum_k w_k|G_k|^2/S_k`, the log of the trend slope's information
@@ -1399,13 +1399,11 @@ class WhittleDebiased(Whittle):
     of dropping it with its chi-bar-squared p-value, in ``diagnostics_["evidence"]``) and
     ``domain="spectrum"`` (the maximum over variances that may go below 0 while the expected
     periodogram stays positive, each reported truncated at 0: no half-normal trade between a term on
-    its boundary and its neighbour; module docstring, "Domain of the variances") and
-    ``interval_domain="union"`` (each interval the union of the profile intervals over that domain
-    and over non-negative variances: module docstring, "Intervals over both domains"). Every setting of
+    its boundary and its neighbour; module docstring, "Domain of the variances"). Every setting of
     :class:`Whittle` applies; only the defaults differ."""
 
     def __init__(self, *, terms="QNBKR", bias="flicker", select=False, criterion="bic", n_starts=4, reml=False,
-                 spectrum="debiased", intervals="profile", domain="spectrum", interval_domain="union"):
+                 spectrum="debiased", intervals="profile", domain="spectrum", interval_domain="fit"):
         super().__init__(terms=terms, bias=bias, select=select, criterion=criterion, n_starts=n_starts,
                          reml=reml, spectrum=spectrum, intervals=intervals, domain=domain,
                          interval_domain=interval_domain)
