@@ -195,7 +195,8 @@ def test_signed_domain_reports_no_negative_coefficient():
     assert seen
 
 
-@pytest.mark.parametrize("bad", [dict(spectrum="tapered"), dict(intervals="bayes"), dict(domain="real")])
+@pytest.mark.parametrize("bad", [dict(spectrum="tapered"), dict(intervals="bayes"), dict(domain="real"),
+                                 dict(interval_domain="both")])
 def test_bad_settings_are_clear_errors(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         estimators.get("whittle_debiased", **bad).fit(np.random.default_rng(0).standard_normal(1000), DT)
@@ -347,3 +348,81 @@ def test_white_noise_ordinates_are_independent():
     A, P = _low_dft_covariance(c, 12)
     np.testing.assert_allclose(A, np.diag(np.full(12, 100.0)), atol=1e-12)
     np.testing.assert_allclose(P, 0.0, atol=1e-12)
+
+
+def _whittle_world_record(gyro, n, rng):
+    """A record of n samples whose DFT ordinates k = 1..n/2 are independent complex Gaussians with
+    the model's expected periodogram (the Whittle likelihood's own world: its approximation exact)."""
+    from avbench.estimators.likelihood.whittle import _expected_periodogram
+
+    S = sum(gyro.coefficients[c] ** 2 * _expected_periodogram(c, n, gyro.dt) for c in "NBK")
+    X = np.sqrt(n * S / 2) * (rng.standard_normal(S.size) + 1j * rng.standard_normal(S.size))
+    if n % 2 == 0:
+        X[-1] = math.sqrt(n * S[-1]) * rng.standard_normal()  # the Nyquist ordinate is real
+    return np.fft.irfft(np.concatenate([[0.0], X]), n)
+
+
+def _adis_like(dt=1.0):
+    """ADIS16405_X's N, B, K (a B its 20 min record resolves to ~50 %, a K it barely sees) at a
+    lower rate: the ratio of flicker and random walk to white noise at a frequency does not depend
+    on dt, so the lowest ordinates, where B and K trade, are as on the preset at 100 Hz."""
+    from avbench.noise_models import presets
+
+    tr = presets.get("ADIS16405_X").coefficients
+    return Gyro(dt=dt, terms=[AngleRandomWalk(N=tr["N"]), BiasInstability(B=tr["B"], tau_max=36_000.0),
+                              RateRandomWalk(K=tr["K"])])
+
+
+def _whittle_world_coverage_of_b(R, seed, interval_domain="union", n=1_200):
+    g = _adis_like()
+    hits = []
+    for s in np.random.SeedSequence(seed).spawn(R):
+        x = _whittle_world_record(g, n, np.random.default_rng(s))
+        ci = estimators.get("whittle_debiased", terms="NBK", interval_domain=interval_domain).fit(x, g.dt).conf_int()
+        hits.append(ci.loc["B", "lower"] <= g.coefficients["B"] <= ci.loc["B", "upper"])
+    return np.array(hits)
+
+
+def _check_b_coverage(hits):
+    """B's misses are Binomial(R, 0.05) for a 95 % interval: fail past the 99.9 % point of that law
+    (too narrow), and fail below its 0.1 % point (too wide to be the 95 % interval)."""
+    R = hits.size
+    misses = int(R - hits.sum())
+    assert stats.binom.ppf(0.001, R, 0.05) <= misses <= stats.binom.ppf(0.999, R, 0.05), (misses, R)
+
+
+def test_union_b_interval_holds_when_the_random_walk_is_barely_resolved_small():
+    """The small version of the test below (60 records): a check that the path runs and is not
+    grossly off; the slow one is the one that tells 0.92 from 0.95."""
+    hits = _whittle_world_coverage_of_b(R=60, seed=235)
+    assert hits.size - hits.sum() <= stats.binom.ppf(0.999, hits.size, 0.05)
+
+
+@pytest.mark.slow
+def test_union_b_interval_holds_when_the_random_walk_is_barely_resolved_slow():
+    """ADIS16405_X's N, B, K, 20 min, in the Whittle likelihood's own world (independent
+    exponential ordinates with the true expected periodogram), candidates N, B, K, with
+    ``interval_domain="union"``: B's 95 % interval holds the truth at the binomial tolerance of 95 %
+    in 1500 records. Intervals over the signed domain alone (the default ``"fit"``) fail it: 115
+    misses of 1500 (coverage 0.923) against the limit 101 (seed 4242, measured issue 23's fifth
+    session; the union: 60, 0.960). The random walk, estimated below -2 K^2 in ~40 % of such records, is the nuisance that inflates
+    the signed domain's profile statistic (``_union_evidence``)."""
+    _check_b_coverage(_whittle_world_coverage_of_b(R=1500, seed=236))
+
+
+def test_union_interval_holds_both_domains_intervals():
+    """``interval_domain="union"``: each term's interval is the union of the signed domain's
+    (the default ``interval_domain="fit"``) and the non-negative domain's
+    (``domain="nonnegative"``) profile intervals, its likelihood ratio the smaller of theirs; the
+    estimates are the signed domain's."""
+    g = _adis_like()
+    x = _whittle_world_record(g, 1_200, np.random.default_rng(7))
+    settings = {"union": dict(interval_domain="union"), "fit": {}, "nonneg": dict(domain="nonnegative")}
+    fits = {k: estimators.get("whittle_debiased", terms="NBK", **s).fit(x, g.dt) for k, s in settings.items()}
+    ev = {k: f.diagnostics_["evidence"] for k, f in fits.items()}
+    for c in "NBK":
+        pair = [ev[k].loc[c] for k in ("fit", "nonneg")]
+        assert ev["union"].loc[c, "lower"] == pytest.approx(min(e["lower"] for e in pair), rel=1e-12)
+        assert ev["union"].loc[c, "upper"] == pytest.approx(max(e["upper"] for e in pair), rel=1e-12)
+        assert ev["union"].loc[c, "lr"] == pytest.approx(min(e["lr"] for e in pair), rel=1e-12, abs=1e-300)
+    assert fits["union"].coefficients_.equals(fits["fit"].coefficients_)
