@@ -81,10 +81,11 @@ def _records(data: Path):
                 yield name, s.sensor, axis, x, timing
 
 
-def _round(v):
+def _round(v, sig: int = SIG):
+    """``v`` to ``sig`` significant digits (None, 0 and non-finite values as they are)."""
     if v is None or not np.isfinite(v) or v == 0:
         return v
-    return float(f"{v:.{SIG}g}")
+    return float(f"{v:.{sig}g}")
 
 
 def fit_all(data: Path, methods) -> pd.DataFrame:

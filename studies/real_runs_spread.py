@@ -61,6 +61,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from avbench.studies.real_runs import _markdown
+from avbench.studies.real_runs import _round as _round_to
+
 __all__ = ["AXES", "FITS", "PAIRS", "SEED", "axis_models", "model_gyro", "replicate_rows", "summary", "paired",
            "main"]
 
@@ -100,7 +103,7 @@ SIG = 6  # significant digits written
 
 
 def _round(v):
-    return v if v is None or not np.isfinite(v) or v == 0 else float(f"{v:.{SIG}g}")
+    return _round_to(v, SIG)
 
 
 # -- the gyro ------------------------------------------------------------------------------------------------
@@ -348,12 +351,6 @@ def truth_table(models: pd.DataFrame) -> dict:
         for k in ("N", "B", "K"):
             out[(axis, k)] = from_si(k, float(c[k]), DISPLAY_UNITS["gyro"][k])
     return out
-
-
-def _markdown(df: pd.DataFrame) -> str:
-    from avbench.studies.real_runs import _markdown as md
-
-    return md(df)
 
 
 def main(argv=None) -> int:

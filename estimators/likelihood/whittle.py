@@ -712,6 +712,13 @@ def _gm_starts(T, dt, n_starts):
     return np.geomspace(max(20 * dt, T / 2000), T / 4, n_starts)
 
 
+def _fit_result(comps, a, tc, loglik, n_iter, converged, detail, floor, signed) -> dict:
+    """One maximum of :func:`whittle_fit` as it returns it: the terms at or below their floor are
+    ``absent``."""
+    return dict(comps=comps, a=a, tc=tc, loglik=loglik, n_iter=n_iter, converged=converged, detail=detail,
+                absent=[c for i, c in enumerate(comps) if a[i] <= floor[i]], signed=signed)
+
+
 def whittle_fit(wf: WhittleFit, comps, n_starts=4, warm=None, hold_floor=False, signed=False):
     """Best fit of the spectral terms ``comps`` (names from Q, N, B, K, GM); dict of results
     (``hold_floor``: :meth:`WhittleFit.fit`'s). ``signed``: the maximum over the domain where the
@@ -744,8 +751,7 @@ def whittle_fit(wf: WhittleFit, comps, n_starts=4, warm=None, hold_floor=False, 
         nonneg = None
         if signed:
             # the maximum over non-negative variances, kept for intervals over that domain
-            nonneg = dict(comps=comps, a=a, tc=tc_hat, loglik=ll, n_iter=it, converged=conv, detail=d,
-                          absent=[c for i, c in enumerate(comps) if a[i] <= floor[i]], signed=False)
+            nonneg = _fit_result(comps, a, tc_hat, ll, it, conv, d, floor, False)
             s_fit = wf.fit(comps, a, tc_hat, lo, signed=True)
             if np.isfinite(s_fit[2]) and s_fit[2] >= ll:
                 a, tc_hat, ll, it2, conv, d = s_fit
@@ -754,8 +760,7 @@ def whittle_fit(wf: WhittleFit, comps, n_starts=4, warm=None, hold_floor=False, 
                 d = dict(d, info=wf.evaluate(comps, a, tc_hat, grad=True, linear=True)[4])
             floor = np.where([c == "GM" for c in comps], floor, 0.0)
         if best is None or ll > best["loglik"]:
-            best = dict(comps=comps, a=a, tc=tc_hat, loglik=ll, n_iter=it, converged=conv, detail=d,
-                        absent=[c for i, c in enumerate(comps) if a[i] <= floor[i]], signed=bool(signed))
+            best = _fit_result(comps, a, tc_hat, ll, it, conv, d, floor, bool(signed))
         if nonneg is not None and (best_nn is None or nonneg["loglik"] > best_nn["loglik"]):
             best_nn = nonneg
         if warm is not None:

@@ -10,6 +10,10 @@ bit-identical to it.
 
 Used by :func:`avbench.estimators.online._kernels.nekf_run` (``_gp_rows``); tested there against the
 plain loop and the NumPy reference.
+
+Numba's on-disk cache of a kernel is keyed on its own source file only: after editing this module,
+touch ``_kernels.py`` (or clear its ``__pycache__``), or a second process loads the kernels compiled
+from the previous intrinsics.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic, models, register_model
 
-__all__ = ["vec4", "v4_zero", "v4_load", "v4_axpy", "v4_sub_scaled", "v4_store"]
+__all__ = ["vec4", "v4_zero", "v4_axpy", "v4_store"]
 
 _V4 = ir.VectorType(ir.DoubleType(), 4)
 _I32 = ir.IntType(32)
@@ -89,28 +93,3 @@ def v4_store(typingctx, arr, i, j, v):
         return context.get_dummy_value()
 
     return types.none(arr, types.intp, types.intp, vec4), codegen
-
-
-@intrinsic
-def v4_load(typingctx, arr, i, j):
-    """``arr[i, j:j+4]``."""
-    _check_matrix(arr)
-
-    def codegen(context, builder, sig, args):
-        arrv, iv, jv = args
-        return builder.load(_lanes_pointer(context, builder, sig.args[0], arrv, iv, jv), align=8)
-
-    return vec4(arr, types.intp, types.intp), codegen
-
-
-@intrinsic
-def v4_sub_scaled(typingctx, acc, f, x):
-    """``acc - f * x`` lane by lane: a multiply, then a subtraction (no fused multiply-add)."""
-
-    def codegen(context, builder, sig, args):
-        accv, fv, xv = args
-        fs = builder.insert_element(ir.Constant(_V4, ir.Undefined), fv, ir.Constant(_I32, 0))
-        fs = builder.shuffle_vector(fs, ir.Constant(_V4, ir.Undefined), ir.Constant(ir.VectorType(_I32, 4), [0] * 4))
-        return builder.fsub(accv, builder.fmul(fs, xv))
-
-    return vec4(vec4, types.float64, vec4), codegen
