@@ -199,7 +199,10 @@ def m_scale(x, psi="huber", eff=0.6) -> float:
     """Fisher-consistent M-estimate of the root mean square of ``x`` (not centred).
 
     Solves mean(rho(x/s)) = delta for s (a decreasing function of s, one root), by Brent's method
-    on log s bracketed around the normalised median absolute value.
+    on log(s / s0), s0 the normalised median absolute value: the search runs on ``x / s0``, which is
+    the same in every unit, so the root is equivariant to the last bits (searched on log s, Brent's
+    steps -- and so its last digits, ~1e-12 -- depended on the unit; GMWM's end point carries such a
+    difference to ~1e-8 in a standard error).
     """
     c, delta = tuning(psi, eff)
     x = np.abs(np.asarray(x, dtype=float))
@@ -208,11 +211,12 @@ def m_scale(x, psi="huber", eff=0.6) -> float:
         s0 = math.sqrt(float(np.mean(x * x)))
         if not s0 > 0:
             return 0.0
+    z = x / s0
 
-    def g(log_s):
-        return float(np.mean(_rho(psi, x / math.exp(log_s), c))) - delta
+    def g(log_r):
+        return float(np.mean(_rho(psi, z / math.exp(log_r), c))) - delta
 
-    a, b = math.log(s0) - 1.0, math.log(s0) + 1.0
+    a, b = -1.0, 1.0
     for _ in range(40):
         if g(a) >= 0:
             break
@@ -221,7 +225,7 @@ def m_scale(x, psi="huber", eff=0.6) -> float:
         return 0.0
     while g(b) > 0:
         b += 2.0
-    return math.exp(optimize.brentq(g, a, b, xtol=1e-12, rtol=1e-12))
+    return s0 * math.exp(optimize.brentq(g, a, b, xtol=1e-12, rtol=1e-12))
 
 
 def robust_allan_variance(rate, dt, taus="octave", *, psi="huber", eff=0.6):
