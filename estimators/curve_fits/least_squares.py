@@ -29,7 +29,7 @@ import pandas as pd
 from avbench.estimators.allan.variance import allan_variance, edf_overlapping
 from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER, coefficients_from_beta, design_matrix
 from avbench.estimators.curve_fits._kernels import edf_weighted_sums, power_curve, power_sums
-from avbench.estimators.validation import check_terms
+from avbench.estimators.validation import check_taus, check_terms
 from avbench.noise_models.units import COEFFICIENTS
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
@@ -138,13 +138,22 @@ class _AVCurveFit(Estimator):
         self.taus = taus
         self.overlapping = overlapping
 
+    def check_settings(self):
+        """The settings' errors without data (a study's config asks this instead of a trial fit); the
+        modelled terms in canonical order."""
+        terms = check_terms(self.terms)
+        check_taus(self.taus)
+        if not isinstance(self.overlapping, bool | np.bool_):
+            raise ValueError(f"overlapping: expected True or False, got {self.overlapping!r}")
+        return terms
+
     def _weights(self, av, terms):
         """(row mask, row scale or None, extra diagnostics, power sums of those weights or None)."""
         return np.ones(len(av), dtype=bool), None, {}, None
 
     @one_blas_thread()
     def _fit(self, rate, dt):
-        terms = check_terms(self.terms)
+        terms = self.check_settings()
         av = allan_variance(rate, dt, taus=self.taus, overlapping=bool(self.overlapping))
         mask, scale, extra, sums = self._weights(av, terms)
         if mask.sum() < len(terms):
@@ -200,13 +209,20 @@ class TrimmedOLS(_AVCurveFit):
         super().__init__(terms=terms, taus=taus, overlapping=overlapping)
         self.max_error_pct = max_error_pct
 
-    def _weights(self, av, terms):
-        thr = float(self.max_error_pct)
-        if not np.isfinite(thr) or thr <= 0:
+    def check_settings(self):
+        terms = super().check_settings()
+        try:
+            thr = float(self.max_error_pct)
+        except (TypeError, ValueError):
+            thr = math.nan
+        if isinstance(self.max_error_pct, bool) or not np.isfinite(thr) or thr <= 0:
             raise ValueError(f"max_error_pct: expected a positive percentage, got {self.max_error_pct!r}")
+        return terms
+
+    def _weights(self, av, terms):
         with np.errstate(divide="ignore"):
             err = 100.0 / np.sqrt(2.0 * (av.J - 1))
-        return err <= thr, None, {"error_pct": err}, None
+        return err <= float(self.max_error_pct), None, {"error_pct": err}, None
 
 
 @register("wls")
@@ -261,9 +277,13 @@ class EDFWeightedLS(_AVCurveFit):
         super().__init__(terms=terms, taus=taus, overlapping=overlapping)
         self.n_iter = n_iter
 
-    def _weights(self, av, terms):
-        if not isinstance(self.n_iter, int) or self.n_iter < 1:
+    def check_settings(self):
+        terms = super().check_settings()
+        if isinstance(self.n_iter, bool) or not isinstance(self.n_iter, int) or self.n_iter < 1:
             raise ValueError(f"n_iter: expected a positive integer, got {self.n_iter!r}")
+        return terms
+
+    def _weights(self, av, terms):
         tau, y = np.ascontiguousarray(av.tau, dtype=float), np.ascontiguousarray(av.avar, dtype=float)
         beta = solve_power_design(tau, y, terms, av.J.astype(float))
         table, rule = edf_table(av, terms)
