@@ -30,6 +30,52 @@ BLOCK = 256
 
 
 @njit(cache=True)
+def _add_block(tau, y, w2, start, stop, w_offset, s, r):
+    """Add rows start .. stop - 1 (weights ``w2[i - w_offset]``) to the power sums ``s``, ``r`` as one
+    block: partial sums in registers, then added."""
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = 0.0
+    r0 = r1 = r2 = r3 = r4 = 0.0
+    for i in range(start, stop):
+        t = tau[i]
+        inv = 1.0 / t
+        a = w2[i - w_offset]
+        t2 = t * t
+        i2 = inv * inv
+        c2 = a * i2
+        c0 = c2 * i2
+        s0 += c0
+        s1 += c0 * t
+        s2 += c2
+        s3 += a * inv
+        s4 += a
+        s5 += a * t
+        c6 = a * t2
+        s6 += c6
+        s7 += c6 * t
+        s8 += c6 * t2
+        b = a * y[i]
+        r0 += b * i2
+        r1 += b * inv
+        r2 += b
+        r3 += b * t
+        r4 += b * t2
+    s[0] += s0
+    s[1] += s1
+    s[2] += s2
+    s[3] += s3
+    s[4] += s4
+    s[5] += s5
+    s[6] += s6
+    s[7] += s7
+    s[8] += s8
+    r[0] += r0
+    r[1] += r1
+    r[2] += r2
+    r[3] += r3
+    r[4] += r4
+
+
+@njit(cache=True)
 def power_sums(tau, y, w2):
     """``(s, r)``: s[q + 4] = sum_i w2_i tau_i^q (q = -4 .. 4), r[q + 2] = sum_i w2_i y_i tau_i^q
     (q = -2 .. 2)."""
@@ -37,46 +83,7 @@ def power_sums(tau, y, w2):
     r = np.zeros(5)
     n = tau.size
     for start in range(0, n, BLOCK):
-        s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = 0.0
-        r0 = r1 = r2 = r3 = r4 = 0.0
-        for i in range(start, min(start + BLOCK, n)):
-            t = tau[i]
-            inv = 1.0 / t
-            a = w2[i]
-            t2 = t * t
-            i2 = inv * inv
-            c2 = a * i2
-            c0 = c2 * i2
-            s0 += c0
-            s1 += c0 * t
-            s2 += c2
-            s3 += a * inv
-            s4 += a
-            s5 += a * t
-            c6 = a * t2
-            s6 += c6
-            s7 += c6 * t
-            s8 += c6 * t2
-            b = a * y[i]
-            r0 += b * i2
-            r1 += b * inv
-            r2 += b
-            r3 += b * t
-            r4 += b * t2
-        s[0] += s0
-        s[1] += s1
-        s[2] += s2
-        s[3] += s3
-        s[4] += s4
-        s[5] += s5
-        s[6] += s6
-        s[7] += s7
-        s[8] += s8
-        r[0] += r0
-        r[1] += r1
-        r[2] += r2
-        r[3] += r3
-        r[4] += r4
+        _add_block(tau, y, w2, start, min(start + BLOCK, n), 0, s, r)
     return s, r
 
 
@@ -87,7 +94,7 @@ def edf_weighted_sums(tau, y, avar, powers, beta, edf_table, rule_of_column, lev
     level (their sum where positive, else ``avar``), the dominant column (the first of the largest
     contributions), its edf ``edf_table[i, rule_of_column[j]]`` and the weight
     w^2 = (edf / 2) / level^2; writes level and edf and returns the power sums of
-    :func:`power_sums` with these weights."""
+    :func:`power_sums` with these weights (block by block, while the block is in cache)."""
     # the five slots p = -2 .. 2: the column's max(beta, 0), or -1 for a power not in the design (its
     # contribution is then negative and never the largest, and 0 is added to the level instead)
     b = np.full(5, -1.0)
@@ -99,11 +106,11 @@ def edf_weighted_sums(tau, y, avar, powers, beta, edf_table, rule_of_column, lev
     m0, m1, m2, m3, m4 = max(b0, 0.0), max(b1, 0.0), max(b2, 0.0), max(b3, 0.0), max(b4, 0.0)
     s = np.zeros(9)
     r = np.zeros(5)
+    w2 = np.empty(BLOCK)
     n = tau.size
     for start in range(0, n, BLOCK):
-        s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = 0.0
-        r0 = r1 = r2 = r3 = r4 = 0.0
-        for i in range(start, min(start + BLOCK, n)):
+        stop = min(start + BLOCK, n)
+        for i in range(start, stop):
             t = tau[i]
             inv = 1.0 / t
             t2 = t * t
@@ -130,39 +137,8 @@ def edf_weighted_sums(tau, y, avar, powers, beta, edf_table, rule_of_column, lev
             e = edf_table[i, rule[best]]
             level_out[i] = level
             edf_out[i] = e
-            a = (0.5 * e) / (level * level)
-            c2 = a * i2
-            c0 = c2 * i2
-            s0 += c0
-            s1 += c0 * t
-            s2 += c2
-            s3 += a * inv
-            s4 += a
-            s5 += a * t
-            c6 = a * t2
-            s6 += c6
-            s7 += c6 * t
-            s8 += c6 * t2
-            yb = a * y[i]
-            r0 += yb * i2
-            r1 += yb * inv
-            r2 += yb
-            r3 += yb * t
-            r4 += yb * t2
-        s[0] += s0
-        s[1] += s1
-        s[2] += s2
-        s[3] += s3
-        s[4] += s4
-        s[5] += s5
-        s[6] += s6
-        s[7] += s7
-        s[8] += s8
-        r[0] += r0
-        r[1] += r1
-        r[2] += r2
-        r[3] += r3
-        r[4] += r4
+            w2[i - start] = (0.5 * e) / (level * level)
+        _add_block(tau, y, w2, start, stop, start, s, r)
     return s, r
 
 
