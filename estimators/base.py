@@ -344,12 +344,12 @@ class Estimator:
         judged = [k for k, s in shares.items() if s < UNSEEN_SHARE and (float(c[k]) > 0.0 or k not in own)]
         if not judged:
             return
-        from scipy.stats import chi2
+        from scipy.special import gammaincinv  # scipy.stats.chi2.ppf(q, k) is 2 gammaincinv(k / 2, q) (no scipy.stats import)
 
         tau, model = self._octave_model(n, dt)
         m = tau / dt
         dof = np.floor(n / m) - 1
-        upper_av = model * dof / chi2.ppf(0.025, dof)
+        upper_av = model * dof / (2 * gammaincinv(dof / 2, 0.025))
         unresolved = dict(self.diagnostics_.get("unresolved") or {})
         for k in judged:
             unresolved[k] = (0.0, float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k])))))
@@ -398,13 +398,16 @@ class Estimator:
     def _set_results(self, coefs: dict, nonphys: dict | None, diag: dict | None) -> None:
         c = coefficient_series(coefs)
         flags = coefficient_series(nonphys or {}, dtype=bool, fill=False)
-        c[flags] = math.nan
+        if flags.to_numpy().any():  # (an ndarray key, and only when needed: a boolean Series key costs pandas ~0.3 ms)
+            c[flags.to_numpy()] = math.nan
         self.coefficients_ = c
         self.nonphysical_ = flags
         self.diagnostics_ = dict(diag or {})
         se = self.diagnostics_.get("std_err")
         se = coefficient_series({} if se is None else {k: float(v) for k, v in dict(se).items()})
-        se[~np.isfinite(c)] = math.nan
+        unset = ~np.isfinite(c.to_numpy())
+        if unset.any():
+            se[unset] = math.nan
         self.std_err_ = se
 
     # -- the fitted model ---------------------------------------------------------------------

@@ -473,12 +473,12 @@ def _local_runner(n_jobs: int):
     def run(cfg, tasks):
         from concurrent.futures import FIRST_COMPLETED, wait
 
-        from avbench.studies.workers import local_workers, warm_report_imports, worker_count
+        from avbench.studies.workers import local_workers, warm_parent_report_imports, warm_report_imports, worker_count
 
         executor = local_workers(n_jobs)
         workers = worker_count(n_jobs)
         window = 2 * workers
-        todo, running, warmed = iter(tasks), set(), 0
+        todo, running, warmed, parent_warm = iter(tasks), set(), 0, None
         try:
             while True:
                 exhausted = True
@@ -492,6 +492,8 @@ def _local_runner(n_jobs: int):
                 while exhausted and warmed < workers - len(running):
                     executor.submit(warm_report_imports)
                     warmed += 1
+                if exhausted and parent_warm is None:  # and this process, for its tables
+                    parent_warm = warm_parent_report_imports()
                 if not running:
                     return
                 finished, running = wait(running, return_when=FIRST_COMPLETED)

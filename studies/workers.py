@@ -23,6 +23,7 @@ import threading
 import time
 
 __all__ = ["local_workers", "started_early", "worker_count", "one_numba_thread", "warm_report_imports",
+           "warm_parent_report_imports",
            "PARENT_POLL_S", "IDLE_WORKER_TIMEOUT_S"]
 
 #: seconds between two checks, in a local worker, that the process running the study is alive
@@ -101,10 +102,26 @@ def _init_worker(parent_pid: int) -> None:
         importlib.import_module(module)
 
 
-def warm_report_imports() -> None:
-    """Import :data:`REPORT_IMPORTS` (run by an idle local worker after the last block was queued)."""
-    for module in REPORT_IMPORTS:
+#: what the study's own process imports for its tables (the scores: scipy.stats, ~0.6 CPU-s) in a thread
+#: once the last block is queued, while the workers compute (a study's config no longer imports it: the
+#: least-squares fits check their settings without a trial fit, issue 25)
+PARENT_REPORT_IMPORTS = ("avbench.studies.report", "avbench.studies.scoring")
+
+
+def warm_report_imports(modules=REPORT_IMPORTS) -> None:
+    """Import ``modules`` (:data:`REPORT_IMPORTS`: run by an idle local worker after the last block was
+    queued; :data:`PARENT_REPORT_IMPORTS`: by a thread of the study's process at that moment)."""
+    for module in modules:
         importlib.import_module(module)
+
+
+def warm_parent_report_imports() -> threading.Thread:
+    """Start a daemon thread importing :data:`PARENT_REPORT_IMPORTS` (an import another thread asks for
+    meanwhile waits for it: Python's per-module import lock)."""
+    t = threading.Thread(target=warm_report_imports, args=(PARENT_REPORT_IMPORTS,), name="avbench-warm-report",
+                         daemon=True)
+    t.start()
+    return t
 
 
 def one_numba_thread() -> None:

@@ -113,3 +113,103 @@ def test_lv2015_srs2000_small():
 @pytest.mark.parametrize("gyro", ["SRS2000", "VG951", "CRG20"])
 def test_lv2015_protocol_slow(gyro):
     _check_lv(gyro, R=30, seed=2016)
+
+
+# -- the compiled normal equations (issue 25) --------------------------------------------------------
+
+from avbench.estimators.curve_fits import _kernels as lsk  # noqa: E402
+from avbench.estimators.curve_fits import least_squares as ls  # noqa: E402
+from avbench.estimators.allan.variance import allan_variance, edf_overlapping  # noqa: E402
+
+TERM_SETS = ["QNBKR", "QNB", "NBK", "NB", "K", "QR"]
+
+
+def _grid(rng, n):
+    return np.sort(rng.uniform(0.01, 5e3, n)) if rng.random() < 0.5 else np.arange(1, n + 1) * 0.1
+
+
+def test_power_kernels_equal_their_numpy_references():
+    rng = np.random.default_rng(25)
+    for _ in range(20):
+        n = int(rng.integers(1, 3000))
+        tau, y, w2 = _grid(rng, n), rng.lognormal(size=n), rng.lognormal(size=n) ** 2
+        for got, ref in zip(lsk.power_sums(tau, y, w2), lsk.power_sums_numpy(tau, y, w2)):
+            np.testing.assert_allclose(got, ref, rtol=1e-12)
+        terms = TERM_SETS[int(rng.integers(len(TERM_SETS)))]
+        p, beta = ls._powers(terms), rng.normal(size=len(terms))
+        scale = lsk.power_curve_numpy(tau, p, np.abs(beta))  # cancellation: compare with the terms' size
+        assert np.all(np.abs(lsk.power_curve(tau, p, beta) - lsk.power_curve_numpy(tau, p, beta)) <= 1e-12 * scale)
+        table, rule = rng.uniform(1, 100, (n, 2)), rng.integers(0, 2, len(terms))
+        level, edf = np.empty(n), np.empty(n)
+        s, r = lsk.edf_weighted_sums(tau, y, y, p, beta, table, rule, level, edf)
+        s0, r0, level0, edf0 = lsk.edf_weighted_sums_numpy(tau, y, y, p, beta, table, rule)
+        np.testing.assert_array_equal(edf, edf0)  # the same dominant column on every row
+        np.testing.assert_allclose(level, level0, rtol=1e-13)
+        np.testing.assert_allclose(s, s0, rtol=1e-12)
+        np.testing.assert_allclose(r, r0, rtol=1e-12)
+
+
+def _edf_of_rows_before(av, beta, terms):
+    """wls_edf's row edf as computed before issue 25 (the design built, numpy's argmax, per-row edf)."""
+    X = design_matrix(av.tau, terms)
+    noise = np.array([ls._NOISE_OF_TERM[t] for t in terms], dtype=object)
+    contrib = X * np.maximum(beta, 0)[None, :]
+    model = contrib.sum(axis=1)
+    column = contrib.argmax(axis=1)
+    if av.overlapping:
+        edf = edf_overlapping(av.m, av.n_samples, noise[column])
+    else:
+        edf = ls._edf_nonoverlapping(av.J, (noise == "white_pm")[column])
+    return np.where(model > 0, model, av.avar), edf
+
+
+@pytest.mark.parametrize("overlapping", [False, True])
+def test_edf_of_rows_as_before(overlapping):
+    g = presets.get("VG951")
+    x = g.simulate(20_000, np.random.default_rng(3))
+    av = allan_variance(x, g.dt, taus="octave" if overlapping else "all", overlapping=overlapping)
+    rng = np.random.default_rng(4)
+    for terms in TERM_SETS:
+        beta = rng.normal(size=len(terms)) * ls.solve_power_design(av.tau, av.avar, terms)
+        level, edf = ls.edf_of_rows(av, beta, terms)
+        level0, edf0 = _edf_of_rows_before(av, beta, terms)
+        np.testing.assert_array_equal(edf, edf0)
+        np.testing.assert_allclose(level, level0, rtol=1e-13)
+
+
+def test_normal_equations_agree_with_the_svd_of_the_design():
+    """On the studies' grids (taus='all', 30 min to 24 h at 10 and 100 Hz) and weights (none, J, the edf
+    weights of wls_edf) the equilibrated normal equations are well conditioned (cond(WXD^-1) <= 31, so
+    kappa <= 1e3) and their Cholesky solution equals the SVD's (lstsq) within kappa x 3e-14, the bound of
+    ``solve_normal``'s docstring (norm-wise, in the equilibrated coordinates)."""
+    rng = np.random.default_rng(5)
+    for n, dt in [(18_000, 0.1), (72_000, 0.1), (180_000, 0.01), (864_000, 0.1)]:
+        m = np.arange(1, n // 2 + 1)
+        tau, J = m * dt, (n // m).astype(float)
+        for terms in ["QNB", "QNBKR"]:
+            X = design_matrix(tau, terms)
+            y = X @ (np.abs(rng.normal(size=len(terms))) / np.linalg.norm(X, axis=0)) * rng.lognormal(0, 0.3, tau.size)
+            for w in [None, J, np.sqrt(J) / y]:
+                Xw = X if w is None else X * w[:, None]
+                d = np.linalg.norm(Xw, axis=0)
+                kappa = np.linalg.cond(Xw / d) ** 2
+                assert kappa < 1e3
+                svd = ls._lstsq_equilibrated(Xw, y if w is None else y * w)
+                got = ls.solve_power_design(tau, y, terms, w)
+                assert np.linalg.norm((got - svd) * d) <= kappa * 3e-14 * np.linalg.norm(svd * d)
+                np.testing.assert_array_equal(ls.solve_scaled(X, y, w), ls.solve_normal(Xw.T @ Xw, Xw.T @ (y if w is None else y * w)))
+
+
+def test_ill_conditioned_normal_equations_fall_back_to_the_svd():
+    tau = np.linspace(1.0, 2.0, 40)  # one octave: the five columns nearly dependent
+    X = design_matrix(tau, "QNBKR")
+    y = X @ np.array([3e-12, 1e-8, PLATEAU * 1e-10, 1e-13 / 3, 1e-18 / 2])
+    w = 1 / y
+    Xw = X * w[:, None]
+    assert np.linalg.cond(Xw / np.linalg.norm(Xw, axis=0)) ** 2 > ls.MAX_GRAM_COND
+    assert ls.solve_normal(Xw.T @ Xw, Xw.T @ (y * w)) is None  # not solved there
+    np.testing.assert_array_equal(ls.solve_scaled(X, y, w), ls._lstsq_equilibrated(Xw, y * w))
+    np.testing.assert_array_equal(ls.solve_power_design(tau, y, "QNBKR", w), ls._lstsq_equilibrated(Xw, y * w))
+    # singular (a constant column twice): refused by the normal equations too
+    G = np.ones((2, 2))
+    assert ls.solve_normal(G, np.ones(2)) is None

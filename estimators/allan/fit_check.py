@@ -152,8 +152,8 @@ REL_STEP = 0.01
 
 def fit_statistic(avar, model, cov, n_params):
     """(T, dof, p-value, z) of the residual ``avar - model`` with covariance ``cov`` (see module)."""
-    from scipy import stats
     from scipy.linalg import cho_factor, cho_solve
+    from scipy.special import chdtrc  # chi^2 tail: scipy.stats.chi2.sf's own function, without importing scipy.stats
 
     r = np.asarray(avar, float) - np.asarray(model, float)
     dof = max(int(r.size - n_params), 1)
@@ -166,7 +166,7 @@ def fit_statistic(avar, model, cov, n_params):
         T = math.inf
     if not np.isfinite(T) or T < 0:
         T = math.inf
-    p = float(stats.chi2.sf(T, dof)) if np.isfinite(T) else 0.0
+    p = float(chdtrc(dof, T)) if np.isfinite(T) else 0.0
     return T, dof, p, z
 
 
@@ -187,7 +187,8 @@ def weighted_chi2_sf(x, weights) -> float:
     :math:`a = \\sum w^2/\\sum w`,
     :math:`\\nu = (\\sum w)^2/\\sum w^2` (capped at the floor, so the flag never depends on it).
     """
-    from scipy import integrate, stats
+    from scipy import integrate
+    from scipy.special import chdtrc  # scipy.stats.chi2.sf(x, nu) is chdtrc(nu, x)
 
     w = np.asarray(weights, dtype=float)
     w = w[w > 1e-12 * max(float(w.max(initial=0.0)), 1e-300)]
@@ -201,7 +202,7 @@ def weighted_chi2_sf(x, weights) -> float:
         # the tail is surely below the floor, where the integral's value is not used: a poor fit does not
         # pay for it (same result as integrating, then taking the two-moment tail)
         a, nu = float(np.sum(w**2) / np.sum(w)), float(np.sum(w) ** 2 / np.sum(w**2))
-        return float(min(IMHOF_FLOOR, float(stats.chi2.sf(x / a, nu))))
+        return float(min(IMHOF_FLOOR, float(chdtrc(nu, x / a))))
 
     def phi(u):
         return 0.5 * float(np.sum(np.arctan(w * u)))
@@ -224,7 +225,7 @@ def weighted_chi2_sf(x, weights) -> float:
     p = 0.5 + val / math.pi
     if p < IMHOF_FLOOR:
         a, nu = float(np.sum(w**2) / np.sum(w)), float(np.sum(w) ** 2 / np.sum(w**2))
-        p = min(IMHOF_FLOOR, float(stats.chi2.sf(x / a, nu)))
+        p = min(IMHOF_FLOOR, float(chdtrc(nu, x / a)))
     return float(min(max(p, 0.0), 1.0))
 
 

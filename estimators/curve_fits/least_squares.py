@@ -27,29 +27,105 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.allan.variance import allan_variance, edf_overlapping
-from avbench.estimators.allan.model import BETA_SCALE, coefficients_from_beta, design_matrix
-from avbench.estimators.validation import check_terms
+from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER, coefficients_from_beta, design_matrix
+from avbench.estimators.curve_fits._kernels import edf_weighted_sums, power_curve, power_sums
+from avbench.estimators.validation import check_taus, check_terms
 from avbench.noise_models.units import COEFFICIENTS
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.fit_check import assess_five_term
 
-__all__ = ["OLS", "TrimmedOLS", "WLS", "EDFWeightedLS", "solve_scaled", "ls_std_err"]
+__all__ = ["OLS", "TrimmedOLS", "WLS", "EDFWeightedLS", "solve_scaled", "solve_normal", "solve_power_design",
+           "edf_table", "edf_of_rows", "ls_std_err", "MAX_GRAM_COND"]
+
+
+#: largest condition number of the column-equilibrated normal equations solved by Cholesky (see
+#: :func:`solve_scaled`); beyond it the weighted design's SVD (``lstsq``) solves instead
+MAX_GRAM_COND = 1e4
 
 
 def solve_scaled(X: np.ndarray, y: np.ndarray, row_scale: np.ndarray | None = None) -> np.ndarray:
     """Least-squares beta minimising ||diag(row_scale) (X beta - y)||, with column equilibration.
 
-    The columns tau^-2 .. tau^2 span many decades; scaling them to unit norm before ``lstsq`` and
-    back afterwards gives the same solution with far better conditioning.
+    The columns tau^-2 .. tau^2 span many decades; scaling them to unit norm gives the same
+    solution with far better conditioning. The equilibrated normal equations are solved by
+    Cholesky (:func:`solve_normal`); where their condition number exceeds :data:`MAX_GRAM_COND`,
+    the equilibrated weighted design is solved by ``lstsq`` (LAPACK gelsd: QR, then SVD), as before
+    issue 25.
     """
     if row_scale is not None:
         X = X * row_scale[:, None]
         y = y * row_scale
+    beta = solve_normal(X.T @ X, X.T @ y)
+    return _lstsq_equilibrated(X, y) if beta is None else beta
+
+
+def _lstsq_equilibrated(X, y):
     norms = np.linalg.norm(X, axis=0)
     norms[norms == 0] = 1.0
     b, *_ = np.linalg.lstsq(X / norms, y, rcond=None)
     return b / norms
+
+
+def solve_normal(G: np.ndarray, g: np.ndarray) -> np.ndarray | None:
+    """beta solving the normal equations G beta = g (G = X^T W^2 X, g = X^T W^2 y) by Cholesky after
+    column equilibration, D^-1 G D^-1 (D beta) = D^-1 g with D = sqrt(diag G) (the column norms of
+    the weighted design); None where the equilibrated matrix is singular, not finite or has a
+    condition number above :data:`MAX_GRAM_COND` (then the caller solves the weighted design by SVD).
+
+    Error bound: a Cholesky solve of a symmetric positive definite system is backward stable, so
+    the solution's relative error (in the equilibrated norm) is at most about kappa times the relative
+    error of the equilibrated G and g, kappa = cond(D^-1 G D^-1) = cond(WXD^-1)^2. Those carry one
+    rounding per entry plus the error of their sums (:mod:`avbench.estimators.curve_fits._kernels`:
+    blocks of 256 rows, within ~(256 + n / 256) eps in the worst case, ~1e-15 typically), so the
+    difference from an SVD of the weighted design (whose own error is ~cond(WXD^-1) eps) is
+    below kappa x 3e-14 <= 3e-10 at :data:`MAX_GRAM_COND`. The designs the studies fit are far
+    better conditioned (cond(WXD^-1) <= 31 on taus="all" for every record length and weighting of
+    the committed studies: kappa <= 1e3), issue 25's report.
+    """
+    G = np.asarray(G, dtype=float)
+    d = np.sqrt(np.diag(G))
+    if not (np.all(np.isfinite(G)) and np.all(np.isfinite(g)) and np.all(d > 0)):
+        return None
+    Gs = G / np.outer(d, d)
+    lam = np.linalg.eigvalsh(Gs)
+    if not lam[0] * MAX_GRAM_COND > lam[-1]:
+        return None
+    from scipy.linalg import cho_factor, cho_solve
+
+    try:
+        c = cho_factor(Gs, lower=True, check_finite=False)
+    except np.linalg.LinAlgError:
+        return None
+    return cho_solve(c, np.asarray(g, dtype=float) / d, check_finite=False) / d
+
+
+def _powers(terms) -> np.ndarray:
+    return np.array([TAU_POWER[c] for c in terms], dtype=np.int64)
+
+
+def _gram(sums, powers):
+    """(G, g) of the power design from the power sums of :func:`avbench.estimators.curve_fits._kernels.power_sums`."""
+    s, r = sums
+    return s[powers[:, None] + powers[None, :] + 4], r[powers + 2]
+
+
+def solve_power_design(tau, y, terms, row_scale=None, *, sums=None) -> np.ndarray:
+    """:func:`solve_scaled` for the five-term design of ``terms`` at ``tau``, without building it:
+    the normal equations from one pass of power sums (``sums``, if given: those of the weights
+    ``row_scale**2``; ``row_scale`` may then be a callable returning it, asked only when the SVD
+    fallback needs the design)."""
+    tau = np.ascontiguousarray(tau, dtype=float)
+    y = np.ascontiguousarray(y, dtype=float)
+    powers = _powers(terms)
+    if sums is None:
+        w2 = np.ones(tau.size) if row_scale is None else np.square(row_scale, dtype=float)
+        sums = power_sums(tau, y, w2)
+    beta = solve_normal(*_gram(sums, powers))
+    if beta is None:
+        rs = row_scale() if callable(row_scale) else row_scale
+        beta = solve_scaled(design_matrix(tau, terms), y, None if rs is None else np.asarray(rs, dtype=float))
+    return beta
 
 
 class _AVCurveFit(Estimator):
@@ -62,29 +138,40 @@ class _AVCurveFit(Estimator):
         self.taus = taus
         self.overlapping = overlapping
 
-    def _weights(self, av, X, terms):
-        """(row mask, row scale or None, extra diagnostics)."""
-        return np.ones(len(av), dtype=bool), None, {}
+    def check_settings(self):
+        """The settings' errors without data (a study's config asks this instead of a trial fit); the
+        modelled terms in canonical order."""
+        terms = check_terms(self.terms)
+        check_taus(self.taus)
+        if not isinstance(self.overlapping, bool | np.bool_):
+            raise ValueError(f"overlapping: expected True or False, got {self.overlapping!r}")
+        return terms
+
+    def _weights(self, av, terms):
+        """(row mask, row scale or None, extra diagnostics, power sums of those weights or None)."""
+        return np.ones(len(av), dtype=bool), None, {}, None
 
     @one_blas_thread()
     def _fit(self, rate, dt):
-        terms = check_terms(self.terms)
+        terms = self.check_settings()
         av = allan_variance(rate, dt, taus=self.taus, overlapping=bool(self.overlapping))
-        X = design_matrix(av.tau, terms)
-        mask, scale, extra = self._weights(av, X, terms)
+        mask, scale, extra, sums = self._weights(av, terms)
         if mask.sum() < len(terms):
             coefs = {c: np.nan for c in terms}
             return coefs, {}, {
                 "failure": f"only {int(mask.sum())} AV values usable for {len(terms)} coefficients",
                 "allan": av,
             }
-        beta = solve_scaled(X[mask], av.avar[mask], None if scale is None else scale[mask])
-        coefs, nonphys = coefficients_from_beta(beta, terms)
-        fitted = X @ beta
-
         rs = None if scale is None else scale[mask]
+        if mask.all():
+            beta = solve_power_design(av.tau, av.avar, terms, rs, sums=sums)
+        else:
+            beta = solve_power_design(av.tau[mask], av.avar[mask], terms, rs)
+        coefs, nonphys = coefficients_from_beta(beta, terms)
+        fitted = power_curve(np.ascontiguousarray(av.tau, dtype=float), _powers(terms), beta)
+
         diag = {
-            "std_err": ls_std_err(beta, terms, X, rs, av, mask),
+            "std_err": ls_std_err(beta, terms, None, rs, av, mask),
             "allan": av,
             "used": mask,
             "beta": dict(zip(terms, beta)),
@@ -122,13 +209,20 @@ class TrimmedOLS(_AVCurveFit):
         super().__init__(terms=terms, taus=taus, overlapping=overlapping)
         self.max_error_pct = max_error_pct
 
-    def _weights(self, av, X, terms):
-        thr = float(self.max_error_pct)
-        if not np.isfinite(thr) or thr <= 0:
+    def check_settings(self):
+        terms = super().check_settings()
+        try:
+            thr = float(self.max_error_pct)
+        except (TypeError, ValueError):
+            thr = math.nan
+        if isinstance(self.max_error_pct, bool) or not np.isfinite(thr) or thr <= 0:
             raise ValueError(f"max_error_pct: expected a positive percentage, got {self.max_error_pct!r}")
+        return terms
+
+    def _weights(self, av, terms):
         with np.errstate(divide="ignore"):
             err = 100.0 / np.sqrt(2.0 * (av.J - 1))
-        return err <= thr, None, {"error_pct": err}
+        return err <= float(self.max_error_pct), None, {"error_pct": err}, None
 
 
 @register("wls")
@@ -138,8 +232,9 @@ class WLS(_AVCurveFit):
     .. math:: \\beta = (X'^T X')^{-1} X'^T y',\\quad X' = \\mathrm{diag}(J) X,\\ y' = \\mathrm{diag}(J) y
     """
 
-    def _weights(self, av, X, terms):
-        return np.ones(len(av), dtype=bool), av.J.astype(float), {"row_scale": av.J.astype(float)}
+    def _weights(self, av, terms):
+        J = av.J.astype(float)
+        return np.ones(len(av), dtype=bool), J, {"row_scale": J}, None
 
 
 _NOISE_OF_TERM = {"Q": "white_pm", "N": "white_fm", "B": "flicker_fm", "K": "rw_fm", "R": "rw_fm"}
@@ -153,10 +248,16 @@ def _edf_nonoverlapping(J: np.ndarray, white_pm: np.ndarray) -> np.ndarray:
     white PM, 2(J-1)^2 / [(J-1) + (8/9)(J-2) + (1/18)(J-3)] (rho_1 = -2/3, rho_2 = 1/6); the
     white-FM value is used for flicker and random-walk FM (an approximation).
     """
+    return np.where(white_pm, _edf_nonoverlapping_rule(J, True), _edf_nonoverlapping_rule(J, False))
+
+
+def _edf_nonoverlapping_rule(J: np.ndarray, white_pm: bool) -> np.ndarray:
+    """:func:`_edf_nonoverlapping` for one noise type at every J."""
     J = J.astype(float)
-    fm = 2 * (J - 1) ** 2 / np.maximum(3 * J - 4, 1)
-    pm = 2 * (J - 1) ** 2 / np.maximum((J - 1) + 8 / 9 * (J - 2) + (J - 3) / 18, 1)
-    return np.maximum(np.where(white_pm, pm, fm), 1.0)
+    J1 = J - 1
+    num = 2 * J1 * J1
+    den = J1 + 8 / 9 * (J - 2) + (J - 3) / 18 if white_pm else 3 * J - 4
+    return np.maximum(num / np.maximum(den, 1), 1.0)
 
 
 @register("wls_edf")
@@ -176,31 +277,55 @@ class EDFWeightedLS(_AVCurveFit):
         super().__init__(terms=terms, taus=taus, overlapping=overlapping)
         self.n_iter = n_iter
 
-    def _weights(self, av, X, terms):
-        if not isinstance(self.n_iter, int) or self.n_iter < 1:
+    def check_settings(self):
+        terms = super().check_settings()
+        if isinstance(self.n_iter, bool) or not isinstance(self.n_iter, int) or self.n_iter < 1:
             raise ValueError(f"n_iter: expected a positive integer, got {self.n_iter!r}")
-        beta = solve_scaled(X, av.avar, av.J.astype(float))
-        scale = None
+        return terms
+
+    def _weights(self, av, terms):
+        tau, y = np.ascontiguousarray(av.tau, dtype=float), np.ascontiguousarray(av.avar, dtype=float)
+        beta = solve_power_design(tau, y, terms, av.J.astype(float))
+        table, rule = edf_table(av, terms)
+        powers = _powers(terms)
+        level, edf = np.empty(tau.size), np.empty(tau.size)
+        sums = None
         for _ in range(self.n_iter):
-            level, edf = edf_of_rows(av, X, beta, terms)
-            scale = np.sqrt(edf / 2.0) / level
-            beta = solve_scaled(X, av.avar, scale)
-        return np.ones(len(av), dtype=bool), scale, {"row_scale": scale, "edf": edf}
+            sums = edf_weighted_sums(tau, y, y, powers, beta, table, rule, level, edf)
+            beta = solve_power_design(tau, y, terms, lambda: np.sqrt(edf / 2.0) / level, sums=sums)
+        # the weights of the last solve (its power sums: the fit's own solve repeats it)
+        scale = np.sqrt(edf / 2.0) / level
+        return np.ones(len(av), dtype=bool), scale, {"row_scale": scale, "edf": edf}, sums
 
 
-def edf_of_rows(av, X, beta, terms):
+def edf_table(av, terms):
+    """``(table, rule)``: the edf of every AV value under each edf rule the ``terms`` need (columns of
+    ``table``, rows of ``av``) and the rule of each term's column. Overlapping: NIST SP 1065 Table 5
+    for the noise type of each term; non-overlapping: ``_edf_nonoverlapping`` (white PM for Q, the
+    white-FM value for the others)."""
+    noise = [_NOISE_OF_TERM[t] for t in terms]
+    if av.overlapping:
+        kinds = list(dict.fromkeys(noise))
+        cols = [edf_overlapping(av.m, av.n_samples, k) for k in kinds]
+        rule = [kinds.index(k) for k in noise]
+    else:
+        pm = [k == "white_pm" for k in noise]
+        kinds = list(dict.fromkeys(pm))
+        cols = [_edf_nonoverlapping_rule(av.J, k) for k in kinds]
+        rule = [kinds.index(k) for k in pm]
+    return np.ascontiguousarray(np.column_stack(cols), dtype=float), np.array(rule, dtype=np.int64)
+
+
+def edf_of_rows(av, beta, terms):
     """(model AV level, edf) of every AV value under the fit ``beta``: the level is the fitted AV
     (the empirical one where the fit is not positive), the edf that of the noise type whose term
-    dominates the fitted AV there (overlapping: NIST SP 1065 Table 5; else ``_edf_nonoverlapping``)."""
-    noise_of_column = np.array([_NOISE_OF_TERM[t] for t in terms], dtype=object)
-    contrib = X * np.maximum(beta, 0)[None, :]
-    model = contrib.sum(axis=1)
-    level = np.where(model > 0, model, av.avar)
-    column = contrib.argmax(axis=1)  # the dominant term's column (an index: 72 000 rows on taus="all")
-    if av.overlapping:
-        edf = edf_overlapping(av.m, av.n_samples, noise_of_column[column])
-    else:
-        edf = _edf_nonoverlapping(av.J, (noise_of_column == "white_pm")[column])
+    dominates the fitted AV there (the first of equal contributions; overlapping: NIST SP 1065
+    Table 5; else ``_edf_nonoverlapping``). One compiled pass
+    (:func:`avbench.estimators.curve_fits._kernels.edf_weighted_sums`)."""
+    tau, y = np.ascontiguousarray(av.tau, dtype=float), np.ascontiguousarray(av.avar, dtype=float)
+    table, rule = edf_table(av, terms)
+    level, edf = np.empty(tau.size), np.empty(tau.size)
+    edf_weighted_sums(tau, y, y, _powers(terms), np.asarray(beta, dtype=float), table, rule, level, edf)
     return level, edf
 
 
@@ -213,7 +338,8 @@ def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask, *, l
         \\mathrm{Cov}(\\hat\\beta) = A\\,\\Omega\\,A^T,\\quad A = (X^TW^2X)^{-1}X^TW^2,\\quad
         \\Omega = \\mathrm{diag}(2\\,\\sigma^4_i/\\mathrm{edf}_i),
 
-    :math:`W` the row scale (``row_scale``; rows of ``X`` and ``av`` selected by ``mask``),
+    :math:`W` the row scale (``row_scale``; rows of ``X`` -- ``None``: the five-term design at
+    ``av.tau`` -- and ``av`` selected by ``mask``),
     :math:`\\sigma^2_i` the fitted AV and :math:`\\mathrm{edf}_i` the equivalent degrees of freedom of
     the noise type dominating it (:func:`edf_of_rows`, as ``wls_edf``
     weights). The AV values at different taus are correlated (adjacent octaves by 0.5-0.9 for
@@ -232,10 +358,10 @@ def ls_std_err(beta: np.ndarray, terms, X: np.ndarray, row_scale, av, mask, *, l
     m = np.asarray(av.m, dtype=float)[mask]
     if m.size < 2 or np.median(m[1:] / m[:-1]) < 1.5:
         return out
-    level, edf = edf_of_rows(av, X, beta, terms) if level_edf is None else level_edf
+    level, edf = edf_of_rows(av, beta, terms) if level_edf is None else level_edf
     var = (2 * level**2 / edf)[mask]
     w = np.ones(var.size) if row_scale is None else np.asarray(row_scale, dtype=float)
-    Xm = X[mask]
+    Xm = (design_matrix(av.tau, terms) if X is None else X)[mask]
     norms = np.linalg.norm(Xm * w[:, None], axis=0)
     norms[norms == 0] = 1.0
     A = np.linalg.pinv(Xm * w[:, None] / norms) * w[None, :] / norms[:, None]
