@@ -196,7 +196,7 @@ def test_signed_domain_reports_no_negative_coefficient():
 
 
 @pytest.mark.parametrize("bad", [dict(spectrum="tapered"), dict(intervals="bayes"), dict(domain="real"),
-                                 dict(interval_domain="both")])
+                                 dict(interval_domain="both"), dict(calibration="bca"), dict(n_boot=5)])
 def test_bad_settings_are_clear_errors(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         estimators.get("whittle_debiased", **bad).fit(np.random.default_rng(0).standard_normal(1000), DT)
@@ -426,3 +426,66 @@ def test_union_interval_holds_both_domains_intervals():
         assert ev["union"].loc[c, "upper"] == pytest.approx(max(e["upper"] for e in pair), rel=1e-12)
         assert ev["union"].loc[c, "lr"] == pytest.approx(min(e["lr"] for e in pair), rel=1e-12, abs=1e-300)
     assert fits["union"].coefficients_.equals(fits["fit"].coefficients_)
+
+
+def test_redrawn_periodogram_is_exponential_with_the_model_mean():
+    """``WhittleFit.redrawn``: periodogram ordinates |X_k|^2 / n independent exponentials with mean the
+    model's expected periodogram: the normalised ordinates have mean 1 and variance 1 (exponential),
+    within 4 standard errors of their sample means over 10 000 ordinates."""
+    from avbench.estimators.likelihood.whittle import WhittleFit, whittle_fit
+
+    n = 20_002
+    g = _gyro(n)
+    wf = WhittleFit(g.simulate(n, np.random.default_rng(2)), DT, debiased=True)
+    full = whittle_fit(wf, ["N", "B", "K"], 1, signed=True)
+    ws = wf.redrawn(full["comps"], full["a"], None, np.random.default_rng(3))
+    S = full["a"] @ wf._matrix(full["comps"], None)
+    r = (ws.X2 / n / S)[:-1]  # the Nyquist ordinate is chi^2_1 / 2, not exponential
+    se_mean = 1 / math.sqrt(r.size)
+    assert abs(r.mean() - 1) < 4 * se_mean
+    assert abs(r.var() - 1) < 4 * math.sqrt(8 / r.size)  # Var((r - 1)^2) = E(r - 1)^4 - 1 = 9 - 1
+    assert ws.X2 is not wf.X2 and ws.scale == wf.scale and ws._basis is wf._basis
+
+
+def test_bootstrap_bartlett_factor_is_one_for_a_regular_model():
+    """White noise alone (one variance, far from its boundary, 2 000 ordinates): the likelihood-ratio
+    statistic is chi^2_1 to O(1/n), so the bootstrap's critical value is chi^2_1(0.95) times a mean of
+    ``n_boot`` chi^2_1 draws: within 4 of that mean's standard errors (sqrt(2 / n_boot))."""
+    from avbench.estimators.likelihood.whittle import WhittleFit, bootstrap_critical_values, whittle_fit
+
+    n_boot = 200
+    wf = WhittleFit(np.random.default_rng(4).standard_normal(4_000), 1.0, debiased=True)
+    full = whittle_fit(wf, ["N"], 1, signed=True)
+    crit = bootstrap_critical_values(wf, full, 0.95, n_boot)
+    q = stats.chi2.ppf(0.95, 1)
+    assert abs(crit["N"] / q - 1) < 4 * math.sqrt(2 / n_boot)
+
+
+def test_calibrated_bounds_are_where_the_likelihood_ratio_reaches_the_bootstrap_value():
+    """``calibration="bartlett"``: each non-zero bound is where the profile likelihood ratio reaches that
+    term's bootstrap critical value (not chi^2_1(0.95)), to the root's tolerance; estimates and
+    evidence are those of the default (chi^2_1) calibration."""
+    from avbench.estimators.likelihood.whittle import (WhittleFit, bootstrap_critical_values, profile_evidence,
+                                                       whittle_fit)
+
+    n = 6_000
+    x = _gyro(n).simulate(n, np.random.default_rng(5))
+    wf = WhittleFit(x, DT, debiased=True)
+    full = whittle_fit(wf, ["N", "B", "K"], 1, signed=True)
+    crit = bootstrap_critical_values(wf, full, 0.95, 20)
+    assert set(crit) == {c for i, c in enumerate(full["comps"]) if full["a"][i] > 0}
+    ev, best = profile_evidence(wf, full, crit=crit)
+    ev0, _ = profile_evidence(wf, full)
+    for i, c in enumerate(full["comps"]):
+        assert ev[c]["lr"] == ev0[c]["lr"]
+        q = crit.get(c, stats.chi2.ppf(0.95, 1))
+        for bound in ("upper", "lower"):
+            if ev[c][bound] == 0.0:
+                continue
+            a = full["a"].copy()
+            a[i] = ev[c][bound]
+            r = wf.fit(full["comps"], a, None, np.full(3, -np.inf), fixed=i, tol=1e-10, signed=True)
+            assert abs(math.sqrt(max(2 * (best - r[2]), 0.0)) - math.sqrt(q)) < 0.03, (c, bound)
+    a = estimators.get("whittle_debiased", terms="NBK").fit(x, DT)
+    b = estimators.get("whittle_debiased", terms="NBK", calibration="bartlett", n_boot=20).fit(x, DT)
+    assert a.coefficients_.equals(b.coefficients_)
