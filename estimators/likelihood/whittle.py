@@ -1141,6 +1141,34 @@ def bootstrap_critical_values(wf: WhittleFit, full: dict, level: float = 0.95, n
     return out
 
 
+#: a variance of the signed domain "below 0 beyond its noise": its Wald statistic below minus the
+#: two-sided 95 % normal point (fixed a priori, not tuned; interval_domain="switch")
+NEGATIVE_Z = 1.959963984540054
+
+
+def _negative_neighbours(full: dict, z: float = NEGATIVE_Z) -> set:
+    """Terms of a signed-domain fit whose interval ``interval_domain="switch"`` takes from the
+    non-negative domain: those with a spectral neighbour -- the adjacent term in the order of
+    ``comps``, Q N B (or GM) K, the order of the power laws' slopes, whose spectra overlap and trade
+    power -- estimated below 0 by more than ``z`` of its Wald standard errors (the inverse Whittle
+    information in the variances at the signed maximum).
+
+    Why (issue 23, sixth session; Whittle-world draws, module docstring): the signed domain's
+    profile statistic of B is inflated exactly in the records where the random walk's variance is
+    estimated far below 0 (z < -2: B covers 0.83 there, the non-negative domain 0.96), whether
+    the random walk is present or absent; elsewhere the signed domain covers and the non-negative
+    domain, whose neighbour is held at 0, does not do better."""
+    comps = list(full["comps"])
+    a = np.asarray(full["a"], dtype=float)
+    try:
+        var = np.diag(np.linalg.inv(full["detail"]["info"]))[: len(comps)]
+    except np.linalg.LinAlgError:
+        return set()
+    neg = [bool(var[i] > 0 and a[i] < -z * math.sqrt(var[i])) for i in range(len(comps))]
+    return {c for j, c in enumerate(comps)
+            if (j > 0 and neg[j - 1]) or (j + 1 < len(comps) and neg[j + 1])}
+
+
 def _union_evidence(ev, ev_nonneg):
     """Each term's interval the union of its profile intervals over the signed domain (``ev``) and
     over the non-negative domain (``ev_nonneg``), its evidence the weaker of the two (the smaller
@@ -1220,11 +1248,14 @@ class Whittle(Estimator):
         Where the variances are maximised: each >= 0 (default), or wherever the model spectrum is
         positive at every Fourier frequency (Q, N, B, K may go below 0; reported truncated at 0, their
         intervals on [0, inf)); see the module docstring, "Domain of the variances".
-    interval_domain : {"fit", "union"}
+    interval_domain : {"fit", "union", "switch"}
         With ``intervals="profile"`` and ``domain="spectrum"``: each term's interval over the fit's
         domain (``"fit"``, default) or the union of its intervals over the signed and the
         non-negative domain (``"union"``; module docstring, "Intervals over both domains": it
-        over-covers where a neighbour is absent, so it is not the default). The estimates are the same.
+        over-covers where a neighbour is absent, so it is not the default), or (``"switch"``) the
+        non-negative domain's interval and evidence for a term whose spectral neighbour the signed
+        fit puts below 0 by more than 1.96 of its standard errors, the signed domain's otherwise
+        (:func:`_negative_neighbours`). The estimates are the same.
     calibration : {"chi2", "bartlett", "quantile"}
         With ``intervals="profile"``: the critical value of each profile interval, the
         :math:`\\chi^2_1` quantile (default) or calibrated per record by a parametric bootstrap in
@@ -1298,8 +1329,8 @@ class Whittle(Estimator):
             raise ValueError(f"intervals: expected 'wald' or 'profile', got {self.intervals!r}")
         if self.domain not in ("nonnegative", "spectrum"):
             raise ValueError(f"domain: expected 'nonnegative' or 'spectrum', got {self.domain!r}")
-        if self.interval_domain not in ("fit", "union"):
-            raise ValueError(f"interval_domain: expected 'fit' or 'union', got {self.interval_domain!r}")
+        if self.interval_domain not in ("fit", "union", "switch"):
+            raise ValueError(f"interval_domain: expected 'fit', 'union' or 'switch', got {self.interval_domain!r}")
         if self.calibration not in ("chi2", "bartlett", "quantile"):
             raise ValueError(f"calibration: expected 'chi2', 'bartlett' or 'quantile', got {self.calibration!r}")
         if (isinstance(self.n_boot, bool) or not isinstance(self.n_boot, (int, np.integer))
@@ -1423,6 +1454,11 @@ class Whittle(Estimator):
         ev, _ = profile_evidence(wf, full, self.PROFILE_LEVEL, crit=crit)
         if self.interval_domain == "union" and full.get("nonneg") is not None:
             ev = _union_evidence(ev, profile_evidence(wf, full["nonneg"], self.PROFILE_LEVEL)[0])
+        elif self.interval_domain == "switch" and full.get("nonneg") is not None:
+            switched = _negative_neighbours(full)
+            if switched:
+                ev_nn = profile_evidence(wf, full["nonneg"], self.PROFILE_LEVEL)[0]
+                ev = {c: (ev_nn[c] if c in switched and c in ev_nn else e) for c, e in ev.items()}
         rows = {}
         for c, e in ev.items():
             f = B_EQUIV_OVER_SIGMA if c == "GM" else 1.0
