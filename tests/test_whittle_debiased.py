@@ -355,7 +355,8 @@ def _whittle_world_record(gyro, n, rng):
     the model's expected periodogram (the Whittle likelihood's own world: its approximation exact)."""
     from avbench.estimators.likelihood.whittle import _expected_periodogram
 
-    S = sum(gyro.coefficients[c] ** 2 * _expected_periodogram(c, n, gyro.dt) for c in "NBK")
+    S = sum(gyro.coefficients[c] ** 2 * _expected_periodogram(c, n, gyro.dt) for c in "NBK"
+            if np.isfinite(gyro.coefficients[c]))
     X = np.sqrt(n * S / 2) * (rng.standard_normal(S.size) + 1j * rng.standard_normal(S.size))
     if n % 2 == 0:
         X[-1] = math.sqrt(n * S[-1]) * rng.standard_normal()  # the Nyquist ordinate is real
@@ -489,3 +490,53 @@ def test_calibrated_bounds_are_where_the_likelihood_ratio_reaches_the_bootstrap_
     a = estimators.get("whittle_debiased", terms="NBK").fit(x, DT)
     b = estimators.get("whittle_debiased", terms="NBK", calibration="bartlett", n_boot=20).fit(x, DT)
     assert a.coefficients_.equals(b.coefficients_)
+
+
+def test_negative_neighbours_are_the_adjacent_terms_of_a_variance_below_its_noise():
+    """``_negative_neighbours``: a term switches to the non-negative domain's interval exactly when an
+    adjacent term (order Q N B K of the fit) has a variance below -1.96 of its Wald standard errors."""
+    from avbench.estimators.likelihood.whittle import NEGATIVE_Z, _negative_neighbours
+
+    comps = ["Q", "N", "B", "K"]
+    info = np.diag([1.0, 4.0, 1.0, 0.25])  # Wald std 1, 0.5, 1, 2
+    for aK, expected in [(-2 * NEGATIVE_Z * 1.01, {"B"}), (-2 * NEGATIVE_Z * 0.99, set()), (1.0, set())]:
+        full = dict(comps=comps, a=np.array([0.5, 1.0, 1.0, aK]), detail={"info": info})
+        assert _negative_neighbours(full) == expected
+    full = dict(comps=comps, a=np.array([-1.0 * NEGATIVE_Z * 1.01, 1.0, -1.01 * NEGATIVE_Z, 1.0]),
+                detail={"info": info})
+    assert _negative_neighbours(full) == {"N", "K"}  # Q's neighbour N; B's neighbours N and K
+
+
+def _whittle_world_coverage(R, seed, interval_domain, drop_k=False, n=1_200):
+    """B's 95 % intervals on ADIS16405_X's N, B, K (or without K) at 1 Hz, 20 min, in the Whittle world,
+    candidates N, B, K."""
+    g = _adis_like()
+    if drop_k:
+        g = Gyro(dt=g.dt, terms=[t for t in g.terms if not isinstance(t, RateRandomWalk)])
+    hits = []
+    for s in np.random.SeedSequence(seed).spawn(R):
+        x = _whittle_world_record(g, n, np.random.default_rng(s))
+        ci = estimators.get("whittle_debiased", terms="NBK", interval_domain=interval_domain).fit(x, g.dt).conf_int()
+        hits.append(ci.loc["B", "lower"] <= g.coefficients["B"] <= ci.loc["B", "upper"])
+    return np.array(hits)
+
+
+def test_switch_b_interval_small():
+    """The small version of the slow test below (40 records each, K present and absent): the path runs
+    and is not grossly off."""
+    for drop_k in (False, True):
+        hits = _whittle_world_coverage(40, 237 + drop_k, "switch", drop_k)
+        assert hits.size - hits.sum() <= stats.binom.ppf(0.999, hits.size, 0.05)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("drop_k", [False, True])
+def test_switch_b_interval_holds_beside_a_random_walk_present_or_absent_slow(drop_k):
+    """``interval_domain="switch"`` on ADIS16405_X's N, B with K (barely resolved) and without K, in the
+    Whittle world (the likelihood's approximation exact), candidates N, B, K: B's 95 % interval holds
+    the truth at the binomial tolerance of 95 % in 1000 records each. Measured with the signed domain
+    alone (issue 23, sixth session; cand3 script, seeds 9913/9914): 0.916 (K present) and 0.928 (K
+    absent, 628 records) -- the inflation is there beside an absent random walk too, and sits in the
+    records whose K^2 the signed fit puts below -2 Wald std (B covers 0.83 / 0.88 there); switched:
+    0.951, 0.959."""
+    _check_b_coverage(_whittle_world_coverage(1000, 238 + drop_k, "switch", drop_k))

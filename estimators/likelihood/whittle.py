@@ -167,6 +167,42 @@ fixed. Cost: a second profile search; CPU per fit of 20 min records (3 each,
 ``time.process_time``) 0.75 -> 0.72 s on ADIS16405_X, 0.14 -> 0.16 s on SRS2000, 0.11 -> 0.15 s
 on CRG20.
 
+Calibrating the intervals (settings ``calibration``, ``interval_domain="switch"``)
+-------------------------------------------------------------------------------
+Issue 23, sixth session. Measured in the Whittle likelihood's own world (periodograms drawn as
+independent exponentials with the true expected periodogram, no trend) on ADIS16405_X's N, B and K
+at 1 Hz, 20 min (the ratio of flicker and random walk to white noise at a frequency does not depend
+on dt), candidates N, B, K, seeds 99xx. **The signed domain's inflation of B's statistic is not
+specific to a weakly present random walk**: B covers 0.916 with K present (1000 records) and 0.928
+with K absent (628 records, the same N and B). It sits in the records whose K^2 the signed fit puts
+below -2 of its Wald standard errors (26 % / 30 % of the records; the Wald z of a barely resolved
+variance at the estimate is far from N(0, 1)): B covers 0.825 / 0.879 there (mean LR at the truth
+2.13 / 1.79), 0.976 / 0.969 for z in [-2, -1), 0.994 / 0.985 in [-1, 0), 0.925 / 0.917 for z >= 0.
+Over non-negative variances the same bins give 0.962 / 0.974, 0.936 / 0.875, 0.944 / 0.963,
+0.907 / 0.893 (overall 0.931 / 0.930).
+
+* ``calibration="bartlett"`` / ``"quantile"`` (:func:`bootstrap_critical_values`: 100 bootstrap
+  periodograms per record at the fitted model; Beran 1988, Hall 1992). **Fails**: on 338 records
+  (K present, seed 9902) B's LR at the truth has mean 1.25 and covers 0.929 with
+  :math:`\\chi^2_1`; the bootstrap reproduces the excess on average (mean factor 1.16, sd 0.21
+  across records) but not where it is: its correlation with the record's LR at the truth is -0.14,
+  and in the records with :math:`\\hat K^2 < -2K^2` (where B covers 0.89) the factor is 1.08 -- a
+  bootstrap world whose random walk has a negative variance is not the world the record came from.
+  Bartlett-calibrated coverage 0.934, bootstrap quantile 0.927, the bootstrap-standardised root
+  :math:`(r - \\bar r^*)/s^*` 0.931 (no gain; the uniform factor that would give 0.95, 1.245, is
+  the truth's mean, not known from a record). Cost: 100 x (one fit + one profile fit per term),
+  ~45 ms per draw on 20 min at 100 Hz (~6 s per record). Kept as settings, not the default.
+* The switch the other way (the non-negative interval except where the signed fit puts the
+  neighbour below 0 beyond its noise) is worse than either domain: 0.895-0.902 (K present) and
+  0.888-0.917 (absent) for thresholds 0.5-2 standard errors: it sends exactly the inflated records
+  to the signed domain.
+* ``interval_domain="switch"`` (:func:`_negative_neighbours`): the non-negative domain's interval
+  and evidence for a term whose spectral neighbour the signed fit puts below -1.96 Wald standard
+  errors, the signed domain's otherwise. Whittle world: B covers 0.951 (K present, 1000 records)
+  and 0.959 (K absent, 628), against 0.916 / 0.928 for the signed domain and 0.959 / 0.963 for the
+  union. Its pre-registered test on the simulator (``studies/coverage_defaults.toml``'s comment):
+  below, or ``results/README.md`` (coverage_defaults).
+
 Reading / where it is not exact
 -------------------------------
 * The Whittle likelihood replaces the Toeplitz covariance by a circulant one: ordinates at distinct
