@@ -200,8 +200,8 @@ Over non-negative variances the same bins give 0.962 / 0.974, 0.936 / 0.875, 0.9
   and evidence for a term whose spectral neighbour the signed fit puts below -1.96 Wald standard
   errors, the signed domain's otherwise. Whittle world: B covers 0.951 (K present, 1000 records)
   and 0.959 (K absent, 628), against 0.916 / 0.928 for the signed domain and 0.959 / 0.963 for the
-  union. Its pre-registered test on the simulator (``studies/coverage_defaults.toml``'s comment):
-  below, or ``results/README.md`` (coverage_defaults).
+  union. Its pre-registered test on the simulator (``studies/coverage_defaults.toml``'s comment)
+  and its result: ``results/README.md``, coverage_defaults. Not the default unless that test holds.
 
 Reading / where it is not exact
 -------------------------------
