@@ -124,11 +124,12 @@ def test_profile_bounds_are_where_the_likelihood_ratio_reaches_its_quantile(debi
             assert abs(math.sqrt(max(2 * (best - r[2]), 0.0)) - root_q) < 0.03, (c, bound)
 
 
-def test_answer_does_not_depend_on_the_unit():
+@pytest.mark.parametrize("settings_", [{}, dict(interval_domain="switch"), dict(calibration="bartlett", n_boot=10)])
+def test_answer_does_not_depend_on_the_unit(settings_):
     n = 20_000
     x = _gyro(n).simulate(n, np.random.default_rng(11))
-    a = estimators.get("whittle_debiased").fit(x, DT)
-    b = estimators.get("whittle_debiased").fit(x * (180 / math.pi), DT)
+    a = estimators.get("whittle_debiased", **settings_).fit(x, DT)
+    b = estimators.get("whittle_debiased", **settings_).fit(x * (180 / math.pi), DT)
     for c in "NBK":
         assert b.coefficients_[c] == pytest.approx(a.coefficients_[c] * 180 / math.pi, rel=1e-4, abs=1e-12)
         assert b.conf_int().loc[c, "upper"] == pytest.approx(a.conf_int().loc[c, "upper"] * 180 / math.pi, rel=2e-3)
