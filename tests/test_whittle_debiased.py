@@ -124,11 +124,12 @@ def test_profile_bounds_are_where_the_likelihood_ratio_reaches_its_quantile(debi
             assert abs(math.sqrt(max(2 * (best - r[2]), 0.0)) - root_q) < 0.03, (c, bound)
 
 
-def test_answer_does_not_depend_on_the_unit():
+@pytest.mark.parametrize("settings_", [{}, dict(interval_domain="switch"), dict(calibration="bartlett", n_boot=10)])
+def test_answer_does_not_depend_on_the_unit(settings_):
     n = 20_000
     x = _gyro(n).simulate(n, np.random.default_rng(11))
-    a = estimators.get("whittle_debiased").fit(x, DT)
-    b = estimators.get("whittle_debiased").fit(x * (180 / math.pi), DT)
+    a = estimators.get("whittle_debiased", **settings_).fit(x, DT)
+    b = estimators.get("whittle_debiased", **settings_).fit(x * (180 / math.pi), DT)
     for c in "NBK":
         assert b.coefficients_[c] == pytest.approx(a.coefficients_[c] * 180 / math.pi, rel=1e-4, abs=1e-12)
         assert b.conf_int().loc[c, "upper"] == pytest.approx(a.conf_int().loc[c, "upper"] * 180 / math.pi, rel=2e-3)
@@ -196,7 +197,7 @@ def test_signed_domain_reports_no_negative_coefficient():
 
 
 @pytest.mark.parametrize("bad", [dict(spectrum="tapered"), dict(intervals="bayes"), dict(domain="real"),
-                                 dict(interval_domain="both")])
+                                 dict(interval_domain="both"), dict(calibration="bca"), dict(n_boot=5)])
 def test_bad_settings_are_clear_errors(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         estimators.get("whittle_debiased", **bad).fit(np.random.default_rng(0).standard_normal(1000), DT)
@@ -355,7 +356,8 @@ def _whittle_world_record(gyro, n, rng):
     the model's expected periodogram (the Whittle likelihood's own world: its approximation exact)."""
     from avbench.estimators.likelihood.whittle import _expected_periodogram
 
-    S = sum(gyro.coefficients[c] ** 2 * _expected_periodogram(c, n, gyro.dt) for c in "NBK")
+    S = sum(gyro.coefficients[c] ** 2 * _expected_periodogram(c, n, gyro.dt) for c in "NBK"
+            if np.isfinite(gyro.coefficients[c]))
     X = np.sqrt(n * S / 2) * (rng.standard_normal(S.size) + 1j * rng.standard_normal(S.size))
     if n % 2 == 0:
         X[-1] = math.sqrt(n * S[-1]) * rng.standard_normal()  # the Nyquist ordinate is real
@@ -426,3 +428,116 @@ def test_union_interval_holds_both_domains_intervals():
         assert ev["union"].loc[c, "upper"] == pytest.approx(max(e["upper"] for e in pair), rel=1e-12)
         assert ev["union"].loc[c, "lr"] == pytest.approx(min(e["lr"] for e in pair), rel=1e-12, abs=1e-300)
     assert fits["union"].coefficients_.equals(fits["fit"].coefficients_)
+
+
+def test_redrawn_periodogram_is_exponential_with_the_model_mean():
+    """``WhittleFit.redrawn``: periodogram ordinates |X_k|^2 / n independent exponentials with mean the
+    model's expected periodogram: the normalised ordinates have mean 1 and variance 1 (exponential),
+    within 4 standard errors of their sample means over 10 000 ordinates."""
+    from avbench.estimators.likelihood.whittle import WhittleFit, whittle_fit
+
+    n = 20_002
+    g = _gyro(n)
+    wf = WhittleFit(g.simulate(n, np.random.default_rng(2)), DT, debiased=True)
+    full = whittle_fit(wf, ["N", "B", "K"], 1, signed=True)
+    ws = wf.redrawn(full["comps"], full["a"], None, np.random.default_rng(3))
+    S = full["a"] @ wf._matrix(full["comps"], None)
+    r = (ws.X2 / n / S)[:-1]  # the Nyquist ordinate is chi^2_1 / 2, not exponential
+    se_mean = 1 / math.sqrt(r.size)
+    assert abs(r.mean() - 1) < 4 * se_mean
+    assert abs(r.var() - 1) < 4 * math.sqrt(8 / r.size)  # Var((r - 1)^2) = E(r - 1)^4 - 1 = 9 - 1
+    assert ws.X2 is not wf.X2 and ws.scale == wf.scale and ws._basis is wf._basis
+
+
+def test_bootstrap_bartlett_factor_is_one_for_a_regular_model():
+    """White noise alone (one variance, far from its boundary, 2 000 ordinates): the likelihood-ratio
+    statistic is chi^2_1 to O(1/n), so the bootstrap's critical value is chi^2_1(0.95) times a mean of
+    ``n_boot`` chi^2_1 draws: within 4 of that mean's standard errors (sqrt(2 / n_boot))."""
+    from avbench.estimators.likelihood.whittle import WhittleFit, bootstrap_critical_values, whittle_fit
+
+    n_boot = 200
+    wf = WhittleFit(np.random.default_rng(4).standard_normal(4_000), 1.0, debiased=True)
+    full = whittle_fit(wf, ["N"], 1, signed=True)
+    crit = bootstrap_critical_values(wf, full, 0.95, n_boot)
+    q = stats.chi2.ppf(0.95, 1)
+    assert abs(crit["N"] / q - 1) < 4 * math.sqrt(2 / n_boot)
+
+
+def test_calibrated_bounds_are_where_the_likelihood_ratio_reaches_the_bootstrap_value():
+    """``calibration="bartlett"``: each non-zero bound is where the profile likelihood ratio reaches that
+    term's bootstrap critical value (not chi^2_1(0.95)), to the root's tolerance; estimates and
+    evidence are those of the default (chi^2_1) calibration."""
+    from avbench.estimators.likelihood.whittle import (WhittleFit, bootstrap_critical_values, profile_evidence,
+                                                       whittle_fit)
+
+    n = 6_000
+    x = _gyro(n).simulate(n, np.random.default_rng(5))
+    wf = WhittleFit(x, DT, debiased=True)
+    full = whittle_fit(wf, ["N", "B", "K"], 1, signed=True)
+    crit = bootstrap_critical_values(wf, full, 0.95, 20)
+    assert set(crit) == {c for i, c in enumerate(full["comps"]) if full["a"][i] > 0}
+    ev, best = profile_evidence(wf, full, crit=crit)
+    ev0, _ = profile_evidence(wf, full)
+    for i, c in enumerate(full["comps"]):
+        assert ev[c]["lr"] == ev0[c]["lr"]
+        q = crit.get(c, stats.chi2.ppf(0.95, 1))
+        for bound in ("upper", "lower"):
+            if ev[c][bound] == 0.0:
+                continue
+            a = full["a"].copy()
+            a[i] = ev[c][bound]
+            r = wf.fit(full["comps"], a, None, np.full(3, -np.inf), fixed=i, tol=1e-10, signed=True)
+            assert abs(math.sqrt(max(2 * (best - r[2]), 0.0)) - math.sqrt(q)) < 0.03, (c, bound)
+    a = estimators.get("whittle_debiased", terms="NBK").fit(x, DT)
+    b = estimators.get("whittle_debiased", terms="NBK", calibration="bartlett", n_boot=20).fit(x, DT)
+    assert a.coefficients_.equals(b.coefficients_)
+
+
+def test_negative_neighbours_are_the_adjacent_terms_of_a_variance_below_its_noise():
+    """``_negative_neighbours``: a term switches to the non-negative domain's interval exactly when an
+    adjacent term (order Q N B K of the fit) has a variance below -1.96 of its Wald standard errors."""
+    from avbench.estimators.likelihood.whittle import NEGATIVE_Z, _negative_neighbours
+
+    comps = ["Q", "N", "B", "K"]
+    info = np.diag([1.0, 4.0, 1.0, 0.25])  # Wald std 1, 0.5, 1, 2
+    for aK, expected in [(-2 * NEGATIVE_Z * 1.01, {"B"}), (-2 * NEGATIVE_Z * 0.99, set()), (1.0, set())]:
+        full = dict(comps=comps, a=np.array([0.5, 1.0, 1.0, aK]), detail={"info": info})
+        assert _negative_neighbours(full) == expected
+    full = dict(comps=comps, a=np.array([-1.0 * NEGATIVE_Z * 1.01, 1.0, -1.01 * NEGATIVE_Z, 1.0]),
+                detail={"info": info})
+    assert _negative_neighbours(full) == {"N", "K"}  # Q's neighbour N; B's neighbours N and K
+
+
+def _whittle_world_coverage(R, seed, interval_domain, drop_k=False, n=1_200):
+    """B's 95 % intervals on ADIS16405_X's N, B, K (or without K) at 1 Hz, 20 min, in the Whittle world,
+    candidates N, B, K."""
+    g = _adis_like()
+    if drop_k:
+        g = Gyro(dt=g.dt, terms=[t for t in g.terms if not isinstance(t, RateRandomWalk)])
+    hits = []
+    for s in np.random.SeedSequence(seed).spawn(R):
+        x = _whittle_world_record(g, n, np.random.default_rng(s))
+        ci = estimators.get("whittle_debiased", terms="NBK", interval_domain=interval_domain).fit(x, g.dt).conf_int()
+        hits.append(ci.loc["B", "lower"] <= g.coefficients["B"] <= ci.loc["B", "upper"])
+    return np.array(hits)
+
+
+def test_switch_b_interval_small():
+    """The small version of the slow test below (40 records each, K present and absent): the path runs
+    and is not grossly off."""
+    for drop_k in (False, True):
+        hits = _whittle_world_coverage(40, 237 + drop_k, "switch", drop_k)
+        assert hits.size - hits.sum() <= stats.binom.ppf(0.999, hits.size, 0.05)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("drop_k", [False, True])
+def test_switch_b_interval_holds_beside_a_random_walk_present_or_absent_slow(drop_k):
+    """``interval_domain="switch"`` on ADIS16405_X's N, B with K (barely resolved) and without K, in the
+    Whittle world (the likelihood's approximation exact), candidates N, B, K: B's 95 % interval holds
+    the truth at the binomial tolerance of 95 % in 1000 records each. Measured with the signed domain
+    alone (issue 23, sixth session; cand3 script, seeds 9913/9914): 0.916 (K present) and 0.928 (K
+    absent, 628 records) -- the inflation is there beside an absent random walk too, and sits in the
+    records whose K^2 the signed fit puts below -2 Wald std (B covers 0.83 / 0.88 there); switched:
+    0.951, 0.959."""
+    _check_b_coverage(_whittle_world_coverage(1000, 238 + drop_k, "switch", drop_k))
