@@ -90,6 +90,7 @@ BUILTIN: dict[str, str] = {
     "nekf": "avbench.estimators.online.nekf:Nekf",
     "nekf_multitau": "avbench.estimators.online.nekf:NekfMultitau",
     "nnls_rel": "avbench.estimators.curve_fits.practitioners:NNLSRel",
+    "nnls_rel_filtered": "avbench.estimators.curve_fits.practitioners:NNLSRelFiltered",
     "ols": "avbench.estimators.curve_fits.least_squares:OLS",
     "ols_trimmed": "avbench.estimators.curve_fits.least_squares:TrimmedOLS",
     "shakf": "avbench.estimators.online.shakf:Shakf",
