@@ -92,7 +92,7 @@ def test_unit_equivariance_with_the_new_terms():
     b = estimators.get("nnls_rel_filtered", terms="NBK").fit(x * (180 / math.pi), g.dt)
     assert a.diagnostics_["filter_test"]["included"] == b.diagnostics_["filter_test"]["included"]
     ca, cb = a.coefficients_.to_numpy(), b.coefficients_.to_numpy() * (math.pi / 180)
-    assert np.allclose(ca, cb, rtol=1e-6, atol=1e-12 * np.nanmax(ca))
+    assert np.allclose(ca, cb, rtol=1e-6, atol=1e-12 * np.nanmax(ca), equal_nan=True)
     pa, pb = a.diagnostics_["params"], b.diagnostics_["params"]
     assert pa.keys() == pb.keys()
     for k in pa:
