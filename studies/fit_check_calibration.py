@@ -43,7 +43,8 @@ def _gyro(name):
     return presets.get(name)
 
 
-def flag_rates(case: str, method: str, replicates: int, n_samples: int | None = None, seed: int = 12345) -> dict:
+def flag_rates(case: str, method: str, replicates: int, n_samples: int | None = None, seed: int = 12345,
+               settings: dict | None = None) -> dict:
     """Flags over ``replicates`` simulated records of ``case`` fitted by ``method`` (module docstring)."""
     from scipy import stats
 
@@ -59,6 +60,7 @@ def flag_rates(case: str, method: str, replicates: int, n_samples: int | None = 
         kw = {"model": gm_model}
     else:
         kw = {"terms": terms}
+    kw.update(settings or {})
     flags = plain = 0
     p_values, reference = [], None
     included = {"filter": 0, "line": 0}  # terms entered on evidence (nnls_rel_filtered)

@@ -452,9 +452,9 @@ class NNLSRel(_AVBaseline):
         Modelled coefficients (default "QNBKR").
     taus, overlapping, min_clusters
         As :class:`SlopeLines`.
-    filter : {"none", "auto"}
-        The sensor's first-order filter on the white noise: never (default) or on evidence (above;
-        needs N in ``terms``).
+    filter : {"none", "auto", "fit"}
+        The sensor's first-order filter on the white noise: never (default), on evidence (above), or
+        always with tf fitted ("fit": a sensor known to filter, e.g. from its datasheet); needs N in ``terms``.
     lines : {"none", "auto"}
         A sinusoid at the strongest spectral line: never (default) or when the line test passes.
     """
@@ -474,11 +474,12 @@ class NNLSRel(_AVBaseline):
     @one_blas_thread()
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
-        for name in ("filter", "lines"):
-            if getattr(self, name) not in ("none", "auto"):
-                raise ValueError(f"{name}: expected 'none' or 'auto', got {getattr(self, name)!r}")
-        if self.filter == "auto" and "N" not in terms:
-            raise ValueError(f"filter='auto' filters the white noise N: expected N in terms, got {terms!r}")
+        if self.filter not in ("none", "auto", "fit"):
+            raise ValueError(f"filter: expected 'none', 'auto' or 'fit', got {self.filter!r}")
+        if self.lines not in ("none", "auto"):
+            raise ValueError(f"lines: expected 'none' or 'auto', got {self.lines!r}")
+        if self.filter != "none" and "N" not in terms:
+            raise ValueError(f"filter={self.filter!r} filters the white noise N: expected N in terms, got {terms!r}")
         if self.filter == "none" and self.lines == "none":
             beta = nnls_rel_beta(tau, avar, terms)
             coefs, nonphys = coefficients_from_beta(beta, terms)
@@ -501,6 +502,11 @@ class NNLSRel(_AVBaseline):
                 if line["included"]:
                     f0_range = (max(line["f0"] / LINE_FREQUENCY_FACTOR, 0.371 / tau[-1]),
                                 min(line["f0"] * LINE_FREQUENCY_FACTOR, 0.5 / dt))
+        if self.filter == "fit":  # the filter as the user says: always in the model, tf fitted
+            fit = self._shaped(rate, dt, terms, tau, avar, filter_bounds(tau, dt), f0_range)
+            if line is not None:
+                fit["diag"]["line_test"] = line
+            return fit["coefs"], fit["nonphys"], fit["diag"]
         fit = self._shaped(rate, dt, terms, tau, avar, None, f0_range)
         filter_test = None
         if self.filter == "auto":
