@@ -21,6 +21,8 @@ CASES = {
     "ADIS16405_X": (lambda: _gyro("ADIS16405_X"), "NBK", None, 180_000, True),
     "CRG20": (lambda: _gyro("CRG20"), "QNB", None, 36_000, True),
     "white+GM (fitted: N only)": (lambda: _gyro("gm"), "N", "WN", 50_000, False),
+    # issue 24: a real sensor's curve, the ADIS16405 gyro's filter and coefficients (results/real) with a line
+    "filtered+line": (lambda: _gyro("filtered+line"), "NBK", None, 65_536, True),
 }
 METHODS = ("slope_lines", "log_fit", "nnls_rel", "ols", "wls", "wls_edf", "gmwm")
 
@@ -32,10 +34,17 @@ def _gyro(name):
         return Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3)])
     if name == "gm":  # a Gauss-Markov bump (Tc = 5 s) the white-noise model misses
         return Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=2e-3, tc=5.0)])
+    if name == "filtered+line":  # white noise through a first-order filter (tf = dt / 2), flicker, random walk, a
+        # 5 Hz line (on 65,536 samples at 100 Hz the line test searches from 3.9 Hz)
+        from avbench.noise_models import BiasInstability, FilteredWhiteNoise, RateRandomWalk, Sinusoidal
+
+        return Gyro(dt=0.01, terms=[FilteredWhiteNoise(N=7e-4, tc=0.005), BiasInstability(B=1.8e-4),
+                                    RateRandomWalk(K=1.2e-5), Sinusoidal(amplitude=2e-3, frequency=5.0)])
     return presets.get(name)
 
 
-def flag_rates(case: str, method: str, replicates: int, n_samples: int | None = None, seed: int = 12345) -> dict:
+def flag_rates(case: str, method: str, replicates: int, n_samples: int | None = None, seed: int = 12345,
+               settings: dict | None = None) -> dict:
     """Flags over ``replicates`` simulated records of ``case`` fitted by ``method`` (module docstring)."""
     from scipy import stats
 
@@ -51,17 +60,21 @@ def flag_rates(case: str, method: str, replicates: int, n_samples: int | None = 
         kw = {"model": gm_model}
     else:
         kw = {"terms": terms}
+    kw.update(settings or {})
     flags = plain = 0
     p_values, reference = [], None
+    included = {"filter": 0, "line": 0}  # terms entered on evidence (nnls_rel_filtered)
     for ss in np.random.SeedSequence(seed).spawn(replicates):
         d = estimators.get(method, **kw).fit(g.simulate(n, np.random.default_rng(ss)), g.dt).diagnostics_
+        included["filter"] += bool((d.get("filter_test") or {}).get("included"))
+        included["line"] += bool((d.get("line_test") or {}).get("included"))
         flags += bool(d["poor_fit"])
         plain += bool(stats.chi2.sf(d["fit_stat"], d["fit_dof"]) < ALPHA)
         p_values.append(d["fit_pvalue"])
         reference = d.get("fit_reference")
     return {"case": case, "method": method, "replicates": replicates, "n_samples": n, "flagged": flags,
             "rate": flags / replicates, "plain_chi2_rate": plain / replicates, "reference": reference,
-            "p_values": np.array(p_values)}
+            "p_values": np.array(p_values), "included": included}
 
 
 def main(argv=None) -> int:
@@ -70,15 +83,17 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--methods", default=",".join(METHODS))
     args = ap.parse_args(argv)
-    print("| case | correct model | method | samples | replicates | flagged (rate) | plain chi^2 rate | reference |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| case | correct model | method | samples | replicates | flagged (rate) | plain chi^2 rate | reference "
+          "| filter / line entered |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for case in args.cases.split(","):
         for method in args.methods.split(","):
             if method == "gmwm" and CASES[case][2] is None:
                 continue
             r = flag_rates(case, method, args.replicates)
             print(f"| {case} | {'yes' if CASES[case][4] else 'no'} | {method} | {r['n_samples']} | {r['replicates']} | "
-                  f"{r['flagged']} ({r['rate']:.3f}) | {r['plain_chi2_rate']:.3f} | {r['reference']} |", flush=True)
+                  f"{r['flagged']} ({r['rate']:.3f}) | {r['plain_chi2_rate']:.3f} | {r['reference']} | "
+                  f"{r['included']['filter']} / {r['included']['line']} |", flush=True)
     return 0
 
 

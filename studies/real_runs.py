@@ -54,7 +54,8 @@ import pandas as pd
 RECORDS = [(f"adis_16405_imu{i}", "adis16405", f"adis16405-calgary/adis_16405_imu{i}.npz", "deg/s", "g", 100.0)
            for i in range(1, 7)]
 RECORDS += [("mtig_cont_imu1", "mtig_cont_imu1", "mtig-cont-imu1/cont_imu1.npz", "rad/s", None, 100.0)]
-METHODS = ["ols", "ols_trimmed", "wls", "wls_edf", "slope_lines", "log_fit", "nnls_rel", "gmwm", "gmwm_filtered",
+METHODS = ["ols", "ols_trimmed", "wls", "wls_edf", "slope_lines", "log_fit", "nnls_rel", "nnls_rel_filtered", "gmwm",
+           "gmwm_filtered",
            "gmwm_robust", "gmwm_despiked", "mle"]
 SIG = 5  # significant digits of the committed numbers
 #: the environment variable that says where the (optional, licensed) recordings are

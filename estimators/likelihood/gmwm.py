@@ -91,15 +91,14 @@ from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.covariance import av_covariance
 from avbench.estimators.allan.fit_check import assess_fit
+# the line test's level and how far a fitted line's frequency may move (shared with nnls_rel's lines="auto")
+from avbench.estimators.likelihood.lines import LINE_FREQUENCY_FACTOR, LINE_TEST_LEVEL
 
 __all__ = ["GMWM", "GMWMFiltered", "LATENTS", "REAL_SENSOR_MODEL", "WaveletVariance", "parse_model", "build_gyro"]
 
 #: level of the difference-in-J test that drops a shortest scale (``min_m="auto"``)
 SCALE_TEST_LEVEL = 0.001
 
-#: level of the line test (:func:`avbench.estimators.likelihood.lines.strongest_line`) that adds a
-#: sinusoid ``SN`` to the model (``lines="auto"``)
-LINE_TEST_LEVEL = 0.001
 
 #: a Gauss-Markov term whose AV peak (1.8926 Tc) lies less than this factor above the shortest tau
 #: fitted (three octaves) shapes the first octaves -- the sensor's filter -- and does not resolve B
@@ -584,18 +583,15 @@ class GMWM(Estimator):
         in the band the taus ``tau`` see (an AV peak 0.371 / f0 within them, up to the Nyquist frequency),
         as a dict with ``included`` (SN in the model) and ``significant`` (p below
         :data:`LINE_TEST_LEVEL`); with ``lines="auto"`` a significant line adds ``SN``."""
-        from avbench.estimators.likelihood.lines import strongest_line
+        from avbench.estimators.likelihood.lines import line_evidence
 
-        found = strongest_line(rate, dt, (0.371 / tau[-1], 0.5 / dt)) if tau.size else None
-        if found is None:
+        line = line_evidence(rate, dt, tau, LINE_TEST_LEVEL)
+        if line is None:
             return latents, None
-        significant = found.p_value < LINE_TEST_LEVEL
-        if significant and self.lines == "auto" and "SN" not in latents:
+        if line["significant"] and self.lines == "auto" and "SN" not in latents:
             latents = parse_model(latents + ("SN",))
-        return latents, {"f0": found.f0, "amplitude": found.amplitude, "prominence": found.prominence,
-                         "p_value": found.p_value, "n_searched": found.n_searched, "band": found.band,
-                         "significant": bool(significant), "level": LINE_TEST_LEVEL,
-                         "included": "SN" in latents}
+        line["included"] = "SN" in latents
+        return latents, line
 
     def _fit_scales(self, latents, tau, avar, m, edf, n, dt, cov_scale, white_gain=None, line=None, resonance=None,
                     seed=None):
@@ -898,8 +894,6 @@ class _LatentAV:
         return jac
 
 
-#: a sinusoid started at a significant spectral line keeps its frequency within this factor of the line's
-LINE_FREQUENCY_FACTOR = 1.05
 
 
 def _bounds(latents, tau, avar, dt, T, line=None, resonance=None):

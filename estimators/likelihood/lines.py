@@ -38,12 +38,20 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["SpectralLine", "strongest_line", "BLOCK", "FAR_BLOCKS"]
+__all__ = ["SpectralLine", "strongest_line", "line_evidence", "BLOCK", "FAR_BLOCKS", "LINE_TEST_LEVEL",
+           "LINE_FREQUENCY_FACTOR"]
 
 #: bins per block of the background (module docstring)
 BLOCK = 32
 #: the background of a bin: the blocks 2 .. FAR_BLOCKS away on each side
 FAR_BLOCKS = 8
+
+#: level of the line test at which a model adds a sinusoid (GMWM's and nnls_rel's ``lines="auto"``)
+LINE_TEST_LEVEL = 0.001
+
+#: a sinusoid started at a significant spectral line keeps its frequency within this factor of the line's
+#: (GMWM's bounds; nnls_rel's profile of the frequency)
+LINE_FREQUENCY_FACTOR = 1.05
 
 
 class SpectralLine(NamedTuple):
@@ -98,3 +106,18 @@ def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     log_single = float(np.sum(np.log(j_up / (j_up + r * math.log(2.0) * n_eff / (n_eff + 0.5)))))
     p = min(1.0, idx.size * math.exp(log_single))
     return SpectralLine(float(f[k]), math.sqrt(2.0 * var), r, float(p), int(idx.size), (float(lo), float(hi)))
+
+
+def line_evidence(x, dt, tau, level=LINE_TEST_LEVEL) -> dict | None:
+    """The evidence for a sinusoid in a model of record ``x`` fitted at the taus ``tau`` (s): the strongest
+    line (:func:`strongest_line`) in the band those taus see (an AV peak 0.371 / f0 within them, up to the
+    Nyquist frequency), as a dict with ``f0``, ``amplitude``, ``prominence``, ``p_value``, ``n_searched``,
+    ``band``, ``significant`` (p below ``level``) and ``level``; None when no frequency can be searched.
+    The one rule by which GMWM's and nnls_rel's ``lines="auto"`` add a sinusoid."""
+    tau = np.asarray(tau, dtype=float)
+    found = strongest_line(x, dt, (0.371 / tau[-1], 0.5 / dt)) if tau.size else None
+    if found is None:
+        return None
+    return {"f0": found.f0, "amplitude": found.amplitude, "prominence": found.prominence,
+            "p_value": found.p_value, "n_searched": found.n_searched, "band": found.band,
+            "significant": bool(found.p_value < level), "level": level}
