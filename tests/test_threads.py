@@ -24,14 +24,20 @@ def test_a_fit_runs_on_one_blas_thread(monkeypatch):
     # the estimators' small solves see one thread, whatever the caller set
     from avbench import estimators
 
+    import scipy.linalg
+
     seen = []
-    lstsq = np.linalg.lstsq
 
-    def spy(*args, **kwargs):
-        seen.append(set(_blas_threads().values()))
-        return lstsq(*args, **kwargs)
+    def spy(f):
+        def inner(*args, **kwargs):
+            seen.append(set(_blas_threads().values()))
+            return f(*args, **kwargs)
+        return inner
 
-    monkeypatch.setattr(np.linalg, "lstsq", spy)
+    # the solvers a least-squares fit may call: the normal equations' eigenvalues and Cholesky factor
+    # (issue 25), the SVD fallback
+    for module, name in ((np.linalg, "lstsq"), (np.linalg, "eigvalsh"), (scipy.linalg, "cho_factor")):
+        monkeypatch.setattr(module, name, spy(getattr(module, name)))
     x = np.random.default_rng(0).standard_normal(20_000) * 1e-3
     with threadpool_limits(limits=2, user_api="blas"):
         estimators.get("wls", taus="octave").fit(x, 0.01)
