@@ -506,6 +506,12 @@ def test_negative_neighbours_are_the_adjacent_terms_of_a_variance_below_its_nois
     full = dict(comps=comps, a=np.array([-1.0 * NEGATIVE_Z * 1.01, 1.0, -1.01 * NEGATIVE_Z, 1.0]),
                 detail={"info": info})
     assert _negative_neighbours(full) == {"N", "K"}  # Q's neighbour N; B's neighbours N and K
+    # interval_domain="switch_steeper": only the next term in Q N B K (the steeper spectrum) counts: N
+    # switches beside the negative B, K (B is its shallower neighbour) does not, nor does anything beside Q
+    assert _negative_neighbours(full, sides="steeper") == {"N"}
+    for aK, expected in [(-2 * NEGATIVE_Z * 1.01, {"B"}), (1.0, set())]:
+        full = dict(comps=comps, a=np.array([-NEGATIVE_Z * 1.01, 1.0, 1.0, aK]), detail={"info": info})
+        assert _negative_neighbours(full, sides="steeper") == expected  # Q below 0 switches nothing
 
 
 def _whittle_world_coverage(R, seed, interval_domain, drop_k=False, n=1_200):
@@ -541,3 +547,24 @@ def test_switch_b_interval_holds_beside_a_random_walk_present_or_absent_slow(dro
     records whose K^2 the signed fit puts below -2 Wald std (B covers 0.83 / 0.88 there); switched:
     0.951, 0.959."""
     _check_b_coverage(_whittle_world_coverage(1000, 238 + drop_k, "switch", drop_k))
+
+
+def test_switch_steeper_acts_through_the_steeper_neighbour_only():
+    """``interval_domain="switch_steeper"`` on ADIS16405_X's N, B, K (Whittle world, candidates Q N B K,
+    so the absent Q goes below 0 in about half the records): B's interval is ``"switch"``'s (its
+    steeper neighbour K is the one that goes below 0), N's is the signed domain's (``"fit"``: its
+    steeper neighbour B never does) wherever ``"switch"`` moved it beside Q; estimates unchanged."""
+    g = _adis_like()
+    moved_n = 0
+    for i, s in enumerate(np.random.SeedSequence(239).spawn(60)):  # Q below 0 beyond its noise in ~5 %
+        if moved_n and i >= 12:
+            break
+        x = _whittle_world_record(g, 1_200, np.random.default_rng(s))
+        ci = {d: estimators.get("whittle_debiased", terms="QNBK", interval_domain=d).fit(x, g.dt)
+              for d in ("fit", "switch", "switch_steeper")}
+        assert ci["switch_steeper"].coefficients_.equals(ci["fit"].coefficients_)
+        c = {d: f.conf_int() for d, f in ci.items()}
+        assert c["switch_steeper"].loc["B"].equals(c["switch"].loc["B"])
+        assert c["switch_steeper"].loc["N"].equals(c["fit"].loc["N"])
+        moved_n += not c["switch"].loc["N"].equals(c["fit"].loc["N"])
+    assert moved_n > 0  # the records do exercise the difference between the two switches

@@ -1182,12 +1182,14 @@ def bootstrap_critical_values(wf: WhittleFit, full: dict, level: float = 0.95, n
 NEGATIVE_Z = 1.959963984540054
 
 
-def _negative_neighbours(full: dict, z: float = NEGATIVE_Z) -> set:
+def _negative_neighbours(full: dict, z: float = NEGATIVE_Z, sides: str = "both") -> set:
     """Terms of a signed-domain fit whose interval ``interval_domain="switch"`` takes from the
     non-negative domain: those with a spectral neighbour -- the adjacent term in the order of
     ``comps``, Q N B (or GM) K, the order of the power laws' slopes, whose spectra overlap and trade
     power -- estimated below 0 by more than ``z`` of its Wald standard errors (the inverse Whittle
-    information in the variances at the signed maximum).
+    information in the variances at the signed maximum). With ``sides="steeper"``
+    (``interval_domain="switch_steeper"``) only the neighbour whose spectrum is steeper counts, the
+    next term in that order (B's K, N's B, Q's N).
 
     Why (issue 23, sixth session; Whittle-world draws, module docstring): the signed domain's
     profile statistic of B is inflated exactly in the records where the random walk's variance is
@@ -1202,7 +1204,7 @@ def _negative_neighbours(full: dict, z: float = NEGATIVE_Z) -> set:
         return set()
     neg = [bool(var[i] > 0 and a[i] < -z * math.sqrt(var[i])) for i in range(len(comps))]
     return {c for j, c in enumerate(comps)
-            if (j > 0 and neg[j - 1]) or (j + 1 < len(comps) and neg[j + 1])}
+            if (sides == "both" and j > 0 and neg[j - 1]) or (j + 1 < len(comps) and neg[j + 1])}
 
 
 def _union_evidence(ev, ev_nonneg):
@@ -1284,14 +1286,16 @@ class Whittle(Estimator):
         Where the variances are maximised: each >= 0 (default), or wherever the model spectrum is
         positive at every Fourier frequency (Q, N, B, K may go below 0; reported truncated at 0, their
         intervals on [0, inf)); see the module docstring, "Domain of the variances".
-    interval_domain : {"fit", "union", "switch"}
+    interval_domain : {"fit", "union", "switch", "switch_steeper"}
         With ``intervals="profile"`` and ``domain="spectrum"``: each term's interval over the fit's
         domain (``"fit"``, default) or the union of its intervals over the signed and the
         non-negative domain (``"union"``; module docstring, "Intervals over both domains": it
         over-covers where a neighbour is absent, so it is not the default), or (``"switch"``) the
         non-negative domain's interval and evidence for a term whose spectral neighbour the signed
         fit puts below 0 by more than 1.96 of its standard errors, the signed domain's otherwise
-        (:func:`_negative_neighbours`). The estimates are the same.
+        (:func:`_negative_neighbours`); ``"switch_steeper"`` the same with only the neighbour whose
+        spectrum is steeper (B beside K, not N beside Q: module docstring, "Calibrating the
+        intervals"). The estimates are the same.
     calibration : {"chi2", "bartlett", "quantile"}
         With ``intervals="profile"``: the critical value of each profile interval, the
         :math:`\\chi^2_1` quantile (default) or calibrated per record by a parametric bootstrap in
@@ -1365,8 +1369,9 @@ class Whittle(Estimator):
             raise ValueError(f"intervals: expected 'wald' or 'profile', got {self.intervals!r}")
         if self.domain not in ("nonnegative", "spectrum"):
             raise ValueError(f"domain: expected 'nonnegative' or 'spectrum', got {self.domain!r}")
-        if self.interval_domain not in ("fit", "union", "switch"):
-            raise ValueError(f"interval_domain: expected 'fit', 'union' or 'switch', got {self.interval_domain!r}")
+        if self.interval_domain not in ("fit", "union", "switch", "switch_steeper"):
+            raise ValueError("interval_domain: expected 'fit', 'union', 'switch' or 'switch_steeper', "
+                             f"got {self.interval_domain!r}")
         if self.calibration not in ("chi2", "bartlett", "quantile"):
             raise ValueError(f"calibration: expected 'chi2', 'bartlett' or 'quantile', got {self.calibration!r}")
         if (isinstance(self.n_boot, bool) or not isinstance(self.n_boot, (int, np.integer))
@@ -1490,8 +1495,8 @@ class Whittle(Estimator):
         ev, _ = profile_evidence(wf, full, self.PROFILE_LEVEL, crit=crit)
         if self.interval_domain == "union" and full.get("nonneg") is not None:
             ev = _union_evidence(ev, profile_evidence(wf, full["nonneg"], self.PROFILE_LEVEL)[0])
-        elif self.interval_domain == "switch" and full.get("nonneg") is not None:
-            switched = _negative_neighbours(full)
+        elif self.interval_domain.startswith("switch") and full.get("nonneg") is not None:
+            switched = _negative_neighbours(full, sides="steeper" if self.interval_domain == "switch_steeper" else "both")
             if switched:
                 ev_nn = profile_evidence(wf, full["nonneg"], self.PROFILE_LEVEL)[0]
                 ev = {c: (ev_nn[c] if c in switched and c in ev_nn else e) for c, e in ev.items()}
