@@ -124,6 +124,16 @@ EQUIVARIANCE_RTOL = 1e-8
 #: cause -- with two draws against seven units, gmwm's B on the registry sweep's white + random-walk
 #: record moved 4.6e-8 between units against 2e-9 under round-off, 2e-8 with six draws)
 ROUNDOFF_FACTOR, ROUNDOFF_DRAWS = 10.0, 2
+#: where the first draws leave a difference unexplained, the round-off sample grows to this many times
+#: its first size, and to at least ROUNDOFF_ESCALATED draws, before the difference is called the unit's. A fit whose end point is one of a few
+#: places the last bits of the input choose among (measured: gmwm_robust on the registry sweep's
+#: SRS2000 record, 2^13 samples, ~25 % of unit changes and of round-off draws alike land 2-3e-8 from
+#: the rest, the others within 2e-10) escapes k draws with probability 0.75^k -- 13 % at k = 7, the
+#: sweep's units, 3e-4 at 28 -- while a real dependence on the unit moves the fit in every unit and
+#: under no round-off draw, so the larger sample does not hide it (tests/test_estimator_contract.py)
+#: The same on the first 30 minutes of ADIS run 1, axis z (gmwm_robust, 2 draws asked): 4 of 16
+#: round-off draws and 3 of 12 units land 1.3-2.6e-7 from the reference, the rest within 2e-9.
+ROUNDOFF_ESCALATION, ROUNDOFF_ESCALATED = 4, 28
 _INDEX = list(COEFFICIENTS)
 #: the key of a fit's own status (failed or converged) beside its terms' in :func:`_answer`
 _FIT = "the fit"
@@ -673,6 +683,26 @@ def _on_threshold(k, ref, other, scale, tol):
     return 0.0 <= value <= bound
 
 
+def _unexplained(ref, moved, over, noise, noise_flips, share_noise, rtol, roundoff_factor):
+    """``(problems, on_threshold)`` of :func:`equivariance`: the differences between units that the
+    fit's own round-off (``noise``, ``noise_flips``, ``share_noise``) does not explain."""
+    problems, on_threshold = [], set()
+    for c, (flips, other) in moved.items():
+        left = {}
+        for k, ab in flips.items():
+            if _on_threshold(k, ref, other, c, max(2 * rtol, roundoff_factor * share_noise.get(k, 0.0))):
+                on_threshold.add(k)
+            elif k not in noise_flips:
+                left[k] = ab
+        if left:
+            problems.append(f"in units {c:.4g} x SI the record's terms are reported differently: "
+                            + ", ".join(f"{k} {a} -> {b}" for k, (a, b) in left.items()))
+    bad = {k: v for k, v in over.items() if v > roundoff_factor * noise.get(k, 0.0)}
+    problems += [f"{k} moves by {v:.2g} (relative) between units, {noise.get(k, 0.0):.2g} under round-off of the input"
+                 for k, v in sorted(bad.items(), key=lambda kv: -kv[1])[:4]]
+    return problems, on_threshold
+
+
 def equivariance(new, rate, dt, scales=EQUIVARIANCE_SCALES, rtol=EQUIVARIANCE_RTOL,
                  roundoff_draws=None, roundoff_factor=ROUNDOFF_FACTOR, seed=0):
     """``(problems, note)``: does a fresh estimator from ``new()`` give the same answer for ``rate``
@@ -688,7 +718,8 @@ def equivariance(new, rate, dt, scales=EQUIVARIANCE_SCALES, rtol=EQUIVARIANCE_RT
     between a record in deg/s and the same record in rad/s) measure the fit's own sensitivity to
     round-off: a status that round-off of the input also changes, and a number that moves by at most
     ``roundoff_factor`` times what round-off moves it, are the fit's fragility, not its unit (said in
-    the note); the rest are problems.
+    the note); the rest are problems, once :data:`ROUNDOFF_ESCALATION` times as many draws still leave
+    them unexplained.
 
     A yes/no decision taken on a continuous statistic flips when the statistic sits on its threshold,
     whatever the unit: a term labelled "not resolved" in one unit and given a value in another is
@@ -716,31 +747,24 @@ def equivariance(new, rate, dt, scales=EQUIVARIANCE_SCALES, rtol=EQUIVARIANCE_RT
     rng = np.random.default_rng(seed)
     noise, noise_flips, share_noise = {}, set(), {}
     draws = max(ROUNDOFF_DRAWS, len(scales)) if roundoff_draws is None else int(roundoff_draws)
-    for _ in range(draws):
-        other = answer(rate * (1.0 + 2.0**-52 * rng.standard_normal(rate.size)))
-        for k, v in _share_moves(ref, other).items():
-            share_noise[k] = max(share_noise.get(k, 0.0), v)
-        if other.status != ref.status:  # round-off changed what is reported: no measure of the numbers
-            noise_flips |= {k for k in ref.status if ref.status[k] != other.status[k]}
-            continue
-        for k, v in _differences(ref, other, 1.0).items():
-            noise[k] = max(noise.get(k, 0.0), v)
-    problems, on_threshold = [], set()
-    for c, (flips, other) in moved.items():
-        left = {}
-        for k, ab in flips.items():
-            if _on_threshold(k, ref, other, c, max(2 * rtol, roundoff_factor * share_noise.get(k, 0.0))):
-                on_threshold.add(k)
-            elif k not in noise_flips:
-                left[k] = ab
-        if left:
-            problems.append(f"in units {c:.4g} x SI the record's terms are reported differently: "
-                            + ", ".join(f"{k} {a} -> {b}" for k, (a, b) in left.items()))
-    bad = {k: v for k, v in over.items() if v > roundoff_factor * noise.get(k, 0.0)}
-    problems += [f"{k} moves by {v:.2g} (relative) between units, {noise.get(k, 0.0):.2g} under round-off of the input"
-                 for k, v in sorted(bad.items(), key=lambda kv: -kv[1])[:4]]
+    drawn = 0
+    for target in (draws, max(ROUNDOFF_ESCALATION * draws, ROUNDOFF_ESCALATED)):
+        for _ in range(target - drawn):
+            other = answer(rate * (1.0 + 2.0**-52 * rng.standard_normal(rate.size)))
+            for k, v in _share_moves(ref, other).items():
+                share_noise[k] = max(share_noise.get(k, 0.0), v)
+            if other.status != ref.status:  # round-off changed what is reported: no measure of the numbers
+                noise_flips |= {k for k in ref.status if ref.status[k] != other.status[k]}
+                continue
+            for k, v in _differences(ref, other, 1.0).items():
+                noise[k] = max(noise.get(k, 0.0), v)
+        drawn = target
+        problems, on_threshold = _unexplained(ref, moved, over, noise, noise_flips, share_noise, rtol,
+                                              roundoff_factor)
+        if not problems:
+            break
     if problems:
-        return problems, ""
+        return problems + [f"(round-off measured on {drawn} perturbed records)"], ""
     notes = []
     fragile = sorted({k for f, _ in moved.values() for k in f} - on_threshold)
     if fragile:

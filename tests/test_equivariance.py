@@ -263,7 +263,10 @@ REAL = os.environ.get("AVBENCH_REAL_DATA")
 # whose place they decided, is polished to the maximum (estimators/likelihood/mle.py _newton_polish);
 # gmwm_despiked and gmwm_robust, whose multi-start fell into one of two near-tied optima on axis z with
 # them, agree to <= 1e-8 since issue 25's analytic Jacobian and issue 24's model for gmwm_despiked;
-# measured 2026-11-25)
+# measured 2026-11-25. On 2026-11-28, another machine (AMD EPYC, AVX-512): gmwm_robust on axis z lands
+# 1.3-2.6e-7 from the reference in 4 of 16 round-off draws and 3 of 12 units alike -- the fit's own
+# round-off, which the check now samples with more draws before it calls a difference the unit's:
+# estimators/contract.py, ROUNDOFF_ESCALATION)
 
 
 @pytest.mark.slow
