@@ -1,5 +1,6 @@
 """GMWM: weighting matrix against known variances, recovery within its own standard errors."""
 
+import math
 
 import numpy as np
 import pytest
@@ -136,8 +137,22 @@ def test_auto_scales_recover_n_and_b_through_a_sensor_filter():
     x = _filtered(g.simulate(1_000_000, np.random.default_rng(22)))
     auto = estimators.get("gmwm").fit(x, 0.01)
     truth = g.coefficients
+    se = auto.diagnostics_["std_err"]
+    assert abs(auto.coefficients_["B"] - truth["B"]) < 3 * se["B"]
+    # Plain gmwm drops the octaves the filter bends, but the 2-tap average still lowers the white
+    # noise's AV at the shortest scale kept, m, by 3/(4m) (computed below from the filter's weights),
+    # N by about half that: on 1e6 samples more than N's standard error (measured 2026-11-28: m = 32,
+    # N -1.19 % with a standard error of 0.30 %; the 3-SE bound this test first asserted never held, at
+    # any commit since it was written). N is held to that residual plus 3 SE ...
+    m = auto.diagnostics_["min_m"]
+    w = np.r_[-np.ones(m), np.ones(m)] / m
+    wx = (np.r_[w, 0.0] + np.r_[0.0, w]) / 2  # the cluster difference's weights on the unfiltered samples
+    residual = 1.0 - math.sqrt(m * (wx @ wx) / 2)  # relative shortfall of sqrt(AV) of white noise at m
+    assert abs(auto.coefficients_["N"] - truth["N"]) < residual * truth["N"] + 3 * se["N"]
+    # ... and the model that carries the sensor's filter (gmwm_filtered) has no such residual
+    filt = estimators.get("gmwm_filtered").fit(x, 0.01)
     for c in ("N", "B"):
-        assert abs(auto.coefficients_[c] - truth[c]) < 3 * auto.diagnostics_["std_err"][c], c
+        assert abs(filt.coefficients_[c] - truth[c]) < 3 * filt.diagnostics_["std_err"][c], c
 
 
 def test_auto_scales_keep_every_octave_of_an_unfiltered_record_and_flag_a_wrong_model():
