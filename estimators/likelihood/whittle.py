@@ -1602,7 +1602,7 @@ class WhittleDebiased(Whittle):
     :class:`Whittle` applies; only the defaults differ."""
 
     def __init__(self, *, terms="QNBKR", bias="flicker", select=False, criterion="bic", n_starts=4, reml=False,
-                 spectrum="debiased", intervals="profile", domain="spectrum", interval_domain="fit",
+                 spectrum="debiased", intervals="profile", domain="spectrum", interval_domain="switch_steeper",
                  calibration="chi2", n_boot=100):
         super().__init__(terms=terms, bias=bias, select=select, criterion=criterion, n_starts=n_starts,
                          reml=reml, spectrum=spectrum, intervals=intervals, domain=domain,
