@@ -419,7 +419,8 @@ def test_union_interval_holds_both_domains_intervals():
     estimates are the signed domain's."""
     g = _adis_like()
     x = _whittle_world_record(g, 1_200, np.random.default_rng(7))
-    settings = {"union": dict(interval_domain="union"), "fit": {}, "nonneg": dict(domain="nonnegative")}
+    settings = {"union": dict(interval_domain="union"), "fit": dict(interval_domain="fit"),
+                "nonneg": dict(domain="nonnegative")}
     fits = {k: estimators.get("whittle_debiased", terms="NBK", **s).fit(x, g.dt) for k, s in settings.items()}
     ev = {k: f.diagnostics_["evidence"] for k, f in fits.items()}
     for c in "NBK":
