@@ -78,6 +78,15 @@ REFERENCE_KERNELS = {"OPENBLAS_CORETYPE": "Haswell", "NUMBA_CPU_NAME": "haswell"
 ROUND_OFF_SHARE = 1e-2
 #: tidy columns compared as numbers; the rest (names, flags, failure messages) as text
 NUMBERS = ("true", "estimate", "std_err", "lower", "upper")
+#: a term's evidence: its likelihood ratio (a difference of two maximised log-likelihoods) and p-value
+EVIDENCE = ("evidence_lr", "evidence_p")
+#: absolute round-off of a likelihood ratio: the log-likelihoods it differences are sums over the
+#: record's ordinates of magnitude up to ~1e7 (n/2 <= 7.2e5 terms of the standardised record), so
+#: their last bits, up to ~2e-9 absolute (1e7 x 2.2e-16; this bound allows 5x that), move a small LR in
+#: its 9th significant digit (measured across two machines on coverage_defaults' first block: at most
+#: 2e-11, e.g. ADIS16405_X 0.00769636832 against 0.0076963683). A p-value moves with it:
+#: |d log p / d LR| <= 1/2 + 1/(2 sqrt(LR)) for the chi-bar-squared tail of one variance (Mills ratio)
+LR_ATOL = 1e-8
 KEY = ["gyro", "replicate", "estimator", "coefficient"]
 
 
@@ -99,8 +108,10 @@ def _tidy_equal(new: pd.DataFrame, old: pd.DataFrame, cfg, study: str, spread: n
     assert list(new.columns) == list(old.columns), f"{study}/tidy.csv: columns differ"
     assert new[KEY].astype(str).values.tolist() == old[KEY].astype(str).values.tolist(), f"{study}/tidy.csv: rows differ"
     for c in new.columns:
-        if c not in NUMBERS:
+        if c not in NUMBERS + EVIDENCE:
             assert new[c].astype(str).tolist() == old[c].astype(str).tolist(), f"{study}/tidy.csv: column {c}"
+    if set(EVIDENCE) <= set(old.columns):
+        _evidence_equal(new, old, study)
     amplified = old["estimator"].map(_amplified(cfg)).fillna(False).to_numpy(bool)
     if spread is None:
         spread = _spread(old)
@@ -114,6 +125,22 @@ def _tidy_equal(new: pd.DataFrame, old: pd.DataFrame, cfg, study: str, spread: n
             raise AssertionError(f"{study}/tidy.csv: column {c} differs in {bad.sum()} rows "
                                  f"(amplified: {sorted(set(old.loc[bad & amplified, 'estimator']))}):\n"
                                  f"{rows.head(10).to_string()}")
+
+
+def _evidence_equal(new: pd.DataFrame, old: pd.DataFrame, study: str) -> None:
+    """The evidence columns equal at the precision a likelihood ratio's arithmetic supports
+    (:data:`LR_ATOL`), the p-value at what that LR's round-off moves it."""
+    lr_new, lr_old = new["evidence_lr"].to_numpy(float), old["evidence_lr"].to_numpy(float)
+    tol_lr = 1e-8 * np.abs(lr_old) + LR_ATOL
+    p_new, p_old = new["evidence_p"].to_numpy(float), old["evidence_p"].to_numpy(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dlogp = np.abs(np.log(p_new) - np.log(p_old))
+        tol_logp = 1e-8 + tol_lr * (0.5 + 0.5 / np.sqrt(np.maximum(lr_old, 1e-300)))
+    for c, bad in (("evidence_lr", ~((np.abs(lr_new - lr_old) <= tol_lr) | (np.isnan(lr_new) & np.isnan(lr_old)))),
+                   ("evidence_p", ~((p_new == p_old) | (dlogp <= tol_logp) | (np.isnan(p_new) & np.isnan(p_old))))):
+        if bad.any():
+            rows = old.loc[bad, KEY].assign(committed=old[c].to_numpy(float)[bad], regenerated=new[c].to_numpy(float)[bad])
+            raise AssertionError(f"{study}/tidy.csv: column {c} differs in {bad.sum()} rows:\n{rows.head(10).to_string()}")
 
 
 def _spread(tidy: pd.DataFrame) -> np.ndarray:
