@@ -125,14 +125,14 @@ EQUIVARIANCE_RTOL = 1e-8
 #: record moved 4.6e-8 between units against 2e-9 under round-off, 2e-8 with six draws)
 ROUNDOFF_FACTOR, ROUNDOFF_DRAWS = 10.0, 2
 #: where the first draws leave a difference unexplained, the round-off sample grows to this many times
-#: its first size, and to at least ROUNDOFF_ESCALATED draws, before the difference is called the unit's. A fit whose end point is one of a few
-#: places the last bits of the input choose among (measured: gmwm_robust on the registry sweep's
-#: SRS2000 record, 2^13 samples, ~25 % of unit changes and of round-off draws alike land 2-3e-8 from
-#: the rest, the others within 2e-10) escapes k draws with probability 0.75^k -- 13 % at k = 7, the
-#: sweep's units, 3e-4 at 28 -- while a real dependence on the unit moves the fit in every unit and
-#: under no round-off draw, so the larger sample does not hide it (tests/test_estimator_contract.py)
-#: The same on the first 30 minutes of ADIS run 1, axis z (gmwm_robust, 2 draws asked): 4 of 16
-#: round-off draws and 3 of 12 units land 1.3-2.6e-7 from the reference, the rest within 2e-9.
+#: its first size, and to at least ROUNDOFF_ESCALATED draws, before the difference is called the unit's.
+#: A fit whose end point is one of a few places the last bits of the input choose among escapes k draws
+#: with probability (1 - share)^k, while a real dependence on the unit moves the fit in every unit and
+#: under no round-off draw, so the larger sample does not hide it (tests/test_estimator_contract.py).
+#: Measured (gmwm_robust): on the registry sweep's SRS2000 record, 2^13 samples, ~25 % of unit changes
+#: and of round-off draws alike land 2-3e-8 from the rest, the others within 2e-10 (0.75^7 = 13 % at
+#: the sweep's 7 units, 3e-4 at 28); on the first 30 minutes of ADIS run 1, axis z (2 draws asked),
+#: 4 of 16 round-off draws and 3 of 12 units land 1.3-2.6e-7 from the reference, the rest within 2e-9.
 ROUNDOFF_ESCALATION, ROUNDOFF_ESCALATED = 4, 28
 _INDEX = list(COEFFICIENTS)
 #: the key of a fit's own status (failed or converged) beside its terms' in :func:`_answer`

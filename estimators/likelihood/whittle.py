@@ -143,11 +143,11 @@ are; an absent one holds 0 with probability >= 97.5 %.
 Intervals over both domains (setting ``interval_domain="union"``; ``"fit"``, :class:`Whittle`'s
 default, is the fit's domain alone; ``whittle_debiased``'s is ``"switch_steeper"``, below): with
 ``domain="spectrum"`` each term's interval is the union of its profile intervals over the signed
-domain (above) and over non-negative variances (the physical parameter
-space; the maximum there is the one the signed fit starts from), its evidence the weaker of the two
-(:func:`_union_evidence`). Measured, and **not the default** (issue 23, fifth session). Wilks's law
-is asymptotic; in a finite record a neighbour the data barely resolve breaks it in opposite
-directions in the two domains. Signed: the random walk of 20 min of ADIS16405_X (CRLB relative std
+domain (above) and over non-negative variances (the physical parameter space; the maximum there is
+the one the signed fit starts from), its evidence the weaker of the two (:func:`_union_evidence`).
+Measured, and **not the default** (issue 23, fifth session). Wilks's law is asymptotic; in a finite
+record a neighbour the data barely resolve breaks it in opposite directions in the two domains.
+Signed: the random walk of 20 min of ADIS16405_X (CRLB relative std
 of K^2 ~2) is estimated below -2 K^2 in ~40 % of records, and B's profile statistic at the truth has
 mean 1.19 and covers 0.926 (800 records at 100 Hz drawn in the Whittle likelihood's own world,
 independent exponential ordinates with the true expected periodogram; 0.923 in 1500 at 1 Hz): the
@@ -1197,6 +1197,8 @@ def bootstrap_critical_values(wf: WhittleFit, full: dict, level: float = 0.95, n
 #: a variance of the signed domain "below 0 beyond its noise": its Wald statistic below minus the
 #: two-sided 95 % normal point (fixed a priori, not tuned; interval_domain="switch")
 NEGATIVE_Z = 1.959963984540054
+#: the switching settings of ``interval_domain``: which of a term's spectral neighbours count
+_SWITCH_SIDES = {"switch": "both", "switch_steeper": "steeper"}
 
 
 def _negative_neighbours(full: dict, z: float = NEGATIVE_Z, sides: str = "both") -> set:
@@ -1305,8 +1307,8 @@ class Whittle(Estimator):
         intervals on [0, inf)); see the module docstring, "Domain of the variances".
     interval_domain : {"fit", "union", "switch", "switch_steeper"}
         With ``intervals="profile"`` and ``domain="spectrum"``: each term's interval over the fit's
-        domain (``"fit"``, the default of :class:`Whittle`) or the union of its intervals over the signed and the
-        non-negative domain (``"union"``; module docstring, "Intervals over both domains": it
+        domain (``"fit"``, the default of :class:`Whittle`) or the union of its intervals over the
+        signed and the non-negative domain (``"union"``; module docstring, "Intervals over both domains": it
         over-covers where a neighbour is absent, so it is not the default), or (``"switch"``) the
         non-negative domain's interval and evidence for a term whose spectral neighbour the signed
         fit puts below 0 by more than 1.96 of its standard errors, the signed domain's otherwise
@@ -1386,7 +1388,7 @@ class Whittle(Estimator):
             raise ValueError(f"intervals: expected 'wald' or 'profile', got {self.intervals!r}")
         if self.domain not in ("nonnegative", "spectrum"):
             raise ValueError(f"domain: expected 'nonnegative' or 'spectrum', got {self.domain!r}")
-        if self.interval_domain not in ("fit", "union", "switch", "switch_steeper"):
+        if self.interval_domain not in ("fit", "union", *_SWITCH_SIDES):
             raise ValueError("interval_domain: expected 'fit', 'union', 'switch' or 'switch_steeper', "
                              f"got {self.interval_domain!r}")
         if self.calibration not in ("chi2", "bartlett", "quantile"):
@@ -1512,8 +1514,8 @@ class Whittle(Estimator):
         ev, _ = profile_evidence(wf, full, self.PROFILE_LEVEL, crit=crit)
         if self.interval_domain == "union" and full.get("nonneg") is not None:
             ev = _union_evidence(ev, profile_evidence(wf, full["nonneg"], self.PROFILE_LEVEL)[0])
-        elif self.interval_domain.startswith("switch") and full.get("nonneg") is not None:
-            switched = _negative_neighbours(full, sides="steeper" if self.interval_domain == "switch_steeper" else "both")
+        elif self.interval_domain in _SWITCH_SIDES and full.get("nonneg") is not None:
+            switched = _negative_neighbours(full, sides=_SWITCH_SIDES[self.interval_domain])
             if switched:
                 ev_nn = profile_evidence(wf, full["nonneg"], self.PROFILE_LEVEL)[0]
                 ev = {c: (ev_nn[c] if c in switched and c in ev_nn else e) for c, e in ev.items()}
