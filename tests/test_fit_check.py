@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from avbench import estimators
 from avbench.estimators.allan.fit_check import ALPHA, assess_fit, assess_five_term
@@ -92,6 +94,74 @@ def test_weighted_chi2_tail_against_its_special_cases_and_simulation():
         p_mc = float(np.mean(draws > x))
         assert abs(weighted_chi2_sf(x, w) - p_mc) < 4 * math.sqrt(p_mc * (1 - p_mc) / draws.size) + 1e-6
     assert weighted_chi2_sf(1e4, w) <= 1e-7  # far tail: tiny, never above the Imhof floor
+
+
+def _imhof_in_python(x, w):
+    """Imhof's integral with the integrand as plain Python (what weighted_chi2_sf integrated before it was
+    compiled): the compiled callback must give the same integral to round-off."""
+    from scipy import integrate
+
+    def phi(u):
+        return 0.5 * float(np.sum(np.arctan(w * u)))
+
+    def rho(u):
+        return math.exp(0.25 * float(np.sum(np.log1p((w * u) ** 2))))
+
+    a = 4 * math.pi / x
+    v0, _ = integrate.quad(lambda u: math.sin(phi(u) - 0.5 * x * u) / (u * rho(u)), 0.0, a, limit=200, epsabs=1e-13)
+    v1, _ = integrate.quad(lambda u: math.sin(phi(u)) / (u * rho(u)), a, np.inf, weight="cos", wvar=0.5 * x,
+                           limlst=200, epsabs=1e-13)
+    v2, _ = integrate.quad(lambda u: -math.cos(phi(u)) / (u * rho(u)), a, np.inf, weight="sin", wvar=0.5 * x,
+                           limlst=200, epsabs=1e-13)
+    return 0.5 + (v0 + v1 + v2) / math.pi
+
+
+@settings(max_examples=30, deadline=None)
+@given(w=st.lists(st.floats(1e-3, 50.0), min_size=1, max_size=24), q=st.floats(0.05, 3.0))
+def test_the_compiled_imhof_integrand_integrates_as_the_python_one(w, q):
+    import warnings
+
+    from scipy import integrate
+
+    from avbench.estimators.allan.fit_check import IMHOF_FLOOR, weighted_chi2_sf
+
+    w = np.array(w)
+    x = q * float(w.sum())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", integrate.IntegrationWarning)
+        ref = _imhof_in_python(x, w)
+    if ref >= 10 * IMHOF_FLOOR:  # below, both give the two-moment tail
+        assert weighted_chi2_sf(x, w) == pytest.approx(ref, rel=1e-9, abs=1e-13)
+
+
+@pytest.mark.parametrize("preset", ["SRS2000", "ADIS16405_X", "CRG20"])
+def test_log_fits_sensitivity_is_the_derivative_of_its_refits(preset):
+    """log_fit hands the check d beta / d avar by the implicit function theorem instead of 34 refits: it
+    must be the refits' derivative. Central differences of relative step 1e-4 carry an O(h^2) ~ 1e-8
+    truncation and the solver's xtol (1e-10) over h, ~1e-6: 1e-4 of the Jacobian's scale is far outside
+    both and far inside any error of the formula (a dropped Hessian term moves it by O(1))."""
+    from avbench.estimators.allan.variance import allan_variance
+    from avbench.estimators.curve_fits.practitioners import log_fit_beta, log_fit_sensitivity
+    from avbench.noise_models import presets
+
+    g = presets.get(preset)
+    rate = g.simulate(60_000, np.random.default_rng(3))
+    av = allan_variance(rate, g.dt, taus="octave", overlapping=True)
+    ok = av.n_samples // av.m >= 2
+    tau, avar = av.tau[ok], av.avar[ok]
+    beta, sol = log_fit_beta(tau, avar, "QNBKR")
+    assert sol.success
+    sens = log_fit_sensitivity(tau, avar, "QNBKR", beta, sol)
+    fd = np.zeros_like(sens)
+    for j in range(tau.size):
+        h = 1e-4 * avar[j]
+        up, dn = avar.copy(), avar.copy()
+        up[j] += h
+        dn[j] -= h
+        fd[:, j] = (log_fit_beta(tau, up, "QNBKR")[0] - log_fit_beta(tau, dn, "QNBKR")[0]) / (2 * h)
+    scale = np.abs(fd * avar).max(axis=1, keepdims=True)  # per term, in beta per relative change of an AV
+    scale = np.where(scale > 0, scale, 1.0)
+    assert np.max(np.abs((sens - fd) * avar) / scale) < 1e-4
 
 
 def test_refit_weights_of_an_efficient_linear_fit_are_zeros_and_ones():

@@ -130,6 +130,7 @@ no variance).
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 
@@ -204,29 +205,35 @@ def weighted_chi2_sf(x, weights) -> float:
         a, nu = float(np.sum(w**2) / np.sum(w)), float(np.sum(w) ** 2 / np.sum(w**2))
         return float(min(IMHOF_FLOOR, float(chdtrc(nu, x / a))))
 
-    def phi(u):
-        return 0.5 * float(np.sum(np.arctan(w * u)))
-
-    def rho(u):
-        return math.exp(0.25 * float(np.sum(np.log1p((w * u) ** 2))))
-
     # [0, a] directly; beyond, sin(phi - xu/2) = sin(phi) cos(xu/2) - cos(phi) sin(xu/2) as Fourier
-    # integrals (QUADPACK's QAWF), which follow the slow u^(-1-k/2) decay of few weights
+    # integrals (QUADPACK's QAWF), which follow the slow u^(-1-k/2) decay of few weights; the integrand
+    # is compiled (_fit_check_kernels: the three parts, chosen by the second argument)
+    f = _imhof_callable()
     a = 4 * math.pi / x
+    extra = tuple(float(v) for v in w)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", integrate.IntegrationWarning)
-        v0, _ = integrate.quad(lambda u: math.sin(phi(u) - 0.5 * x * u) / (u * rho(u)), 0.0, a, limit=200,
+        v0, _ = integrate.quad(f, 0.0, a, args=(0.0, x) + extra, limit=200, epsabs=1e-13)
+        v1, _ = integrate.quad(f, a, np.inf, args=(1.0, x) + extra, weight="cos", wvar=0.5 * x, limlst=200,
                                epsabs=1e-13)
-        v1, _ = integrate.quad(lambda u: math.sin(phi(u)) / (u * rho(u)), a, np.inf, weight="cos", wvar=0.5 * x,
-                               limlst=200, epsabs=1e-13)
-        v2, _ = integrate.quad(lambda u: -math.cos(phi(u)) / (u * rho(u)), a, np.inf, weight="sin", wvar=0.5 * x,
-                               limlst=200, epsabs=1e-13)
+        v2, _ = integrate.quad(f, a, np.inf, args=(2.0, x) + extra, weight="sin", wvar=0.5 * x, limlst=200,
+                               epsabs=1e-13)
     val = v0 + v1 + v2
     p = 0.5 + val / math.pi
     if p < IMHOF_FLOOR:
         a, nu = float(np.sum(w**2) / np.sum(w)), float(np.sum(w) ** 2 / np.sum(w**2))
         p = min(IMHOF_FLOOR, float(chdtrc(nu, x / a)))
     return float(min(max(p, 0.0), 1.0))
+
+
+@functools.cache
+def _imhof_callable():
+    """The compiled Imhof integrand as a :class:`scipy.LowLevelCallable` (numba imported on first use)."""
+    from scipy import LowLevelCallable
+
+    from avbench.estimators.allan._fit_check_kernels import imhof_integrand
+
+    return LowLevelCallable(imhof_integrand.ctypes)
 
 
 def chernoff_bound(x, weights) -> float:
@@ -265,11 +272,12 @@ def union_covariance(m_fit, m_check, cov_gyro, n_samples, cov_scale=1.0):
 def refit_weights(refit, m_check, cov_gyro, n_samples, cov_scale=1.0, rel_step=REL_STEP, union=None):
     """Weights of the null distribution of T for an estimator that is a function of the AV curve.
 
-    ``refit = (m_fit, avar_fit, fn)``: the cluster sizes and values of the (overlapping) AV the
-    estimator fitted, and ``fn(avar, tau) -> model AV at tau`` re-running its fit on another AV
-    vector. Linearised at ``avar_fit`` by central differences (steps ``rel_step`` times each
-    value's standard deviation, or times the value itself where that is smaller, so the perturbed
-    AV stays positive), the model at the check taus moves by :math:`J\\,\\delta e_f`, so the
+    ``refit = (m_fit, avar_fit, fn[, model_jacobian])``: the cluster sizes and values of the (overlapping) AV
+    the estimator fitted, and ``fn(avar, tau) -> model AV at tau`` re-running its fit on another AV
+    vector. Linearised at ``avar_fit``, by the fit's own derivative ``model_jacobian(tau)`` (d model AV
+    at ``tau`` / d ``avar_fit``, shape ``(len(tau), len(m_fit))``) where it has one, else by central
+    differences of ``fn`` (steps ``rel_step`` times each value's standard deviation, or times the value
+    itself where that is smaller, so the perturbed AV stays positive), the model at the check taus moves by :math:`J\\,\\delta e_f`, so the
     residual at the check taus is :math:`r = D\\,e` with :math:`D = S_c - J S_f` (selectors of the
     check and fit sizes in their union) and
 
@@ -283,7 +291,8 @@ def refit_weights(refit, m_check, cov_gyro, n_samples, cov_scale=1.0, rel_step=R
     weights are k - p ones and p zeros (the chi^2_{k-p} of GMM); an inefficient one has some above
     1 and more than p below: that is where the plain chi^2 reference gave false alarms.
     """
-    m_fit, avar_fit, fn = refit
+    m_fit, avar_fit, fn = refit[:3]
+    model_jacobian = refit[3] if len(refit) > 3 else None
     m_fit = np.asarray(m_fit, dtype=np.int64)
     avar_fit = np.asarray(avar_fit, dtype=float)
     m_check = np.asarray(m_check, dtype=np.int64)
@@ -292,7 +301,9 @@ def refit_weights(refit, m_check, cov_gyro, n_samples, cov_scale=1.0, rel_step=R
     sd = np.sqrt(np.clip(np.diag(omega)[i_f], 0, None))
     tau_c = m_check * cov_gyro.dt
     J = np.zeros((m_check.size, m_fit.size))
-    for j in range(m_fit.size):
+    if model_jacobian is not None:  # the fit's own derivative: no refits
+        J = np.asarray(model_jacobian(tau_c), dtype=float).reshape(m_check.size, m_fit.size)
+    for j in range(m_fit.size if model_jacobian is None else 0):
         h = rel_step * min(sd[j], abs(avar_fit[j])) if sd[j] > 0 else rel_step * abs(avar_fit[j])
         if not h > 0:
             continue
@@ -336,10 +347,11 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
     cov_scale : float
         Factor applied to the model covariance of the reference values (the robust AV's variance
         bound, 1/efficiency; 1 for the classical AV).
-    refit : (m_fit, avar_fit, fn) or None
+    refit : (m_fit, avar_fit, fn[, model_jacobian]) or None
         For an estimator that is a function of the overlapping AV at cluster sizes ``m_fit``
         (values ``avar_fit``): ``fn(avar, tau)`` re-runs its fit and returns its model AV at
-        ``tau``. The p-value then comes from the weighted chi^2 of :func:`refit_weights` (the
+        ``tau``; ``model_jacobian(tau)``, optional, its derivative at ``avar_fit``
+        (:func:`refit_weights`). The p-value then comes from the weighted chi^2 of :func:`refit_weights` (the
         estimator's own inefficiency taken into account) instead of chi^2 with k - p dof.
 
     Returns
@@ -394,20 +406,21 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
 def assess_five_term(rate, dt, coefs, n_params, tau_range=None, *, alpha=ALPHA, refit=None) -> dict:
     """:func:`assess_fit` for coefficients of the five-term model (NaN / missing terms omitted).
 
-    ``refit = (tau_fit, avar_fit, coefs_fn)``: the overlapping AV the estimator fitted and
-    ``coefs_fn(avar) -> coefficients`` re-running its fit (see :func:`assess_fit`)."""
+    ``refit = (tau_fit, avar_fit, coefs_fn[, model_jacobian])``: the overlapping AV the estimator fitted,
+    ``coefs_fn(avar) -> coefficients`` re-running its fit and, optionally, the derivative of its model AV
+    (see :func:`assess_fit`; a None ``model_jacobian`` means refitting by central differences)."""
     from avbench.estimators.allan.model import model_avar
 
     finite = {c: v for c, v in coefs.items() if v is not None and np.isfinite(v)}
     ref = None
     if refit is not None:
-        tau_f, avar_f, coefs_fn = refit
+        tau_f, avar_f, coefs_fn = refit[:3]
 
         def fn(a, tau):
             c = coefs_fn(a)
             return model_avar({k: v for k, v in c.items() if v is not None and np.isfinite(v)}, tau)
 
-        ref = (np.rint(np.asarray(tau_f, float) / dt).astype(np.int64), avar_f, fn)
+        ref = (np.rint(np.asarray(tau_f, float) / dt).astype(np.int64), avar_f, fn) + tuple(refit[3:])
     return assess_fit(rate, dt, lambda tau: model_avar(finite, tau), Gyro.from_coefficients(finite, dt), n_params,
                       tau_range, alpha=alpha, refit=ref)
 
