@@ -43,7 +43,7 @@ import math
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy.special import ndtri
 
 from avbench.noise_models.units import COEFFICIENTS
 
@@ -84,9 +84,11 @@ def interval(coefs: pd.Series, se: pd.Series, level=0.95, conservative=False, up
 
 
 def _z(level, conservative, n_bounds):
+    # the normal quantile by scipy.special.ndtri, which scipy.stats.norm.ppf calls: the same bits, without
+    # importing scipy.stats (~0.7 s, paid by every study worker's first block; issue 25)
     if conservative:
-        return stats.norm.ppf(1 - (1 - level) / max(int(n_bounds), 1))
-    return stats.norm.ppf(0.5 + level / 2)
+        return ndtri(1 - (1 - level) / max(int(n_bounds), 1))
+    return ndtri(0.5 + level / 2)
 
 
 def zero_quantile(level, conservative, se, coefs) -> float:

@@ -405,9 +405,13 @@ def _execute(cfg, todo, shard_dir, n_jobs, backend, scheduler, bar, max_retries)
         if bar is not None:
             bar.update(1)
 
-    if n_jobs == 1 and backend == "loky":  # in this process
+    if n_jobs == 1 and backend == "loky":  # in this process, on one core as a worker: one BLAS thread
+        from avbench.estimators.threads import one_blas_thread
+
         for t in todo:
-            done(t, run_block(cfg, t))
+            with one_blas_thread():
+                df = run_block(cfg, t)
+            done(t, df)
         return
     with contextlib.ExitStack() as stack:
         if backend == "dask":
