@@ -82,9 +82,10 @@ LIMITS = {
     "extended-precision solution); CPU time on this record, main against this code in the same session: ols 23 -> 14 "
     "ms, wls 24 -> 14, wls_edf 92 -> 23, with the octave AV at 0.7-1.0 ms. What is left: the non-overlapping AV at "
     "~72 000 cluster sizes (~5 ms), the fit check (~1.8 ms, its octave AV included), the contract's standardisation "
-    "and pandas results (~3 ms), wls_edf's six passes (~1 ms each); for nnls_rel, log_fit and slope_lines the "
-    "check's linearised refits (2 per AV point) and Imhof's integral of the weighted chi^2 (scipy.integrate.quad "
-    "calling Python), untouched.",
+    "and pandas results (~3 ms), wls_edf's six passes (~1 ms each). nnls_rel, log_fit and slope_lines refer "
+    "their check to a weighted chi^2 whose tail is Imhof's integral, compiled since the eighth session (a numba "
+    "cfunc for QUADPACK: 10-30 ms -> ~0.5 ms); log_fit hands the check its derivative by the implicit function "
+    "theorem instead of 34 trust-region refits (nnls_rel's and slope_lines' refits are a few ms).",
     "gmwm_cost": "Since issue 25 not the model: the latent model's exact AV and its analytic Jacobian (per-latent "
     "unit curves computed once, the Gauss-Markov curve and its d/d ln Tc in one compiled pass) replaced "
     "least_squares' forward differences (~80 % of the cost before: 2.48 -> 0.37 CPU-s on this record, process time "
@@ -107,6 +108,10 @@ LIMITS = {
     "the tables (~0.65); since issue 25 the workers draw the six figures (one task each, matplotlib imported by idle "
     "workers after the last block is queued) while the parent writes the tables (the parent's report 2.7-3.4 -> "
     "0.6-0.9 CPU-s, outputs byte-identical). The workers start while the parent imports and stay warm for every block. "
+    "Since the eighth session no block imports scipy.stats (each worker's first block was ~1 s longer), --jobs 1 "
+    "runs its blocks on one BLAS thread as a worker does (so it is a true one-core baseline: 13 -> 11 s, 19 -> 10 "
+    "CPU-s), and avbench run stops its idle workers instead of waiting for their exit (~0.8 s); what is left serial "
+    "is ~2 s before the first block (imports, config, the workers' start) and ~2 s of report (notes.md). "
     "On a machine busy with other sessions, Linux's autogroup scheduler gives one session a fixed share of the cores "
     "however many processes it runs, so the ratio only means something on a quiet machine.",
 }
