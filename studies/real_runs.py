@@ -173,6 +173,95 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
     return pd.DataFrame(rows)
 
 
+#: the real-data test of an interval (``--slice-coverage``): 30-minute slices from the middle of each run,
+#: after the first 20 minutes (warm-up left out), four per run
+COVERAGE_SLICE = {"minutes": 30, "first_minute": 20, "per_run": 4}
+#: the coefficients whose slice intervals are held against the whole run's value
+COVERAGE_COEFFICIENTS = ("N", "B", "K")
+
+
+def slice_coverage(data: Path, methods, whole: pd.DataFrame, minutes=COVERAGE_SLICE["minutes"],
+                   first_minute=COVERAGE_SLICE["first_minute"], per_run=COVERAGE_SLICE["per_run"],
+                   level=0.95) -> pd.DataFrame:
+    """Does a short record's interval hold the whole run's value? (the plainest real-data test of an interval)
+
+    Each method on ``per_run`` non-overlapping ``minutes``-long slices of every ADIS gyro axis, the first
+    starting ``first_minute`` minutes in; for N, B, K the interval ``avbench estimate`` shows (the
+    estimator's ``level`` interval, or [0, upper] where it flags the coefficient "not resolved") against
+    the same method's value on the whole run (``whole``: ``coefficients.csv``, where that value is "ok").
+    One row per record x axis x slice x method x coefficient: ``value``, ``lower``, ``upper``, ``whole``
+    (display units), ``flag``, ``holds`` (None where either side has no number) and the fit's ``poor_fit``.
+
+    For a calibrated interval of a stationary sensor the expected share is a little above ``level``: the
+    whole run contains the slice, so the difference of the two estimates varies less than the slice's
+    own (share ~ P(|Z| < 1.96 / sqrt(1 - minutes / run length)) = 0.97 for 30 of 167 minutes).
+    """
+    from avbench.noise_models.units import DISPLAY_UNITS, from_si
+    from avbench.recordings.fit import fit_axis
+    from avbench.recordings.report import coefficient_flags
+
+    ref = whole.set_index(["record", "sensor", "axis", "method", "coefficient"])
+    rows = []
+    for rec, sensor, axis, x, timing in _records(data):
+        if _GROUP[rec] != "adis16405" or sensor != "gyro":
+            continue
+        n = int(round(minutes * 60 / timing.dt))
+        first = int(round(first_minute * 60 / timing.dt))
+        for k in range(per_run):
+            lo_i = first + k * n
+            if lo_i + n > x.size:
+                break
+            part = np.asarray(x[lo_i:lo_i + n])
+            starts = timing.starts[(timing.starts > lo_i) & (timing.starts < lo_i + n)] - lo_i
+            for name, fit in fit_axis(part, timing.dt, starts, methods).items():
+                d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
+                c, flags, ci = fit.coefficients(), coefficient_flags(fit), fit.intervals(level) or {}
+                unresolved = d.get("unresolved") or {}
+                for coef in COVERAGE_COEFFICIENTS:
+                    unit = DISPLAY_UNITS[sensor][coef]
+                    flag = flags[coef]
+                    if flag == "not resolved" and coef in unresolved:
+                        bounds = (0.0, unresolved[coef][1] / fit.scale)
+                    elif flag == "ok" and coef in ci:
+                        bounds = ci[coef]
+                    else:
+                        bounds = (math.nan, math.nan)
+                    lower, upper = (from_si(coef, b, unit) for b in bounds)
+                    key = (rec, sensor, axis, name, coef)
+                    w = float(ref.loc[key, "value"]) if key in ref.index and ref.loc[key, "flag"] == "ok" else math.nan
+                    holds = bool(lower <= w <= upper) if np.isfinite([lower, upper, w]).all() else None
+                    rows.append({"record": rec, "axis": axis, "start_min": first_minute + k * minutes,
+                                 "method": name, "coefficient": coef, "unit": unit,
+                                 "value": _round(from_si(coef, c[coef], unit)), "lower": _round(lower),
+                                 "upper": _round(upper), "whole": _round(w), "flag": flag, "holds": holds,
+                                 "poor_fit": bool(d.get("poor_fit", False)) or fit.error is not None})
+                print(f"{rec} {axis} {first_minute + k * minutes} min {name}: "
+                      + " ".join(f"{r['coefficient']}={r['value']} [{r['lower']}, {r['upper']}] whole {r['whole']}"
+                                 for r in rows[-len(COVERAGE_COEFFICIENTS):]), flush=True)
+    return pd.DataFrame(rows)
+
+
+def slice_coverage_summary(df: pd.DataFrame) -> pd.DataFrame:
+    """Per method and coefficient: axis-slices with both numbers, how many intervals hold the whole run's value
+    (share, Clopper-Pearson 95 % interval), the median interval's half-width and the median distance of the
+    slice's value from the whole run's, both relative to the whole run's value."""
+    from scipy.stats import beta
+
+    out = []
+    for (m, c), g in df.groupby(["method", "coefficient"], sort=False):
+        g = g[g["holds"].notna()]
+        n, k = len(g), int(g["holds"].astype(bool).sum())
+        lo = float(beta.ppf(0.025, k, n - k + 1)) if k > 0 else 0.0
+        hi = float(beta.ppf(0.975, k + 1, n - k)) if k < n else 1.0
+        half = ((g["upper"] - g["lower"]) / 2 / g["whole"]).median() if n else math.nan
+        dist = ((g["value"] - g["whole"]).abs() / g["whole"]).median() if n else math.nan
+        out.append({"method": m, "coefficient": c, "axis_slices": n, "hold": k,
+                    "share": _round(k / n if n else math.nan, 3), "share_lo": _round(lo, 3), "share_hi": _round(hi, 3),
+                    "not_resolved": int((g["flag"] == "not resolved").sum()),
+                    "median_half_width_pct": _round(100 * half, 3), "median_distance_pct": _round(100 * dist, 3)})
+    return pd.DataFrame(out)
+
+
 def spectral_lines(data: Path, band=(0.3, 3.0)) -> pd.DataFrame:
     """The strongest spectral line of every axis in ``band`` (Hz): the accelerometers' AV bump.
 
@@ -320,6 +409,10 @@ def main(argv=None) -> int:
                     help="instead: the default methods (or --methods) on 30- and 60-minute slices of the ADIS gyro "
                          "axes; writes OUT/slices.csv and OUT/slices.md")
     ap.add_argument("--per-run", type=int, default=1, help="with --slices: slices of each length per run (default 1)")
+    ap.add_argument("--slice-coverage", action="store_true",
+                    help="instead: do the default methods' (or --methods) intervals from 30-minute slices of the ADIS "
+                         "gyro axes hold the whole run's value (from OUT/coefficients.csv)? writes "
+                         "OUT/slice_coverage.csv and OUT/slice_coverage.md")
     ap.add_argument("--lines", action="store_true",
                     help="instead: the strongest spectral line of each axis in 0.3-3 Hz (OUT/lines.csv)")
     args = ap.parse_args(argv)
@@ -343,6 +436,14 @@ def main(argv=None) -> int:
         sl = slices(data, chosen, per_run=args.per_run)
         sl.to_csv(out / "slices.csv", index=False)
         (out / "slices.md").write_text(_markdown(slice_summary(sl)))
+        return 0
+    if args.slice_coverage:
+        from avbench.estimators.base import DEFAULT_METHODS
+
+        chosen = methods if args.methods != ",".join(METHODS) else list(DEFAULT_METHODS)
+        sc = slice_coverage(data, chosen, pd.read_csv(out / "coefficients.csv"))
+        sc.to_csv(out / "slice_coverage.csv", index=False)
+        (out / "slice_coverage.md").write_text(_markdown(slice_coverage_summary(sc)))
         return 0
     if args.tables_only:
         df = pd.read_csv(out / "coefficients.csv")

@@ -140,3 +140,24 @@ def test_slices_and_spectral_lines(layout, tmp_path):
     acc_x = lines.loc[("accel", "x")]
     assert acc_x["f0_hz"] == pytest.approx(0.55, abs=0.005) and acc_x["amplitude"] == pytest.approx(800, rel=0.1)
     assert acc_x["prominence"] > 10 * lines.loc[("accel", "y")]["prominence"]
+
+
+def test_slice_coverage_holds_the_whole_runs_value_against_its_interval(layout):
+    """--slice-coverage: each slice's interval against the whole run's value. White-noise gyros of known N: the
+    truth as the "whole run" value is held by N's 95 % intervals in most of the 12 axis-slices (binomial: 9 or
+    more of 12 at 0.95 has probability 0.998), a value twice the truth by none; a coefficient with no whole-run
+    value gives no verdict."""
+    root, _ = layout
+    rows = [{"record": f"adis_16405_imu{i}", "sensor": "gyro", "axis": a, "method": "whittle_debiased", "coefficient": "N",
+             "value": n, "flag": "ok"} for i in (1, 2) for a, n in zip("xyz", GYRO_N)]
+    whole = pd.DataFrame(rows)
+    sc = real_runs.slice_coverage(root, ["whittle_debiased"], whole, minutes=1, first_minute=0.5, per_run=2)
+    n_rows = sc[sc.coefficient == "N"]
+    assert len(n_rows) == 2 * 3 * 2 and n_rows["holds"].notna().all()
+    assert n_rows["holds"].astype(bool).sum() >= 9
+    assert sc[sc.coefficient != "N"]["holds"].isna().all()  # no whole-run value: no verdict
+    summary = real_runs.slice_coverage_summary(sc).set_index("coefficient")
+    assert summary.loc["N", "axis_slices"] == 12 and summary.loc["N", "share_lo"] <= summary.loc["N", "share"]
+    doubled = whole.assign(value=whole["value"] * 2)
+    wrong = real_runs.slice_coverage(root, ["whittle_debiased"], doubled, minutes=1, first_minute=0.5, per_run=2)
+    assert not wrong[wrong.coefficient == "N"]["holds"].astype(bool).any()
