@@ -245,14 +245,13 @@ def slice_coverage_summary(df: pd.DataFrame) -> pd.DataFrame:
     """Per method and coefficient: axis-slices with both numbers, how many intervals hold the whole run's value
     (share, Clopper-Pearson 95 % interval), the median interval's half-width and the median distance of the
     slice's value from the whole run's, both relative to the whole run's value."""
-    from scipy.stats import beta
+    from avbench.studies.scoring import _clopper_pearson
 
     out = []
     for (m, c), g in df.groupby(["method", "coefficient"], sort=False):
         g = g[g["holds"].notna()]
         n, k = len(g), int(g["holds"].astype(bool).sum())
-        lo = float(beta.ppf(0.025, k, n - k + 1)) if k > 0 else 0.0
-        hi = float(beta.ppf(0.975, k + 1, n - k)) if k < n else 1.0
+        lo, hi = _clopper_pearson(k, n)
         half = ((g["upper"] - g["lower"]) / 2 / g["whole"]).median() if n else math.nan
         dist = ((g["value"] - g["whole"]).abs() / g["whole"]).median() if n else math.nan
         out.append({"method": m, "coefficient": c, "axis_slices": n, "hold": k,

@@ -113,9 +113,13 @@ def paper_layout(summary: pd.DataFrame, meta: dict | None = None):
             head += f" ({int(d['n'].max())} replicates of {ginfo.get('n_samples')} samples at dt = {ginfo.get('dt')} s)"
         cols = [f"{c} ({UNIT_LABEL.get(units[c], units[c])})" for c in coefs]
 
+        first = {}  # (estimator, coefficient) -> its first row, looked up instead of filtering d per cell
+        for _, row in d.iterrows():
+            first.setdefault((row["estimator"], row["coefficient"]), row)
+
         def cell(e, c, key):
-            r = d[(d["estimator"] == e) & (d["coefficient"] == c)]
-            return None if r.empty or key not in r else r.iloc[0][key]
+            r = first.get((e, c))
+            return None if r is None or key not in d.columns else r[key]
 
         def with_error(m, err):
             return f"{_fmt(m)} ({err:.1f} %)" if err is not None and math.isfinite(err) else _fmt(m)

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy.special import betaincinv
 
 from avbench.noise_models.units import COEFFICIENTS
 
@@ -61,8 +61,10 @@ def _clopper_pearson(k: int, n: int, level=0.95):
     if n == 0:
         return math.nan, math.nan
     a = (1 - level) / 2
-    lo = 0.0 if k == 0 else stats.beta.ppf(a, k, n - k + 1)
-    hi = 1.0 if k == n else stats.beta.ppf(1 - a, k + 1, n - k)
+    # the beta quantile by scipy.special.betaincinv: the same bits as scipy.stats.beta.ppf (both Boost's; checked
+    # for every k <= n < 600 at both levels), without importing scipy.stats (~0.7 s of every report; issue 25)
+    lo = 0.0 if k == 0 else betaincinv(k, n - k + 1, a)
+    hi = 1.0 if k == n else betaincinv(k + 1, n - k, 1 - a)
     return float(lo), float(hi)
 
 

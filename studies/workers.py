@@ -102,7 +102,7 @@ def _init_worker(parent_pid: int) -> None:
         importlib.import_module(module)
 
 
-#: what the study's own process imports for its tables (the scores: scipy.stats, ~0.6 CPU-s) in a thread
+#: what the study's own process imports for its tables (pandas-heavy report modules) in a thread
 #: once the last block is queued, while the workers compute (a study's config no longer imports it: the
 #: least-squares fits check their settings without a trial fit, issue 25)
 PARENT_REPORT_IMPORTS = ("avbench.studies.report", "avbench.studies.scoring")
