@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from avbench.noise_models.units import SAMPLE_UNITS, samples_to_si
-from avbench.recordings.readers import read_recording
+from avbench.recordings.readers import header_unit, read_recording
 from avbench.recordings.sensors import PLAUSIBLE_SI, plausibility, to_si
 
 SEPARATORS = {",": ",", ";": ";", "tab": "\t", "blank": " "}
@@ -31,6 +31,8 @@ def _name(s: str) -> bool:
     s = s.strip()
     if not s or s.lower() in {"t", "time", "timestamp", "time_s", "times", "t_s", "nan", "inf", "infinity"}:
         return False
+    if header_unit(s)[1] in ("accel", "time"):  # its header declares another kind ("[G]": g), which the
+        return False  # reader rightly refuses for a gyro column (test_a_declared_unit_of_another_kind_is_refused)
     try:
         float(s)
         return False
@@ -73,6 +75,15 @@ def test_any_table_reads_back_as_written(tmp_path_factory, table):
         if names:
             assert c.name == names[j]
         np.testing.assert_array_equal(np.asarray(c.values, float), values[:, j])
+
+
+@pytest.mark.parametrize("name,kind", [("[G]", "accel"), ("x [m/s^2]", "accel"), ("t0 [ms]", "time")])
+def test_a_declared_unit_of_another_kind_is_refused(tmp_path, name, kind):
+    """A column chosen as gyro whose header declares an acceleration or a time unit is an error naming both."""
+    p = tmp_path / "rec.csv"
+    p.write_text(name + "\n" + "\n".join(["0.0", "1.0", "2.0"]) + "\n")
+    with pytest.raises(ValueError, match="chosen as gyro but its header says"):
+        read_recording(p, gyro=name, time_column="none")
 
 
 @pytest.mark.parametrize("header", ["gyro x [deg/s]", "rate (deg/s) z", "w x / deg s^-1"])
