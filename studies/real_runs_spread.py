@@ -24,8 +24,8 @@ The simulation: replicate ``r`` of axis ``a`` (index in :data:`AXES`) is :data:`
 :data:`DT` (2.78 h at 100 Hz, as the runs) drawn from the axis model with
 :func:`avbench.studies.seeding.replicate_rng` ``(SEED, a, r)``; every fit in :data:`FITS` runs on it through
 :func:`~avbench.recordings.fit.fit_axis` (as ``avbench estimate``). ``FITS``: the default methods of
-``avbench estimate`` today (:data:`avbench.estimators.base.DEFAULT_METHODS`: ``gmwm_filtered``,
-``gmwm_despiked``, ``nnls_rel``) and before issue 24 (``gmwm`` with its defaults -- ``WN+GM+RW``,
+``avbench estimate`` when the study was made (``gmwm_filtered``, ``gmwm_despiked``, ``nnls_rel``; since
+issue 24's eighth session :data:`avbench.estimators.base.DEFAULT_METHODS` is the first two) and before issue 24 (``gmwm`` with its defaults -- ``WN+GM+RW``,
 ``min_m="auto"``, no line, no resonance --, ``gmwm_despiked`` with those settings, ``nnls_rel``, whose code
 issue 24 did not change and which is therefore fitted once). One shard per (axis, replicate) under
 ``OUT/_shards/spread/`` (git-ignored); a rerun resumes. Writes ``spread_fits.csv`` (one row per axis x
