@@ -25,7 +25,8 @@ import pandas as pd
 
 from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, TERM_NAMES, from_si, si_units
 
-__all__ = ["coefficient_flags", "poor_fit", "payload", "tables", "screen_tables", "shown_value", "term_evidence",
+__all__ = ["coefficient_flags", "poor_fit", "payload", "method_entry", "tables", "screen_tables", "shown_value",
+           "shown_interval", "term_evidence",
            "zero_notes", "SCHEMA"]
 
 SCHEMA = "avbench-estimate/1"
@@ -182,7 +183,7 @@ def zero_notes(md: dict, sensor: str) -> list[str]:
     return notes
 
 
-def _method_entry(fit, sensor, n_samples):
+def method_entry(fit, sensor, n_samples):
     units = DISPLAY_UNITS[sensor]
     si = si_units(sensor)
     coefs = fit.coefficients()
@@ -240,7 +241,7 @@ def payload(sources, timing, sensors, fits, extra=None) -> dict:
         axes = {}
         for axis, x in s.axes.items():
             axes[axis] = {"channel": s.names.get(axis, axis), "n_samples": int(x.size),
-                          "methods": {m: _method_entry(f, s.sensor, x.size) for m, f in fits[s.sensor][axis].items()}}
+                          "methods": {m: method_entry(f, s.sensor, x.size) for m, f in fits[s.sensor][axis].items()}}
         out["sensors"][s.sensor] = {"units_in": s.unit_in, "si_unit": s.si_unit, "terms": TERM_NAMES[s.sensor],
                                     "axes": axes}
     if extra:
@@ -284,40 +285,59 @@ def _g(v) -> str:
     return f"{v:.3g}"
 
 
+def shown_interval(e: dict, coefficient: str, sensor: str) -> tuple[float, float] | None:
+    """The interval a user reads for one coefficient (``e``: a coefficient of the JSON payload,
+    :func:`method_entry`), ``(low, high)`` in its display unit, as :func:`shown_value` prints it: ``(0,
+    upper)`` where the record does not resolve it (flag "not resolved", evidence that the term is not
+    present, or a zero with an interval), the method's interval of a value, and None where none is shown
+    (a term not modelled, a non-physical or failed fit, a value with no interval)."""
+    def d(v):
+        return None if v is None else _num(from_si(coefficient, v, e["unit"], sensor))
+
+    flag = e["flag"]
+    if flag == "not resolved":
+        hi = d(e["interval_si"][1])
+        return None if hi is None else (0.0, hi)
+    if flag in ("not modelled", "non-physical", "failed"):
+        return None
+    ci = e.get("conf_int_si")
+    lo, hi = (d(ci[0]), d(ci[1])) if ci is not None else (None, None)
+    ev = e.get("evidence")
+    if ev is not None and not ev["present"]:
+        up = ev.get("upper") if ev.get("upper") is not None else hi
+        return None if up is None else (0.0, up)
+    if e["value"] == 0.0:
+        return None if hi is None else (0.0, hi)
+    return (lo, hi) if lo is not None and hi is not None else None
+
+
 def shown_value(e: dict, coefficient: str, sensor: str, level: float = 0.95) -> str:
     """One coefficient as a user should read it, in its display unit (``e``: a coefficient of the JSON
     payload): ``value [low, high]`` with its ``level`` interval; ``< upper`` where the record does not
     resolve it (flag "not resolved", or evidence that the term is not present, or a zero with an
     interval); ``value (+- se)`` where the method gives only a standard error; the bare value with
     ``(no interval)`` where it gives neither; ``-`` for a term the method does not model, and the flag
-    itself for "non-physical" / "failed"."""
-    unit = e["unit"]
-
-    def d(v):
-        return None if v is None else _num(from_si(coefficient, v, unit, sensor))
-
+    itself for "non-physical" / "failed". The bounds are :func:`shown_interval`'s."""
     flag = e["flag"]
-    ev = e.get("evidence")
-    if flag == "not resolved":
-        hi = d(e["interval_si"][1])
-        return f"< {_g(hi)}" if hi is not None else "not resolved"
     if flag == "not modelled":
         return "-"
     if flag in ("non-physical", "failed"):
         return flag
+    iv = shown_interval(e, coefficient, sensor)
+    if flag == "not resolved":
+        return f"< {_g(iv[1])}" if iv is not None else "not resolved"
     v = e["value"]
-    ci = e.get("conf_int_si")
-    lo, hi = (d(ci[0]), d(ci[1])) if ci is not None else (None, None)
-    if ev is not None and not ev["present"]:
-        up = ev.get("upper")
-        return f"< {_g(up)}" if up is not None else (f"< {_g(hi)}" if hi is not None else f"{_g(v)} (not resolved)")
-    if v == 0.0:
-        return f"< {_g(hi)}" if hi is not None else "0 (no interval)"
-    if lo is not None and hi is not None:
-        return f"{_g(v)} [{_g(lo)}, {_g(hi)}]"
+    ev = e.get("evidence")
+    absent = ev is not None and not ev["present"]
+    if absent or v == 0.0:
+        if iv is not None:
+            return f"< {_g(iv[1])}"
+        return f"{_g(v)} (not resolved)" if absent else "0 (no interval)"
+    if iv is not None:
+        return f"{_g(v)} [{_g(iv[0])}, {_g(iv[1])}]"
     se = e.get("std_err_si")
     if se is not None:
-        return f"{_g(v)} (+- {_g(d(se))})"
+        return f"{_g(v)} (+- {_g(_num(from_si(coefficient, se, e['unit'], sensor)))})"
     return f"{_g(v)} (no interval)"
 
 

@@ -128,6 +128,27 @@ SLICE_MINUTES = (30, 60)
 SLICE_N_RANGE, SLICE_B_RANGE = (1.9, 3.0), (15.0, 80.0)
 
 
+def _gyro_slices(data: Path, minutes, first_minute: float, per_run: int, methods, settings=None):
+    """(record, axis, minutes, k, samples, {method: MethodFit}) for the methods fitted (as ``avbench estimate`` fits,
+    :func:`avbench.recordings.fit.fit_axis`) on slice k of every ADIS gyro axis: for each length in
+    ``minutes``, ``per_run`` non-overlapping slices of it, the first starting ``first_minute`` minutes in
+    (as many as the run holds)."""
+    from avbench.recordings.fit import fit_axis
+
+    for rec, sensor, axis, x, timing in _records(data):
+        if _GROUP[rec] != "adis16405" or sensor != "gyro":
+            continue
+        first = int(round(first_minute * 60 / timing.dt))
+        for mins in minutes:
+            n = int(round(mins * 60 / timing.dt))
+            for k in range(per_run):
+                lo = first + k * n
+                if lo + n > x.size:
+                    break
+                starts = timing.starts[(timing.starts > lo) & (timing.starts < lo + n)] - lo
+                yield rec, axis, mins, k, n, fit_axis(np.asarray(x[lo:lo + n]), timing.dt, starts, methods, settings)
+
+
 def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, settings=None) -> pd.DataFrame:
     """The given methods on the first ``per_run`` non-overlapping ``minutes``-long slices of every ADIS
     gyro axis (the first: a user's record starts when the sensor is switched on).
@@ -138,38 +159,30 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
     and ``unflagged_outside``: a value outside its range with neither flag (what must not happen).
     """
     from avbench.noise_models.units import from_si
-    from avbench.recordings.fit import fit_axis
     from avbench.recordings.report import coefficient_flags
 
     rows = []
-    for rec, sensor, axis, x, timing in _records(data):
-        if _GROUP[rec] != "adis16405" or sensor != "gyro":
-            continue
-        for mins in minutes:
-            n = int(round(mins * 60 / timing.dt))
-            for k in range(min(per_run, x.size // n)):
-                part = np.asarray(x[k * n:(k + 1) * n])
-                starts = timing.starts[(timing.starts > k * n) & (timing.starts < (k + 1) * n)] - k * n
-                for name, fit in fit_axis(part, timing.dt, starts, methods, settings).items():
-                    d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
-                    c, flags = fit.coefficients(), coefficient_flags(fit)
-                    N = from_si("N", c["N"], "deg/sqrt(h)")
-                    B = from_si("B", c["B"], "deg/h")
-                    poor = bool(d.get("poor_fit", False)) or fit.error is not None
-                    n_in = bool(SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1])
-                    b_in = bool(SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1])
-                    unresolved = d.get("unresolved") or {}
-                    upper = {c: _round(from_si(c, unresolved[c][1] / fit.scale, u))
-                             if flags[c] == "not resolved" and c in unresolved else math.nan
-                             for c, u in (("N", "deg/sqrt(h)"), ("B", "deg/h"))}
-                    rows.append({"record": rec, "axis": axis, "minutes": mins, "slice": k, "method": name,
-                                 "N": _round(N), "B": _round(B), "N_in_range": n_in, "B_in_range": b_in,
-                                 "N_upper": upper["N"], "B_upper": upper["B"],
-                                 "N_flag": flags["N"], "B_flag": flags["B"], "poor_fit": poor,
-                                 "fit_pvalue": _round(d.get("fit_pvalue", math.nan)),
-                                 "unflagged_outside": bool(((not n_in and flags["N"] == "ok") or
-                                                            (not b_in and flags["B"] == "ok")) and not poor)})
-                    print(f"{rec} {axis} {mins} min #{k} {name}: N={N:.3g} B={B:.3g} poor_fit={poor}", flush=True)
+    for rec, axis, mins, k, _, fits in _gyro_slices(data, minutes, 0.0, per_run, methods, settings):
+        for name, fit in fits.items():
+            d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
+            c, flags = fit.coefficients(), coefficient_flags(fit)
+            N = from_si("N", c["N"], "deg/sqrt(h)")
+            B = from_si("B", c["B"], "deg/h")
+            poor = bool(d.get("poor_fit", False)) or fit.error is not None
+            n_in = bool(SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1])
+            b_in = bool(SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1])
+            unresolved = d.get("unresolved") or {}
+            upper = {c: _round(from_si(c, unresolved[c][1] / fit.scale, u))
+                     if flags[c] == "not resolved" and c in unresolved else math.nan
+                     for c, u in (("N", "deg/sqrt(h)"), ("B", "deg/h"))}
+            rows.append({"record": rec, "axis": axis, "minutes": mins, "slice": k, "method": name,
+                         "N": _round(N), "B": _round(B), "N_in_range": n_in, "B_in_range": b_in,
+                         "N_upper": upper["N"], "B_upper": upper["B"],
+                         "N_flag": flags["N"], "B_flag": flags["B"], "poor_fit": poor,
+                         "fit_pvalue": _round(d.get("fit_pvalue", math.nan)),
+                         "unflagged_outside": bool(((not n_in and flags["N"] == "ok") or
+                                                    (not b_in and flags["B"] == "ok")) and not poor)})
+            print(f"{rec} {axis} {mins} min #{k} {name}: N={N:.3g} B={B:.3g} poor_fit={poor}", flush=True)
     return pd.DataFrame(rows)
 
 
@@ -181,13 +194,13 @@ COVERAGE_COEFFICIENTS = ("N", "B", "K")
 
 
 def slice_coverage(data: Path, methods, whole: pd.DataFrame, minutes=COVERAGE_SLICE["minutes"],
-                   first_minute=COVERAGE_SLICE["first_minute"], per_run=COVERAGE_SLICE["per_run"],
-                   level=0.95) -> pd.DataFrame:
+                   first_minute=COVERAGE_SLICE["first_minute"], per_run=COVERAGE_SLICE["per_run"]) -> pd.DataFrame:
     """Does a short record's interval hold the whole run's value? (the plainest real-data test of an interval)
 
     Each method on ``per_run`` non-overlapping ``minutes``-long slices of every ADIS gyro axis, the first
-    starting ``first_minute`` minutes in; for N, B, K the interval ``avbench estimate`` shows (the
-    estimator's ``level`` interval, or [0, upper] where it flags the coefficient "not resolved") against
+    starting ``first_minute`` minutes in; for N, B, K the interval ``avbench estimate`` shows
+    (:func:`avbench.recordings.report.shown_interval`: the 95 % interval, or [0, upper] where the record
+    does not resolve the coefficient) against
     the same method's value on the whole run (``whole``: ``coefficients.csv``, where that value is "ok").
     One row per record x axis x slice x method x coefficient: ``value``, ``lower``, ``upper``, ``whole``
     (display units), ``flag``, ``holds`` (None where either side has no number) and the fit's ``poor_fit``.
@@ -197,47 +210,29 @@ def slice_coverage(data: Path, methods, whole: pd.DataFrame, minutes=COVERAGE_SL
     own (share ~ P(|Z| < 1.96 / sqrt(1 - minutes / run length)) = 0.97 for 30 of 167 minutes).
     """
     from avbench.noise_models.units import DISPLAY_UNITS, from_si
-    from avbench.recordings.fit import fit_axis
-    from avbench.recordings.report import coefficient_flags
+    from avbench.recordings.report import method_entry, shown_interval
 
     ref = whole.set_index(["record", "sensor", "axis", "method", "coefficient"])
     rows = []
-    for rec, sensor, axis, x, timing in _records(data):
-        if _GROUP[rec] != "adis16405" or sensor != "gyro":
-            continue
-        n = int(round(minutes * 60 / timing.dt))
-        first = int(round(first_minute * 60 / timing.dt))
-        for k in range(per_run):
-            lo_i = first + k * n
-            if lo_i + n > x.size:
-                break
-            part = np.asarray(x[lo_i:lo_i + n])
-            starts = timing.starts[(timing.starts > lo_i) & (timing.starts < lo_i + n)] - lo_i
-            for name, fit in fit_axis(part, timing.dt, starts, methods).items():
-                d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
-                c, flags, ci = fit.coefficients(), coefficient_flags(fit), fit.intervals(level) or {}
-                unresolved = d.get("unresolved") or {}
-                for coef in COVERAGE_COEFFICIENTS:
-                    unit = DISPLAY_UNITS[sensor][coef]
-                    flag = flags[coef]
-                    if flag == "not resolved" and coef in unresolved:
-                        bounds = (0.0, unresolved[coef][1] / fit.scale)
-                    elif flag == "ok" and coef in ci:
-                        bounds = ci[coef]
-                    else:
-                        bounds = (math.nan, math.nan)
-                    lower, upper = (from_si(coef, b, unit) for b in bounds)
-                    key = (rec, sensor, axis, name, coef)
-                    w = float(ref.loc[key, "value"]) if key in ref.index and ref.loc[key, "flag"] == "ok" else math.nan
-                    holds = bool(lower <= w <= upper) if np.isfinite([lower, upper, w]).all() else None
-                    rows.append({"record": rec, "axis": axis, "start_min": first_minute + k * minutes,
-                                 "method": name, "coefficient": coef, "unit": unit,
-                                 "value": _round(from_si(coef, c[coef], unit)), "lower": _round(lower),
-                                 "upper": _round(upper), "whole": _round(w), "flag": flag, "holds": holds,
-                                 "poor_fit": bool(d.get("poor_fit", False)) or fit.error is not None})
-                print(f"{rec} {axis} {first_minute + k * minutes} min {name}: "
-                      + " ".join(f"{r['coefficient']}={r['value']} [{r['lower']}, {r['upper']}] whole {r['whole']}"
-                                 for r in rows[-len(COVERAGE_COEFFICIENTS):]), flush=True)
+    for rec, axis, mins, k, n, fits in _gyro_slices(data, (minutes,), first_minute, per_run, methods):
+        for name, fit in fits.items():
+            d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
+            c = fit.coefficients()
+            entry = method_entry(fit, "gyro", n)["coefficients"]
+            for coef in COVERAGE_COEFFICIENTS:
+                unit = DISPLAY_UNITS["gyro"][coef]
+                lower, upper = shown_interval(entry[coef], coef, "gyro") or (math.nan, math.nan)
+                key = (rec, "gyro", axis, name, coef)
+                w = float(ref.loc[key, "value"]) if key in ref.index and ref.loc[key, "flag"] == "ok" else math.nan
+                holds = bool(lower <= w <= upper) if np.isfinite([lower, upper, w]).all() else None
+                rows.append({"record": rec, "axis": axis, "start_min": first_minute + k * minutes,
+                             "method": name, "coefficient": coef, "unit": unit,
+                             "value": _round(from_si(coef, c[coef], unit)), "lower": _round(lower),
+                             "upper": _round(upper), "whole": _round(w), "flag": entry[coef]["flag"], "holds": holds,
+                             "poor_fit": bool(d.get("poor_fit", False)) or fit.error is not None})
+            print(f"{rec} {axis} {first_minute + k * minutes} min {name}: "
+                  + " ".join(f"{r['coefficient']}={r['value']} [{r['lower']}, {r['upper']}] whole {r['whole']}"
+                             for r in rows[-len(COVERAGE_COEFFICIENTS):]), flush=True)
     return pd.DataFrame(rows)
 
 

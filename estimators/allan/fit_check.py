@@ -300,17 +300,18 @@ def refit_weights(refit, m_check, cov_gyro, n_samples, cov_scale=1.0, rel_step=R
     i_f, i_c = np.searchsorted(u, m_fit), np.searchsorted(u, m_check)
     sd = np.sqrt(np.clip(np.diag(omega)[i_f], 0, None))
     tau_c = m_check * cov_gyro.dt
-    J = np.zeros((m_check.size, m_fit.size))
     if model_jacobian is not None:  # the fit's own derivative: no refits
         J = np.asarray(model_jacobian(tau_c), dtype=float).reshape(m_check.size, m_fit.size)
-    for j in range(m_fit.size if model_jacobian is None else 0):
-        h = rel_step * min(sd[j], abs(avar_fit[j])) if sd[j] > 0 else rel_step * abs(avar_fit[j])
-        if not h > 0:
-            continue
-        up, dn = avar_fit.copy(), avar_fit.copy()
-        up[j] += h
-        dn[j] -= h
-        J[:, j] = (np.asarray(fn(up, tau_c), float) - np.asarray(fn(dn, tau_c), float)) / (2 * h)
+    else:  # central differences of the refits
+        J = np.zeros((m_check.size, m_fit.size))
+        for j in range(m_fit.size):
+            h = rel_step * min(sd[j], abs(avar_fit[j])) if sd[j] > 0 else rel_step * abs(avar_fit[j])
+            if not h > 0:
+                continue
+            up, dn = avar_fit.copy(), avar_fit.copy()
+            up[j] += h
+            dn[j] -= h
+            J[:, j] = (np.asarray(fn(up, tau_c), float) - np.asarray(fn(dn, tau_c), float)) / (2 * h)
     D = -J @ np.eye(u.size)[i_f]
     D[np.arange(m_check.size), i_c] += 1.0
     sigma_r = D @ omega @ D.T
