@@ -83,7 +83,6 @@ from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg import cho_factor, solve_triangular
-from scipy.optimize import least_squares
 
 from avbench.estimators.allan.variance import allan_variance
 from avbench.estimators.allan.model import PLATEAU
@@ -93,6 +92,7 @@ from avbench.estimators.allan.covariance import av_covariance
 from avbench.estimators.allan.fit_check import assess_fit
 # the line test's level and how far a fitted line's frequency may move (shared with nnls_rel's lines="auto")
 from avbench.estimators.likelihood.lines import LINE_FREQUENCY_FACTOR, LINE_TEST_LEVEL
+from avbench.estimators.likelihood._trf import trf_bounds
 
 __all__ = ["GMWM", "GMWMFiltered", "LATENTS", "REAL_SENSOR_MODEL", "WaveletVariance", "parse_model", "build_gyro"]
 
@@ -778,8 +778,8 @@ def _solve(fun, u0, lo, hi, jac):
     as least_squares gives it, bit for bit as before.
     """
     clip = lambda u: np.clip(u, lo + 1e-9, hi - 1e-9)  # noqa: E731
-    run = lambda u: least_squares(fun, clip(u), jac=jac, bounds=(lo, hi), method="trf",  # noqa: E731
-                                  x_scale=1.0, xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=MAX_NFEV)
+    run = lambda u: trf_bounds(fun, jac, clip(u), lo, hi,  # noqa: E731
+                               xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=MAX_NFEV)
     sol = run(u0)
     if sol.status != 0:
         sol.converged, sol.stop_reason = bool(sol.success), f"least_squares: {sol.message}"

@@ -1,0 +1,129 @@
+"""The compiled trust-region reflective solver (``estimators/likelihood/_trf.py``) is scipy's ``least_squares``
+(method "trf", bounds, ``x_scale`` 1) step for step.
+
+On the kernels the committed studies were computed with (``test_regeneration.REFERENCE_KERNELS``) it must give
+scipy's result bit for bit -- end point, cost, evaluation count, stopping rule -- on every problem; that is run
+in a fresh process with those kernels. In this process (whatever kernels the machine picks: NumPy's AVX-512
+``power`` differs from libm's in the last bit) the two must stop at the same minimum (costs equal to the tolerance they were solved
+to), or both at the evaluation limit.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import least_squares
+
+from avbench.estimators.likelihood._trf import TERMINATION_MESSAGES, trf_bounds
+
+TOLERANCES = dict(xtol=1e-15, ftol=1e-15, gtol=1e-15)
+
+
+def problem(seed: int):
+    """A bounded problem shaped like GMWM's: a curve on 17 log-spaced scales fitted by a sum of
+    ``exp(2 u_i)`` times per-term shapes, one of them with a shape parameter (a Gauss-Markov-like bump
+    whose position is ``exp(u)``), noisy data, a box on the log-parameters, a start inside it."""
+    rng = np.random.default_rng(seed)
+    tau = np.geomspace(0.1, 1e4, 17)
+    k = int(rng.integers(1, 4))  # power-law terms
+    slopes = rng.choice([-2.0, -1.0, 0.0, 1.0, 2.0], size=k, replace=False)
+    truth = np.r_[rng.normal(0, 2, k), rng.normal(0, 1), rng.uniform(0, 6)]
+
+    def model(u):
+        amp = np.exp(2 * u[:k])[None, :] * tau[:, None] ** slopes[None, :]
+        tc = np.exp(u[k + 1])
+        bump = np.exp(2 * u[k]) * (tau / tc) ** 2 / (1 + (tau / tc) ** 2) ** 1.5
+        return amp.sum(axis=1) + bump
+
+    def jac(u):
+        J = np.empty((tau.size, u.size))
+        J[:, :k] = 2 * np.exp(2 * u[:k])[None, :] * tau[:, None] ** slopes[None, :]
+        tc = np.exp(u[k + 1])
+        r = (tau / tc) ** 2
+        shape = r / (1 + r) ** 1.5
+        J[:, k] = 2 * np.exp(2 * u[k]) * shape
+        d_shape_d_lnr = shape * (1 - 1.5 * r / (1 + r))
+        J[:, k + 1] = np.exp(2 * u[k]) * d_shape_d_lnr * -2.0
+        return J / y[:, None]
+
+    y = model(truth) * np.exp(rng.normal(0, 0.05 * rng.uniform(0.1, 3), tau.size))
+    n = truth.size
+    lo = truth - rng.uniform(0.5, 8, n)
+    hi = truth + rng.uniform(0.5, 8, n)
+    x0 = np.clip(truth + rng.normal(0, 3, n), lo + 1e-9, hi - 1e-9)
+    return (lambda u: model(u) / y - 1.0), jac, x0, lo, hi
+
+
+def both(seed: int, max_nfev: int = 2000):
+    fun, jac, x0, lo, hi = problem(seed)
+    ours = trf_bounds(fun, jac, x0, lo, hi, max_nfev=max_nfev, **TOLERANCES)
+    theirs = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev,
+                           **TOLERANCES)
+    return ours, theirs
+
+
+FIELDS = ("x", "cost", "fun", "jac", "grad", "optimality", "active_mask", "nfev", "njev", "status", "message",
+          "success")
+
+
+def _identical(ours, theirs) -> list[str]:
+    return [f for f in FIELDS if not np.array_equal(np.asarray(ours[f]), np.asarray(theirs[f]))]
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_it_stops_at_scipys_minimum(seed):
+    ours, theirs = both(seed)
+    assert ours.success == theirs.success
+    assert set(ours) >= set(FIELDS)
+    if theirs.success:  # the same minimum: costs equal to the relative tolerance both were solved to
+        assert abs(ours.cost - theirs.cost) <= 1e-12 * theirs.cost + 1e-300
+    else:  # both still creeping along a flat direction at the evaluation limit, where round-off decides
+        assert ours.nfev == theirs.nfev
+    assert ours.message == TERMINATION_MESSAGES[ours.status]
+
+
+def test_a_short_budget_stops_as_scipys():
+    ours, theirs = both(3, max_nfev=5)
+    assert ours.status == theirs.status == 0 and ours.nfev == theirs.nfev == 5
+    assert ours.message == theirs.message and not ours.success
+
+
+def test_bit_for_bit_on_the_reference_kernels():
+    """A fresh process on the committed studies' kernels: scipy's result, every field, on 200 problems."""
+    from tests.test_regeneration import REFERENCE_KERNELS, _reference_kernels_run_here
+
+    if not _reference_kernels_run_here():
+        pytest.skip("the reference kernels (x86-64 with AVX2) do not run on this machine")
+    code = ("import json, sys; from tests.test_trf import both, _identical; "
+            "print(json.dumps({s: _identical(*both(s)) for s in range(200)}))")
+    done = subprocess.run([sys.executable, "-c", code], env={**os.environ, **REFERENCE_KERNELS},
+                          capture_output=True, text=True, cwd=os.path.dirname(os.path.dirname(__file__)))
+    assert done.returncode == 0, done.stderr[-3000:]
+    differ = {s: f for s, f in json.loads(done.stdout.strip().splitlines()[-1]).items() if f}
+    assert not differ, f"fields differing from scipy's least_squares (seed: fields): {differ}"
+
+
+@pytest.mark.parametrize("bad, match", [
+    (dict(x0=np.array([5.0, 0.0])), "x0 is infeasible"),
+    (dict(lo=np.array([0.0, -1.0, 2.0])), "three vectors of one length"),
+    (dict(hi=np.array([-2.0, 1.0])), "finite bounds with lb < ub"),
+    (dict(lo=np.array([-np.inf, -1.0])), "finite bounds with lb < ub"),
+])
+def test_bad_input_is_named(bad, match):
+    args = {**dict(x0=np.zeros(2), lo=np.array([-1.0, -1.0]), hi=np.array([1.0, 1.0])), **bad}
+    with pytest.raises(ValueError, match=match):
+        trf_bounds(lambda u: u - 0.5, lambda u: np.eye(2), args["x0"], args["lo"], args["hi"])
+
+
+def test_residuals_not_finite_at_the_start_are_refused():
+    with pytest.raises(ValueError, match="not finite in the initial point"), np.errstate(divide="ignore"):
+        trf_bounds(lambda u: np.log(u), lambda u: np.diag(1 / u), np.array([0.0, 1.0]), np.array([-1.0, -1.0]),
+                   np.array([2.0, 2.0]))
