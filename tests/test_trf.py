@@ -1,11 +1,8 @@
-"""The compiled trust-region reflective solver (``estimators/likelihood/_trf.py``) is scipy's ``least_squares``
-(method "trf", bounds, ``x_scale`` 1) step for step.
-
-On the kernels the committed studies were computed with (``test_regeneration.REFERENCE_KERNELS``) it must give
-scipy's result bit for bit -- end point, cost, evaluation count, stopping rule -- on every problem; that is run
-in a fresh process with those kernels. In this process (whatever kernels the machine picks: NumPy's AVX-512
-``power`` differs from libm's in the last bit) the two must stop at the same minimum (costs equal to the tolerance they were solved
-to), or both at the evaluation limit.
+"""GMWM's trust-region reflective solver (``estimators/likelihood/_trf.py``) is scipy's ``least_squares``
+(method "trf", bounds, ``x_scale`` 1) step for step: the same operations on the same operands, so every field
+of the result -- end point, cost, residuals, Jacobian, evaluation counts, stopping rule -- must equal scipy's bit
+for bit, on any problem, on the kernels this process runs on and (in a fresh process) on the kernels the
+committed studies were computed with (``test_regeneration.REFERENCE_KERNELS``).
 """
 
 from __future__ import annotations
@@ -73,20 +70,16 @@ FIELDS = ("x", "cost", "fun", "jac", "grad", "optimality", "active_mask", "nfev"
           "success")
 
 
-def _identical(ours, theirs) -> list[str]:
+def _differing(ours, theirs) -> list[str]:
     return [f for f in FIELDS if not np.array_equal(np.asarray(ours[f]), np.asarray(theirs[f]))]
 
 
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
-def test_it_stops_at_scipys_minimum(seed):
+def test_every_field_is_scipys(seed):
     ours, theirs = both(seed)
-    assert ours.success == theirs.success
     assert set(ours) >= set(FIELDS)
-    if theirs.success:  # the same minimum: costs equal to the relative tolerance both were solved to
-        assert abs(ours.cost - theirs.cost) <= 1e-12 * theirs.cost + 1e-300
-    else:  # both still creeping along a flat direction at the evaluation limit, where round-off decides
-        assert ours.nfev == theirs.nfev
+    assert not _differing(ours, theirs), f"fields differing from scipy's least_squares: {_differing(ours, theirs)}"
     assert ours.message == TERMINATION_MESSAGES[ours.status]
 
 
@@ -102,8 +95,8 @@ def test_bit_for_bit_on_the_reference_kernels():
 
     if not _reference_kernels_run_here():
         pytest.skip("the reference kernels (x86-64 with AVX2) do not run on this machine")
-    code = ("import json, sys; from tests.test_trf import both, _identical; "
-            "print(json.dumps({s: _identical(*both(s)) for s in range(200)}))")
+    code = ("import json, sys; from tests.test_trf import both, _differing; "
+            "print(json.dumps({s: _differing(*both(s)) for s in range(200)}))")
     done = subprocess.run([sys.executable, "-c", code], env={**os.environ, **REFERENCE_KERNELS},
                           capture_output=True, text=True, cwd=os.path.dirname(os.path.dirname(__file__)))
     assert done.returncode == 0, done.stderr[-3000:]

@@ -61,7 +61,10 @@ test of :mod:`avbench.estimators.likelihood.lines`. ``RS`` a resonance, band-pas
 (sigma, f0, tc; :class:`avbench.noise_models.Resonance`: a lightly damped mode's noise, no power at f = 0,
 no coefficient), added with ``resonance="auto"`` (:class:`GMWMFiltered`'s default) where a band stands out
 of the record's spectrum and lets the model keep shorter scales (:meth:`GMWM._resonance_choice`).
-Parameters are optimised on their logarithms (positivity) by ``scipy.optimize.least_squares`` from several automatic starts,
+Parameters are optimised on their logarithms (positivity) by scipy's trust-region reflective least squares (``least_squares``,
+method "trf"; since the ninth session of issue 25 its iteration operation for operation without scipy's per-call
+machinery, :func:`avbench.estimators.likelihood._trf.trf_bounds`: the same end points bit for bit, the fit in ~0.6x the
+time) from several automatic starts,
 with the analytic Jacobian of the model's exact AV (:class:`_LatentAV`; issue 25: it replaced forward differences,
 ~80 % of the cost, whose truncation error stopped some fits short of the minimum: on replicate 0 of
 grand_comparison the criterion J, each fit with its own second-step weights, fell from 83.10 to 81.60 on SRS2000
@@ -775,7 +778,7 @@ def _solve(fun, u0, lo, hi, jac):
     least_squares' own (a tolerance met), or, at the evaluation limit, a Newton decrement at most
     :data:`CONVERGED_DECREMENT` (the optimum lies within 1e-8 standard errors of the end point: nothing a
     further step could change in a reported coefficient). A solve that ends before the limit is returned
-    as least_squares gives it, bit for bit as before.
+    as the solver gives it (scipy's ``least_squares`` step for step, :func:`avbench.estimators.likelihood._trf.trf_bounds`).
     """
     clip = lambda u: np.clip(u, lo + 1e-9, hi - 1e-9)  # noqa: E731
     run = lambda u: trf_bounds(fun, jac, clip(u), lo, hi,  # noqa: E731
