@@ -100,7 +100,7 @@ def _solve_trust_region(n, m, uf, s, V, delta, alpha):
     def phi_and_derivative(alpha):
         denom = s**2 + alpha
         p_norm = _norm(suf / denom)
-        return p_norm - delta, -np.sum(suf**2 / denom**3) / p_norm
+        return p_norm - delta, -(suf**2 / denom**3).sum() / p_norm  # np.sum's reduction
 
     alpha_upper = _norm(suf) / delta
     if full_rank:
