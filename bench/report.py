@@ -88,12 +88,15 @@ LIMITS = {
     "theorem instead of 34 trust-region refits (nnls_rel's and slope_lines' refits are a few ms).",
     "gmwm_cost": "Since issue 25 not the model: the latent model's exact AV and its analytic Jacobian (per-latent "
     "unit curves computed once, the Gauss-Markov curve and its d/d ln Tc in one compiled pass) replaced "
-    "least_squares' forward differences (~80 % of the cost before: 2.48 -> 0.37 CPU-s on this record, process time "
-    "of main against this code in the same session; the wall figure here is at load average 9). "
-    "What is left: scipy's trust-region iterations themselves (~1 100 over ~70 solves: min_m='auto' tries ~10 "
-    "sets of scales, 6 starts each plus the second step; each iteration an SVD and bound bookkeeping, ~0.2 ms) and "
-    "the ten second-step weight matrices (one direct sum of the squared model spectrum over 65 536 grid points each, "
-    "~10 ms; the Haar gains are kept between them).",
+    "least_squares' forward differences (~80 % of the cost before: 2.48 -> 0.37 CPU-s on this record). Since the "
+    "ninth session not scipy's per-call machinery either: its trust-region reflective iteration is ported operation "
+    "for operation in NumPy without the differentiable-function wrappers, svd's per-call checks and workspace query, "
+    "norm's dispatch (estimators/likelihood/_trf.py; bit for bit scipy's result), and the second step's whitening "
+    "calls LAPACK's trtrs directly: 0.46-0.49 -> 0.27 s. What is left: ~1 900 model AV and Jacobian evaluations in "
+    "Python (~0.07 s; ~70 solves: min_m='auto' tries ~10 sets of scales, 6 starts each plus the second step), the "
+    "trust-region iterations' NumPy and LAPACK calls (~0.1 s) and the ten second-step weight matrices (a direct sum of "
+    "the squared model spectrum over 65 536 grid points each, ~5 ms; the Haar gains are kept between them). A numba "
+    "port of the iteration (0.20 s) cost ~16 s of compilation on first use and ~0.3 s in every new process.",
     "help": "The interpreter's own start (timed beside it) plus argparse and the CLI modules: the commands import "
     "numpy, pandas, the simulators and the estimators only when they run.",
     "import": "numpy (~0.15 CPU-s) and numba (~0.3 CPU-s, the simulators' compiled kernels); pandas, scipy.optimize, "
@@ -112,6 +115,13 @@ LIMITS = {
     "runs its blocks on one BLAS thread as a worker does (so it is a true one-core baseline: 13 -> 11 s, 19 -> 10 "
     "CPU-s), and avbench run stops its idle workers instead of waiting for their exit (~0.8 s); what is left serial "
     "is ~2 s before the first block (imports, config, the workers' start) and ~2 s of report (notes.md). "
+    "The bound (ninth session, notes.md): the study is CPU-bound on 2 cores, so --jobs 2 takes at least its CPU "
+    "time / 2, and --jobs 2 spends 13.1-13.9 CPU-s where --jobs 1 spends 9.6-10.2 (three alternated pairs, quiet "
+    "machine): each worker process pays its interpreter and imports (~0.75 CPU-s), its numba kernels' cache loads "
+    "(~0.5) and matplotlib for the figures (~0.4) that one process pays once. So --jobs 2 cannot beat ~6.7 s against "
+    "~9.7 s (1.45x) even perfectly packed; 1.6x needs the two workers' overhead under ~1.2 CPU-s together. Workers "
+    "forked from the study's process after its imports (a prototype, not adopted: fork with OpenBLAS's threads alive, "
+    "and the standard pool cannot kill a stuck worker) measured 1.4-1.6x. "
     "On a machine busy with other sessions, Linux's autogroup scheduler gives one session a fixed share of the cores "
     "however many processes it runs, so the ratio only means something on a quiet machine.",
 }
