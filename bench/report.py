@@ -411,7 +411,10 @@ def _startup_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
         worst = d.loc[d["second_process_s"].idxmax()]
         ever = ", ".join(f"{r['param_estimator']} {r['first_ever_s']:.1f} s" for _, r in d.iterrows())
         rows.append({"target": "a second process pays <= 0.5 s for the first call of any filter (kernels cached on disk)",
-                     "measured": f"worst {worst['param_estimator']} {worst['second_process_s']:.2f} s; first-ever compile: {ever}",
+                     "measured": f"worst {worst['param_estimator']} {worst['second_process_s']:.2f} s"
+                                 + (f" (median of {int(worst['warm_processes'])} later processes)"
+                                    if pd.notna(worst.get("warm_processes", math.nan)) else "")
+                                 + f"; first-ever compile: {ever}",
                      "met": None if quick else bool(d["second_process_s"].max() <= 0.5), "limit": LIMITS["first_call"]})
     d = _pick(df, "LvStudy", "track_wall")
     if len(d) and "speedup" in d and pd.notna(d.iloc[-1].get("speedup", math.nan)):
