@@ -18,7 +18,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
-from avbench.estimators.likelihood._trf import TERMINATION_MESSAGES, trf_bounds
+from scipy.linalg import cho_factor, solve_triangular
+
+from avbench.estimators.likelihood._trf import TERMINATION_MESSAGES, lower_triangular_solver, trf_bounds
 
 TOLERANCES = dict(xtol=1e-15, ftol=1e-15, gtol=1e-15)
 
@@ -102,6 +104,20 @@ def test_bit_for_bit_on_the_reference_kernels():
     assert done.returncode == 0, done.stderr[-3000:]
     differ = {s: f for s, f in json.loads(done.stdout.strip().splitlines()[-1]).items() if f}
     assert not differ, f"fields differing from scipy's least_squares (seed: fields): {differ}"
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), size=st.integers(1, 24), columns=st.integers(0, 6),
+       fortran=st.booleans())
+def test_the_whitening_is_solve_triangulars(seed, size, columns, fortran):
+    """GMWM's whitening: the Cholesky factor of a covariance (as the second step builds it), a vector or a
+    Jacobian on the right: solve_triangular's bits."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(size, size + 3))
+    L = np.tril(cho_factor(a @ a.T + 1e-3 * np.eye(size), lower=True)[0])
+    L = np.asfortranarray(L) if fortran else L
+    b = rng.normal(size=(size, columns) if columns else size) * np.exp(rng.normal(0, 5))
+    assert np.array_equal(lower_triangular_solver(L)(b), solve_triangular(L, b, lower=True))
 
 
 @pytest.mark.parametrize("bad, match", [

@@ -95,7 +95,7 @@ from avbench.estimators.allan.covariance import av_covariance
 from avbench.estimators.allan.fit_check import assess_fit
 # the line test's level and how far a fitted line's frequency may move (shared with nnls_rel's lines="auto")
 from avbench.estimators.likelihood.lines import LINE_FREQUENCY_FACTOR, LINE_TEST_LEVEL
-from avbench.estimators.likelihood._trf import trf_bounds
+from avbench.estimators.likelihood._trf import lower_triangular_solver, trf_bounds
 
 __all__ = ["GMWM", "GMWMFiltered", "LATENTS", "REAL_SENSOR_MODEL", "WaveletVariance", "parse_model", "build_gyro"]
 
@@ -631,7 +631,7 @@ class GMWM(Estimator):
         steps = [best]
         if self.weighting == "model":
             omega = av_covariance(build_gyro(latents, np.exp(best.x), dt, tau_fl), m, n, reuse=False) * cov_scale
-            whiten = _lower_solve(np.tril(cho_factor(omega, lower=True)[0]))
+            whiten = lower_triangular_solver(np.tril(cho_factor(omega, lower=True)[0]))
 
             def resid2(u):
                 return whiten(model_av(u) - avar)
@@ -751,24 +751,6 @@ CREEP_SHARE = 1e-3
 #: a solve stopped by its evaluation limit is converged when the Gauss-Newton step left, over the parameters
 #: not held by a bound, is at most this many standard errors long (its Newton decrement, :func:`_newton_decrement`)
 CONVERGED_DECREMENT = 1e-8
-
-
-def _lower_solve(L):
-    """``b -> solve_triangular(L, b, lower=True)`` for a finite lower-triangular ``L``: the LAPACK call
-    ``scipy.linalg.solve_triangular`` makes (``trtrs``, on the transposed system for a C-ordered ``L``), the
-    same bits, without its per-call input checks (~300 calls per GMWM fit)."""
-    from scipy.linalg import get_lapack_funcs
-
-    trtrs, = get_lapack_funcs(("trtrs",), (L,))
-    a, lower, trans = (L, 1, 0) if L.flags.f_contiguous else (L.T, 0, 1)
-
-    def solve(b):
-        x, info = trtrs(a, b, lower=lower, trans=trans)
-        if info != 0:
-            raise np.linalg.LinAlgError(f"triangular solve failed (LAPACK trtrs info {info})")
-        return x
-
-    return solve
 
 
 def _solve(fun, u0, lo, hi, jac):
