@@ -121,7 +121,8 @@ LIMITS = {
     "(~0.5) and matplotlib for the figures (~0.4) that one process pays once. So --jobs 2 cannot beat ~6.7 s against "
     "~9.7 s (1.45x) even perfectly packed; 1.6x needs the two workers' overhead under ~1.2 CPU-s together. Workers "
     "forked from the study's process after its imports (a prototype, not adopted: fork with OpenBLAS's threads alive, "
-    "and the standard pool cannot kill a stuck worker) measured 1.4-1.6x. "
+    "and the standard pool cannot kill a stuck worker) measured 1.4-1.6x in one session and slower than spawned "
+    "workers in a second. "
     "On a machine busy with other sessions, Linux's autogroup scheduler gives one session a fixed share of the cores "
     "however many processes it runs, so the ratio only means something on a quiet machine.",
 }
