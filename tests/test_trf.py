@@ -76,7 +76,7 @@ def _differing(ours, theirs) -> list[str]:
     return [f for f in FIELDS if not np.array_equal(np.asarray(ours[f]), np.asarray(theirs[f]))]
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_every_field_is_scipys(seed):
     ours, theirs = both(seed)
@@ -106,7 +106,7 @@ def test_bit_for_bit_on_the_reference_kernels():
     assert not differ, f"fields differing from scipy's least_squares (seed: fields): {differ}"
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), size=st.integers(1, 24), columns=st.integers(0, 6),
        fortran=st.booleans())
 def test_the_whitening_is_solve_triangulars(seed, size, columns, fortran):
