@@ -15,7 +15,7 @@ wrappers of every evaluation, ``scipy.linalg.svd``'s finiteness check and LAPACK
 iteration, ``numpy.linalg.norm``'s dispatch, boolean-mask assignments on 3-8 elements -- was most of the fit
 (issue 25: 0.46 s on a 4 h, 10 Hz record against a target of 0.3 s). Here the same NumPy operations run
 without it: LAPACK's ``gesdd`` is called as ``scipy.linalg.svd`` calls it, with the workspace it computes,
-queried once per shape (:class:`_SVD`); a vector's norm is ``sqrt(x.dot(x))``, what ``numpy.linalg.norm``
+queried once per shape (:func:`_svd`); a vector's norm is ``sqrt(x.dot(x))``, what ``numpy.linalg.norm``
 computes.
 
 Same arithmetic, so the same bits: every product, sum, dot product (BLAS) and SVD (LAPACK) is the one scipy
@@ -28,6 +28,7 @@ it saved in a single ``avbench estimate``.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -61,30 +62,24 @@ def _cl_scaling(x, g, lb, ub):
     return v, dv
 
 
-class _SVD:
-    """LAPACK's ``gesdd`` as ``scipy.linalg.svd(a, full_matrices=False)`` calls it (the same routine and
-    workspace), without its per-call checks and workspace query: one per shape."""
+@functools.cache
+def _gesdd(shape):
+    """LAPACK's ``gesdd`` and the workspace ``scipy.linalg.svd(a, full_matrices=False)`` gives it, for a float64
+    matrix of ``shape`` (queried once per shape)."""
+    from scipy.linalg.lapack import _compute_lwork
 
-    def __init__(self):
-        self._funcs = {}
-
-    def __call__(self, a):
-        key = a.shape
-        funcs = self._funcs.get(key)
-        if funcs is None:
-            from scipy.linalg.lapack import _compute_lwork
-
-            gesdd, gesdd_lwork = get_lapack_funcs(("gesdd", "gesdd_lwork"), (a,), ilp64="preferred")
-            lwork = _compute_lwork(gesdd_lwork, a.shape[0], a.shape[1], compute_uv=True, full_matrices=False)
-            funcs = self._funcs[key] = (gesdd, lwork)
-        gesdd, lwork = funcs
-        u, s, vt, info = gesdd(a, compute_uv=True, lwork=lwork, full_matrices=False, overwrite_a=False)
-        if info != 0:
-            raise np.linalg.LinAlgError(f"SVD did not converge (LAPACK gesdd info {info})")
-        return u, s, vt
+    gesdd, gesdd_lwork = get_lapack_funcs(("gesdd", "gesdd_lwork"), (np.empty(shape),), ilp64="preferred")
+    return gesdd, _compute_lwork(gesdd_lwork, shape[0], shape[1], compute_uv=True, full_matrices=False)
 
 
-_svd = _SVD()
+def _svd(a):
+    """``scipy.linalg.svd(a, full_matrices=False)`` of a finite float64 ``a``: its LAPACK call, without its
+    per-call checks and workspace query."""
+    gesdd, lwork = _gesdd(a.shape)
+    u, s, vt, info = gesdd(a, compute_uv=True, lwork=lwork, full_matrices=False, overwrite_a=False)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"SVD did not converge (LAPACK gesdd info {info})")
+    return u, s, vt
 
 
 def lower_triangular_solver(L):
@@ -253,17 +248,27 @@ def _select_step(x, J_h, diag_h, g_h, p, p_h, d, delta, lb, ub, theta):
     return ag, ag_h, -ag_value
 
 
-def _strictly_feasible(x, lb, ub):
-    """scipy's ``make_strictly_feasible`` with ``rstep=0``."""
+def _strictly_feasible(x, lb, ub, rstep=0.0):
+    """scipy's ``make_strictly_feasible``: a point on a bound (``rstep`` 0: each trial point) is moved to the next
+    float inside it, one within ``rstep`` (relative) of a bound (the start, as least_squares moves ``x0``) that far
+    inside it."""
+    if rstep == 0:
+        lower, upper = x <= lb, x >= ub
+    else:
+        active = _active(x, lb, ub, rstep)
+        lower, upper = active == -1, active == 1
     x_new = x.copy()
-    lower = x <= lb
-    upper = x >= ub
-    if lower.any() or upper.any():
-        lower &= ~upper
+    if not (lower.any() or upper.any()):  # strictly inside: nothing to move
+        return x_new
+    lower &= ~upper
+    if rstep == 0:
         x_new[lower] = np.nextafter(lb[lower], ub[lower])
         x_new[upper] = np.nextafter(ub[upper], lb[upper])
-        tight = (x_new < lb) | (x_new > ub)
-        x_new[tight] = 0.5 * (lb[tight] + ub[tight])
+    else:
+        x_new[lower] = lb[lower] + rstep * np.maximum(1, np.abs(lb[lower]))
+        x_new[upper] = ub[upper] - rstep * np.maximum(1, np.abs(ub[upper]))
+    tight = (x_new < lb) | (x_new > ub)
+    x_new[tight] = 0.5 * (lb[tight] + ub[tight])
     return x_new
 
 
@@ -304,19 +309,6 @@ def _active(x, lb, ub, rtol):
     return active
 
 
-def _feasible_start(x, lb, ub, rstep=1e-10):
-    """scipy's ``make_strictly_feasible`` with its default ``rstep``, as least_squares moves ``x0``: a start
-    within ``rstep`` (relative) of a bound is put that far inside it."""
-    x_new = x.copy()
-    active = _active(x, lb, ub, rstep)
-    lower, upper = active == -1, active == 1
-    x_new[lower] = lb[lower] + rstep * np.maximum(1, np.abs(lb[lower]))
-    x_new[upper] = ub[upper] - rstep * np.maximum(1, np.abs(ub[upper]))
-    tight = (x_new < lb) | (x_new > ub)
-    x_new[tight] = 0.5 * (lb[tight] + ub[tight])
-    return x_new
-
-
 def trf_bounds(fun, jac, x0, lb, ub, *, ftol=1e-8, xtol=1e-8, gtol=1e-8, max_nfev=None) -> OptimizeResult:
     """Minimise ``0.5 * ||fun(x)||^2`` over ``lb <= x <= ub`` (finite bounds) by scipy's trust-region
     reflective method, ``jac(x)`` the Jacobian of ``fun``; the result as ``least_squares`` returns it.
@@ -332,7 +324,7 @@ def trf_bounds(fun, jac, x0, lb, ub, *, ftol=1e-8, xtol=1e-8, gtol=1e-8, max_nfe
         raise ValueError("lb, ub: expected finite bounds with lb < ub in every component")
     if not np.all((x >= lb) & (x <= ub)):
         raise ValueError("x0 is infeasible: expected lb <= x0 <= ub")
-    x = _feasible_start(x, lb, ub)
+    x = _strictly_feasible(x, lb, ub, rstep=1e-10)
     f = np.atleast_1d(np.asarray(fun(x), dtype=float))
     if not np.all(np.isfinite(f)):
         raise ValueError("Residuals are not finite in the initial point.")
