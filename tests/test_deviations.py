@@ -291,6 +291,17 @@ def test_quadratic_form_edf_agrees_with_sp1065_table_5_for_the_av(noise, tol):
         assert got == pytest.approx(float(edf_overlapping([m], n, noise)[0]), rel=tol)
 
 
+@pytest.mark.parametrize("n", [100, 1000, 100_000])
+def test_flicker_fm_edf_at_m1_grows_with_the_record(n):
+    """SP1065 Table 5 gives flicker FM at m = 1 its own formula, 2 (N-2)^2 / (2.3 N - 4.9); a common copy
+    (the project's SPEC, allantools) drops the square and gets an edf below 1 for every N, which made the
+    first point of a real sensor's AV (flat at tau = dt behind its filter: read as flicker FM) carry a
+    95 % interval of a factor ~20 and almost no weight wherever the engine's edf weights it."""
+    got = edf_quadratic("oavar", 1, n - 1, "flicker_fm")
+    assert got > 0.8 * n
+    assert got == pytest.approx(float(edf_overlapping([1], n, "flicker_fm")[0]), rel=0.03)
+
+
 def _edf_reference(kind, m, K, noise):
     """The quadratic-form edf of one filter in plain NumPy (module docstring of ``deviations``): the filter's
     autocorrelation from its taps, rho = A * G densely over every lag, the K-sum by ``np.sum``."""

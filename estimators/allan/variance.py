@@ -175,8 +175,8 @@ def edf_overlapping(m, n: int, noise) -> np.ndarray:
             e = (N + 1) * (N - 2 * mi) / (2 * (N - mi))
         elif kind == "white_fm":
             e = (3 * (N - 1) / (2 * mi) - 2 * (N - 2) / N) * 4 * mi**2 / (4 * mi**2 + 5)
-        elif kind == "flicker_fm":
-            e = 2 * (N - 2) / (2.3 * N - 4.9) if mi == 1 else 5 * N**2 / (4 * mi * (N + 3 * mi))
+        elif kind == "flicker_fm":  # m = 1: (N-2) squared, as in SP 1065 (a copy without it gives edf < 1 for any N)
+            e = 2 * (N - 2) ** 2 / (2.3 * N - 4.9) if mi == 1 else 5 * N**2 / (4 * mi * (N + 3 * mi))
         elif kind == "rw_fm":
             e = (N - 2) / (mi * (N - 3) ** 2) * ((N - 1) ** 2 - 3 * mi * (N - 1) + 4 * mi**2)
         else:
