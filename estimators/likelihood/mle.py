@@ -442,7 +442,9 @@ def _newton_polish(objective_and_score, p, names, nobs):
     relative under a round-off of 1.5e-11, 21 rejected or round-off-sized steps in 9 s and no
     maximum). Once a step is rejected where the predicted gain is below that round-off (Hessian
     positive definite), or the iterations run out there, the plain Newton steps of the score
-    (``finish``) take over, and the fit has converged if they reach the maximum by the score's test.
+    (``finish``) take over, and the fit has converged if they reach the maximum by the score's test;
+    where they do not (the bound on the round-off is a worst case: on a long flat ridge the values
+    can still see such gains), the trust region goes on from there without that stop.
     Returns ``(p, info)``: ``p`` with -inf for pinned
     terms, info holding ``hess`` (of the objective over the free parameters, ``free`` their mask),
     ``iterations``, ``pinned`` (names) and ``converged``.
@@ -511,8 +513,9 @@ def _newton_polish(objective_and_score, p, names, nobs):
                     out.append(i)
         return out
 
-    for _ in range(len(scales) + 1):
-        state = {"x": p[free].copy(), "pin": [], "done": False}
+    stall_stop = True  # until the score's steps once failed to finish from a stall (then as before)
+    for _ in range(len(scales) + 2):
+        state = {"x": p[free].copy(), "pin": [], "done": False, "stalled": False}
 
         def after_step(intermediate_result):
             rejected = np.array_equal(intermediate_result.x, state["x"])
@@ -523,7 +526,8 @@ def _newton_polish(objective_and_score, p, names, nobs):
             if at_maximum(q):
                 state["done"] = True
                 raise StopIteration
-            if rejected and at_maximum(q, unresolved):  # the values no longer see the gain: the score decides
+            if stall_stop and rejected and at_maximum(q, unresolved):  # the values may no longer see the gain
+                state["stalled"] = True
                 raise StopIteration
 
         state["pin"] = to_pin(p[free])
@@ -539,10 +543,13 @@ def _newton_polish(objective_and_score, p, names, nobs):
             # stopped short of the maximum (its values could not confirm the last gain, or
             # POLISH_MAXITER iterations): Newton steps on the score, and the score's verdict
             converged = state["done"]
-            if not converged and at_maximum(p[free], unresolved):
+            if not converged and (state["stalled"] or at_maximum(p[free], unresolved)):
                 q = finish(p[free])
                 if at_maximum(q):
                     p[free], converged, by_score = q, True, True
+                elif state["stalled"]:  # far from quadratic yet: on with the trust region, without that stop
+                    stall_stop = False
+                    continue
             break
         for i in state["pin"]:
             p[i] = -np.inf
