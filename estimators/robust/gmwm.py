@@ -145,7 +145,7 @@ from scipy import integrate, optimize, stats
 from avbench.estimators.allan import _kernels
 from avbench.estimators.allan.variance import cluster_sizes
 from avbench.estimators.base import register
-from avbench.estimators.likelihood.gmwm import GMWM, REAL_SENSOR_MODEL, WaveletVariance
+from avbench.estimators.likelihood.gmwm import GMWM, REAL_SENSOR_MODEL, WaveletVariance, first_step_edf
 
 __all__ = ["GMWMRobust", "GMWMDespiked", "hampel_outliers", "masked_allan_variance", "robust_allan_variance",
            "tuning", "m_scale", "PSI"]
@@ -299,7 +299,8 @@ class GMWMRobust(GMWM):
         tuning(self.psi, self.eff)  # validates psi and eff
         tau, m, av = robust_allan_variance(rate, dt, "octave", psi=self.psi, eff=self.eff)
         # first-step weights: the engine's edf for the noise type of the local slope
-        edf = _result(m, av, rate.size, dt, True, "auto", 0.683).edf
+        res = _result(m, av, rate.size, dt, True, "auto", 0.683)
+        edf = first_step_edf(res.tau, res.avar, res.J, res.edf)
         return WaveletVariance(tau, av, m, edf, cov_scale=1.0 / float(self.eff), reference_is_classical=False)
 
 
@@ -479,6 +480,7 @@ class GMWMDespiked(GMWM):
         if f == 0.0:
             return super()._wavelet_variance(rate, dt)._replace(diagnostics=info)
         tau, m, av, gain, _ = masked_allan_variance(rate, dt, out, "octave")
-        edf = _result(m, av, rate.size, dt, True, "auto", 0.683).edf
+        res = _result(m, av, rate.size, dt, True, "auto", 0.683)
+        edf = first_step_edf(res.tau, res.avar, res.J, res.edf)
         return WaveletVariance(tau, av, m, edf, cov_scale=1.0 / (1.0 - f) ** 2, white_gain=gain,
                                reference_is_classical=False, diagnostics=info)
