@@ -209,3 +209,20 @@ def test_resonance_fit_check_and_recovery_over_replicates():
         v = np.array(vals[k])
         v = v[np.isfinite(v)]
         assert abs(v.mean() - t) <= 3 * v.std(ddof=1) / math.sqrt(v.size), (k, v.mean(), t)
+
+
+def test_the_first_step_gives_a_flat_first_octave_one_degree_of_freedom():
+    """A sensor's low-pass filter holds the first AV point on the level of the second (the engine reads it
+    as flicker FM). The engine's edf there is the record's (~0.9 n: SP1065's formula, corrected); GMWM's
+    first step counts it as one degree of freedom (``first_step_edf``), and leaves every other scale, and
+    every scale of an unfiltered record, at the engine's edf."""
+    from avbench.estimators.allan.variance import allan_variance
+    from avbench.estimators.likelihood.gmwm import first_step_edf
+
+    for terms, flat in (([FilteredWhiteNoise(N=1e-4, tc=0.02)], True), ([AngleRandomWalk(N=1e-4)], False)):
+        g = Gyro(dt=0.01, terms=terms)
+        r = allan_variance(g.simulate(1 << 15, np.random.default_rng(1)), g.dt, taus="octave", overlapping=True)
+        assert r.edf[0] > 0.5 * r.n_samples
+        e = first_step_edf(r.tau, r.avar, r.J, r.edf)
+        assert e[0] == (1.0 if flat else r.edf[0])
+        np.testing.assert_array_equal(e[1:], r.edf[1:])
