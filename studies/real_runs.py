@@ -36,7 +36,8 @@ methods of ``avbench estimate`` on the first 30- and 60-minute slices (``--per-r
 ``slices.md`` (per method and length: share of slices with N in 1.9-3.0 deg/sqrt(h) and B in
 15-80 deg/h, and values outside with no flag). ``--lines`` writes ``lines.csv`` / ``lines.md``: the
 strongest spectral line of each axis in 0.3-3 Hz (frequency, amplitude, prominence): the
-accelerometers' AV bump.
+accelerometers' AV bump. ``--within-run`` writes ``within_run.csv`` / ``.md``: per ADIS gyro axis, whether the
+white-noise level is the same in every 30-minute window of the run (:func:`within_run`).
 """
 
 from __future__ import annotations
@@ -256,6 +257,55 @@ def slice_coverage_summary(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+#: the within-run test: ``window_min``-minute windows of ``batch_min``-minute batches, from ``first_minute`` on
+#: (the warm-up left out, as the slice coverage), the AV at ``tau_s`` (in the white-noise region, past the
+#: sensor's filter) as the white level's measure
+WITHIN_RUN = {"window_min": 30.0, "batch_min": 3.0, "first_minute": 20.0, "tau_s": 0.08}
+
+
+def within_run(data: Path, window_min=WITHIN_RUN["window_min"], batch_min=WITHIN_RUN["batch_min"],
+               first_minute=WITHIN_RUN["first_minute"], tau_s=WITHIN_RUN["tau_s"]) -> pd.DataFrame:
+    """Is the white-noise level the same all through a run? (why a slice's interval of N misses the whole run)
+
+    Every ADIS gyro axis from ``first_minute`` on, cut into ``batch_min``-minute batches, grouped into
+    consecutive ``window_min``-minute windows (complete ones only); in each batch the overlapping AV at
+    ``tau_s``. A one-way analysis of variance of the batches' AVs by window: F = (between-window mean
+    square) / (within-window mean square) ~ F(W - 1, W (B - 1)) if the level is the same in every window
+    (the batches' AVs are independent to a good approximation: they share no cluster). One row per axis:
+    ``windows``, ``n_drift_pct`` (the SD over the windows of N ~ sqrt(AV), relative to its mean),
+    ``sampling_pct`` (what the within-window spread alone gives it), ``F``, ``p_value`` and ``trend_r``
+    (correlation of the batches' AVs with time).
+    """
+    from scipy import stats
+
+    from avbench.estimators.allan.variance import allan_variance
+
+    rows = []
+    for rec, sensor, axis, x, timing in _records(data):
+        if _GROUP[rec] != "adis16405" or sensor != "gyro":
+            continue
+        x = np.asarray(x, dtype=float)
+        dt = timing.dt
+        L = int(round(batch_min * 60 / dt))
+        per = int(round(window_min / batch_min))
+        first = int(round(first_minute * 60 / dt))
+        W = (x.size - first) // (L * per)
+        if W < 2:
+            continue
+        tau = [round(tau_s / dt) * dt]
+        av = np.array([allan_variance(x[first + k * L:first + (k + 1) * L], dt, taus=tau, overlapping=True).avar[0]
+                       for k in range(W * per)]).reshape(W, per)
+        means, within = av.mean(axis=1), av.var(axis=1, ddof=1).mean()
+        F = per * means.var(ddof=1) / within
+        n_level = np.sqrt(means)
+        rows.append({"record": rec, "axis": axis, "windows": W,
+                     "n_drift_pct": _round(100 * n_level.std(ddof=1) / n_level.mean()),
+                     "sampling_pct": _round(100 * 0.5 * math.sqrt(within / per) / means.mean()),
+                     "F": _round(F), "p_value": _round(float(stats.f.sf(F, W - 1, W * (per - 1)))),
+                     "trend_r": _round(float(np.corrcoef(np.arange(av.size), av.ravel())[0, 1]), 3)})
+    return pd.DataFrame(rows)
+
+
 def spectral_lines(data: Path, band=(0.3, 3.0)) -> pd.DataFrame:
     """The strongest spectral line of every axis in ``band`` (Hz): the accelerometers' AV bump.
 
@@ -407,6 +457,9 @@ def main(argv=None) -> int:
                     help="instead: do the default methods' (or --methods) intervals from 30-minute slices of the ADIS "
                          "gyro axes hold the whole run's value (from OUT/coefficients.csv)? writes "
                          "OUT/slice_coverage.csv and OUT/slice_coverage.md")
+    ap.add_argument("--within-run", action="store_true",
+                    help="instead: is the white-noise level the same all through each ADIS gyro run? (30-minute "
+                         "windows, analysis of variance; OUT/within_run.csv and OUT/within_run.md)")
     ap.add_argument("--lines", action="store_true",
                     help="instead: the strongest spectral line of each axis in 0.3-3 Hz (OUT/lines.csv)")
     args = ap.parse_args(argv)
@@ -418,6 +471,11 @@ def main(argv=None) -> int:
         raise SystemExit(f"real_runs: no recordings found under {data} "
                          f"(expected {RECORDS[0][2]} ... or {RECORDS[-1][2]})")
     out.mkdir(parents=True, exist_ok=True)
+    if args.within_run:
+        wr = within_run(data)
+        wr.to_csv(out / "within_run.csv", index=False)
+        (out / "within_run.md").write_text(_markdown(wr))
+        return 0
     if args.lines:
         lines = spectral_lines(data)
         lines.to_csv(out / "lines.csv", index=False)

@@ -161,3 +161,24 @@ def test_slice_coverage_holds_the_whole_runs_value_against_its_interval(layout):
     doubled = whole.assign(value=whole["value"] * 2)
     wrong = real_runs.slice_coverage(root, ["whittle_debiased"], doubled, minutes=1, first_minute=0.5, per_run=2)
     assert not wrong[wrong.coefficient == "N"]["holds"].astype(bool).any()
+
+
+def test_within_run_finds_a_level_that_moves_and_not_one_that_stays(tmp_path):
+    """--within-run: a white-noise gyro of constant level passes the analysis of variance on every axis (six
+    tests at p > 1e-4: a false alarm has probability < 1e-3), one whose level steps up by 10 % halfway
+    through fails it (p < 1e-6) with a positive trend."""
+    data = tmp_path / "wr"
+    (data / "adis16405-calgary").mkdir(parents=True)
+    rng = np.random.default_rng(8)
+    n = 60_000
+    step = np.where(np.arange(n) < n // 2, 1.0, 1.1)
+    for i, gain in ((1, None), (2, step)):
+        cols = [rng.normal(0, 0.01, n) * (gain if (gain is not None and k == 0) else 1.0) for k in range(3)]
+        cols += [rng.normal(0, 1e-3, n) for _ in range(3)]
+        np.savez(data / "adis16405-calgary" / f"adis_16405_imu{i}.npz", data=np.column_stack(cols), fs=100.0,
+                 columns=np.array(COLUMNS))
+    wr = real_runs.within_run(data, window_min=1.0, batch_min=0.1, first_minute=0.0).set_index(["record", "axis"])
+    assert len(wr) == 6 and (wr["windows"] == 10).all()
+    moved = wr.loc[("adis_16405_imu2", "x")]
+    assert moved["p_value"] < 1e-6 and moved["trend_r"] > 0 and moved["n_drift_pct"] > 3 * moved["sampling_pct"]
+    assert (wr.drop(("adis_16405_imu2", "x"))["p_value"] > 1e-4).all()
