@@ -153,8 +153,8 @@ class WaveletVariance(NamedTuple):
     """The AV values a :class:`GMWM` matches, and how to read them.
 
     ``tau, avar, m, edf``: octave taus (s), AV values, cluster sizes, engine edf as the first step
-    weighs it (:func:`first_step_edf`). ``cov_scale``: factor by which their covariance exceeds the classical one (1 for the
-    classical AV). ``white_gain``: None, or per tau the factor by which this AV estimator sees the
+    weighs it (:func:`first_step_edf`). ``cov_scale``: factor by which their covariance exceeds the
+    classical one (1 for the classical AV). ``white_gain``: None, or per tau the factor by which this AV estimator sees the
     white (ARW) part of the process, :math:`N^2/\\tau` (the model matched is then the exact AV plus
     ``(white_gain - 1) N^2 / tau``). ``reference_is_classical``: the poor-fit check compares the fit
     with the classical AV (else with these values). ``diagnostics``: extra entries for

@@ -478,8 +478,9 @@ def _newton_polish(objective_and_score, p, names, nobs):
             return False
         return 0.5 * float(np.sum((V.T @ g) ** 2 / w)) <= tolerance * abs(v)
 
+    round_off = nobs * np.finfo(float).eps  # of the objective's value, relative (UNRESOLVED_GAIN)
     #: a gain the values cannot confirm (UNRESOLVED_GAIN times their round-off, never below POLISH_GAIN)
-    unresolved = max(POLISH_GAIN, UNRESOLVED_GAIN * nobs * np.finfo(float).eps)
+    unresolved = max(POLISH_GAIN, UNRESOLVED_GAIN * round_off)
 
     def finish(q):
         """Plain Newton steps from a maximum whose remaining gain round-off hides: the analytic score
@@ -503,7 +504,7 @@ def _newton_polish(objective_and_score, p, names, nobs):
         PIN_LOGLIKE."""
         r = _fill(p, free, q)
         v, g = objective_and_score(r)
-        no_sign = nobs * np.finfo(float).eps * abs(v)
+        no_sign = round_off * abs(v)
         out = []
         for i in scales:
             if free[i] and g[i] >= -no_sign:
