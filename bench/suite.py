@@ -571,7 +571,7 @@ class MleFit:
     """``mle`` (defaults) on 4 h at 100 Hz: compiled likelihood vs the statsmodels path of before."""
 
     params = [[1_440_000]]
-    quick_params = [[20_000]]  # plumbing only (the MLE takes 8-13 s on the 40 000-sample record, ~1-3 s on this one)
+    quick_params = [[20_000]]  # plumbing only, on a short record (keeps the default suite short)
     param_names = ["n"]
     repeats = 3
     quick_repeats = 1
@@ -604,7 +604,7 @@ class MleFitDrift:
     reaches its steady state with a drift); same optimiser, start and Hessian."""
 
     params = [[720_000]]
-    quick_params = [[20_000]]  # plumbing only (the MLE takes 8-13 s on the 40 000-sample record, ~1-3 s on this one)
+    quick_params = [[20_000]]  # plumbing only, on a short record (keeps the default suite short)
     param_names = ["n"]
     repeats = 3
     quick_repeats = 1
