@@ -9,6 +9,7 @@ from scipy import stats
 from avbench.estimators import RecursiveAllan, StreamingAllan, allan_variance
 from avbench.estimators.allan.variance import (
     _avar_sums_numpy,
+    _interval,
     _oavar_sums_numpy,
     cluster_sizes,
     edf_overlapping,
@@ -215,3 +216,18 @@ def test_compiled_noise_rule_is_numpys_gradient_rule(n, octave, seed, special):
     J = (4096 // m).astype(np.int64)
     np.testing.assert_array_equal(NOISE_NAMES[_noise_codes_from_slope(tau, avar, J)],
                                   _noise_from_slope_reference(tau, avar, J))
+
+
+@settings(max_examples=200, deadline=None)
+@given(edf=st.one_of(st.floats(0.05, 1e7), st.sampled_from([0.0, -1.0, np.inf, np.nan])),
+       confidence=st.sampled_from([0.683, 0.9, 0.95, 0.99]))
+def test_interval_is_scipy_stats_chi2_bit_for_bit(edf, confidence):
+    """The AV's chi^2 interval, computed without importing scipy.stats, equals scipy.stats.chi2's bit for
+    bit (nan where scipy.stats gives nan)."""
+    lo, hi = _interval(np.array([2.5e-7]), np.array([edf]), confidence)
+    a = (1 - confidence) / 2
+    with np.errstate(all="ignore"):
+        want_lo = edf * 2.5e-7 / stats.chi2.ppf(1 - a, edf)
+        want_hi = edf * 2.5e-7 / stats.chi2.ppf(a, edf)
+    np.testing.assert_array_equal(lo, [want_lo])
+    np.testing.assert_array_equal(hi, [want_hi])
