@@ -77,13 +77,20 @@ def model_choice_notes(md: dict, sensor: str) -> list[str]:
         notes.append(f"resonance at {rs['f0']:.3g} Hz modelled")
     ev = choice.get("bias_evidence") or {}
     if ev.get("preferred") in ("GM", "FL"):
-        other = "FL" if ev["preferred"] == "GM" else "GM"
         name = {"GM": "Gauss-Markov", "FL": "flicker"}
-        unit = DISPLAY_UNITS[sensor]["B"]
-        b_other = ev[other].get("B")
-        shown = "?" if b_other is None else f"{from_si('B', b_other, unit, sensor):.3g} {unit}"
-        notes.append(f"B model: {name[ev['preferred']]} (weight {ev['weight']:.2f}"
-                     f"{', decisive' if ev.get('decisive') else ', not decisive'}; {name[other]} B {shown})")
+        fitted = ev.get("fitted", "GM")
+        other = "FL" if fitted == "GM" else "GM"
+        alt = ev[other]
+        values = alt.get("coefficients") or {"B": alt.get("B")}
+        shown = ", ".join(f"{c} {from_si(c, values[c], DISPLAY_UNITS[sensor][c], sensor):.3g} {DISPLAY_UNITS[sensor][c]}"
+                          for c in ("B", "K") if values.get(c) is not None)
+        favoured = f"{name[ev['preferred']]} favoured (weight {ev['weight']:.2f}"
+        if ev.get("decisive"):
+            notes.append(f"B model: {favoured}, decisive); values from the {name[fitted]} fit; the {name[other]} fit: "
+                         f"{shown or '?'}")
+        else:
+            notes.append(f"B model: {favoured}, not decisive); values from the {name[fitted]} fit, intervals "
+                         f"hold the {name[other]} fit's too ({shown or '?'})")
     return notes
 
 
@@ -224,6 +231,9 @@ def method_entry(fit, sensor, n_samples):
             d = (choice.get(key) or {}) if part is None else (choice.get(key) or {}).get(part) or {}
             if d.get(name) is not None:  # in the unit of the record as fitted: to SI
                 d[name] = _num(float(d[name]) / fit.scale)
+            for table in ("coefficients", "std_err"):  # a bias model's coefficients: to SI too
+                if isinstance(d.get(table), dict):
+                    d[table] = {c: None if v is None else _num(float(v) / fit.scale) for c, v in d[table].items()}
         if choice:
             out["model_choice"] = choice
     return out
