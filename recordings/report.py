@@ -78,10 +78,9 @@ def model_choice_notes(md: dict, sensor: str) -> list[str]:
     ev = choice.get("bias_evidence") or {}
     if ev.get("preferred") in ("GM", "FL"):
         name = {"GM": "Gauss-Markov", "FL": "flicker"}
-        fitted = ev.get("fitted", "GM")
+        fitted = ev["fitted"]
         other = "FL" if fitted == "GM" else "GM"
-        alt = ev[other]
-        values = alt.get("coefficients") or {"B": alt.get("B")}
+        values = ev[other]["coefficients"]
         shown = ", ".join(f"{c} {from_si(c, values[c], DISPLAY_UNITS[sensor][c], sensor):.3g} {DISPLAY_UNITS[sensor][c]}"
                           for c in ("B", "K") if values.get(c) is not None)
         favoured = f"{name[ev['preferred']]} favoured (weight {ev['weight']:.2f}"

@@ -430,7 +430,8 @@ class GMWM(Estimator):
         from avbench.estimators.uncertainty import interval
 
         ci = super().conf_int(level, conservative)
-        for alt in self._undecided_bias_models():
+        alt = self._undecided_bias_model()
+        if alt is not None:
             coefs = pd.Series(alt["coefficients"], dtype=float)
             other = interval(coefs, pd.Series(alt["std_err"], dtype=float), level, conservative)
             for c in coefs.index:
@@ -443,13 +444,13 @@ class GMWM(Estimator):
                 ci.loc[c] = (lo, hi)
         return ci
 
-    def _undecided_bias_models(self) -> list[dict]:
+    def _undecided_bias_model(self) -> dict | None:
         """The other bias-instability model's entry of ``diagnostics_["bias_evidence"]`` when the record does
-        not decide between the two (else nothing)."""
-        ev = self.diagnostics_.get("bias_evidence") if hasattr(self, "diagnostics_") else None
-        if not ev or ev.get("decisive", True):
-            return []
-        return [ev[m] for m in ("GM", "FL") if m != ev["fitted"]]
+        not decide between the two (else None)."""
+        ev = self.diagnostics_.get("bias_evidence")
+        if not ev or ev["decisive"]:
+            return None
+        return ev["FL" if ev["fitted"] == "GM" else "GM"]
 
     def _fit_check(self, best, latents, rate, dt, wv, usable, n):
         """(the poor-fit check of :func:`assess_fit` for fit ``best`` of ``latents``, the fitted latent gyro)."""
