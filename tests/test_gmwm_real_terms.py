@@ -74,7 +74,8 @@ def test_recovery_over_replicates(which):
 def test_gm_at_the_first_octaves_does_not_resolve_b():
     """A Gauss-Markov term peaking within three octaves of the shortest tau is the filter's shape, not
     bias instability: B is flagged not resolved with an upper bound that holds for the record's flicker
-    B (the AV's minimum read as a plateau); a slow GM is not flagged (the rule can fail)."""
+    B (the AV's minimum read as a plateau), and so is K, which the model without a bias instability reads
+    from the curve's middle (its bound holds the true K); a slow GM is not flagged (the rule can fail)."""
     import warnings
 
     from avbench.estimators.base import IdentifiabilityWarning
@@ -97,8 +98,14 @@ def test_gm_at_the_first_octaves_does_not_resolve_b():
         unresolved = e.diagnostics_.get("unresolved", {})
         assert ("B" in unresolved) is expect
         assert any(issubclass(w.category, IdentifiabilityWarning) for w in caught) is expect
-        flag = coefficient_flags(MethodFit("gmwm", e, 1.0, 0.0))["B"]
-        assert flag == ("not resolved" if expect else "ok")
+        flags = coefficient_flags(MethodFit("gmwm", e, 1.0, 0.0))
+        assert flags["B"] == ("not resolved" if expect else "ok")
+        if expect:
+            assert flags["K"] == "not resolved"
+            lo, hi = unresolved["K"]
+            assert lo == 0 and K <= hi
+            # the bound is the data's, not the fit's: the largest K whose AV stays under the record's AV limits
+            assert hi < math.sqrt(3 * e.diagnostics_["avar"].max() / e.diagnostics_["tau"].min())
         if gyro is fast_fl:
             lo, hi = unresolved["B"]
             assert lo == 0 and flicker.B <= hi

@@ -405,7 +405,7 @@ class GMWM(Estimator):
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
             return best["coefs"], {}, diag
         if "GM" in latents:
-            _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable)
+            _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable, dt, 2.0 * n * dt)
         _bound_terms_at_zero(diag, latents, best["coefs"], tau_all, avar_all, edf_all, usable, dt, 2.0 * n * dt)
         check, gyro = self._fit_check(best, latents, rate, dt, wv, usable, n)
         diag.update(check)
@@ -727,16 +727,24 @@ class GMWM(Estimator):
         return {"coefs": coefs, "J_stat": diag["J_stat"], "diag": diag}
 
 
-def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable):
-    """B not resolved when the Gauss-Markov term peaks within the first three octaves fitted.
+def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable, dt, tau_fl):
+    """B not resolved when the Gauss-Markov term peaks within the first three octaves fitted; nor are the
+    terms that rise with tau (K, R), which then stand in for the missing bias instability.
 
     Such a GM shapes the first octaves (short records at 100 Hz: the sensor's filter; 30-minute ADIS
     slices gave B = 200 deg/h from Tc = 0.04 s) and says nothing about bias instability. Then
-    ``diagnostics_["unresolved"] = {"B": (0, upper)}``, with the upper bound any bias term obeys: the
+    ``diagnostics_["unresolved"]["B"] = (0, upper)``, with the upper bound any bias term obeys: the
     AV at every tau is at least the plateau (2 ln2 / pi) B^2, so B <= sqrt(min_tau AV_97.5%(tau) /
     plateau), the chi^2 upper 97.5 % limit of the AV at the tau where it is smallest; and an
     :class:`~avbench.estimators.base.IdentifiabilityWarning` says so. The coefficient keeps its value
     (the fitted model), the report flags it ``not resolved`` and shows the interval.
+
+    The model then has no bias-instability term where the curve has one, so the rate random walk (and a
+    ramp) take the flattening and rise of the curve's middle: K read from it runs about twice the truth
+    (simulated 30-minute ADIS-like records with a Gauss-Markov B: 3 of the 6 misses of K's interval were
+    such fits; the ADIS accelerometers' plain GMWM K 0.034-0.083 against 0.022-0.028 m/s^2/sqrt(h) from
+    ``gmwm_filtered``). Each of them gets the same treatment, with its own data bound
+    (:func:`_data_upper`: the bound of :func:`_bound_terms_at_zero`, which holds whatever the model).
     """
     import warnings
 
@@ -752,13 +760,35 @@ def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable):
     ok = usable & (edf_all > 0)
     upper_av = avar_all[ok] * edf_all[ok] / chi2.ppf(0.025, edf_all[ok])
     upper = float(math.sqrt(np.min(upper_av) / PLATEAU))
-    diag["unresolved"] = {"B": (0.0, upper)}
+    unresolved = {"B": (0.0, upper)}
+    for lat in _RISING_LATENTS:
+        bound = _data_upper(lat, tau_all[ok], upper_av, dt, tau_fl) if lat in latents else None
+        if bound is not None:
+            unresolved[LATENTS[lat][1]] = (0.0, bound)
+    diag["unresolved"] = unresolved
+    others = "".join(f"; {c} <= {b[1]:.3g}" for c, b in unresolved.items() if c != "B")
     warnings.warn(
         f"B not resolved: the Gauss-Markov term peaks at tau = {peak:.3g} s, within three octaves of the shortest "
         f"tau fitted ({diag['tau'][0]:.3g} s), where the sensor's filter shapes the curve; bias instability "
-        f"B <= {upper:.3g} (SI, the 97.5 % upper limit of the smallest AV read as a plateau)",
+        f"B <= {upper:.3g} (SI, the 97.5 % upper limit of the smallest AV read as a plateau)"
+        + (f"; {', '.join(c for c in unresolved if c != 'B')} not resolved either (the model has no bias "
+           f"instability to share the curve with){others}" if others else ""),
         IdentifiabilityWarning, stacklevel=3,
     )
+
+
+#: the one-parameter latents whose AV rises with tau: where the model has no bias instability they take its
+#: share of the curve (:func:`_check_gm_resolves_b`)
+_RISING_LATENTS = ("RW", "DR")
+
+
+def _data_upper(lat, tau, upper_av, dt, tau_fl):
+    """The largest coefficient of the one-parameter latent ``lat`` whose AV alone, c^2 u(tau) with u the term's
+    exact AV at unit coefficient, stays below ``upper_av`` (the record's AV, upper 97.5 % chi^2 limits) at every
+    ``tau``: sqrt(min_tau upper_av / u); None where u is 0 at every tau."""
+    unit = build_gyro((lat,), [1.0], dt, tau_fl).avar(tau)
+    good = unit > 0
+    return float(math.sqrt(np.min(upper_av[good] / unit[good]))) if good.any() else None
 
 
 def _bound_terms_at_zero(diag, latents, coefs, tau_all, avar_all, edf_all, usable, dt, tau_fl):
@@ -766,8 +796,8 @@ def _bound_terms_at_zero(diag, latents, coefs, tau_all, avar_all, edf_all, usabl
     [0, upper] in ``diagnostics_["unresolved"]`` instead of a bare 0: its AV alone, c^2 u(tau) with u the
     term's exact AV at unit coefficient, cannot exceed the record's AV anywhere, so c <= sqrt(min_tau
     AV_97.5%(tau) / u(tau)), the chi^2 upper 97.5 % limit of the AV (engine edf) at the tau where that
-    is smallest (the bound of :func:`_check_gm_resolves_b`, for any term). The coefficient keeps its 0;
-    the report flags it ``not resolved`` and shows the interval."""
+    is smallest (:func:`_data_upper`; the bound of :func:`_check_gm_resolves_b`, for any term). The
+    coefficient keeps its 0; the report flags it ``not resolved`` and shows the interval."""
     from scipy.stats import chi2
 
     ok = usable & (edf_all > 0)
@@ -780,10 +810,9 @@ def _bound_terms_at_zero(diag, latents, coefs, tau_all, avar_all, edf_all, usabl
             continue
         if coef in (diag.get("unresolved") or {}):
             continue
-        unit = build_gyro((lat,), [1.0], dt, tau_fl).avar(tau_all[ok])
-        good = unit > 0
-        if good.any():
-            diag.setdefault("unresolved", {})[coef] = (0.0, float(math.sqrt(np.min(upper_av[good] / unit[good]))))
+        bound = _data_upper(lat, tau_all[ok], upper_av, dt, tau_fl)
+        if bound is not None:
+            diag.setdefault("unresolved", {})[coef] = (0.0, bound)
 
 
 def _white_latent(latents):
