@@ -46,6 +46,14 @@ difference reaches the real one.
 (:data:`VARIANT_PAIRS`): whether a difference of B's spread comes from the scales added or from the model;
 writes ``spread_variants.csv`` / ``.md`` and ``spread_variants_fits.csv``.
 
+``--asymptotic --axes x,y`` (no simulation, seconds): what the large-sample theory says B's and N's spread is for the
+designs the variants compare (:func:`asymptotic`): the efficient-GMM standard errors of the axis model's
+parameters, :math:`(D^T\\Omega^{-1}D)^{-1}`, with the exact covariance :math:`\\Omega` of the AV under the
+axis model (:func:`avbench.estimators.allan.covariance.av_covariance`) and the model's exact Jacobian ``D``;
+writes ``spread_asymptotic.csv`` / ``.md``. It says whether the filter's parameter costs B information
+(it does not: the same standard error to 4 digits) or whether a difference of the simulated spreads is a
+finite-sample one.
+
 Cost, measured (2 cores shared with other jobs, load 5-6, niced): one replicate of the three axes with
 the five fits ~50-60 s wall (gyro z ~25-30 s: the resonance choice; x and y ~12-15 s).
 """
@@ -65,7 +73,7 @@ from avbench.studies.real_runs import _markdown
 from avbench.studies.real_runs import _round as _round_to
 
 __all__ = ["AXES", "FITS", "PAIRS", "SEED", "axis_models", "model_gyro", "replicate_rows", "summary", "paired",
-           "main"]
+           "asymptotic", "main"]
 
 AXES = ("x", "y", "z")
 N_SAMPLES = 1_000_000  #: samples per simulated run (the ADIS16405 runs' length)
@@ -353,6 +361,55 @@ def truth_table(models: pd.DataFrame) -> dict:
     return out
 
 
+#: the designs of :func:`asymptotic`: label -> (the model: "axis" = the axis model's own latents, or a
+#: latent string whose white term replaces the axis model's; shortest cluster size)
+ASYMPTOTIC_DESIGNS = {
+    "today's model, every octave": ("axis", 1),
+    "today's model, m >= 2": ("axis", 2),
+    "today's model, m >= 16": ("axis", 16),
+    "WN+GM+RW, m >= 16 (before)": ("WN+GM+RW", 16),
+}
+
+
+def asymptotic(models: pd.DataFrame, axes=("x", "y"), n_samples: int = N_SAMPLES, dt: float = DT,
+               min_clusters: int = 8) -> pd.DataFrame:
+    """Large-sample standard errors of B and N (per cent of the value) for each design of
+    :data:`ASYMPTOTIC_DESIGNS` on each axis model: efficient GMM on the octave AVs with at least
+    ``min_clusters`` clusters from the design's shortest cluster size on, :math:`V = (D^T\\Omega^{-1}D)^{-1}`,
+    :math:`\\Omega` the exact AV covariance under the axis model (the truth), ``D`` the design model's
+    Jacobian in log-parameters at the axis model's values (for ``WN+GM+RW`` on an ``FW`` axis: the same
+    values without the filter's time constant, which the octaves from m = 16 on barely see: AV 2.6 % below the
+    white line at the first). B is proportional to the Gauss-Markov sigma (B_equiv), so its relative standard
+    error is sigma's log-scale one; N's is its white latent's."""
+    from avbench.estimators.allan.covariance import av_covariance
+    from avbench.estimators.likelihood.gmwm import LATENTS, _LatentAV, build_gyro, parse_model
+
+    rows = []
+    for axis in axes:
+        sub = models[models.axis == axis]
+        truth = model_gyro(models, axis, dt)
+        own = parse_model(list(dict.fromkeys(sub.latent)))
+        value = {f"{r.latent}.{r.parameter}": float(r.value) for r in sub.itertuples()}
+        white = next(lat for lat in own if lat in ("WN", "FW"))
+        m_all = 2.0 ** np.arange(int(math.log2(n_samples // min_clusters)) + 1)
+        for label, (model, min_m) in ASYMPTOTIC_DESIGNS.items():
+            latents = own if model == "axis" else parse_model(model)
+            vals = []
+            for lat in latents:
+                src = white if lat in ("WN", "FW") else lat
+                vals += [value[f"{src}.{p}"] for p in LATENTS[lat][0]]
+            m = m_all[m_all >= min_m]
+            omega = av_covariance(truth, m, n_samples, reuse=False)
+            D = _LatentAV(latents, m * dt, dt, 2.0 * n_samples * dt).jacobian(np.log(vals))
+            V = np.linalg.inv(D.T @ np.linalg.solve(omega, D))
+            names = [f"{lat}.{p}" for lat in latents for p in LATENTS[lat][0]]
+            se = {c: 100 * math.sqrt(V[i, i]) for c, i in (("B", names.index("GM.sigma")),
+                                                           ("N", names.index(f"{white if white in latents else 'WN'}.N")))}
+            rows.append({"axis": axis, "design": label, "model": "+".join(latents), "min_m": int(min_m),
+                         "n_scales": int(m.size), "se_B_pct": _round(se["B"]), "se_N_pct": _round(se["N"])})
+    return pd.DataFrame(rows)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="results/real", help="output folder")
@@ -365,6 +422,9 @@ def main(argv=None) -> int:
                     help="instead: the VARIANTS fits on the same simulated records (with --axes x,y); "
                          "writes OUT/spread_variants*.csv/md")
     ap.add_argument("--tables-only", action="store_true", help="summarise the shards under OUT/_shards/spread only")
+    ap.add_argument("--asymptotic", action="store_true",
+                    help="instead: the large-sample standard errors of B and N for the variants' designs (seconds); "
+                         "writes OUT/spread_asymptotic.csv/md")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -378,6 +438,11 @@ def main(argv=None) -> int:
     bad = [a for a in axes if a not in AXES]
     if bad:
         raise SystemExit(f"real_runs_spread: --axes: expected some of {','.join(AXES)}, got {','.join(bad)}")
+    if args.asymptotic:
+        a = asymptotic(models, axes)
+        a.to_csv(out / "spread_asymptotic.csv", index=False)
+        (out / "spread_asymptotic.md").write_text(_markdown(a))
+        return 0
     if args.variants:
         fits = collect(out)
         var = collect(out, "variants") if args.tables_only else simulate(models, out, args.replicates, axes, VARIANTS,

@@ -110,3 +110,28 @@ def test_committed_replicates_regenerate(models):
                 continue
             tol = 1e-5 * abs(v) if key[0] == "nnls_rel" else 0.01 * spread.get((axis, *key), abs(v))
             assert abs(got[key] - v) <= tol + 1e-12, (axis, key, got[key], v)
+
+
+def test_asymptotic_standard_errors_follow_efficient_gmm(models):
+    """``--asymptotic``: efficient GMM's large-sample standard errors. More octaves never cost precision (a
+    moment added to an efficient GMM cannot raise any parameter's variance); a filter the octaves cannot see
+    (tf 0.05 dt) gives the model with it the same B and N precision as the plain white-noise model on the
+    same scales; and the committed table is what the function computes."""
+    a = rs.asymptotic(models, ("x",)).set_index("design")
+    own = [d for d in rs.ASYMPTOTIC_DESIGNS if rs.ASYMPTOTIC_DESIGNS[d][0] == "axis"]
+    m_of = {d: rs.ASYMPTOTIC_DESIGNS[d][1] for d in own}
+    by_m = sorted(own, key=m_of.get)
+    for fewer, more in zip(by_m[1:], by_m[:-1]):  # more scales on the left
+        for c in ("se_B_pct", "se_N_pct"):
+            assert a.at[more, c] <= a.at[fewer, c] * (1 + 1e-9), (more, fewer, c)
+    tiny = models.copy()
+    tiny.loc[(tiny.axis == "x") & (tiny.parameter == "tf"), "value"] = 0.05 * rs.DT
+    t = rs.asymptotic(tiny, ("x",)).set_index("design")
+    same = t.loc["today's model, m >= 16"], t.loc["WN+GM+RW, m >= 16 (before)"]
+    assert same[0]["se_B_pct"] == pytest.approx(same[1]["se_B_pct"], rel=1e-3)
+    assert same[0]["se_N_pct"] > same[1]["se_N_pct"]  # N shares the white level with tf's (flat) column
+    committed = RESULTS / "spread_asymptotic.csv"
+    if committed.exists():
+        c = pd.read_csv(committed)
+        got = rs.asymptotic(models, tuple(dict.fromkeys(c.axis)))
+        np.testing.assert_allclose(got[["se_B_pct", "se_N_pct"]], c[["se_B_pct", "se_N_pct"]], rtol=1e-4)
