@@ -382,7 +382,7 @@ def asymptotic(models: pd.DataFrame, axes=("x", "y"), n_samples: int = N_SAMPLES
     white line at the first). B is proportional to the Gauss-Markov sigma (B_equiv), so its relative standard
     error is sigma's log-scale one; N's is its white latent's."""
     from avbench.estimators.allan.covariance import av_covariance
-    from avbench.estimators.likelihood.gmwm import LATENTS, _LatentAV, build_gyro, parse_model
+    from avbench.estimators.likelihood.gmwm import LATENTS, _LatentAV, parse_model
 
     rows = []
     for axis in axes:
@@ -403,8 +403,9 @@ def asymptotic(models: pd.DataFrame, axes=("x", "y"), n_samples: int = N_SAMPLES
             D = _LatentAV(latents, m * dt, dt, 2.0 * n_samples * dt).jacobian(np.log(vals))
             V = np.linalg.inv(D.T @ np.linalg.solve(omega, D))
             names = [f"{lat}.{p}" for lat in latents for p in LATENTS[lat][0]]
+            own_white = next(lat for lat in latents if lat in ("WN", "FW"))
             se = {c: 100 * math.sqrt(V[i, i]) for c, i in (("B", names.index("GM.sigma")),
-                                                           ("N", names.index(f"{white if white in latents else 'WN'}.N")))}
+                                                           ("N", names.index(f"{own_white}.N")))}
             rows.append({"axis": axis, "design": label, "model": "+".join(latents), "min_m": int(min_m),
                          "n_scales": int(m.size), "se_B_pct": _round(se["B"]), "se_N_pct": _round(se["N"])})
     return pd.DataFrame(rows)

@@ -742,8 +742,8 @@ def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable, dt, 
     The model then has no bias-instability term where the curve has one, so the rate random walk (and a
     ramp) take the flattening and rise of the curve's middle: K read from it runs about twice the truth
     (simulated 30-minute ADIS-like records with a Gauss-Markov B: 3 of the 6 misses of K's interval were
-    such fits; the ADIS accelerometers' plain GMWM K 0.034-0.083 against 0.022-0.028 m/s^2/sqrt(h) from
-    ``gmwm_filtered``). Each of them gets the same treatment, with its own data bound
+    such fits; on the ADIS accelerometers, where it sits on the sinusoid's bump, plain GMWM's K has six-run
+    means 0.035-0.060 against ``gmwm_filtered``'s 0.022-0.028 m/s^2/sqrt(h)). Each of them gets the same treatment, with its own data bound
     (:func:`_data_upper`: the bound of :func:`_bound_terms_at_zero`, which holds whatever the model).
     """
     import warnings
