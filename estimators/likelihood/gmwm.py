@@ -766,13 +766,16 @@ def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable, dt, 
         if bound is not None:
             unresolved[LATENTS[lat][1]] = (0.0, bound)
     diag["unresolved"] = unresolved
-    others = "".join(f"; {c} <= {b[1]:.3g}" for c, b in unresolved.items() if c != "B")
+    # no numbers in the message: this runs on the standardised record (Estimator.fit), whose unit is not the
+    # caller's; the bounds, in the caller's unit, are in diagnostics_["unresolved"] and the report
+    others = [c for c in unresolved if c != "B"]
     warnings.warn(
         f"B not resolved: the Gauss-Markov term peaks at tau = {peak:.3g} s, within three octaves of the shortest "
-        f"tau fitted ({diag['tau'][0]:.3g} s), where the sensor's filter shapes the curve; bias instability "
-        f"B <= {upper:.3g} (SI, the 97.5 % upper limit of the smallest AV read as a plateau)"
-        + (f"; {', '.join(c for c in unresolved if c != 'B')} not resolved either (the model has no bias "
-           f"instability to share the curve with){others}" if others else ""),
+        f"tau fitted ({diag['tau'][0]:.3g} s), where the sensor's filter shapes the curve; bias instability is "
+        f"bounded by the 97.5 % upper limit of the smallest AV read as a plateau"
+        + (f"; {', '.join(others)} not resolved either (the model has no bias instability to share the curve "
+           f"with): bounded by the record's AV" if others else "")
+        + " (the bounds: diagnostics_['unresolved'])",
         IdentifiabilityWarning, stacklevel=3,
     )
 
