@@ -57,7 +57,7 @@ def _jsonable(v):
 #: what an estimator reports about the model it chose (GMWM's ``diagnostics_``: the spectral line test, the
 #: resonance it added or not, the evidence between a Gauss-Markov and a flicker bias instability), copied
 #: into the JSON's ``model_choice`` and read in one screen note each (:func:`model_choice_notes`)
-MODEL_CHOICE_KEYS = ("line_test", "resonance_test", "bias_evidence", "filter_test")
+MODEL_CHOICE_KEYS = ("line_test", "resonance_test", "bias_evidence", "filter_test", "filter_held")
 
 
 def model_choice_notes(md: dict, sensor: str) -> list[str]:
@@ -69,6 +69,9 @@ def model_choice_notes(md: dict, sensor: str) -> list[str]:
     ft = choice.get("filter_test") or {}  # nnls_rel_filtered: the sensor's filter entered on evidence
     if ft.get("included") and ft.get("tf") is not None:
         notes.append(f"sensor filter modelled (first-order, tf = {1e3 * ft['tf']:.3g} ms)")
+    held = choice.get("filter_held") or {}  # GMWM's filter_tf: the sensor's filter given, not fitted
+    if held.get("tf") is not None:
+        notes.append(f"sensor filter held at tf = {1e3 * held['tf']:.3g} ms (filter_tf, not fitted)")
     ln = choice.get("line_test") or {}
     if ln.get("included") and ln.get("f0") is not None and "filter_test" in choice:
         notes.append(f"spectral line at {ln['f0']:.3g} Hz modelled")

@@ -106,6 +106,9 @@ SCALE_TEST_LEVEL = 0.001
 #: a Gauss-Markov term whose AV peak (1.8926 Tc) lies less than this factor above the shortest tau
 #: fitted (three octaves) shapes the first octaves -- the sensor's filter -- and does not resolve B
 GM_RESOLVED_PEAK_FACTOR = 8.0
+#: half-width, in the log of the value, of the box that holds a parameter fixed by a setting (``filter_tf``):
+#: wider than the solver's clip into the box (1e-9), far below anything a coefficient shows
+HELD_WIDTH = 1e-8
 
 #: GMWM's latent model of a real sensor's gyro or accelerometer (:class:`GMWMFiltered`, and the despiked
 #: GMWM of :mod:`avbench.estimators.robust.gmwm`): white noise through the sensor's first-order filter,
@@ -290,6 +293,12 @@ class GMWM(Estimator):
         False (default here). True: the record's evidence between a Gauss-Markov and a flicker bias
         instability, ``diagnostics_["bias_evidence"]`` (:meth:`GMWM._bias_evidence`: the same model
         with GM and FL exchanged, on the same scales, GMM-AIC weights); the reported B is the model's own.
+    filter_tf : float or None
+        None (default): the filter latent ``FW``'s time constant is fitted. A number (s): the sensor's
+        front-end filter is known (a datasheet: a first-order low-pass of -3 dB bandwidth f has
+        tf = 1 / (2 pi f)), and ``FW``'s tf is held at it: one parameter fewer (Hansen's J and the fit check
+        count it so), no standard error. Needs ``FW`` in ``model``. ``diagnostics_["filter_held"]`` (``tf``)
+        says so, and ``avbench estimate`` prints it.
 
     Attributes
     ----------
@@ -325,7 +334,7 @@ class GMWM(Estimator):
     _assess = True
 
     def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6,
-                 lines="model", resonance="model", bias_evidence=False):
+                 lines="model", resonance="model", bias_evidence=False, filter_tf=None):
         self.model = model
         self.min_clusters = min_clusters
         self.min_m = min_m
@@ -334,6 +343,7 @@ class GMWM(Estimator):
         self.lines = lines
         self.resonance = resonance
         self.bias_evidence = bias_evidence
+        self.filter_tf = filter_tf
 
     # -- settings --------------------------------------------------------------------------------
     def check_settings(self):
@@ -357,7 +367,31 @@ class GMWM(Estimator):
             raise ValueError(f"resonance: expected 'model' or 'auto', got {self.resonance!r}")
         if not isinstance(self.bias_evidence, bool):
             raise ValueError(f"bias_evidence: expected True or False, got {self.bias_evidence!r}")
+        tf = self.filter_tf
+        if tf is not None:
+            if isinstance(tf, bool) or not isinstance(tf, (int, float, np.integer, np.floating)) \
+                    or not math.isfinite(float(tf)) or tf <= 0:
+                raise ValueError(f"filter_tf: expected None or the sensor filter's time constant in seconds "
+                                 f"(a finite number > 0), got {tf!r}")
+            if "FW" not in latents:
+                raise ValueError(f"filter_tf: holds the filter latent FW's time constant, but model {self.model!r} "
+                                 f"has no FW (e.g. model='FW+GM+RW')")
         return latents
+
+    def _n_free(self, latents) -> int:
+        """The number of parameters the fit of ``latents`` estimates (a tf held at ``filter_tf`` is not one)."""
+        return sum(len(LATENTS[lat][0]) for lat in latents) - (self.filter_tf is not None and "FW" in latents)
+
+    def _hold(self, latents, lo, hi):
+        """``(lo, hi)`` with the parameters held by the settings (``filter_tf``) in a box of relative width
+        :data:`HELD_WIDTH` around their value: the solver keeps them there, and the covariance treats them
+        as held (on their bound, :func:`_report`)."""
+        if self.filter_tf is None or "FW" not in latents:
+            return lo, hi
+        i = _param_index(latents, "FW") + 1
+        lo, hi = lo.copy(), hi.copy()
+        lo[i], hi[i] = math.log(self.filter_tf) - HELD_WIDTH, math.log(self.filter_tf) + HELD_WIDTH
+        return lo, hi
 
     # -- fitting ---------------------------------------------------------------------------------
     def _wavelet_variance(self, rate, dt):
@@ -389,6 +423,8 @@ class GMWM(Estimator):
             bias_evidence = self._bias_evidence(latents, best, wv, usable, n, dt, line, band() if "RS" in latents else None)
         diag = best["diag"]
         diag["min_m"] = int(diag["m"][0])
+        if self.filter_tf is not None:
+            diag["filter_held"] = {"tf": float(self.filter_tf)}
         if line is not None:
             diag["line_test"] = line
             if line["significant"] and "SN" in latents:
@@ -466,7 +502,7 @@ class GMWM(Estimator):
                 return gyro.avar(tau) + (gain - 1.0) * n_wn**2 / tau
 
         reference = None if wv.reference_is_classical else (wv.tau, wv.avar, wv.m, n)
-        n_par = sum(len(LATENTS[lat][0]) for lat in latents)
+        n_par = self._n_free(latents)
         return assess_fit(rate, dt, model_avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
                           reference=reference, cov_scale=wv.cov_scale), gyro
 
@@ -480,7 +516,7 @@ class GMWM(Estimator):
 
         tau_all, avar_all, m_all, edf_all, cov_scale = wv.tau, wv.avar, wv.m, wv.edf, wv.cov_scale
         gain_all = wv.white_gain
-        n_par = sum(len(LATENTS[lat][0]) for lat in latents)
+        n_par = self._n_free(latents)
         if self.min_m in ("auto", "adequate"):
             lows = [int(v) for v in m_all if np.count_nonzero(usable & (m_all >= v)) >= n_par + 1]
         else:
@@ -569,7 +605,7 @@ class GMWM(Estimator):
         out = {}
         for lats, f in ((latents, best), (other, fit)):
             name = "GM" if "GM" in lats else "FL"
-            p = sum(len(LATENTS[lat][0]) for lat in lats)
+            p = self._n_free(lats)
             se = f["diag"]["std_err"]
             out[name] = {"J_stat": float(f["J_stat"]), "n_par": p, "aic": float(f["J_stat"]) + 2.0 * p,
                          "B": float(f["coefs"].get("B", math.nan)),
@@ -671,9 +707,9 @@ class GMWM(Estimator):
         every latent but a resonance ``RS`` (last in the parameter vector), the model it is added to: the
         fit then starts there, with the resonance at each of ``resonance.starts`` (instead of the grid
         of :func:`_starts`; 3 starts instead of 18 on an accelerometer axis with a line)."""
-        n_par = sum(len(LATENTS[lat][0]) for lat in latents)
+        n_par = self._n_free(latents)
         T = n * dt
-        lo, hi = _bounds(latents, tau, avar, dt, T, line, resonance)
+        lo, hi = self._hold(latents, *_bounds(latents, tau, avar, dt, T, line, resonance))
 
         tau_fl = 2.0 * T  # flicker latent: filter memory twice the record, as the presets
         extra = None
@@ -1277,6 +1313,6 @@ class GMWMFiltered(GMWM):
     """
 
     def __init__(self, *, model=REAL_SENSOR_MODEL, min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
-                 lines="auto", resonance="auto", bias_evidence=True):
+                 lines="auto", resonance="auto", bias_evidence=True, filter_tf=None):
         super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting, n_starts=n_starts,
-                         lines=lines, resonance=resonance, bias_evidence=bias_evidence)
+                         lines=lines, resonance=resonance, bias_evidence=bias_evidence, filter_tf=filter_tf)

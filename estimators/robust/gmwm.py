@@ -457,9 +457,11 @@ class GMWMDespiked(GMWM):
     uses_allan_variance = False  # reads the samples themselves (its own robust AV / spike mask)
 
     def __init__(self, *, model=REAL_SENSOR_MODEL, min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
-                 lines="auto", resonance="auto", bias_evidence=True, half_window=5, threshold=5.0, gap_tol=5e-3):
+                 lines="auto", resonance="auto", bias_evidence=True, filter_tf=None, half_window=5, threshold=5.0,
+                 gap_tol=5e-3):
         super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting,
-                         n_starts=n_starts, lines=lines, resonance=resonance, bias_evidence=bias_evidence)
+                         n_starts=n_starts, lines=lines, resonance=resonance, bias_evidence=bias_evidence,
+                         filter_tf=filter_tf)
         self.half_window = half_window
         self.threshold = threshold
         self.gap_tol = gap_tol
