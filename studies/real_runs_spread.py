@@ -42,9 +42,11 @@ runs' CVs of the two fits from ``OUT/consistency.csv`` with the share of simulat
 difference reaches the real one.
 
 ``--variants`` (gyro x and y, the same records): today's first default from fixed cut-offs (:data:`VARIANTS`:
-``min_m=16``, the old cut-off; ``min_m=2``, the real x runs'), paired with ``gmwm_filtered`` and ``gmwm``
-(:data:`VARIANT_PAIRS`): whether a difference of B's spread comes from the scales added or from the model;
-writes ``spread_variants.csv`` / ``.md`` and ``spread_variants_fits.csv``.
+``min_m=16``, the old cut-off; ``min_m=2``, the real x runs'), and with the filter's time constant given at the
+axis model's own (``filter_tf``), paired with ``gmwm_filtered`` and ``gmwm`` (:data:`VARIANT_PAIRS`): whether a
+difference of B's spread comes from the scales added, from fitting tf, or from the model; writes
+``spread_variants.csv`` / ``.md`` and ``spread_variants_fits.csv``. The fits it pairs with are the spread
+shards' where they are, else the committed ``spread_fits.csv`` (the same numbers; the shards are not kept).
 
 ``--asymptotic --axes x,y`` (no simulation, seconds): what the large-sample theory says B's and N's spread is for the
 designs the variants compare (:func:`asymptotic`): the efficient-GMM standard errors of the axis model's
@@ -97,14 +99,23 @@ PAIRS = (("gmwm_filtered", "gmwm"), ("gmwm_despiked", "gmwm_despiked_pre24"))
 #: and y): today's model from the cut-off ``gmwm`` chooses (m >= 16: the scales it adds, or the model?),
 #: from m = 2 (the cut-off ``gmwm_filtered`` keeps on the real x runs), and ``gmwm`` from m = 16 (its own
 #: choice is 16 or 32): ``FW`` against ``WN`` on the same scales
+def _tf_held(models: pd.DataFrame, axis: str) -> tuple[str, dict]:
+    """Today's first default with the filter's time constant given (``filter_tf``) at the axis model's own: does
+    fitting tf cost B's spread?"""
+    tf = models[(models.axis == axis) & (models.latent == "FW") & (models.parameter == "tf")]["value"]
+    return "gmwm_filtered", {"filter_tf": float(tf.iloc[0])}
+
+
 VARIANTS = {
     "gmwm_filtered_m16": ("gmwm_filtered", {"min_m": 16}),
     "gmwm_filtered_m2": ("gmwm_filtered", {"min_m": 2}),
     "gmwm_m16": ("gmwm", {"min_m": 16}),
+    "gmwm_filtered_tf_held": _tf_held,
 }
 VARIANT_PAIRS = (("gmwm_filtered_m16", "gmwm"), ("gmwm_filtered", "gmwm_filtered_m16"),
                  ("gmwm_filtered_m2", "gmwm"), ("gmwm_filtered", "gmwm_filtered_m2"),
-                 ("gmwm_filtered_m16", "gmwm_m16"), ("gmwm_m16", "gmwm"))
+                 ("gmwm_filtered_m16", "gmwm_m16"), ("gmwm_m16", "gmwm"),
+                 ("gmwm_filtered", "gmwm_filtered_tf_held"), ("gmwm_filtered_tf_held", "gmwm"))
 #: parameters that are not rates (a record's scale leaves them unchanged): time constants and frequencies
 _SHAPE = ("tc", "tf", "f0")
 SIG = 6  # significant digits written
@@ -171,7 +182,8 @@ def model_gyro(models: pd.DataFrame, axis: str, dt: float = DT):
 # -- the simulation ------------------------------------------------------------------------------------------
 def replicate_rows(models: pd.DataFrame, axis: str, replicate: int, fits=None, n_samples: int = N_SAMPLES,
                    seed: int = SEED) -> list[dict]:
-    """Every fit of ``fits`` (default :data:`FITS`) on replicate ``replicate`` of ``axis``: one row per fit x
+    """Every fit of ``fits`` (default :data:`FITS`: label -> (estimator name, settings), or a function of the
+    model table and the axis returning that) on replicate ``replicate`` of ``axis``: one row per fit x
     coefficient (N, B, K in the display units deg/sqrt(h), deg/h, deg/h^1.5)."""
     from avbench.noise_models.units import DISPLAY_UNITS, from_si
     from avbench.recordings.fit import fit_axis
@@ -181,7 +193,8 @@ def replicate_rows(models: pd.DataFrame, axis: str, replicate: int, fits=None, n
     fits = FITS if fits is None else fits
     x = model_gyro(models, axis).simulate(n_samples, replicate_rng(seed, AXES.index(axis), replicate))
     rows = []
-    for label, (name, settings) in fits.items():
+    for label, spec in fits.items():
+        name, settings = spec(models, axis) if callable(spec) else spec
         t0 = time.process_time()
         fit = fit_axis(x, DT, np.zeros(0, dtype=np.int64), [name], {name: settings})[name]
         cpu = time.process_time() - t0
@@ -445,7 +458,8 @@ def main(argv=None) -> int:
         (out / "spread_asymptotic.md").write_text(_markdown(a))
         return 0
     if args.variants:
-        fits = collect(out)
+        # today's and the earlier default's fits of the same records: the shards, or the committed table
+        fits = collect(out) if (out / "_shards" / "spread").is_dir() else pd.read_csv(out / "spread_fits.csv")
         var = collect(out, "variants") if args.tables_only else simulate(models, out, args.replicates, axes, VARIANTS,
                                                                           "variants")
         var.drop(columns="cpu_s").to_csv(out / "spread_variants_fits.csv", index=False)

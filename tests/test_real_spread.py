@@ -135,3 +135,14 @@ def test_asymptotic_standard_errors_follow_efficient_gmm(models):
         c = pd.read_csv(committed)
         got = rs.asymptotic(models, tuple(dict.fromkeys(c.axis)))
         np.testing.assert_allclose(got[["se_B_pct", "se_N_pct"]], c[["se_B_pct", "se_N_pct"]], rtol=1e-4)
+
+
+def test_variants_are_known_fits_and_the_held_tf_is_the_axis_models(models):
+    """``--variants``: every paired label is a fit of the study; the tf-held variant gives today's first default
+    the axis model's own filter time constant (a function of the model table and the axis)."""
+    labels = set(rs.FITS) | set(rs.VARIANTS)
+    assert all(a in labels and b in labels for a, b in rs.VARIANT_PAIRS)
+    for axis in ("x", "y"):
+        name, settings = rs.VARIANTS["gmwm_filtered_tf_held"](models, axis)
+        tf = models[(models.axis == axis) & (models.parameter == "tf")]["value"].item()
+        assert name == "gmwm_filtered" and settings == {"filter_tf": tf}
