@@ -440,9 +440,10 @@ class GMWM(Estimator):
             diag["resonance_test"] = resonance_test or {"included": "RS" in latents, "reason": "in the model"}
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
             return best["coefs"], {}, diag
+        tau_ok, upper_av = _av_upper_limits(tau_all, avar_all, edf_all, usable)
         if "GM" in latents:
-            _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable, dt, 2.0 * n * dt)
-        _bound_terms_at_zero(diag, latents, best["coefs"], tau_all, avar_all, edf_all, usable, dt, 2.0 * n * dt)
+            _check_gm_resolves_b(diag, latents, tau_ok, upper_av, dt, 2.0 * n * dt)
+        _bound_terms_at_zero(diag, latents, best["coefs"], tau_ok, upper_av, dt, 2.0 * n * dt)
         check, gyro = self._fit_check(best, latents, rate, dt, wv, usable, n)
         diag.update(check)
         diag.update(wv.diagnostics or {})
@@ -616,7 +617,8 @@ class GMWM(Estimator):
         for v in out.values():
             v["weight"] = math.exp(-(v["aic"] - low) / 2) / total
         preferred = max(out, key=lambda k: out[k]["weight"])
-        out.update({"preferred": preferred, "weight": out[preferred]["weight"], "fitted": "GM" if "GM" in latents else "FL",
+        out.update({"preferred": preferred, "weight": out[preferred]["weight"],
+                    "fitted": "GM" if "GM" in latents else "FL",
                     "decisive": bool(out[preferred]["weight"] >= BIAS_EVIDENCE_WEIGHT), "min_m": int(best["diag"]["m"][0])})
         return out
 
@@ -763,7 +765,16 @@ class GMWM(Estimator):
         return {"coefs": coefs, "J_stat": diag["J_stat"], "diag": diag}
 
 
-def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable, dt, tau_fl):
+def _av_upper_limits(tau_all, avar_all, edf_all, usable):
+    """``(tau, upper)``: the usable octave taus with an edf, and the upper 97.5 % chi^2 limits of the record's AV
+    there (engine edf), the data bounds of :func:`_check_gm_resolves_b` and :func:`_bound_terms_at_zero`."""
+    from scipy.stats import chi2
+
+    ok = usable & (edf_all > 0)
+    return tau_all[ok], avar_all[ok] * edf_all[ok] / chi2.ppf(0.025, edf_all[ok])
+
+
+def _check_gm_resolves_b(diag, latents, tau, upper_av, dt, tau_fl):
     """B not resolved when the Gauss-Markov term peaks within the first three octaves fitted; nor are the
     terms that rise with tau (K, R), which then stand in for the missing bias instability.
 
@@ -779,12 +790,11 @@ def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable, dt, 
     ramp) take the flattening and rise of the curve's middle: K read from it runs about twice the truth
     (simulated 30-minute ADIS-like records with a Gauss-Markov B: 3 of the 6 misses of K's interval were
     such fits; on the ADIS accelerometers, where it sits on the sinusoid's bump, plain GMWM's K has six-run
-    means 0.035-0.060 against ``gmwm_filtered``'s 0.022-0.028 m/s^2/sqrt(h)). Each of them gets the same treatment, with its own data bound
-    (:func:`_data_upper`: the bound of :func:`_bound_terms_at_zero`, which holds whatever the model).
+    means 0.035-0.060 against ``gmwm_filtered``'s 0.022-0.028 m/s^2/sqrt(h)). Each of them gets the same
+    treatment, with its own data bound (:func:`_data_upper`: the bound of :func:`_bound_terms_at_zero`, which
+    holds whatever the model). ``tau``, ``upper_av``: :func:`_av_upper_limits`.
     """
     import warnings
-
-    from scipy.stats import chi2
 
     from avbench.estimators.base import IdentifiabilityWarning
     from avbench.noise_models.terms import GM_PEAK_TAU_OVER_TC
@@ -793,12 +803,10 @@ def _check_gm_resolves_b(diag, latents, tau_all, avar_all, edf_all, usable, dt, 
     peak = GM_PEAK_TAU_OVER_TC * tc
     if peak >= GM_RESOLVED_PEAK_FACTOR * diag["tau"][0]:
         return
-    ok = usable & (edf_all > 0)
-    upper_av = avar_all[ok] * edf_all[ok] / chi2.ppf(0.025, edf_all[ok])
     upper = float(math.sqrt(np.min(upper_av) / PLATEAU))
     unresolved = {"B": (0.0, upper)}
     for lat in _RISING_LATENTS:
-        bound = _data_upper(lat, tau_all[ok], upper_av, dt, tau_fl) if lat in latents else None
+        bound = _data_upper(lat, tau, upper_av, dt, tau_fl) if lat in latents else None
         if bound is not None:
             unresolved[LATENTS[lat][1]] = (0.0, bound)
     diag["unresolved"] = unresolved
@@ -830,26 +838,23 @@ def _data_upper(lat, tau, upper_av, dt, tau_fl):
     return float(math.sqrt(np.min(upper_av[good] / unit[good]))) if good.any() else None
 
 
-def _bound_terms_at_zero(diag, latents, coefs, tau_all, avar_all, edf_all, usable, dt, tau_fl):
+def _bound_terms_at_zero(diag, latents, coefs, tau, upper_av, dt, tau_fl):
     """A one-parameter term the fit put at zero (its scale on the lower bound) gets the interval
     [0, upper] in ``diagnostics_["unresolved"]`` instead of a bare 0: its AV alone, c^2 u(tau) with u the
     term's exact AV at unit coefficient, cannot exceed the record's AV anywhere, so c <= sqrt(min_tau
     AV_97.5%(tau) / u(tau)), the chi^2 upper 97.5 % limit of the AV (engine edf) at the tau where that
     is smallest (:func:`_data_upper`; the bound of :func:`_check_gm_resolves_b`, for any term). The
-    coefficient keeps its 0; the report flags it ``not resolved`` and shows the interval."""
-    from scipy.stats import chi2
-
-    ok = usable & (edf_all > 0)
-    if not ok.any():
+    coefficient keeps its 0; the report flags it ``not resolved`` and shows the interval. ``tau``,
+    ``upper_av``: :func:`_av_upper_limits`."""
+    if not upper_av.size:
         return
-    upper_av = avar_all[ok] * edf_all[ok] / chi2.ppf(0.025, edf_all[ok])
     for lat in latents:
         names, coef = LATENTS[lat]
         if coef is None or len(names) != 1 or coefs.get(coef, 1.0) != 0.0:
             continue
         if coef in (diag.get("unresolved") or {}):
             continue
-        bound = _data_upper(lat, tau_all[ok], upper_av, dt, tau_fl)
+        bound = _data_upper(lat, tau, upper_av, dt, tau_fl)
         if bound is not None:
             diag.setdefault("unresolved", {})[coef] = (0.0, bound)
 
