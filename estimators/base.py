@@ -21,10 +21,15 @@ Every estimator, batch or online, follows the scikit-learn contract:
       (``diagnostics_["std_err"]``), NaN elsewhere; ``bootstrap(...)`` fills them for any method.
       ``conf_int(level=0.95, conservative=False)`` gives intervals (:mod:`avbench.estimators.uncertainty`).
 
+``result(level=0.95)`` gives all of it as one typed :class:`avbench.estimators.results.FitResult`
+(per coefficient its value, standard error, interval and status), the object every surface renders;
+code outside this package reads results, never ``diagnostics_``.
+
 Subclasses implement ``_fit(rate, dt)`` returning ``(coefficients: dict, nonphysical: dict,
-diagnostics: dict)``; the base class does the input checks and packs the results. A subclass whose
-settings can be validated without data may also define ``check_settings()`` (raise ``ValueError``
-naming the bad setting): study configs then call it instead of trial fits on simulated records.
+diagnostics: dict)``; the base class does the input checks and packs the results. Each subclass
+declares what its settings accept in ``parameter_constraints`` (:mod:`avbench.estimators.settings`),
+checked by ``get`` and ``fit``; relations between settings go in ``check_settings()`` (raise
+``ValueError`` naming the setting), which study configs call too: no trial fits.
 
 Register a subclass with the decorator ``@register("name")``; ``estimators.get(name, **settings)``
 returns a new configured instance.
@@ -103,24 +108,19 @@ BUILTIN: dict[str, str] = {
     "whittle_debiased": "avbench.estimators.likelihood.whittle:WhittleDebiased",
 }
 
-#: The methods to run on a user's recording when none are named (``avbench estimate``): methods
-#: whose default settings give physically plausible coefficients on all six ADIS16405 runs x 3 axes
-#: and the MTi-G **and whose model passes the fit check on most real axes** (results/real/README.md).
+#: The methods run on a user's recording when none are named (``avbench estimate``): methods whose
+#: default settings give physically plausible coefficients on the six ADIS16405 runs and the MTi-G
+#: and whose model passes the fit check on most real axes (results/real/README.md).
 #: ``gmwm_filtered`` (GMWM with the sensor's low-pass filter modelled, FW+GM+RW, a spectral line and a
-#: resonance entering on evidence) is first (it fills the filter yaml): the fit check passes on 15 of
-#: the 18 ADIS gyro axes and 12 of the 18 accelerometer axes, and on the first 30/60-minute slices of the
-#: gyro axes its N and B are plausible on 35 of 36 (the other flagged). ``gmwm_despiked`` is the same
-#: model with spikes found and left out (equal to it on a clean record; the MTi-G's spikes). Left out on
-#: purpose: Lv et al.'s ``ols``, ``ols_trimmed`` and ``wls``, faithful to the paper and unconstrained
-#: (negative elements of beta, i.e. missing B/K, and rate ramps from nothing on real records), and
-#: ``gmwm_robust`` (all octaves, as the papers: on a sensor that low-pass filters its output its
-#: Gauss-Markov term fits the filter); the slow ``mle`` and the online filters. **``nnls_rel``** was the
-#: third default until issue 24's eighth session: its five-term model has neither the sensor's filter
-#: nor the line, and it failed the fit check on 18 of 18 gyro and 17 of 18 accelerometer axes -- a
-#: default whose fit is flagged on almost every real record gives the user a flag and no number to paste.
-#: ``nnls_rel_filtered`` (with the filter and the line) passes on 5 of 18 and 5 of 18 (a resonance and the
-#: bump's skirt are outside its model), so it does not replace it. Both, and the five IEEE coefficients
-#: Q and R that GMWM's model does not carry, stay one ``--method nnls_rel`` away.
+#: resonance entering on evidence) is first (it fills the filter yaml): its fit check passes on 15 of
+#: the 18 ADIS gyro axes and 12 of the 18 accelerometer axes. ``gmwm_despiked`` is the same model with
+#: spikes found and left out (equal to it on a clean record). Not defaults: Lv et al.'s ``ols``,
+#: ``ols_trimmed`` and ``wls`` (faithful to the paper and unconstrained: negative elements of beta and
+#: rate ramps from nothing on real records); ``gmwm_robust`` (all octaves: on a sensor that low-pass
+#: filters its output its Gauss-Markov term fits the filter); ``nnls_rel`` (its five-term model has
+#: neither the filter nor the line: it fails the fit check on 18 of 18 gyro and 17 of 18 accelerometer
+#: axes) and ``nnls_rel_filtered`` (5 of 18 pass); the slow ``mle`` and the online filters. Each is one
+#: ``--method NAME`` away.
 DEFAULT_METHODS = ("gmwm_filtered", "gmwm_despiked")
 
 
@@ -208,11 +208,21 @@ def get(name, **settings) -> "Estimator":
             f"estimator {cls.name!r}: unknown setting(s) {', '.join(unknown)}; "
             f"accepted: {', '.join(accepted) or '(none)'}"
         )
+    _validate(cls, settings)
+    return cls(**settings)
+
+
+def _validate(cls, settings: dict) -> None:
+    """Check ``settings`` of estimator class ``cls``: its declared constraints
+    (:func:`avbench.estimators.settings.validate_settings`) and the settings several estimators share;
+    ``ValueError`` naming the setting (relations between settings: the class's ``check_settings()``)."""
+    from avbench.estimators.settings import validate_settings
+
+    validate_settings(cls, settings)
     try:
         check_common_settings(settings)
     except ValueError as e:
         raise ValueError(f"estimator {cls.name!r}: {e}") from None
-    return cls(**settings)
 
 
 def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill=math.nan) -> pd.Series:
@@ -295,7 +305,7 @@ class Estimator:
         unit is ``data_scale`` (in the caller's unit). It is exactly 1 for a record already
         standardised (an estimator fitting another inside its ``_fit``) and for a constant one.
         """
-        check_common_settings(self.get_params())
+        _validate(type(self), self.get_params())
         rate, dt = check_record(rate, dt)
         # an online estimator is handed the record as it is (fit must equal partial_fit over chunks,
         # and the noise level that standardises a record is known only at its end: the online filters
@@ -438,6 +448,13 @@ class Estimator:
             return gyro.avar(tau) * float(self.diagnostics_.get("data_scale", 1.0)) ** 2
         c = self.coefficients_
         return model_avar({k: float(v) for k, v in c.items() if np.isfinite(v)}, tau)
+
+    def result(self, level: float = 0.95):
+        """The fit as one typed :class:`avbench.estimators.results.FitResult` with intervals at ``level``
+        (after :meth:`bootstrap`, its standard errors); what every surface renders."""
+        from avbench.estimators.results import build
+
+        return build(self, level)
 
     # -- uncertainty (avbench.estimators.uncertainty) ------------------------------------------------------
     def _check_fitted(self):

@@ -4,9 +4,9 @@ One figure per sensor, one panel per axis: the overlapping octave ADEV (gap-awar
 chi^2 bars, each method's model curve (dashed; "poor fit" in its label when flagged), and for the
 first method that fitted the terms' own lines -- Q: sqrt(3) Q / tau, N: N / sqrt(tau),
 B: sqrt(2 ln2 / pi) B, K: K sqrt(tau / 3), R: R tau / sqrt(2) (IEEE Std 952 Annex C) -- each
-labelled with its value in the display units. Under each panel, the residuals of every method's
+labelled with its value in the display units (resolved values only). Under each panel, the residuals of every method's
 fit check (:mod:`avbench.estimators.allan.fit_check`): z per tau, the decorrelated standardised
-residual of the AV against the method's model (``diagnostics_["fit_check"]["z"]``; about N(0, 1)
+residual of the AV against the method's model (the result's ``fit_check.residuals``; about N(0, 1)
 where the model holds), with the +-2 band: where a flagged fit misses the curve, and by how much.
 """
 
@@ -57,7 +57,7 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
         tau = np.unique(np.rint(np.logspace(0, np.log10(max(av.m.max(), 1)), 80)).astype(int)) * dt
         terms_drawn = False
         for i, (method, fit) in enumerate(axis_fits[name].items()):
-            if fit.estimator is None:
+            if fit.error is not None:
                 continue
             with np.errstate(invalid="ignore", over="ignore"):
                 curve = fitted_avar(fit, tau, scaled=True) * (scale / fit.scale) ** 2
@@ -65,9 +65,8 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
             if np.any(curve > 0):
                 ax.plot(tau, np.sqrt(np.where(curve > 0, curve, np.nan)) / scale, "--", color=f"C{i}", label=label)
             if not terms_drawn:
-                coefs = fit.coefficients()
                 for j, (c, f) in enumerate(_TERM.items()):
-                    v = coefs[c]
+                    v = fit.result.coefficients[c].value  # resolved values only
                     if math.isfinite(v) and v > 0:
                         shown = from_si(c, v, units[c], sensor)
                         ax.plot(tau, f(v, tau), ":", lw=1.2, color=f"C{j + 5}",
@@ -98,15 +97,9 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
 
 
 def residuals(fit):
-    """(tau, z) of a fitted method's poor-fit check, or None when it has none (failed, a method
-    without the check, or a check that is not made per tau: whittle's bins frequencies)."""
-    est = fit.estimator
-    check = None if est is None else getattr(est, "diagnostics_", {}).get("fit_check")
-    if not check or "z" not in check or "tau" not in check:
-        return None
-    tau, z = np.asarray(check["tau"], float), np.asarray(check["z"], float)
-    ok = np.isfinite(z)
-    return (tau[ok], z[ok]) if ok.any() else None
+    """(tau, z) of a fitted method's fit check, or None when it has none (failed, a method without the
+    check, or a check that is not made per tau: whittle's bins frequencies)."""
+    return fit.result.fit_check.residuals
 
 
 def _draw_deviations(ax, devs, skip=("tvar",)):

@@ -134,8 +134,6 @@ def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) 
     which are bounds and why. ``avs``: ``{sensor: {axis: (AllanResult, scale)}}`` for the AV bound where
     the method has no interval. Raises ValueError naming ``option`` when a sensor is missing or an axis
     has neither a value nor a bound."""
-    from avbench.noise_models.units import to_si
-
     check_sensors(list(data["sensors"]), option)
     out = {}
     for (sensor, coef), key in KEYS.items():
@@ -146,7 +144,7 @@ def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) 
                 raise ValueError(f"{option}: method {method!r} was not fitted; expected one of --method")
             e = md["coefficients"][coef]
             av = (avs or {}).get(sensor, {}).get(axis)
-            v, why = _axis_value(e, md, coef, sensor, to_si)
+            v, why = _axis_value(e, md)
             if why is not None and v is None and av is not None:
                 v, why = av_bound(coef, *av), why + " and the method gives no interval: the bound the AV allows"
             elif md.get("poor_fit") and v is not None and av is not None:  # the model misses the curve: its
@@ -165,24 +163,31 @@ def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) 
     return out
 
 
-def _axis_value(e, md, coef, sensor, to_si):
-    """(SI value, None) for a resolved estimate; (upper bound or None, reason) otherwise."""
-    ci = e.get("conf_int_si")
-    hi = ci[1] if ci is not None and ci[1] is not None and math.isfinite(ci[1]) else None
-    ev = e.get("evidence")
+#: the yaml's comment for a value that is a bound, by why the coefficient is not resolved
+#: (:data:`avbench.estimators.results.REASONS`)
+_BOUND_NOTES = {"record": "not resolved by this record: the upper end of its interval",
+                "evidence": "not resolved (its evidence): the upper end of its interval",
+                "zero": "zero (no random walk seen)"}
+
+
+def _axis_value(e, md):
+    """(SI value, None) for a resolved estimate; (upper bound or None, reason) otherwise (``e``: a
+    coefficient of the JSON payload, ``md``: its method)."""
+    from avbench.estimators.results import REASONS
+
+    iv = e.get("interval_si")
+    hi = iv[1] if iv is not None and iv[1] is not None and math.isfinite(iv[1]) else None
     if e["flag"] == "not resolved":
-        return e["interval_si"][1], "not resolved by this record: the upper end of its interval"
+        code = {text: k for k, text in REASONS.items()}[e["reason"]]
+        if code == "zero":
+            return hi, _BOUND_NOTES[code] + (": the upper end of its interval" if hi is not None else "")
+        return hi, _BOUND_NOTES[code]
     if e["si"] is None:
         return None, e["flag"]
-    if ev is not None and not ev["present"]:
-        up = to_si(coef, ev["upper"], e["unit"], sensor) if ev.get("upper") is not None else hi
-        return up, "not resolved (its evidence): the upper end of its interval"
-    if e["si"] == 0.0:
-        return hi, "zero (no random walk seen)" + (": the upper end of its interval" if hi is not None else "")
-    if ci is not None and ci[0] is not None and ci[0] <= 0:
+    if iv is not None and iv[0] is not None and iv[0] <= 0:
         return hi, "its interval reaches zero: the upper end of the interval"
     if md.get("poor_fit"):
-        return (hi if hi is not None else None), "the fit is poor: the upper end of its interval"
+        return hi, "the fit is poor: the upper end of its interval"
     return e["si"], None
 
 

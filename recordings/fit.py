@@ -18,11 +18,14 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MethodFit", "fit_axis", "fitted_avar", "agreement", "uses_allan_variance", "scaled_allan",
+from avbench.estimators.results import FitResult
+from avbench.estimators.results import failed as failed_result
+
+__all__ = ["LEVEL", "MethodFit", "fit_axis", "fitted_avar", "agreement", "uses_allan_variance", "scaled_allan",
            "random_effects", "between_runs", "auto_inflation"]
 
 _SCALE_LIMIT = 2.0**40  # records within 2^-40..2^40 of unit RMS are fitted as they are (no copy)
@@ -38,56 +41,27 @@ def uses_allan_variance(name: str) -> bool:
 
 @dataclass
 class MethodFit:
-    """One method on one axis: the fitted estimator (None if it failed) and how it was run."""
+    """One method on one axis: its typed result (:class:`avbench.estimators.results.FitResult`, SI of the
+    record as given, the fitting scale undone) and how it was run."""
 
     name: str
-    estimator: object | None
+    result: FitResult
     scale: float  # the record was multiplied by this before fitting
     seconds: float
-    error: str | None = None
+    error: str | None = None  # the exception's message when the method raised (``result`` then "failed")
     run: tuple[int, int] | None = None  # (start, length) of the gap-free run used, None = whole record
-    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def warnings(self) -> list[str]:
+        return list(self.result.warnings)
 
     def coefficients(self) -> dict[str, float]:
-        """Q, N, B, K, R in SI (NaN where absent), with the scaling undone."""
-        from avbench.noise_models.units import COEFFICIENTS
+        """Q, N, B, K, R in SI as fitted (NaN where absent or non-physical), whatever their status."""
+        return {c: e.fitted for c, e in self.result.coefficients.items()}
 
-        if self.estimator is None:
-            return {c: math.nan for c in COEFFICIENTS}
-        c = self.estimator.coefficients_
-        return {k: float(c[k]) / self.scale for k in COEFFICIENTS}
-
-    def std_errors(self) -> dict[str, float] | None:
-        """Standard errors (SI) if the method gives them (``std_err_`` or ``diagnostics_["std_err"]``)."""
-        est = self.estimator
-        if est is None:
-            return None
-        se = getattr(est, "std_err_", None)
-        if se is None:
-            se = est.diagnostics_.get("std_err")
-        if se is None:
-            return None
-        try:
-            return {k: float(se[k]) / self.scale for k in se.index if math.isfinite(float(se[k]))}
-        except (AttributeError, TypeError, ValueError, KeyError):
-            return None
-
-    def intervals(self, level: float = 0.95) -> dict[str, tuple[float, float]] | None:
-        """Confidence intervals (SI) from the estimator's ``conf_int(level)`` if it has one."""
-        est = self.estimator
-        fn = getattr(est, "conf_int", None) if est is not None else None
-        if fn is None:
-            return None
-        try:
-            ci = fn(level) if level is not None else fn()
-            out = {}
-            for k in ci.index:
-                lo, hi = float(ci.loc[k].iloc[0]), float(ci.loc[k].iloc[1])
-                if math.isfinite(lo) and math.isfinite(hi):
-                    out[k] = (lo / self.scale, hi / self.scale)
-            return out
-        except Exception:  # an optional extra; never let it cost the coefficients
-            return None
+    def std_errors(self) -> dict[str, float]:
+        """Standard errors (SI) where the method gives them."""
+        return {c: e.std_err for c, e in self.result.coefficients.items() if math.isfinite(e.std_err)}
 
 
 def scaled_allan(x, dt, starts):
@@ -150,8 +124,13 @@ def fit_axis(x, dt, starts, methods, settings=None, progress=None) -> dict[str, 
                 raise
             except Exception as e:  # one method failing on this record is a result, not a crash
                 est, err = None, f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"[:300]
-        fit = MethodFit(name, est, scale, time.perf_counter() - t0, err, run,
-                        sorted({f"{w.category.__name__}: {str(w.message).splitlines()[0][:200]}" for w in caught}))
+        seconds = time.perf_counter() - t0
+        messages = sorted({f"{w.category.__name__}: {_first_line(str(w.message))}" for w in caught})
+        if est is None:
+            result = failed_result(name, err)
+        else:
+            result = est.result(LEVEL).rescaled(scale)
+        fit = MethodFit(name, result.with_warnings(messages), scale, seconds, err, run)
         out[name] = fit
         if progress is not None:
             progress.update(1)
@@ -159,14 +138,29 @@ def fit_axis(x, dt, starts, methods, settings=None, progress=None) -> dict[str, 
 
 
 def fitted_avar(fit: MethodFit, tau, scaled: bool = False) -> np.ndarray:
-    """The AV curve (SI, rad^2/s^2 or (m/s^2)^2) a fitted method stands for, as the estimator itself
-    gives it (:meth:`avbench.estimators.base.Estimator.model_avar`: the exact AV of its latent model
-    where it has one, else the five-term curve). With ``scaled`` the curve is that of the record as
-    fitted (times ``fit.scale``)."""
-    est = fit.estimator
-    if est is None:
+    """The AV curve (SI, rad^2/s^2 or (m/s^2)^2) a fitted method stands for, as its result gives it
+    (:meth:`avbench.estimators.results.FitResult.model_avar`: the exact AV of its latent model where it
+    has one, else the five-term curve). With ``scaled`` the curve is that of the record as fitted
+    (times ``fit.scale`` squared)."""
+    if fit.error is not None:
         return np.full(np.shape(tau), np.nan)
-    return est.model_avar(tau) / (1.0 if scaled else fit.scale**2)
+    return fit.result.model_avar(tau) * (fit.scale**2 if scaled else 1.0)
+
+
+#: the interval level of every result of a recording (the screen's, the files' and the yaml's)
+LEVEL = 0.95
+#: a warning's message is kept up to this many characters, cut at a word
+_WARNING_CHARS = 240
+
+
+def _first_line(message: str) -> str:
+    """The first line of a warning's message, cut at a word boundary past :data:`_WARNING_CHARS` (never
+    inside a number or a word), with an ellipsis where cut."""
+    line = message.splitlines()[0] if message else ""
+    if len(line) <= _WARNING_CHARS:
+        return line
+    cut = line.rfind(" ", 0, _WARNING_CHARS)
+    return line[: cut if cut > 0 else _WARNING_CHARS].rstrip(" ,;:") + " ..."
 
 
 def agreement(records, dt, min_edf: float = 4.0) -> dict:

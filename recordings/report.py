@@ -1,35 +1,44 @@
-"""Step 5a: what the fits mean, per sensor, axis and method -- the JSON payload and the screen tables.
+"""Step 5a: what the fits mean, per sensor, axis and method -- the JSON payload, the CSV and the screen.
 
-Each coefficient carries a ``flag`` instead of an overloaded NaN:
+Every surface renders one object per fit, the method's :class:`avbench.estimators.results.FitResult`
+(:attr:`avbench.recordings.fit.MethodFit.result`): the JSON payload (:func:`payload`) carries each
+coefficient's value, its interval and its status, and the CSV (:func:`tables`) and the screen
+(:func:`screen`) are drawn from the payload, so that they cannot disagree. Each coefficient has a
+``flag``, its status:
 
-* ``"ok"`` -- a value (with ``std_err_si`` and ``conf_int_si`` where the method gives them);
-* ``"not resolved"`` -- the record does not determine it (the estimator says so, with an interval:
-  ``interval_si``; ``value`` is null and the fitted value is in ``fitted_si``), e.g. GMWM's B when its
-  Gauss-Markov term sits at the sensor's filter;
+* ``"ok"`` -- a value, with ``interval_si`` (the method's interval at ``level``) and ``std_err_si``
+  where the method gives them;
+* ``"not resolved"`` -- the record does not determine it: ``value`` is null, ``interval_si`` is
+  ``[0, upper]`` (the bound the record allows; absent where none is known), ``reason`` says which rule
+  decided (the estimator's bound, the term's evidence, or an estimate of exactly 0), and the fit's own
+  number is in ``fitted_si`` with the method's interval about it in ``fitted_interval_si``;
 * ``"not modelled"`` -- the method's model has no such term;
 * ``"non-physical"`` -- the fit gave a value without physical meaning (e.g. a negative AV-model
   weight); ``value`` is null;
 * ``"failed"`` -- the method failed on this record (``failure`` says why).
 
-Each method also says whether its model misses the AV curve (``poor_fit``, from the estimator's
-``diagnostics_["poor_fit"]`` when it provides one; null when it does not check), whether it was fitted
-on the longest gap-free run only (``fitted_on``), and the warnings it raised.
+Each method also says whether its model misses the AV curve (``poor_fit``; null when the method makes
+no check), whether it was fitted on the longest gap-free run only (``fitted_on``), the model choices it
+made (``model_choice``) and the warnings it raised.
 """
 
 from __future__ import annotations
 
 import math
+import textwrap
 
 import numpy as np
 import pandas as pd
 
+from avbench.estimators.results import REASONS
 from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, TERM_NAMES, from_si, si_units
 
-__all__ = ["coefficient_flags", "poor_fit", "payload", "method_entry", "tables", "screen_tables", "shown_value",
-           "shown_interval", "term_evidence",
-           "zero_notes", "SCHEMA"]
+__all__ = ["coefficient_flags", "poor_fit", "payload", "method_entry", "tables", "screen", "screen_tables",
+           "shown_value", "shown_interval", "term_evidence", "model_choice_notes", "SCHEMA", "SCREEN_WIDTH"]
 
-SCHEMA = "avbench-estimate/1"
+SCHEMA = "avbench-estimate/2"
+#: the width of every line :func:`screen` prints
+SCREEN_WIDTH = 100
 
 
 def _num(v):
@@ -37,33 +46,97 @@ def _num(v):
 
 
 def _jsonable(v):
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return _jsonable(v.tolist())
-    if isinstance(v, bool | np.bool_):
-        return bool(v)
-    if isinstance(v, int | np.integer):
-        return int(v)
-    if isinstance(v, float | np.floating):
-        return _num(float(v))
-    if v is None or isinstance(v, str):
-        return v
-    return str(v)
+    from avbench.estimators.results import jsonable
+
+    return jsonable(v)
 
 
-#: what an estimator reports about the model it chose (GMWM's ``diagnostics_``: the spectral line test, the
-#: resonance it added or not, the evidence between a Gauss-Markov and a flicker bias instability), copied
-#: into the JSON's ``model_choice`` and read in one screen note each (:func:`model_choice_notes`)
-MODEL_CHOICE_KEYS = ("line_test", "resonance_test", "bias_evidence", "filter_test", "filter_held")
+def coefficient_flags(fit) -> dict[str, str]:
+    """Each coefficient's status (``ok`` / ``not resolved`` / ``not modelled`` / ``non-physical`` /
+    ``failed``) in a fit (:class:`avbench.recordings.fit.MethodFit`)."""
+    return {c: e.status for c, e in fit.result.coefficients.items()}
+
+
+def poor_fit(fit):
+    """(flag, detail): the fit check's verdict (None where the method makes no check) and its details."""
+    check = fit.result.fit_check
+    return check.poor_fit, check.detail
+
+
+def _pvalue_text(p):
+    if p is None or not math.isfinite(p):
+        return "p = ?"
+    if p < 1e-6:
+        return "p < 1e-6"
+    return f"p = {p:.2g}"
+
+
+def term_evidence(fit, sensor) -> dict[str, dict]:
+    """Each term's evidence where the method reports it (e.g. ``whittle_debiased``): the likelihood ratio
+    of dropping the term, its boundary-corrected p-value, whether it is present, the interval's bounds
+    (display units) and a one-line reading ("present, p < 1e-6" / "not resolved (p = 0.4), upper 95 %
+    bound 0.31 deg/h"). Empty where the method reports none."""
+    units = DISPLAY_UNITS[sensor]
+    out = {}
+    for c, e in fit.result.coefficients.items():
+        ev = e.evidence
+        if ev is None:
+            continue
+        up = _num(from_si(c, ev.upper, units[c], sensor))
+        low = _num(from_si(c, ev.lower, units[c], sensor))
+        p = _num(ev.p_value)
+        if ev.present:
+            reading = f"present, {_pvalue_text(p)}"
+        else:
+            bound = "?" if up is None else f"{up:.3g}"
+            reading = f"not resolved ({_pvalue_text(p)}), upper {100 * ev.level:g} % bound {bound} {units[c]}"
+        out[c] = {"lr": _num(ev.lr), "p_value": p, "present": ev.present, "lower": low, "upper": up,
+                  "level": ev.level, "reading": reading}
+    return out
+
+
+def method_entry(fit, sensor, n_samples):
+    """The JSON object of one method on one axis (``fit``: :class:`avbench.recordings.fit.MethodFit`)."""
+    units = DISPLAY_UNITS[sensor]
+    si = si_units(sensor)
+    r = fit.result
+    entry = {}
+    for c, e in r.coefficients.items():
+        d = {"value": _num(from_si(c, e.value, units[c], sensor)), "unit": units[c], "si": _num(e.value),
+             "si_unit": si[c], "flag": e.status}
+        if math.isfinite(e.std_err):
+            d["std_err_si"] = e.std_err
+        if e.interval is not None:
+            d["interval_si"] = [_num(v) for v in e.interval]
+            d["level"] = r.level
+        if e.status == "not resolved":
+            d["reason"] = REASONS[e.reason]
+            d["fitted_si"] = _num(e.fitted)
+            if e.estimate_interval is not None:
+                d["fitted_interval_si"] = [_num(v) for v in e.estimate_interval]
+        entry[c] = d
+    for c, ev in term_evidence(fit, sensor).items():
+        entry[c]["evidence"] = ev
+    check = r.fit_check
+    out = {"coefficients": entry, "poor_fit": check.poor_fit, "failure": r.failure, "warnings": list(r.warnings),
+           "seconds": round(float(fit.seconds), 3),
+           "fitted_on": ("whole record" if fit.run is None else
+                         f"longest gap-free run: samples {fit.run[0]}..{fit.run[0] + fit.run[1] - 1} "
+                         f"({fit.run[1]} of {n_samples}); this method cannot skip gaps")}
+    if check.detail is not None:
+        out["poor_fit_detail"] = check.detail
+    if check.poor_fit is not None:  # the chi^2-type check behind poor_fit
+        out.update(fit_stat=_num(check.stat), fit_dof=check.dof, fit_pvalue=_num(check.pvalue),
+                   fit_reference=check.reference)
+    if r.model_choice:
+        out["model_choice"] = _jsonable(r.model_choice)
+    return out
 
 
 def model_choice_notes(md: dict, sensor: str) -> list[str]:
-    """Screen notes for the model a method chose (``md``: a method of the JSON payload): a resonance
-    it modelled, and which bias-instability model the record favours, with the weight and the other
-    model's B."""
+    """Notes on the model a method chose (``md``: a method of the JSON payload): the sensor filter it
+    modelled or held, a spectral line or resonance it added, and which bias-instability model the
+    record favours, with the weight and the other model's B and K."""
     notes = []
     choice = md.get("model_choice") or {}
     ft = choice.get("filter_test") or {}  # nnls_rel_filtered: the sensor's filter entered on evidence
@@ -96,151 +169,6 @@ def model_choice_notes(md: dict, sensor: str) -> list[str]:
     return notes
 
 
-def poor_fit(fit):
-    """(flag, detail): flag True/False from ``diagnostics_["poor_fit"]``, None if the method does not check."""
-    est = fit.estimator
-    if est is None:
-        return None, None
-    pf = est.diagnostics_.get("poor_fit")
-    if pf is None:
-        return None, None
-    if isinstance(pf, dict):
-        flag = pf.get("poor_fit", pf.get("flag"))
-        return (bool(flag) if flag is not None else None), _jsonable(pf)
-    try:
-        return bool(pf), None
-    except (TypeError, ValueError):
-        return None, _jsonable(pf)
-
-
-def coefficient_flags(fit) -> dict[str, str]:
-    """``ok`` / ``not resolved`` / ``not modelled`` / ``non-physical`` / ``failed`` for each of Q, N, B, K, R
-    (``not resolved``: the estimator says, in ``diagnostics_["unresolved"]``, that the record does not
-    determine it, with an interval)."""
-    if fit.estimator is None:
-        return {c: "failed" for c in COEFFICIENTS}
-    est = fit.estimator
-    coefs = est.coefficients_
-    nonphys = getattr(est, "nonphysical_", None)
-    failed = bool(est.diagnostics_.get("failure"))
-    unresolved = est.diagnostics_.get("unresolved") or {}
-    out = {}
-    for c in COEFFICIENTS:
-        if c in unresolved:
-            out[c] = "not resolved"
-        elif math.isfinite(float(coefs[c])):
-            out[c] = "ok"
-        elif nonphys is not None and bool(nonphys.get(c, False)):
-            out[c] = "non-physical"
-        elif failed:
-            out[c] = "failed"
-        else:
-            out[c] = "not modelled"
-    return out
-
-
-def _pvalue_text(p):
-    if p is None or not math.isfinite(p):
-        return "p = ?"
-    if p < 1e-6:
-        return "p < 1e-6"
-    return f"p = {p:.2g}"
-
-
-def term_evidence(fit, sensor) -> dict[str, dict]:
-    """Each term's evidence where the estimator reports it (``diagnostics_["evidence"]``, e.g.
-    ``whittle_debiased``): the likelihood ratio of dropping the term, its boundary-corrected p-value,
-    whether it is resolved at 5 %, the interval's bounds (display units) and a one-line reading
-    ("present, p < 1e-6" / "not resolved, upper 95 % bound 0.31 deg/h"). Empty otherwise."""
-    est = fit.estimator
-    ev = None if est is None else est.diagnostics_.get("evidence")
-    if ev is None:
-        return {}
-    units = DISPLAY_UNITS[sensor]
-    level = float(est.diagnostics_.get("evidence_level", 0.95))
-    out = {}
-    for c in ev.index:
-        p = _num(float(ev.loc[c, "p_value"]))
-        up = _num(from_si(c, float(ev.loc[c, "upper"]), units[c], sensor))
-        low = _num(from_si(c, float(ev.loc[c, "lower"]), units[c], sensor))
-        present = bool(ev.loc[c, "present"])
-        if present:
-            reading = f"present, {_pvalue_text(p)}"
-        else:
-            bound = "?" if up is None else f"{up:.3g}"
-            reading = f"not resolved ({_pvalue_text(p)}), upper {100 * level:g} % bound {bound} {units[c]}"
-        out[c] = {"lr": _num(float(ev.loc[c, "lr"])), "p_value": p, "present": present, "lower": low,
-                  "upper": up, "level": level, "reading": reading}
-    return out
-
-
-def zero_notes(md: dict, sensor: str) -> list[str]:
-    """Screen notes for a method's coefficients: every term that is not clearly present (reported
-    as 0, or not resolved by its evidence) with its upper bound and evidence, so that no coefficient
-    is shown as 0 without them."""
-    notes = []
-    for c in COEFFICIENTS:
-        e = md["coefficients"][c]
-        ev = e.get("evidence")
-        if ev is not None and not ev["present"]:
-            notes.append(f"{c}: {ev['reading']}")
-        elif e["flag"] == "ok" and e["value"] == 0.0:
-            ci = e.get("conf_int_si")
-            up = None if ci is None or ci[1] is None else _num(from_si(c, ci[1], e["unit"], sensor))
-            notes.append(f"{c}: 0, upper 95 % bound {up:.3g} {e['unit']} (no evidence reported)" if up is not None
-                         else f"{c}: 0 with no interval (no evidence reported)")
-    return notes
-
-
-def method_entry(fit, sensor, n_samples):
-    units = DISPLAY_UNITS[sensor]
-    si = si_units(sensor)
-    coefs = fit.coefficients()
-    flags = coefficient_flags(fit)
-    se = fit.std_errors() or {}
-    ci = fit.intervals() or {}
-    entry = {}
-    for c in COEFFICIENTS:
-        v = coefs[c] if flags[c] == "ok" else math.nan
-        e = {"value": _num(from_si(c, v, units[c], sensor)), "unit": units[c], "si": _num(v), "si_unit": si[c],
-             "flag": flags[c]}
-        if c in se:
-            e["std_err_si"] = se[c]
-        if c in ci:
-            e["conf_int_si"] = list(ci[c])
-        if flags[c] == "not resolved":  # the interval the record allows, and the fitted value beside it
-            e["interval_si"] = [float(v) / fit.scale for v in fit.estimator.diagnostics_["unresolved"][c]]
-            e["fitted_si"] = _num(coefs[c])
-        entry[c] = e
-    for c, ev in term_evidence(fit, sensor).items():
-        entry[c]["evidence"] = ev
-    flag, detail = poor_fit(fit)
-    failure = fit.error or (fit.estimator.diagnostics_.get("failure") if fit.estimator is not None else None)
-    out = {"coefficients": entry, "poor_fit": flag, "failure": failure or None, "warnings": fit.warnings,
-           "fitted_on": ("whole record" if fit.run is None else
-                         f"longest gap-free run: samples {fit.run[0]}..{fit.run[0] + fit.run[1] - 1} "
-                         f"({fit.run[1]} of {n_samples}); this method cannot skip gaps")}
-    if detail is not None:
-        out["poor_fit_detail"] = detail
-    if fit.estimator is not None:  # the chi^2-type check behind poor_fit, where the estimator reports it
-        for key in ("fit_stat", "fit_dof", "fit_pvalue", "fit_reference"):
-            if key in fit.estimator.diagnostics_:
-                out[key] = _jsonable(fit.estimator.diagnostics_[key])
-        choice = {k: _jsonable(fit.estimator.diagnostics_[k]) for k in MODEL_CHOICE_KEYS
-                  if k in fit.estimator.diagnostics_}
-        for key, part, name in (("bias_evidence", "GM", "B"), ("bias_evidence", "FL", "B"),
-                                ("resonance_test", None, "sigma"), ("line_test", None, "amplitude")):
-            d = (choice.get(key) or {}) if part is None else (choice.get(key) or {}).get(part) or {}
-            if d.get(name) is not None:  # in the unit of the record as fitted: to SI
-                d[name] = _num(float(d[name]) / fit.scale)
-            for table in ("coefficients", "std_err"):  # a bias model's coefficients: to SI too
-                if isinstance(d.get(table), dict):
-                    d[table] = {c: None if v is None else _num(float(v) / fit.scale) for c, v in d[table].items()}
-        if choice:
-            out["model_choice"] = choice
-    return out
-
-
 def payload(sources, timing, sensors, fits, extra=None) -> dict:
     """The JSON object of ``avbench estimate``.
 
@@ -261,75 +189,26 @@ def payload(sources, timing, sensors, fits, extra=None) -> dict:
     return out
 
 
-def tables(data: dict) -> dict[str, pd.DataFrame]:
-    """One table per sensor: rows (axis, method), the coefficients in display units, and the flags."""
-    out = {}
-    for sensor, sd in data["sensors"].items():
-        rows, index = [], []
-        for axis, ad in sd["axes"].items():
-            for method, md in ad["methods"].items():
-                row = {}
-                notes = []
-                for c in COEFFICIENTS:
-                    e = md["coefficients"][c]
-                    row[f"{c} ({e['unit']})"] = e["value"] if e["value"] is not None else np.nan
-                    if e["flag"] == "non-physical":
-                        notes.append(f"{c} non-physical")
-                    elif e["flag"] == "not resolved":
-                        hi = from_si(c, e["interval_si"][1], e["unit"], sensor)
-                        notes.append(f"{c} not resolved (<= {hi:.3g})")
-                notes.extend(zero_notes(md, sensor))
-                notes.extend(model_choice_notes(md, sensor))
-                if md["failure"]:
-                    notes.append("failed")
-                if md["poor_fit"]:
-                    notes.append("POOR FIT")
-                if md["fitted_on"] != "whole record":
-                    notes.append("longest run only")
-                row["flags"] = "; ".join(notes)
-                rows.append(row)
-                index.append((axis, method))
-        out[sensor] = pd.DataFrame(rows, index=pd.MultiIndex.from_tuples(index, names=["axis", "method"]))
-    return out
-
-
 def _g(v) -> str:
     return f"{v:.3g}"
 
 
 def shown_interval(e: dict, coefficient: str, sensor: str) -> tuple[float, float] | None:
-    """The interval a user reads for one coefficient (``e``: a coefficient of the JSON payload,
-    :func:`method_entry`), ``(low, high)`` in its display unit, as :func:`shown_value` prints it: ``(0,
-    upper)`` where the record does not resolve it (flag "not resolved", evidence that the term is not
-    present, or a zero with an interval), the method's interval of a value, and None where none is shown
-    (a term not modelled, a non-physical or failed fit, a value with no interval)."""
-    def d(v):
-        return None if v is None else _num(from_si(coefficient, v, e["unit"], sensor))
-
-    flag = e["flag"]
-    if flag == "not resolved":
-        hi = d(e["interval_si"][1])
-        return None if hi is None else (0.0, hi)
-    if flag in ("not modelled", "non-physical", "failed"):
+    """The interval of one coefficient (``e``: a coefficient of the JSON payload, :func:`method_entry`)
+    in its display unit: ``[0, upper]`` where the record does not resolve it, the method's interval of
+    a value, None where there is none."""
+    iv = e.get("interval_si")
+    if iv is None or iv[0] is None or iv[1] is None:
         return None
-    ci = e.get("conf_int_si")
-    lo, hi = (d(ci[0]), d(ci[1])) if ci is not None else (None, None)
-    ev = e.get("evidence")
-    if ev is not None and not ev["present"]:
-        up = ev.get("upper") if ev.get("upper") is not None else hi
-        return None if up is None else (0.0, up)
-    if e["value"] == 0.0:
-        return None if hi is None else (0.0, hi)
-    return (lo, hi) if lo is not None and hi is not None else None
+    return (_num(from_si(coefficient, iv[0], e["unit"], sensor)), _num(from_si(coefficient, iv[1], e["unit"], sensor)))
 
 
-def shown_value(e: dict, coefficient: str, sensor: str, level: float = 0.95) -> str:
+def shown_value(e: dict, coefficient: str, sensor: str) -> str:
     """One coefficient as a user should read it, in its display unit (``e``: a coefficient of the JSON
-    payload): ``value [low, high]`` with its ``level`` interval; ``< upper`` where the record does not
-    resolve it (flag "not resolved", or evidence that the term is not present, or a zero with an
-    interval); ``value (+- se)`` where the method gives only a standard error; the bare value with
-    ``(no interval)`` where it gives neither; ``-`` for a term the method does not model, and the flag
-    itself for "non-physical" / "failed". The bounds are :func:`shown_interval`'s."""
+    payload): ``value [low, high]`` with its interval; ``< upper`` where the record does not resolve it;
+    ``value (+- se)`` where the method gives only a standard error; the bare value with ``(no
+    interval)`` where it gives neither; ``-`` for a term the method does not model, and the status
+    itself for "non-physical" / "failed" (and "not resolved" without a bound)."""
     flag = e["flag"]
     if flag == "not modelled":
         return "-"
@@ -339,12 +218,6 @@ def shown_value(e: dict, coefficient: str, sensor: str, level: float = 0.95) -> 
     if flag == "not resolved":
         return f"< {_g(iv[1])}" if iv is not None else "not resolved"
     v = e["value"]
-    ev = e.get("evidence")
-    absent = ev is not None and not ev["present"]
-    if absent or v == 0.0:
-        if iv is not None:
-            return f"< {_g(iv[1])}"
-        return f"{_g(v)} (not resolved)" if absent else "0 (no interval)"
     if iv is not None:
         return f"{_g(v)} [{_g(iv[0])}, {_g(iv[1])}]"
     se = e.get("std_err_si")
@@ -353,16 +226,96 @@ def shown_value(e: dict, coefficient: str, sensor: str, level: float = 0.95) -> 
     return f"{_g(v)} (no interval)"
 
 
-def screen_tables(data: dict) -> dict[str, pd.DataFrame]:
-    """The tables printed by ``avbench estimate``: like :func:`tables`, each coefficient as text with
-    its 95 % interval or its upper bound (:func:`shown_value`), the unit in the column name."""
+def _notes(md: dict, sensor: str) -> list[str]:
+    """Every note on one method's fit of one axis, in the order a reader needs them."""
+    notes = []
+    if md["failure"]:
+        notes.append(f"failed: {md['failure']}")
+    if md["poor_fit"]:
+        notes.append("POOR FIT: the model misses the AV curve beyond its intervals")
+    for c in COEFFICIENTS:
+        e = md["coefficients"][c]
+        ev = e.get("evidence")
+        if e["flag"] == "not resolved":
+            notes.append(f"{c}: {ev['reading']}" if ev is not None and not ev["present"] else f"{c}: {e['reason']}")
+        elif e["flag"] == "non-physical":
+            notes.append(f"{c}: non-physical (the fit's value has no physical meaning)")
+    notes.extend(model_choice_notes(md, sensor))
+    if md["fitted_on"] != "whole record":
+        notes.append(f"fitted on the {md['fitted_on']}")
+    notes.extend(md.get("warnings") or [])
+    return notes
+
+
+def tables(data: dict) -> dict[str, pd.DataFrame]:
+    """One long table per sensor (the CSV of ``avbench estimate``): rows (axis, method, coefficient),
+    columns the value, the interval and the status as the JSON gives them (display units), the unit,
+    the fit's own number and the fit's verdicts."""
     out = {}
-    for sensor, table in tables(data).items():
-        cells = table.copy().astype(object)
-        for (axis, method) in table.index:
-            md = data["sensors"][sensor]["axes"][axis]["methods"][method]
-            for c in COEFFICIENTS:
-                e = md["coefficients"][c]
-                cells.loc[(axis, method), f"{c} ({e['unit']})"] = shown_value(e, c, sensor)
-        out[sensor] = cells
+    for sensor, sd in data["sensors"].items():
+        rows, index = [], []
+        for axis, ad in sd["axes"].items():
+            for method, md in ad["methods"].items():
+                for c in COEFFICIENTS:
+                    e = md["coefficients"][c]
+                    iv = shown_interval(e, c, sensor) or (None, None)
+                    fitted = e.get("fitted_si", e["si"])
+                    rows.append({"value": e["value"], "lower": iv[0], "upper": iv[1], "status": e["flag"],
+                                 "unit": e["unit"], "shown": shown_value(e, c, sensor),
+                                 "fitted": None if fitted is None else _num(from_si(c, fitted, e["unit"], sensor)),
+                                 "poor_fit": md["poor_fit"], "failure": md["failure"]})
+                    index.append((axis, method, c))
+        out[sensor] = pd.DataFrame(rows, index=pd.MultiIndex.from_tuples(index, names=["axis", "method", "coefficient"]))
     return out
+
+
+def screen_tables(data: dict) -> dict[str, tuple[pd.DataFrame, list[str]]]:
+    """Per sensor, the table :func:`screen` prints -- rows (axis, method), a column per coefficient some
+    method models (:func:`shown_value`, the unit in the column name) and ``notes``, the numbers of the
+    footnotes of that row -- and the footnotes in order."""
+    out = {}
+    for sensor, sd in data["sensors"].items():
+        modelled = [c for c in COEFFICIENTS if any(md["coefficients"][c]["flag"] != "not modelled"
+                                                   for ad in sd["axes"].values() for md in ad["methods"].values())]
+        rows, index, footnotes = [], [], []
+        for axis, ad in sd["axes"].items():
+            for method, md in ad["methods"].items():
+                row = {}
+                for c in modelled:
+                    e = md["coefficients"][c]
+                    row[f"{c} ({e['unit']})"] = shown_value(e, c, sensor)
+                marks = []
+                for note in _notes(md, sensor):
+                    text = f"{axis} {method}: {note}"
+                    footnotes.append(text)
+                    marks.append(str(len(footnotes)))
+                row["notes"] = ",".join(marks)
+                rows.append(row)
+                index.append((axis, method))
+        table = pd.DataFrame(rows, index=pd.MultiIndex.from_tuples(index, names=["axis", "method"]))
+        out[sensor] = (table, footnotes)
+    return out
+
+
+def _wrap(text: str, indent: str = "") -> list[str]:
+    """``text`` wrapped to :data:`SCREEN_WIDTH` at spaces (a word longer than a line is not cut)."""
+    return textwrap.wrap(text, SCREEN_WIDTH, subsequent_indent=indent, break_long_words=False,
+                         break_on_hyphens=False) or [""]
+
+
+def screen(data: dict) -> str:
+    """The coefficient tables of ``avbench estimate`` as printed: per sensor a header, the table
+    (:func:`screen_tables`, columns wrapped into blocks so that no line exceeds :data:`SCREEN_WIDTH`)
+    and its numbered footnotes, wrapped at words."""
+    lines = _wrap("# each coefficient: value [95 % interval]; '< x': not resolved by this record, x its upper "
+                  "95 % bound; '(+- s)': a standard error only; '-': not in the method's model; notes: the "
+                  "footnotes below each table", "# ")
+    for sensor, (table, footnotes) in screen_tables(data).items():
+        sd = data["sensors"][sensor]
+        lines.append("")
+        lines += _wrap(f"## {sensor} (samples in {sd['units_in']}): "
+                       + ", ".join(f"{c} = {n}" for c, n in sd["terms"].items()), "#  ")
+        lines += table.to_string(line_width=SCREEN_WIDTH).splitlines()
+        for k, note in enumerate(footnotes, 1):
+            lines += _wrap(f"[{k}] {note}", " " * (len(str(k)) + 3))
+    return "\n".join(lines)

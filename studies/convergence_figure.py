@@ -68,7 +68,7 @@ def convergence_figure(preset, terms, x0, out, *, n_samples=None, seed=0, filter
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", IdentifiabilityWarning)
             est.fit(rate, g.dt)
-        tr = est.diagnostics_["trajectory"]
+        tr = est.result().trajectory
         tr = tr[tr.index > 0]
         for ax, c in zip(axes[:, 0], terms):
             unit = PAPER_UNITS[c] if c != "Q" else "arcsec"

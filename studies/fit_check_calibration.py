@@ -3,8 +3,8 @@
 ``python -m avbench.studies.fit_check_calibration [--replicates 200]``
 
 For each case (a simulated gyro, the term set fitted, the record length) and estimator: the
-fraction of replicates the flag fires at p < 0.01 with the reference the estimator now uses, and
-with the plain chi^2_{k-p} reference of before (same statistic, same replicates). Cases with the
+fraction of replicates the flag fires at p < 0.01 with the reference the estimator uses, and
+with the plain chi^2_{k-p} reference (same statistic, same replicates). Cases with the
 correct term set measure false alarms (nominal 1 %); the wrong-model cases measure power. Fixed
 seeds: the table is a function of the arguments. Prints a markdown table.
 """
@@ -21,7 +21,7 @@ CASES = {
     "ADIS16405_X": (lambda: _gyro("ADIS16405_X"), "NBK", None, 180_000, True),
     "CRG20": (lambda: _gyro("CRG20"), "QNB", None, 36_000, True),
     "white+GM (fitted: N only)": (lambda: _gyro("gm"), "N", "WN", 50_000, False),
-    # issue 24: a real sensor's curve, the ADIS16405 gyro's filter and coefficients (results/real) with a line
+    # a real sensor's curve: the ADIS16405 gyro's filter and coefficients (results/real) with a line
     "filtered+line": (lambda: _gyro("filtered+line"), "NBK", None, 65_536, True),
 }
 METHODS = ("slope_lines", "log_fit", "nnls_rel", "ols", "wls", "wls_edf", "gmwm")
@@ -65,13 +65,14 @@ def flag_rates(case: str, method: str, replicates: int, n_samples: int | None = 
     p_values, reference = [], None
     included = {"filter": 0, "line": 0}  # terms entered on evidence (nnls_rel_filtered)
     for ss in np.random.SeedSequence(seed).spawn(replicates):
-        d = estimators.get(method, **kw).fit(g.simulate(n, np.random.default_rng(ss)), g.dt).diagnostics_
-        included["filter"] += bool((d.get("filter_test") or {}).get("included"))
-        included["line"] += bool((d.get("line_test") or {}).get("included"))
-        flags += bool(d["poor_fit"])
-        plain += bool(stats.chi2.sf(d["fit_stat"], d["fit_dof"]) < ALPHA)
-        p_values.append(d["fit_pvalue"])
-        reference = d.get("fit_reference")
+        r = estimators.get(method, **kw).fit(g.simulate(n, np.random.default_rng(ss)), g.dt).result()
+        check = r.fit_check
+        included["filter"] += bool((r.model_choice.get("filter_test") or {}).get("included"))
+        included["line"] += bool((r.model_choice.get("line_test") or {}).get("included"))
+        flags += bool(check.poor_fit)
+        plain += bool(stats.chi2.sf(check.stat, check.dof) < ALPHA)
+        p_values.append(check.pvalue)
+        reference = check.reference
     return {"case": case, "method": method, "replicates": replicates, "n_samples": n, "flagged": flags,
             "rate": flags / replicates, "plain_chi2_rate": plain / replicates, "reference": reference,
             "p_values": np.array(p_values), "included": included}

@@ -100,8 +100,8 @@ def fit_all(data: Path, methods) -> pd.DataFrame:
     for rec, sensor, axis, x, timing in _records(data):
         units = DISPLAY_UNITS[sensor]
         for name, fit in fit_axis(x, timing.dt, timing.starts, methods).items():
-            d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
-            coefs, se, flags = fit.coefficients(), fit.std_errors() or {}, coefficient_flags(fit)
+            check, choice = fit.result.fit_check, fit.result.model_choice
+            coefs, se, flags = fit.coefficients(), fit.std_errors(), coefficient_flags(fit)
             for c in COEFFICIENTS:
                 s = se.get(c, math.nan)
                 rows.append({
@@ -109,16 +109,16 @@ def fit_all(data: Path, methods) -> pd.DataFrame:
                     "unit": units[c], "value": _round(from_si(c, coefs[c], units[c], sensor)),
                     "std_err": _round(from_si(c, s, units[c], sensor)) if np.isfinite(s) else math.nan,
                     "flag": flags[c],
-                    "poor_fit": bool(d.get("poor_fit", False)),
-                    "fit_stat": _round(d.get("fit_stat", math.nan)),
-                    "fit_dof": d.get("fit_dof", 0),
-                    "fit_pvalue": _round(d.get("fit_pvalue", math.nan)),
-                    "fit_reference": d.get("fit_reference", ""),
-                    "min_m": d.get("min_m", math.nan),
+                    "poor_fit": bool(check.poor_fit),
+                    "fit_stat": _round(check.stat),
+                    "fit_dof": 0 if check.dof is None else check.dof,
+                    "fit_pvalue": _round(check.pvalue),
+                    "fit_reference": check.reference or "",
+                    "min_m": choice.get("min_m", math.nan),
                 })
             print(f"{rec} {sensor} {axis} {name}: " + (" ".join(
                 f"{c}={from_si(c, coefs[c], units[c], sensor):.4g}" for c in COEFFICIENTS)
-                + f" poor_fit={d.get('poor_fit')}" if fit.error is None else f"failed ({fit.error})"), flush=True)
+                + f" poor_fit={check.poor_fit}" if fit.error is None else f"failed ({fit.error})"), flush=True)
     return pd.DataFrame(rows)
 
 
@@ -165,22 +165,21 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
     rows = []
     for rec, axis, mins, k, _, fits in _gyro_slices(data, minutes, 0.0, per_run, methods, settings):
         for name, fit in fits.items():
-            d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
+            check = fit.result.fit_check
             c, flags = fit.coefficients(), coefficient_flags(fit)
             N = from_si("N", c["N"], "deg/sqrt(h)")
             B = from_si("B", c["B"], "deg/h")
-            poor = bool(d.get("poor_fit", False)) or fit.error is not None
+            poor = bool(check.poor_fit) or fit.error is not None
             n_in = bool(SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1])
             b_in = bool(SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1])
-            unresolved = d.get("unresolved") or {}
-            upper = {c: _round(from_si(c, unresolved[c][1] / fit.scale, u))
-                     if flags[c] == "not resolved" and c in unresolved else math.nan
-                     for c, u in (("N", "deg/sqrt(h)"), ("B", "deg/h"))}
+            bound = {k: fit.result.coefficients[k].upper for k in ("N", "B")}
+            upper = {k: _round(from_si(k, bound[k], u)) if flags[k] == "not resolved" and bound[k] is not None
+                     else math.nan for k, u in (("N", "deg/sqrt(h)"), ("B", "deg/h"))}
             rows.append({"record": rec, "axis": axis, "minutes": mins, "slice": k, "method": name,
                          "N": _round(N), "B": _round(B), "N_in_range": n_in, "B_in_range": b_in,
                          "N_upper": upper["N"], "B_upper": upper["B"],
                          "N_flag": flags["N"], "B_flag": flags["B"], "poor_fit": poor,
-                         "fit_pvalue": _round(d.get("fit_pvalue", math.nan)),
+                         "fit_pvalue": _round(check.pvalue),
                          "unflagged_outside": bool(((not n_in and flags["N"] == "ok") or
                                                     (not b_in and flags["B"] == "ok")) and not poor)})
             print(f"{rec} {axis} {mins} min #{k} {name}: N={N:.3g} B={B:.3g} poor_fit={poor}", flush=True)
@@ -217,7 +216,6 @@ def slice_coverage(data: Path, methods, whole: pd.DataFrame, minutes=COVERAGE_SL
     rows = []
     for rec, axis, mins, k, n, fits in _gyro_slices(data, (minutes,), first_minute, per_run, methods):
         for name, fit in fits.items():
-            d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
             c = fit.coefficients()
             entry = method_entry(fit, "gyro", n)["coefficients"]
             for coef in COVERAGE_COEFFICIENTS:
@@ -230,7 +228,7 @@ def slice_coverage(data: Path, methods, whole: pd.DataFrame, minutes=COVERAGE_SL
                              "method": name, "coefficient": coef, "unit": unit,
                              "value": _round(from_si(coef, c[coef], unit)), "lower": _round(lower),
                              "upper": _round(upper), "whole": _round(w), "flag": entry[coef]["flag"], "holds": holds,
-                             "poor_fit": bool(d.get("poor_fit", False)) or fit.error is not None})
+                             "poor_fit": bool(fit.result.fit_check.poor_fit) or fit.error is not None})
             print(f"{rec} {axis} {first_minute + k * minutes} min {name}: "
                   + " ".join(f"{r['coefficient']}={r['value']} [{r['lower']}, {r['upper']}] whole {r['whole']}"
                              for r in rows[-len(COVERAGE_COEFFICIENTS):]), flush=True)

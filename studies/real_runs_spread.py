@@ -138,10 +138,9 @@ def axis_models(data: Path, method: str = "gmwm_filtered") -> pd.DataFrame:
         if _GROUP[rec] != "adis16405" or sensor != "gyro":
             continue
         fit = fit_axis(x, timing.dt, timing.starts, [method])[method]
-        if fit.estimator is None:
-            raise RuntimeError(f"{method} failed on {rec} gyro {axis}: {fit.error}")
-        params = fit.estimator.diagnostics_["params"]
-        si = {k: (v if k.split(".")[1] in _SHAPE else v / fit.scale) for k, v in params.items()}
+        if fit.error is not None or fit.result.parameters is None:
+            raise RuntimeError(f"{method} failed on {rec} gyro {axis}: {fit.result.failure or 'no latent model'}")
+        si = fit.result.parameters  # SI: the scales divided by the fitting scale, time constants and frequencies as they are
         per_axis.setdefault(axis, []).append((rec, si))
         print(f"{rec} gyro {axis}: " + " ".join(f"{k}={v:.4g}" for k, v in si.items()), flush=True)
     return median_model(per_axis)
@@ -198,17 +197,17 @@ def replicate_rows(models: pd.DataFrame, axis: str, replicate: int, fits=None, n
         t0 = time.process_time()
         fit = fit_axis(x, DT, np.zeros(0, dtype=np.int64), [name], {name: settings})[name]
         cpu = time.process_time() - t0
-        d = fit.estimator.diagnostics_ if fit.estimator is not None else {}
-        coefs, se, flags = fit.coefficients(), fit.std_errors() or {}, coefficient_flags(fit)
-        rs = (d.get("resonance_test") or {}).get("included", False)
+        check, choice = fit.result.fit_check, fit.result.model_choice
+        coefs, se, flags = fit.coefficients(), fit.std_errors(), coefficient_flags(fit)
+        rs = (choice.get("resonance_test") or {}).get("included", False)
         for c in ("N", "B", "K"):
             unit = DISPLAY_UNITS["gyro"][c]
             s = se.get(c, math.nan)
             rows.append({"axis": axis, "replicate": replicate, "fit": label, "coefficient": c, "unit": unit,
                          "value": _round(from_si(c, coefs[c], unit)),
                          "std_err": _round(from_si(c, s, unit)) if np.isfinite(s) else math.nan,
-                         "flag": flags[c], "poor_fit": bool(d.get("poor_fit", False)),
-                         "fit_pvalue": _round(d.get("fit_pvalue", math.nan)), "min_m": d.get("min_m", math.nan),
+                         "flag": flags[c], "poor_fit": bool(check.poor_fit),
+                         "fit_pvalue": _round(check.pvalue), "min_m": choice.get("min_m", math.nan),
                          "resonance": bool(rs), "failed": fit.error is not None, "cpu_s": round(cpu, 2)})
     return rows
 

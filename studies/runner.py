@@ -65,7 +65,7 @@ TIDY_COLUMNS = [
     "upper",
 ]
 #: each term's evidence, added to the tidy rows only when an estimator of the block reports it
-#: (``diagnostics_["evidence"]``: the likelihood ratio of the model without the term and its p-value,
+#: (``Coefficient.evidence``: the likelihood ratio of the model without the term and its p-value,
 #: e.g. ``whittle_debiased``); studies without such an estimator keep :data:`TIDY_COLUMNS` exactly
 EVIDENCE_COLUMNS = ["evidence_lr", "evidence_p"]
 COEFS = ["Q", "N", "B", "K", "R"]
@@ -121,8 +121,9 @@ def tasks_of(cfg: StudyConfig) -> list[Task]:
     ]
 
 
-def _modelled(est, coefs, nonphys) -> list[str]:
-    """Coefficients an estimator estimates: its ``terms`` setting, else what it returned."""
+def _modelled(est, result=None) -> list[str]:
+    """Coefficients an estimator estimates: its ``terms`` setting, else those its result gives a value
+    (or a non-physical one)."""
     from avbench.estimators.validation import check_terms
 
     terms = getattr(est, "terms", None)
@@ -131,14 +132,27 @@ def _modelled(est, coefs, nonphys) -> list[str]:
             return list(check_terms(terms))
         except ValueError:
             pass
-    if coefs is None:
+    if result is None:
         return []
-    return [c for c in COEFS if np.isfinite(coefs[c]) or bool(nonphys[c])]
+    return [c for c, e in result.coefficients.items() if np.isfinite(e.fitted) or e.status == "non-physical"]
 
 
-def _fit_one(spec_est, gspec, rate, dt, boot_seed=None):
-    """Fit one estimator; return (modelled, coefficients or None, nonphysical, failure, seconds,
-    95 % intervals or None, evidence or None)."""
+@dataclass(frozen=True)
+class _Fit:
+    """One estimator on one replicate: what it models, its result, and the seconds its fit took;
+    ``intervals``: False where its intervals could not be computed (its bootstrap or ``conf_int`` raised)."""
+
+    modelled: list
+    result: object
+    seconds: float
+    intervals: bool = True
+
+
+def _fit_one(spec_est, gspec, rate, dt, boot_seed=None) -> _Fit:
+    """Fit one estimator; its :class:`avbench.estimators.results.FitResult` (95 % intervals, after a
+    parametric bootstrap where the spec asks for one)."""
+    from avbench.estimators.results import failed
+
     est = spec_est.make(gspec)
     t0 = time.perf_counter()
     try:
@@ -148,28 +162,19 @@ def _fit_one(spec_est, gspec, rate, dt, boot_seed=None):
                 est.fit(rate, dt)
     except Exception as e:  # failures are data
         msg = f"{type(e).__name__}: {e}".splitlines()[0][:300]
-        return _modelled(est, None, None), None, None, msg, time.perf_counter() - t0, None, None
+        return _Fit(_modelled(est), failed(getattr(est, "name", "?"), msg), time.perf_counter() - t0, False)
     secs = time.perf_counter() - t0
-    failure = str(est.diagnostics_.get("failure") or "")
-    coefs, nonphys = est.coefficients_, est.nonphysical_
-    ci = _intervals(est, spec_est, rate.size, dt, boot_seed)
-    evidence = est.diagnostics_.get("evidence")
-    return _modelled(est, coefs, nonphys), coefs, nonphys, failure, secs, ci, evidence
-
-
-def _intervals(est, spec_est, n, dt, boot_seed):
-    """std_err_ and 95 % conf_int (after a parametric bootstrap if the spec asks for one)."""
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            with np.errstate(all="ignore"):
-                if getattr(spec_est, "bootstrap", 0):
-                    est.bootstrap(n, dt, n_draws=spec_est.bootstrap, seed=boot_seed)
-                ci = est.conf_int(0.95)
-        ci["std_err"] = est.std_err_
-        return ci
-    except Exception:  # an interval that cannot be computed is missing, not a failed fit
-        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with np.errstate(all="ignore"):
+            ok = True
+            if getattr(spec_est, "bootstrap", 0):
+                try:
+                    est.bootstrap(rate.size, dt, n_draws=spec_est.bootstrap, seed=boot_seed)
+                except Exception:  # an interval that cannot be computed is missing, not a failed fit
+                    ok = False
+            result = est.result(0.95)
+    return _Fit(_modelled(est, result), result, secs, ok and result.interval_error is None)
 
 
 def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
@@ -177,7 +182,7 @@ def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
 
     One row per modelled coefficient. ``failure`` is empty on success, else the reason: the
     exception, the estimator's own failure report, or "non-finite estimate". When an estimator
-    reports evidence per term (``diagnostics_["evidence"]``, columns ``lr`` and ``p_value``), the
+    reports evidence per term (its result's ``Coefficient.evidence``: ``lr`` and ``p_value``), the
     block's rows get :data:`EVIDENCE_COLUMNS` as well (NaN for the other estimators' rows).
     """
     gspec = cfg.gyros[task.gyro_index]
@@ -188,19 +193,22 @@ def run_block(cfg: StudyConfig, task: Task) -> pd.DataFrame:
         with memoize_allan():  # estimators asking for the same AV curve of this record share it
             fits = [(e, _fit_one(e, gspec, rate, gspec.gyro.dt, [cfg.seed, task.gyro_index, r, k]))
                     for k, e in enumerate(cfg.estimators)]
-        for e, (modelled, coefs, nonphys, failure, secs, ci, ev) in fits:
+        for e, fit in fits:
+            modelled = fit.modelled
             if not modelled:  # failed before saying what it models: one row per true coefficient
                 modelled = [c for c in COEFS if np.isfinite(truth[c])]
             for c in modelled:
-                est = np.nan if coefs is None else float(coefs[c])
-                flag = False if nonphys is None else bool(nonphys[c])
-                fail = failure
+                coef = fit.result.coefficients[c]
+                est = coef.fitted
+                flag = coef.status == "non-physical"
+                fail = fit.result.failure or ""
                 if not fail and not flag and not np.isfinite(est):
                     fail = "non-finite estimate"
-                unc = (np.nan,) * 3 if ci is None else tuple(float(ci.loc[c, k]) for k in ("std_err", "lower", "upper"))
-                rows.append((gspec.label, r, e.label, c, float(truth[c]), est, flag, fail, secs, *unc))
-                has = ev is not None and c in ev.index
-                evid.append((float(ev.loc[c, "lr"]), float(ev.loc[c, "p_value"])) if has else (np.nan, np.nan))
+                ci = coef.estimate_interval or (np.nan, np.nan)
+                unc = (coef.std_err, *ci) if fit.intervals else (np.nan,) * 3
+                rows.append((gspec.label, r, e.label, c, float(truth[c]), est, flag, fail, fit.seconds, *unc))
+                ev = coef.evidence
+                evid.append((ev.lr, ev.p_value) if ev is not None else (np.nan, np.nan))
     df = pd.DataFrame(rows, columns=TIDY_COLUMNS)
     if any(np.isfinite(v[0]) for v in evid):
         df[EVIDENCE_COLUMNS] = pd.DataFrame(evid, columns=EVIDENCE_COLUMNS, index=df.index)

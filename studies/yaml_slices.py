@@ -7,7 +7,7 @@ For each run and its first (``--slices K``: first K non-overlapping) 30-minute s
 (reader, SI units, gap-aware fits of the yaml's method, the payload, the AV of every axis,
 :func:`avbench.recordings.filter_yaml.filter_choices`) gives the yaml's two random walks
 (``gyroscope_random_walk``, ``accelerometer_random_walk``); the full run (2.8 h) gives the method's
-estimate per axis with its 95 % interval. The check (issue 28): a slice's yaml value is never below the
+estimate per axis with its 95 % interval. The check: a slice's yaml value is never below the
 full run's largest per-axis estimate by more than the slice's stated uncertainty (zero for a bound,
 which is already the upper end of its interval; the distance to the upper end of the interval for an
 estimate). Writes ``yaml_slices.csv`` (one row per run x slice x key) and ``yaml_slices.md``.
@@ -77,7 +77,7 @@ def yaml_rows(data_root: Path, minutes: float = MINUTES, method: str = METHOD, r
             for key, (sensor, coef) in _KEYS.items():
                 v, axis, why = choices[key]
                 e = data["sensors"][sensor]["axes"][axis]["methods"][method]["coefficients"][coef]
-                ci = e.get("conf_int_si")
+                ci = e.get("interval_si")
                 upper = v if why else (ci[1] if ci and ci[1] is not None else v)
                 rows.append({"run": Path(rel).stem, "slice": k, "minutes": minutes, "key": key, "axis": axis,
                              "yaml_si": v, "bound": bool(why), "why": why or "", "stated_upper_si": upper,

@@ -1,5 +1,5 @@
-"""The filter yaml from a short record (issue 28): a random walk the record does not resolve is written
-as the upper end of its interval, said to be a bound, with the record length that would resolve it."""
+"""The filter yaml from a short record: a random walk the record does not resolve is written as the
+upper end of its interval, said to be a bound, with the record length that would resolve it."""
 
 from __future__ import annotations
 
@@ -13,12 +13,18 @@ from avbench.estimators.allan.variance import allan_variance
 from avbench.recordings import filter_yaml
 
 
-def _entry(si, flag="ok", ci=None, unresolved=None):
-    e = {"si": si, "flag": flag, "unit": "rad/s^1.5", "value": si}
+def _entry(si, flag="ok", ci=None, reason="record"):
+    """A coefficient of the JSON payload (recordings.report.method_entry): an estimate of 0 is "not
+    resolved" (reason "zero"), as FitResult says."""
+    from avbench.estimators.results import REASONS
+
+    if si == 0.0 and flag == "ok":
+        flag, reason = "not resolved", "zero"
+    e = {"si": si if flag == "ok" else None, "flag": flag, "unit": "rad/s^1.5", "value": si if flag == "ok" else None}
     if ci is not None:
-        e["conf_int_si"] = list(ci)
-    if unresolved is not None:
-        e["interval_si"] = list(unresolved)
+        e["interval_si"] = list(ci)
+    if flag == "not resolved":
+        e["reason"] = REASONS[reason]
     return e
 
 
@@ -30,7 +36,7 @@ def _payload(gyro_k: dict, poor=False):
 
 
 def test_resolved_values_are_kept_and_unresolved_ones_become_their_upper_bound():
-    data = _payload({"x": _entry(2e-5, ci=(1e-5, 3e-5)), "y": _entry(None, "not resolved", unresolved=(0, 4e-5)),
+    data = _payload({"x": _entry(2e-5, ci=(1e-5, 3e-5)), "y": _entry(None, "not resolved", ci=(0, 4e-5)),
                      "z": _entry(0.0, ci=(0.0, 5e-6))})
     ch = filter_yaml.filter_choices(data, "m")
     v, axis, why = ch["gyroscope_random_walk"]
@@ -104,15 +110,15 @@ def test_shown_value_by_flag():
     from avbench.recordings.report import shown_value
 
     e = {"unit": "deg/h", "flag": "ok", "value": 2.0, "si": 2.0 * np.pi / 180 / 3600,
-         "conf_int_si": [1.0 * np.pi / 180 / 3600, 3.0 * np.pi / 180 / 3600]}
+         "interval_si": [1.0 * np.pi / 180 / 3600, 3.0 * np.pi / 180 / 3600]}
     assert shown_value(e, "B", "gyro") == "2 [1, 3]"
-    assert shown_value({**e, "conf_int_si": [0.0, 3.0 * np.pi / 180 / 3600], "value": 0.0, "si": 0.0}, "B", "gyro") == "< 3"
     assert shown_value({**e, "flag": "not resolved", "value": None, "interval_si": [0.0, 4.0 * np.pi / 180 / 3600]},
                        "B", "gyro") == "< 4"
-    assert shown_value({k: v for k, v in e.items() if k != "conf_int_si"} | {"std_err_si": 0.5 * np.pi / 180 / 3600},
+    assert shown_value({**e, "flag": "not resolved", "value": None, "interval_si": None}, "B", "gyro") == "not resolved"
+    assert shown_value({k: v for k, v in e.items() if k != "interval_si"} | {"std_err_si": 0.5 * np.pi / 180 / 3600},
                        "B", "gyro") == "2 (+- 0.5)"
     assert shown_value({**e, "flag": "not modelled", "value": None}, "B", "gyro") == "-"
-    assert shown_value({k: v for k, v in e.items() if k != "conf_int_si"}, "B", "gyro") == "2 (no interval)"
+    assert shown_value({k: v for k, v in e.items() if k != "interval_si"}, "B", "gyro") == "2 (no interval)"
 
 
 def test_a_poor_fit_takes_the_larger_of_its_interval_and_the_av_bound():

@@ -101,7 +101,7 @@ def test_defaults_on_short_real_records_plausible_or_flagged(minutes):
             N = from_si("N", c["N"], "deg/sqrt(h)")
             B = from_si("B", c["B"], "deg/h")
             inside = SLICE_N_RANGE[0] <= N <= SLICE_N_RANGE[1] and SLICE_B_RANGE[0] <= B <= SLICE_B_RANGE[1]
-            flagged = fit.estimator.diagnostics_.get("poor_fit") or "not resolved" in flags.values()
+            flagged = fit.result.fit_check.poor_fit or "not resolved" in flags.values()
             assert inside or flagged, (axis, name, N, B)
             assert inside or minutes != 60, (axis, name, N, B)
 

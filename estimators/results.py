@@ -1,0 +1,365 @@
+"""The typed result of one fit: what every surface (screen, JSON, CSV, filter yaml, study rows, figures) renders.
+
+:meth:`avbench.estimators.Estimator.result` builds a :class:`FitResult` from a fitted estimator; no
+module outside the estimators package reads an estimator's ``diagnostics_`` (a test greps for it), so
+the screen, the files and the studies cannot disagree about a coefficient.
+
+Each coefficient (:class:`Coefficient`) has one **status**:
+
+``"ok"``
+    resolved: ``value`` is the estimate, ``interval`` the method's interval at ``level`` (None where
+    the method gives none; ``std_err`` then may still be finite);
+``"not resolved"``
+    the record does not determine it: ``value`` is NaN, ``interval`` is ``(0, upper)``, the upper
+    bound the record allows (None where no bound is known), ``fitted`` keeps the fit's number and
+    ``reason`` says which rule decided. A coefficient is not resolved when the estimator says so
+    (the floor rule of :meth:`~avbench.estimators.Estimator._mark_unseen_terms`, GMWM's bounds of a
+    term at the filter), when its evidence says the term is not present (likelihood-ratio test,
+    ``whittle_debiased``), or when it was estimated as exactly 0;
+``"not modelled"``
+    the method's model has no such term;
+``"non-physical"``
+    the fit gave a value without physical meaning (a negative AV-model weight, Lv et al. 2015 eq. 7);
+``"failed"``
+    the fit failed (``FitResult.failure`` says why).
+
+``estimate_interval`` is the method's own interval about ``fitted`` whatever the status (the
+estimator's ``conf_int(level)`` as it gives it, an end possibly infinite): the Monte Carlo studies
+score its coverage of the true value.
+
+Units: SI (of the record as handed to ``fit``); :meth:`FitResult.rescaled` divides every quantity
+that carries the record's unit by a factor, the one place where a result changes unit.
+
+>>> import numpy as np
+>>> from avbench import estimators
+>>> rate = np.random.default_rng(1).normal(0.0, 1e-3, 4096)
+>>> r = estimators.get("whittle_debiased", terms="NB").fit(rate, 0.01).result()
+>>> r.coefficients["N"].status, r.coefficients["K"].status
+('ok', 'not modelled')
+>>> bool(r.coefficients["N"].interval[0] < r.coefficients["N"].value < r.coefficients["N"].interval[1])
+True
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from avbench.noise_models.units import COEFFICIENTS
+
+__all__ = ["STATUSES", "REASONS", "jsonable", "Coefficient", "Evidence", "FitCheck", "FitResult", "MODEL_CHOICES", "build", "failed"]
+
+#: the statuses of a coefficient (module docstring)
+STATUSES = ("ok", "not resolved", "not modelled", "non-physical", "failed")
+
+#: why a coefficient is "not resolved": the estimator's bound for what the record cannot see, the
+#: term's evidence (its likelihood-ratio test does not show it), or an estimate of exactly 0
+REASONS = {"record": "the record does not resolve it", "evidence": "its evidence does not show the term",
+           "zero": "estimated as 0"}
+
+#: the model choices an estimator reports (its ``diagnostics_`` entries of these names): the
+#: spectral-line test, the sensor filter entered on evidence or held at a given time constant, the
+#: resonance test, the evidence between a Gauss-Markov and a flicker bias instability, and the
+#: first AV scale fitted; each a JSON-able mapping (``min_m`` an integer). Parts in the record's
+#: unit, by name (power of the unit); :meth:`FitResult.rescaled` converts them.
+MODEL_CHOICES = ("line_test", "filter_test", "filter_held", "resonance_test", "bias_evidence", "min_m")
+_CHOICE_UNITS = {"line_test": {"amplitude": 1}, "resonance_test": {"sigma": 1},
+                 "bias_evidence": {"GM": {"B": 1, "coefficients": 1, "std_err": 1},
+                                   "FL": {"B": 1, "coefficients": 1, "std_err": 1}}}
+
+
+def _f(v) -> float:
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return math.nan
+    return v
+
+
+def _finite(v) -> bool:
+    return v is not None and math.isfinite(v)
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """A term's evidence: the likelihood ratio of the model without it (``lr``), its boundary-corrected
+    p-value, whether the term is present at ``1 - level``, and the term's interval ``(lower, upper)`` at
+    ``level`` (SI)."""
+
+    lr: float
+    p_value: float
+    present: bool
+    lower: float
+    upper: float
+    level: float
+
+
+@dataclass(frozen=True)
+class Coefficient:
+    """One of Q, N, B, K, R as a fit gives it (module docstring for ``status``); values in SI."""
+
+    name: str
+    status: str
+    value: float = math.nan
+    fitted: float = math.nan
+    std_err: float = math.nan
+    interval: tuple[float, float] | None = None
+    estimate_interval: tuple[float, float] | None = None
+    evidence: Evidence | None = None
+    reason: str | None = None  # why "not resolved": "record", "evidence" or "zero" (:data:`REASONS`)
+
+    def __post_init__(self):
+        if self.name not in COEFFICIENTS:
+            raise ValueError(f"coefficient: expected one of {', '.join(COEFFICIENTS)}, got {self.name!r}")
+        if self.status not in STATUSES:
+            raise ValueError(f"status: expected one of {', '.join(STATUSES)}, got {self.status!r}")
+
+    @property
+    def upper(self) -> float | None:
+        """The upper end of ``interval`` (None where there is none)."""
+        return None if self.interval is None or not _finite(self.interval[1]) else float(self.interval[1])
+
+
+@dataclass(frozen=True)
+class FitCheck:
+    """Whether the fitted model misses the record's statistic (:mod:`avbench.estimators.allan.fit_check`):
+    ``poor_fit`` (None where the method makes no check), the chi^2-type statistic with its degrees of
+    freedom and p-value, the reference distribution's name, and the per-scale residuals ``(tau, z)``
+    where the check is made per AV scale (None otherwise)."""
+
+    poor_fit: bool | None
+    stat: float = math.nan
+    dof: int | None = None
+    pvalue: float = math.nan
+    reference: str | None = None
+    residuals: tuple[np.ndarray, np.ndarray] | None = None
+    detail: dict | None = None
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """One fit of one method to one record: per coefficient its :class:`Coefficient`, the fit check,
+    the model choices made (:data:`MODEL_CHOICES`, JSON-able), the fitted model's parameters by name
+    (latent models), the failure and warnings (``interval_error``: why ``conf_int`` gave no intervals,
+    if it raised), and ``extras``: the method's other details (its
+    ``diagnostics_``, in the unit of the record it was fitted to; documented by each estimator)."""
+
+    method: str
+    coefficients: dict[str, Coefficient]
+    level: float = 0.95
+    fit_check: FitCheck = field(default_factory=lambda: FitCheck(None))
+    model_choice: dict[str, Any] = field(default_factory=dict)
+    parameters: dict[str, float] | None = None
+    trajectory: Any = None
+    failure: str | None = None
+    warnings: tuple[str, ...] = ()
+    interval_error: str | None = None
+    extras: dict = field(default_factory=dict, repr=False, compare=False)
+    scale: float = 1.0
+    _model: Any = field(default=None, repr=False, compare=False)
+
+    @property
+    def failed(self) -> bool:
+        return self.failure is not None
+
+    def value(self, name: str) -> float:
+        """The resolved value of coefficient ``name`` (NaN unless its status is "ok")."""
+        return self.coefficients[name].value
+
+    def model_avar(self, tau) -> np.ndarray:
+        """The AV of the fitted model at ``tau`` (s), in this result's unit (squared)."""
+        if self._model is None:
+            raise ValueError(f"{self.method}: no fitted model ({self.failure or 'the fit failed'})")
+        return np.asarray(self._model(np.asarray(tau, dtype=float)), dtype=float) / self.scale**2
+
+    def rescaled(self, factor: float) -> "FitResult":
+        """The same result for the record divided by ``factor`` (every quantity in the record's unit
+        divided by it, AV-like ones by its square); ``factor == 1`` returns ``self``."""
+        factor = float(factor)
+        if factor == 1.0:
+            return self
+
+        def d(v):
+            return v / factor if v is not None else None
+
+        def iv(t):
+            return None if t is None else (t[0] / factor, t[1] / factor)
+
+        coefs = {}
+        for c, e in self.coefficients.items():
+            ev = e.evidence
+            if ev is not None:
+                ev = replace(ev, lower=ev.lower / factor, upper=ev.upper / factor)
+            coefs[c] = replace(e, value=e.value / factor, fitted=e.fitted / factor, std_err=e.std_err / factor,
+                               interval=iv(e.interval), estimate_interval=iv(e.estimate_interval), evidence=ev)
+        params = None if self.parameters is None else {
+            k: (v / factor if _parameter_power(k) else v) for k, v in self.parameters.items()}
+        traj = self.trajectory
+        if traj is not None:
+            traj = traj.copy()
+            for c in COEFFICIENTS:
+                if c in traj:
+                    traj[c] = traj[c] / factor
+        choice = {k: _scale_parts(v, _CHOICE_UNITS.get(k, 0), factor) for k, v in self.model_choice.items()}
+        return replace(self, coefficients=coefs, parameters=params, trajectory=traj, model_choice=choice,
+                       scale=self.scale * factor)
+
+    def with_warnings(self, messages) -> "FitResult":
+        """The same result with ``messages`` (the warnings its fit raised) added to its own."""
+        return replace(self, warnings=tuple(self.warnings) + tuple(m for m in messages if m not in self.warnings))
+
+
+def _parameter_power(key) -> int:
+    from avbench.estimators.base import _parameter_power as power
+
+    return power(key)
+
+
+def _scale_parts(value, spec, factor):
+    """``value`` with its parts named in ``spec`` (power 1, or a nested spec) divided by ``factor``."""
+    if spec == 0 or value is None:
+        return value
+    if isinstance(spec, dict):
+        if not isinstance(value, dict):
+            return value
+        return {k: (_scale_parts(v, spec[k], factor) if k in spec else v) for k, v in value.items()}
+    if isinstance(value, dict):
+        return {k: _scale_parts(v, spec, factor) for k, v in value.items()}
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        return value
+    return float(value) / factor
+
+
+def jsonable(v):
+    """Plain Python (dict, list, float, int, bool, str, None) for a diagnostics entry; non-finite floats as None."""
+    if isinstance(v, dict):
+        return {str(k): jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [jsonable(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return jsonable(v.tolist())
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v) if math.isfinite(v) else None
+    if v is None or isinstance(v, str):
+        return v
+    return str(v)
+
+
+def _fit_check(diag: dict) -> FitCheck:
+    pf = diag.get("poor_fit")
+    detail = None
+    if isinstance(pf, dict):
+        flag = pf.get("poor_fit", pf.get("flag"))
+        poor = bool(flag) if flag is not None else None
+        detail = jsonable(pf)
+    elif pf is None:
+        poor = None
+    else:
+        try:
+            poor = bool(pf)
+        except (TypeError, ValueError):
+            poor, detail = None, {"value": jsonable(pf)}
+    check = diag.get("fit_check")
+    residuals = None
+    if isinstance(check, dict) and "z" in check and "tau" in check:
+        tau, z = np.asarray(check["tau"], float), np.asarray(check["z"], float)
+        ok = np.isfinite(z)
+        if ok.any():
+            residuals = (tau[ok], z[ok])
+    dof = diag.get("fit_dof")
+    return FitCheck(poor_fit=poor, stat=_f(diag.get("fit_stat")), dof=None if dof is None else int(dof),
+                    pvalue=_f(diag.get("fit_pvalue")), reference=diag.get("fit_reference"), residuals=residuals,
+                    detail=detail)
+
+
+def _evidence(diag: dict) -> dict[str, Evidence]:
+    ev = diag.get("evidence")
+    if ev is None:
+        return {}
+    level = float(diag.get("evidence_level", 0.95))
+    return {c: Evidence(lr=_f(ev.loc[c, "lr"]), p_value=_f(ev.loc[c, "p_value"]), present=bool(ev.loc[c, "present"]),
+                        lower=_f(ev.loc[c, "lower"]), upper=_f(ev.loc[c, "upper"]), level=level)
+            for c in ev.index}
+
+
+def _intervals(est, level) -> tuple[dict, str | None]:
+    """``{coefficient: (lower, upper)}`` of the estimator's ``conf_int(level)`` as it gives them (a pair
+    with neither end finite left out) and the error that prevented it, if any (an interval that cannot
+    be computed is missing, not a failed fit)."""
+    try:
+        ci = est.conf_int(level)
+    except Exception as e:  # noqa: BLE001 - an optional extra; never let it cost the coefficients
+        return {}, f"no intervals: {type(e).__name__}: {e}"
+    out = {}
+    for c in ci.index:
+        lo, hi = _f(ci.loc[c].iloc[0]), _f(ci.loc[c].iloc[1])
+        if math.isfinite(lo) or math.isfinite(hi):
+            out[c] = (lo, hi)
+    return out, None
+
+
+def _finite_pair(pair):
+    return pair if pair is not None and math.isfinite(pair[0]) and math.isfinite(pair[1]) else None
+
+
+def build(est, level: float = 0.95) -> FitResult:
+    """The :class:`FitResult` of the fitted estimator ``est`` at interval level ``level`` (from its
+    ``coefficients_``, ``nonphysical_``, ``std_err_``, ``conf_int(level)`` and ``diagnostics_``)."""
+    est._check_fitted()
+    diag = est.diagnostics_
+    failure = diag.get("failure") or None
+    coefs, nonphys, se = est.coefficients_, est.nonphysical_, est.std_err_
+    unresolved = diag.get("unresolved") or {}
+    evidence = _evidence(diag)
+    intervals, interval_error = _intervals(est, level)
+    out = {}
+    for c in COEFFICIENTS:
+        fitted = _f(coefs[c])
+        s = _f(se[c]) if se is not None else math.nan
+        ev = evidence.get(c)
+        raw = intervals.get(c)
+        ci = _finite_pair(raw)
+        common = dict(name=c, fitted=fitted, std_err=s, estimate_interval=raw, evidence=ev)
+        if c in unresolved:
+            hi = _f(unresolved[c][1])
+            out[c] = Coefficient(status="not resolved", interval=(0.0, hi) if math.isfinite(hi) else None,
+                                 reason="record", **common)
+        elif math.isfinite(fitted):
+            if ev is not None and not ev.present:
+                up = ev.upper if math.isfinite(ev.upper) else (ci[1] if ci is not None else math.nan)
+                out[c] = Coefficient(status="not resolved", interval=(0.0, up) if math.isfinite(up) else None,
+                                     reason="evidence", **common)
+            elif fitted == 0.0:
+                out[c] = Coefficient(status="not resolved", interval=(0.0, ci[1]) if ci is not None else None,
+                                     reason="zero", **common)
+            else:
+                out[c] = Coefficient(status="ok", value=fitted, interval=ci, **common)
+        elif bool(nonphys.get(c, False)):
+            out[c] = Coefficient(status="non-physical", **common)
+        elif failure:
+            out[c] = Coefficient(status="failed", **common)
+        else:
+            out[c] = Coefficient(status="not modelled", **common)
+    choice = {k: jsonable(diag[k]) for k in MODEL_CHOICES if k in diag}
+    params = diag.get("params")
+    params = None if not isinstance(params, dict) else {str(k): _f(v) for k, v in params.items()}
+    extras = {k: v for k, v in diag.items()}
+    warnings = (interval_error,) if interval_error else ()
+    return FitResult(interval_error=interval_error, method=getattr(est, "name", type(est).__name__), coefficients=out, level=float(level),
+                     fit_check=_fit_check(diag), model_choice=choice, parameters=params,
+                     trajectory=diag.get("trajectory"), failure=str(failure) if failure else None,
+                     warnings=warnings, extras=extras, _model=est.model_avar)
+
+
+def failed(method: str, message: str, modelled=COEFFICIENTS, level: float = 0.95) -> FitResult:
+    """The result of a fit that raised: every coefficient "failed" (those in ``modelled``; the others
+    "not modelled"), ``failure`` the message."""
+    coefs = {c: Coefficient(name=c, status="failed" if c in modelled else "not modelled") for c in COEFFICIENTS}
+    return FitResult(method=method, coefficients=coefs, level=float(level), failure=str(message))

@@ -1,0 +1,248 @@
+"""One result per fit, every surface renders it: the JSON payload, the CSV, the screen and the filter
+yaml of ``avbench estimate`` give each coefficient the value, the interval and the status of the fit's
+:class:`avbench.estimators.results.FitResult`; no module outside the estimators package reads an
+estimator's ``diagnostics_``."""
+
+from __future__ import annotations
+
+import ast
+import math
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from avbench import estimators
+from avbench.estimators.results import STATUSES, Coefficient, FitResult, build
+from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, Quantization, RateRandomWalk
+from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si
+
+ROOT = Path(__file__).resolve().parents[1]
+#: the folders installed as subpackages of avbench other than the estimators package
+OUTSIDE = ("avbench", "noise_models", "studies", "recordings", "bench")
+
+
+def _reads_of_diagnostics(path: Path) -> list[int]:
+    tree = ast.parse(path.read_text(), str(path))
+    return [node.lineno for node in ast.walk(tree) if isinstance(node, ast.Attribute) and node.attr == "diagnostics_"]
+
+
+def test_no_module_outside_the_estimators_reads_diagnostics():
+    found = [f"{p.relative_to(ROOT)}:{line}" for folder in OUTSIDE for p in sorted((ROOT / folder).rglob("*.py"))
+             for line in _reads_of_diagnostics(p)]
+    assert not found, "read the fit's result (Estimator.result()), not diagnostics_: " + ", ".join(found)
+
+
+def test_the_rule_finds_a_read(tmp_path):
+    bad = tmp_path / "m.py"
+    bad.write_text("def f(est):\n    d = est.diagnostics_\n    return d['poor_fit']\n")
+    assert _reads_of_diagnostics(bad) == [2]
+
+
+# -- the surfaces ---------------------------------------------------------------------------------------
+def _record(seed, unit, n, quantized):
+    rng = np.random.default_rng(seed)
+    terms = [AngleRandomWalk(N=float(rng.uniform(1e-4, 1e-2))),
+             BiasInstability(B=float(rng.uniform(1e-6, 1e-4)), tau_max=n * 0.01),
+             RateRandomWalk(K=float(rng.uniform(1e-7, 1e-5)))]
+    if quantized:
+        terms.append(Quantization(Q=float(rng.uniform(1e-6, 1e-5))))
+    g = Gyro(dt=0.01, terms=terms)
+    return {a: g.simulate(n, rng) * unit for a in ("x", "y")}, {"x": 0.05 * g.simulate(n, rng) * unit}
+
+
+def _surfaces(method, seed, unit, quantized, n=8192):
+    from avbench.recordings import filter_yaml, report
+    from avbench.recordings.fit import fit_axis
+    from avbench.recordings.sensors import SensorRecord
+    from avbench.recordings.timing import Timing
+
+    gyro, accel = _record(seed, unit, n, quantized)
+    sensors = [SensorRecord("gyro", "rad/s", gyro, {}), SensorRecord("accel", "m/s^2", accel, {})]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with np.errstate(all="ignore"):
+            fits = {s.sensor: {a: fit_axis(x, 0.01, np.zeros(0, dtype=np.int64), [method]) for a, x in s.axes.items()}
+                    for s in sensors}
+    data = report.payload(["sim"], Timing(0.01, "--fs", n), sensors, fits)
+    try:
+        yaml = filter_yaml.filter_choices(data, method)
+    except ValueError:  # the method does not give N and K on every axis
+        yaml = None
+    return fits, data, report.tables(data), report.screen_tables(data), report.screen(data), yaml
+
+
+def _close(a, b):
+    if a is None or b is None:
+        return a is None and b is None
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    return math.isclose(a, b, rel_tol=1e-12, abs_tol=0.0)
+
+
+def _expected_cell(e: Coefficient, c, sensor) -> str:
+    """The screen's text of one coefficient, from the FitResult alone."""
+    u = DISPLAY_UNITS[sensor][c]
+
+    def d(v):
+        return f"{from_si(c, v, u, sensor):.3g}"
+
+    if e.status == "not modelled":
+        return "-"
+    if e.status in ("non-physical", "failed"):
+        return e.status
+    if e.status == "not resolved":
+        return f"< {d(e.interval[1])}" if e.interval is not None else "not resolved"
+    if e.interval is not None:
+        return f"{d(e.value)} [{d(e.interval[0])}, {d(e.interval[1])}]"
+    return f"{d(e.value)} (+- {d(e.std_err)})" if math.isfinite(e.std_err) else f"{d(e.value)} (no interval)"
+
+
+def _expected_yaml(fits, sensor, c):
+    """The filter yaml's value for one sensor's coefficient, from the FitResults alone: per axis the
+    resolved value, or the upper end of the interval where it is not resolved, reaches zero or the
+    fit is poor; the largest over the axes."""
+    best = None
+    for per_method in fits[sensor].values():
+        (fit,) = per_method.values()
+        e = fit.result.coefficients[c]
+        if e.status == "ok" and not (e.interval is not None and e.interval[0] <= 0) and not fit.result.fit_check.poor_fit:
+            v = e.value
+        elif e.status in ("ok", "not resolved"):
+            v = e.upper
+        else:
+            return None
+        if v is None:
+            return None
+        best = v if best is None else max(best, v)
+    return best
+
+
+@pytest.mark.parametrize("method", [m for m in estimators.names() if m in estimators.base.BUILTIN])
+@settings(max_examples=3, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**31), unit=st.sampled_from([1.0, 180 / math.pi, 2.0**-30, 1e6]),
+       quantized=st.booleans())
+def test_screen_json_csv_and_yaml_render_the_same_result(method, seed, unit, quantized):
+    fits, data, csv, screen_tables, screen, yaml = _surfaces(method, seed, unit, quantized)
+    assert max(len(line) for line in screen.splitlines()) <= 100
+    for sensor, per_axis in fits.items():
+        table, footnotes = screen_tables[sensor]
+        for axis, per_method in per_axis.items():
+            r = per_method[method].result
+            assert isinstance(r, FitResult)
+            md = data["sensors"][sensor]["axes"][axis]["methods"][method]
+            assert md["poor_fit"] == r.fit_check.poor_fit
+            for c in COEFFICIENTS:
+                e = r.coefficients[c]
+                assert e.status in STATUSES
+                j = md["coefficients"][c]
+                u = j["unit"]
+                # JSON: the status, the value and the interval of the result
+                assert j["flag"] == e.status
+                assert _close(j["si"], e.value if math.isfinite(e.value) else None)
+                iv = j.get("interval_si")
+                assert (iv is None) == (e.interval is None)
+                if iv is not None:
+                    assert _close(iv[0], e.interval[0]) and _close(iv[1], e.interval[1])
+                if e.status == "not resolved":
+                    assert e.interval is None or e.interval[0] == 0.0
+                    assert j["value"] is None and not math.isfinite(e.value)
+                # CSV: the same, in display units
+                row = csv[sensor].loc[(axis, method, c)]
+                assert row["status"] == e.status
+                shown = None if not math.isfinite(e.value) else from_si(c, e.value, u, sensor)
+                assert _close(None if row["value"] is None or (isinstance(row["value"], float) and math.isnan(row["value"]))
+                              else float(row["value"]), shown)
+                if e.interval is not None:
+                    assert _close(float(row["lower"]), from_si(c, e.interval[0], u, sensor))
+                    assert _close(float(row["upper"]), from_si(c, e.interval[1], u, sensor))
+                # screen: the cell rendered from the result alone, and printed
+                expected = _expected_cell(e, c, sensor)
+                col = f"{c} ({u})"
+                if col in table.columns:
+                    assert table.loc[(axis, method), col] == expected
+                    assert expected in screen
+                else:
+                    assert e.status == "not modelled"
+    if yaml is not None:
+        from avbench.recordings.filter_yaml import KEYS
+
+        for (sensor, c), key in KEYS.items():
+            want = _expected_yaml(fits, sensor, c)
+            assert want is not None and _close(yaml[key][0], want), (key, yaml[key], want)
+
+
+def test_a_result_rescaled_divides_every_quantity_in_the_records_unit():
+    rng = np.random.default_rng(5)
+    x = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5)]).simulate(20_000, rng)
+    est = estimators.get("whittle_debiased", terms="NBK").fit(x, 0.01)
+    r = build(est)
+    half = r.rescaled(2.0)
+    for c in COEFFICIENTS:
+        a, b = r.coefficients[c], half.coefficients[c]
+        assert a.status == b.status
+        assert _close(a.fitted / 2.0, b.fitted) and _close(a.std_err / 2.0, b.std_err)
+        if a.interval is not None:
+            assert _close(a.interval[1] / 2.0, b.interval[1])
+        if a.evidence is not None:
+            assert _close(a.evidence.upper / 2.0, b.evidence.upper)
+    tau = np.array([0.01, 1.0, 10.0])
+    assert np.allclose(half.model_avar(tau), r.model_avar(tau) / 4.0, rtol=1e-14)
+
+
+def test_a_coefficient_refuses_an_unknown_status():
+    with pytest.raises(ValueError, match="status"):
+        Coefficient(name="N", status="fine")
+    with pytest.raises(ValueError, match="coefficient"):
+        Coefficient(name="X", status="ok")
+
+
+_REAL = os.environ.get("AVBENCH_REAL_DATA")
+
+
+@pytest.mark.skipif(not _REAL, reason="AVBENCH_REAL_DATA is not set: the real ADIS runs are optional")
+def test_real_record_surfaces_agree():
+    """The same agreement on 10 minutes of a real ADIS16405 run, the default methods, six axes."""
+    from avbench.estimators.base import DEFAULT_METHODS
+    from avbench.recordings import filter_yaml, report
+    from avbench.recordings.fit import fit_axis
+    from avbench.studies.real_runs import _records
+
+    path = Path(_REAL)
+    if not (path / "adis16405-calgary").exists():
+        pytest.skip("the ADIS16405 runs are not under AVBENCH_REAL_DATA")
+    from avbench.recordings.sensors import SensorRecord
+    from avbench.recordings.timing import Timing
+
+    axes: dict = {}
+    for rec, sensor, axis, x, timing in _records(path):
+        if rec.endswith("imu1"):
+            axes.setdefault(sensor, {})[axis] = np.asarray(x[:60_000])
+    sensors = [SensorRecord(s, "SI", a, {}) for s, a in axes.items()]
+    fits = {s.sensor: {a: fit_axis(x, 0.01, np.zeros(0, dtype=np.int64), DEFAULT_METHODS) for a, x in s.axes.items()}
+            for s in sensors}
+    data = report.payload(["adis"], Timing(0.01, "--fs", 60_000), sensors, fits)
+    screen = report.screen(data)
+    assert max(len(line) for line in screen.splitlines()) <= 100
+    tables = report.screen_tables(data)
+    for s in sensors:
+        for axis in s.axes:
+            for m in DEFAULT_METHODS:
+                r = fits[s.sensor][axis][m].result
+                for c in ("N", "B", "K"):
+                    e = r.coefficients[c]
+                    assert data["sensors"][s.sensor]["axes"][axis]["methods"][m]["coefficients"][c]["flag"] == e.status
+                    assert tables[s.sensor][0].loc[(axis, m), f"{c} ({DISPLAY_UNITS[s.sensor][c]})"] == \
+                        _expected_cell(e, c, s.sensor)
+    ch = filter_yaml.filter_choices(data, DEFAULT_METHODS[0])
+    from avbench.recordings.filter_yaml import KEYS
+
+    sub = {s: {a: {DEFAULT_METHODS[0]: f[DEFAULT_METHODS[0]]} for a, f in per.items()} for s, per in fits.items()}
+    for (sensor, c), key in KEYS.items():
+        want = _expected_yaml(sub, sensor, c)
+        if want is not None:
+            assert _close(ch[key][0], want)
