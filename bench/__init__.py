@@ -1,10 +1,14 @@
-"""avbench performance benchmarks: ``python -m bench [--quick] [--out results/bench]``.
+"""avbench performance benchmarks: ``python -m avbench.bench [--quick] [--out results/bench]``.
 
 Modules: :mod:`avbench.bench.harness` (asv-style runner: medians of interleaved repeats, same-run
-baselines), :mod:`avbench.bench.suite` (the benchmark classes), :mod:`avbench.bench.streaming` (peak memory of
-the streaming path, in a child process), :mod:`avbench.bench.report` (README.md, results.json/csv,
-scaling.png), and the authors' kernel-vs-reference throughput modules :mod:`avbench.bench.online_filters`
-and :mod:`avbench.bench.arma_em`.
+baselines), :mod:`avbench.bench.suite` (the classes of a run), the benchmark classes by what they
+measure -- :mod:`avbench.bench.engine` (simulators, Allan variances), :mod:`avbench.bench.fits` (the
+estimators), :mod:`avbench.bench.recordings` (reading a recording, ``avbench estimate``) and
+:mod:`avbench.bench.startup` (start-up, first calls, the lv2015 study) -- with their helpers
+:mod:`avbench.bench.streaming` (peak memory of the streaming path, in a child process),
+:mod:`avbench.bench.estimate_e2e` and the kernel-vs-reference throughput modules
+:mod:`avbench.bench.online_filters` and :mod:`avbench.bench.arma_em`; :mod:`avbench.bench.report`
+writes README.md, results.json/csv and scaling.png.
 """
 
 if __name__ != "avbench.bench":  # the folder imported by its pre-0.2 name (from a source checkout)

@@ -1,6 +1,6 @@
-"""``python -m bench [--quick] [--out DIR]`` (also ``avbench bench ...``).
+"""``python -m avbench.bench [--quick] [--out DIR]`` (also ``avbench bench ...``).
 
-Runs the benchmark classes of :mod:`avbench.bench.suite` and writes README.md (targets and tables),
+Runs the benchmark classes of :mod:`avbench.bench.suite` and writes README.md (targets, tables, notes),
 results.json, results.csv and scaling.png under ``--out``: by default ``results/bench`` for a full
 run, and a new temporary folder for ``--quick`` (tiny sizes, about a minute; the CI smoke test, its
 figures make no claims), so a smoke run never overwrites the committed benchmark unless asked to
@@ -36,7 +36,7 @@ def _arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="tiny sizes, < 1 minute (smoke test; no timing claims)")
     p.add_argument("--out", help=f"output folder (default {FULL_OUT} for a full run, a new temporary folder for --quick)")
     p.add_argument("--only", help="comma-separated benchmark class names to run (default: all)")
-    p.add_argument("--notes", help="a Markdown file whose text is added under the targets table "
+    p.add_argument("--notes", help="a Markdown file whose text is added as the README's diary, after the tables "
                                    "(default: notes.md in the output folder, if there is one)")
     p.add_argument("--report-only", action="store_true",
                    help="rewrite README.md, results.csv and scaling.png from --out/results.json; run nothing")
@@ -47,7 +47,7 @@ def _arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def add_parser(sub) -> None:
     """Register the ``bench`` subcommand on an argparse subparsers object (used by ``avbench``)."""
-    p = sub.add_parser("bench", help="run the performance benchmarks (python -m bench)",
+    p = sub.add_parser("bench", help="run the performance benchmarks (python -m avbench.bench)",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     _arguments(p)
     p.set_defaults(func=run)
@@ -69,8 +69,9 @@ def run(args) -> int:
 
         prev = json.loads((Path(args.out) / "results.json").read_text())
         cases = harness.load_cases(Path(args.out) / "results.json")
-        report.write_outputs(cases, prev["machine"], Path(args.out), prev["quick"], prev["seconds"], _notes(args))
-        print(f"rewrote {args.out}/README.md, results.json, results.csv, scaling.png")
+        report.write_outputs(cases, prev["machine"], Path(args.out), prev["quick"], prev["seconds"], _notes(args),
+                             json_out=False)
+        print(f"rewrote {args.out}/README.md, results.csv, scaling.png")
         return 0
     t0 = time.perf_counter()
     chosen = suite.classes(args.quick)
@@ -103,7 +104,7 @@ def run(args) -> int:
 def main(argv=None) -> int:
     from avbench.text import plain_text
 
-    p = _arguments(argparse.ArgumentParser(prog="python -m bench", description=plain_text(__doc__),
+    p = _arguments(argparse.ArgumentParser(prog="python -m avbench.bench", description=plain_text(__doc__),
                                            formatter_class=argparse.RawDescriptionHelpFormatter))
     return run(p.parse_args(argv))
 

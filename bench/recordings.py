@@ -7,6 +7,13 @@
 * :func:`estimate_peak` -- in a child process: ``avbench estimate REC.npy --fs 100 --units rad/s``
   on ``n`` float64 samples; its peak RSS (``ru_maxrss`` of the child) against the record's size.
 
+The benchmark classes that run them: :class:`ReadRecording` (the reader against a bare
+``pandas.read_csv`` of the same file, and its peak memory over the numeric data),
+:class:`EstimateMemory` (peak RSS of ``avbench estimate`` against the record's size, up to 5e7 samples,
+400 MB) and :class:`EstimateEndToEnd` (``avbench estimate`` with its defaults on an EuRoC-style CSV,
+whole process: 1 h at 100 Hz and 2 h at 400 Hz, 6 axes, with where the time goes;
+:mod:`avbench.bench.estimate_e2e`).
+
 ``python -m avbench.bench.recordings csv N`` / ``python -m avbench.bench.recordings estimate N`` run one measurement
 and print it as JSON.
 """
@@ -16,6 +23,7 @@ from __future__ import annotations
 import json
 import os
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -24,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_csv", "read_peak", "estimate_peak", "COLUMNS"]
+__all__ = ["write_csv", "read_peak", "estimate_peak", "COLUMNS", "ReadRecording", "EstimateMemory", "EstimateEndToEnd"]
 
 COLUMNS = "t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z"
 
@@ -100,6 +108,66 @@ def estimate_peak(n: int, methods: str = "nnls_rel,gmwm", seed: int = 0) -> dict
     peak = int(kb) / 1024
     return {"n": n, "methods": methods, "peak_rss_mb": peak, "record_mb": record_mb, "peak_over_record": peak / record_mb,
             "wall_s": float(wall), "loadavg_after": list(os.getloadavg())}
+
+
+class ReadRecording:
+    """A 7-column CSV read by ``avbench estimate``'s reader against ``pandas.read_csv`` (same file)."""
+
+    params = [[10**5, 10**6]]
+    quick_params = [[10**4]]
+    param_names = ["n"]
+    baselines = {"time_read": ("baseline_read", "pandas.read_csv of the same file (C engine, defaults)")}
+
+    def setup(self, n):
+        self.dir = Path(tempfile.mkdtemp(prefix="avbench_csv_"))
+        self.path = write_csv(self.dir / "r.csv", n)
+        self.n = n
+
+    def teardown(self, n):
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def time_read(self, n):
+        from avbench.recordings.readers import read_recording
+
+        read_recording(self.path, gyro="gyro_x,gyro_y,gyro_z", accel="acc_x,acc_y,acc_z")
+
+    def baseline_read(self, n):
+        import pandas as pd
+
+        pd.read_csv(self.path)
+
+    def peakmem_read(self, n):
+        return read_peak(self.path, n)
+
+
+class EstimateEndToEnd:
+    """``avbench estimate FILE`` (defaults) from a fresh process, and where its time goes."""
+
+    params = [["1h_100Hz", "2h_400Hz"]]
+    quick_params = [["quick_2min_100Hz"]]
+    param_names = ["case"]
+
+    def setup(self, case):
+        pass
+
+    def track_end_to_end(self, case):
+        from avbench.bench.estimate_e2e import measure
+
+        return measure(case)
+
+
+class EstimateMemory:
+    """Peak RSS of ``avbench estimate`` on an n-sample .npy (child process), against the record's size."""
+
+    params = [[10**6, 10**7, 5 * 10**7]]
+    quick_params = [[10**5]]
+    param_names = ["n"]
+
+    def setup(self, n):
+        pass
+
+    def peakmem_estimate(self, n):
+        return estimate_peak(n)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Outputs of a benchmark run: results.json, results.csv, scaling.png and README.md (targets first)."""
+"""Outputs of a benchmark run: results.json, results.csv, scaling.png and README.md (targets first, diary last)."""
 
 from __future__ import annotations
 
@@ -10,16 +10,30 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from avbench.bench.suite import loglog_slope
+__all__ = ["write_outputs", "targets", "loglog_slope"]
 
-__all__ = ["write_outputs", "targets"]
 
+def loglog_slope(n, t) -> float:
+    """Least-squares slope of log t against log n (1 = linear cost); NaN with fewer than two positive points.
+
+    >>> round(loglog_slope([1e4, 1e5, 1e6], [2e-4, 2e-3, 2e-2]), 6)
+    1.0
+    >>> loglog_slope([1e4], [1.0])
+    nan
+    """
+    n, t = np.asarray(n, float), np.asarray(t, float)
+    ok = (n > 0) & (t > 0)
+    if ok.sum() < 2:
+        return math.nan
+    return float(np.polyfit(np.log(n[ok]), np.log(t[ok]), 1)[0])
+
+#: what limits each target, today (the report states each once, under the targets table)
 LIMITS = {
-    "estimate_e2e": "The fits: GMWM's least squares evaluates the exact model AV for every finite-difference "
-                    "Jacobian column (thousands of model_av calls, each through Gyro.avar and the Gauss-Markov "
-                    "_gm_f_over_c2 series), and every fit's check builds the AV covariance under the fitted model "
-                    "(allan/covariance.av_covariance: _haar_gain, _pair_integrals); reading, the six AVs and the static "
-                    "check are a small share. See the breakdown.",
+    "estimate_e2e": "The fits and the outputs. Within the fits (the default methods on six axes) every fit's check "
+                    "builds the AV covariance under the fitted model (allan/covariance.av_covariance: _haar_gain, "
+                    "_pair_integrals), the largest profiled share; GMWM's solves evaluate the latent model's exact AV "
+                    "and its analytic Jacobian. Then the figures, tables and writing; reading, the six AVs and the "
+                    "static check are a small share. See the breakdown.",
     "deviations": "Memory passes: SIMD passes over the phase, blocked over the start index for all taus (ohvar, "
                   "totvar, mvar, with the AV for the edf read from the same slices; mvar from box sums built level by "
                   "level in L1 for octave m <= 256, a chain carried 16 steps per dependent addition beyond); hvar one "
@@ -39,18 +53,15 @@ LIMITS = {
     "reads each 4096-sample block of S once per tau larger than the block; S itself is built in one fused pass.",
     "stream": "Library code and state, not the stream: numpy 26 MB, numba 56 MB + its LLVM runtime when the first "
     "cached kernel loads ~60 MB, scipy.fft (the flicker filter) ~28 MB; the stream itself (traced) is the chunk buffers "
-    "plus the flicker filter's FFT buffers (O(tau_max/dt)), constant in n. pandas (76 MB with pyarrow, which pandas 3 "
-    "imports at import time) is no longer loaded by the stream: an online filter builds its result Series when they "
-    "are read; reading coefficients_ at the end loads it (second figure).",
+    "plus the flicker filter's FFT buffers (O(tau_max/dt)), constant in n. The stream does not load pandas (76 MB with "
+    "pyarrow, which pandas 3 imports at import time): an online filter builds its result Series when they are read, "
+    "so reading coefficients_ at the end loads it (second figure).",
     "mle": "Per likelihood evaluation one compiled Kalman pass over the block means (steady state after a few "
     "thousand steps: a state update per block mean; with a drift the augmented filter, whose diffuse columns "
-    "also settle). The gradient is the analytic score (issue 25: the filter's derivative recursions in the same "
-    "pass): ~6-9 likelihood passes' worth for p = 4-5 -- the p covariance derivatives cost ~p k^3 per step "
-    "until they settle, a few thousand steps -- against 2p + 1 for the central differences of before, ~30 "
-    "iterations; the Hessian is 2p scores. The diagonal-weight GMWM start and the fit check are a fixed share "
-    "(the start's analytic Jacobian, issue 25: the studies' model QN+WN+GM+RW+DR on this record 2.71 -> 1.91 CPU-s, "
-    "the default model 1.06 -> 0.93; estimates of the default model unchanged to 3e-9 relative, of the studies' "
-    "model to 7e-10 but for its unresolved Q, 3 %).",
+    "also settle). The gradient is the analytic score (the filter's derivative recursions in the same pass): ~6-9 "
+    "likelihood passes' worth for p = 4-5 (the p covariance derivatives cost ~p k^3 per step until they settle, a "
+    "few thousand steps), where central differences would take 2p + 1; ~30 iterations; the Hessian is 2p scores. "
+    "The diagonal-weight GMWM start (with its analytic Jacobian) and the fit check are a fixed share.",
     "whittle": "One FFT of the record; then Fisher scoring in log-parameters, each step one compiled pass over the "
     "n/2 Fourier frequencies with the terms' closed-form spectra; the ramp's exact variance costs two FFTs of twice "
     "the record per model reported, and with selection there is one fit per candidate term set.",
@@ -58,73 +69,63 @@ LIMITS = {
     "Elliott & Krishnamurthy (its finite-dimensional filters); the default fit adds its AV-fit start.",
     "shakf": "One compiled pass (3 states): the recursive AV, the time update and a scalar measurement update per sample.",
     "nekf": "The 33-state augmented covariance, kept bit-identical (nekf feeds committed studies): per sample the "
-    "Jacobian product G P (nq x n; since issue 25 in register blocks of 32/16/4 columns, estimators/online/_vec4.py, "
-    "~0.45 -> ~0.25 us of ~1.25 us), a dense rank-one measurement update of the 33 x 33 P (~0.17 us: three memory "
-    "operations per 4 lanes, no structure to skip), the NN and its Jacobian (~0.17 us: five tanh and short loops), "
-    "G P G^T and P H (~0.1 us each, ordered scalar sums that may not be reassociated); the process noise is added by "
-    "blocks.",
+    "Jacobian product G P (nq x n, in register blocks of 32/16/4 columns, estimators/online/_vec4.py: ~0.25 us of "
+    "~1.25 us), a dense rank-one measurement update of the 33 x 33 P (~0.17 us: three memory operations per 4 lanes, "
+    "no structure to skip), the NN and its Jacobian (~0.17 us: five tanh and short loops), G P G^T and P H (~0.1 us "
+    "each, ordered scalar sums that may not be reassociated); the process noise is added by blocks.",
     "csv": "pandas' C parser (one pass, float64 columns, no strings); the reader adds the sniffing of the first "
     "lines and the checks (blank lines, NaN) on the float columns.",
     "estimate": "The record (memory-mapped, float64, not copied), one cumulative sum of it per AV (n + 1 values) "
     "and the estimators' own work arrays, plus ~300 MB of libraries (numpy, scipy, pandas, numba, matplotlib).",
     "study": "The 4 LS fits of each replicate on lv2015's grid (taus='all', non-overlapping: the AV at every cluster "
-    "size, then since issue 25 the normal equations from one compiled pass of power sums over the 72 000 sizes, "
-    "five more passes in wls_edf), then fresh-process imports and the report's figures. The "
-    "poor-fit check's model covariance, ~75 ms of a ~110 ms fit before issue 25, is now ~1 ms (per-pair integrals "
-    "kept per grid and record length, avbench.estimators.allan.covariance). A run at load ~10 (other sessions on the "
-    "2 cores) measures the machine, not the code.",
+    "size, then the normal equations from one compiled pass of power sums over the 72 000 sizes, five more passes in "
+    "wls_edf), then fresh-process imports and the report's figures. The poor-fit check's model covariance costs ~1 ms "
+    "(per-pair integrals kept per grid and record length, avbench.estimators.allan.covariance). A run at load ~10 "
+    "(other work on the 2 cores) measures the machine, not the code.",
     "fit_cost": "The fit check's model covariance is a weighted sum of per-pair integrals of the terms' spectral shapes, "
     "kept per grid and record length (avbench.estimators.allan.covariance), ~1 ms after a study's first record. "
-    "Since issue 25 the LS family does not build its design: the normal equations come from one compiled pass of "
-    "power sums (avbench.estimators.curve_fits._kernels; wls_edf's re-weighting in the same pass) and are solved by "
-    "Cholesky after column equilibration (the weighted design's SVD where their condition number exceeds 1e4; the "
-    "studies' designs stay below 1e3), estimates within ~2e-10 relative of the SVD's (both within that of an "
-    "extended-precision solution); CPU time on this record, main against this code in the same session: ols 23 -> 14 "
-    "ms, wls 24 -> 14, wls_edf 92 -> 23, with the octave AV at 0.7-1.0 ms. What is left: the non-overlapping AV at "
+    "The LS family does not build its design: the normal equations come from one compiled pass of power sums "
+    "(avbench.estimators.curve_fits._kernels; wls_edf's re-weighting in the same pass) and are solved by Cholesky "
+    "after column equilibration (the weighted design's SVD where their condition number exceeds 1e4; the studies' "
+    "designs stay below 1e3), estimates within ~2e-10 relative of the SVD's (both within that of an "
+    "extended-precision solution). Where a fit on its default grid spends its time: the non-overlapping AV at "
     "~72 000 cluster sizes (~5 ms), the fit check (~1.8 ms, its octave AV included), the contract's standardisation "
-    "and pandas results (~3 ms), wls_edf's six passes (~1 ms each). nnls_rel, log_fit and slope_lines refer "
-    "their check to a weighted chi^2 whose tail is Imhof's integral, compiled since the eighth session (a numba "
-    "cfunc for QUADPACK: 10-30 ms -> ~0.5 ms); log_fit hands the check its derivative by the implicit function "
-    "theorem instead of 34 trust-region refits (nnls_rel's and slope_lines' refits are a few ms).",
-    "gmwm_cost": "Since issue 25 not the model: the latent model's exact AV and its analytic Jacobian (per-latent "
-    "unit curves computed once, the Gauss-Markov curve and its d/d ln Tc in one compiled pass) replaced "
-    "least_squares' forward differences (~80 % of the cost before: 2.48 -> 0.37 CPU-s on this record). Since the "
-    "ninth session not scipy's per-call machinery either: its trust-region reflective iteration is ported operation "
-    "for operation in NumPy without the differentiable-function wrappers, svd's per-call checks and workspace query, "
-    "norm's dispatch (estimators/likelihood/_trf.py; bit for bit scipy's result), and the second step's whitening "
-    "calls LAPACK's trtrs directly: 0.46-0.49 -> 0.27 s. What is left: ~1 900 model AV and Jacobian evaluations in "
-    "Python (~0.07 s; ~70 solves: min_m='auto' tries ~10 sets of scales, 6 starts each plus the second step), the "
-    "trust-region iterations' NumPy and LAPACK calls (~0.1 s) and the ten second-step weight matrices (a direct sum of "
-    "the squared model spectrum over 65 536 grid points each, ~5 ms; the Haar gains are kept between them). A numba "
-    "port of the iteration (0.20 s) cost ~16 s of compilation on first use and ~0.3 s in every new process.",
+    "and pandas results (~3 ms), wls_edf's six passes (~1 ms each). nnls_rel, log_fit and slope_lines refer their "
+    "check to a weighted chi^2 whose tail is Imhof's integral, compiled (a numba cfunc for QUADPACK, ~0.5 ms); log_fit "
+    "hands the check its derivative by the implicit function theorem instead of 34 trust-region refits (nnls_rel's "
+    "and slope_lines' refits are a few ms).",
+    "gmwm_cost": "The solves, not the model: the latent model's exact AV comes with its analytic Jacobian (per-latent "
+    "unit curves computed once, the Gauss-Markov curve and its d/d ln Tc in one compiled pass), and scipy's "
+    "trust-region reflective iteration runs as a NumPy port without scipy's per-call machinery (no "
+    "differentiable-function wrappers, svd's per-call checks and workspace query or norm's dispatch; "
+    "estimators/likelihood/_trf.py, bit for bit scipy's result); the second step's whitening calls LAPACK's trtrs "
+    "directly. The time: ~1 900 model AV and Jacobian evaluations in Python (~0.07 s; ~70 solves: min_m='auto' tries "
+    "~10 sets of scales, 6 starts each plus the second step), the trust-region iterations' NumPy and LAPACK calls "
+    "(~0.1 s) and the ten second-step weight matrices (a direct sum of the squared model spectrum over 65 536 grid "
+    "points each, ~5 ms; the Haar gains are kept between them). A numba port of the iteration (0.20 s) would cost "
+    "~16 s of compilation on first use and ~0.3 s in every new process.",
     "help": "The interpreter's own start (timed beside it) plus argparse and the CLI modules: the commands import "
     "numpy, pandas, the simulators and the estimators only when they run.",
     "import": "numpy (~0.15 CPU-s) and numba (~0.3 CPU-s, the simulators' compiled kernels); pandas, scipy.optimize, "
     "statsmodels and each estimator's module are imported on first use (lazy registry).",
     "first_call": "Loading the compiled kernels from numba's disk cache (`cache=True`: `__pycache__` beside the "
     "source, else `~/.cache/numba`, else a per-user temp folder) and importing the estimator's module.",
-    "scaling": "Serial parts in the parent: its imports (~0.65 CPU-s), the config (~1.1 CPU-s before issue 25: "
-    "scipy.stats' import, 0.7, and the trial fits that check every estimator's settings; since issue 25 the LS fits "
-    "check their settings without a trial fit, the fit check's chi^2 tails need only scipy.special, and the parent "
-    "imports its report's modules in a thread once the last block is queued: lv2015's config 1.66 -> 0.77 CPU-s, "
-    "main against this code in the same session, outputs byte-identical), collecting the shards (~0.1) and "
-    "the tables (~0.65); since issue 25 the workers draw the six figures (one task each, matplotlib imported by idle "
-    "workers after the last block is queued) while the parent writes the tables (the parent's report 2.7-3.4 -> "
-    "0.6-0.9 CPU-s, outputs byte-identical). The workers start while the parent imports and stay warm for every block. "
-    "Since the eighth session no block imports scipy.stats (each worker's first block was ~1 s longer), --jobs 1 "
-    "runs its blocks on one BLAS thread as a worker does (so it is a true one-core baseline: 13 -> 11 s, 19 -> 10 "
-    "CPU-s), and avbench run stops its idle workers instead of waiting for their exit (~0.8 s); what is left serial "
-    "is ~2 s before the first block (imports, config, the workers' start) and ~2 s of report (notes.md). "
-    "The bound (ninth session, notes.md): the study is CPU-bound on 2 cores, so --jobs 2 takes at least its CPU "
-    "time / 2, and --jobs 2 spends 13.1-13.9 CPU-s where --jobs 1 spends 9.6-10.2 (three alternated pairs, quiet "
-    "machine): each worker process pays its interpreter and imports (~0.75 CPU-s), its numba kernels' cache loads "
-    "(~0.5) and matplotlib for the figures (~0.4) that one process pays once. So --jobs 2 cannot beat ~6.7 s against "
-    "~9.7 s (1.45x) even perfectly packed; 1.6x needs the two workers' overhead under ~1.2 CPU-s together. Workers "
-    "forked from the study's process after its imports (a prototype, not adopted: fork with OpenBLAS's threads alive, "
-    "and the standard pool cannot kill a stuck worker) measured 1.4-1.6x in one session and slower than spawned "
-    "workers in a second. "
-    "On a machine busy with other sessions, Linux's autogroup scheduler gives one session a fixed share of the cores "
-    "however many processes it runs, so the ratio only means something on a quiet machine.",
+    "scaling": "The study is CPU-bound on 2 cores, so --jobs 2 takes at least half its CPU time, and --jobs 2 spends "
+    "2-3 CPU-s more than --jobs 1 on ~8 CPU-s of work: each worker process pays its interpreter and imports "
+    "(~0.65 CPU-s), the figures' imports (~0.33), its numba kernels' cache loads (~0.5), loky's resource tracker and "
+    "its own start, which one process pays once. So even perfectly packed --jobs 2 takes ~(8 + 2.5) / 2 = 5.3 s, "
+    "1.5x: 1.6x is not reachable on this study on 2 cores with spawned workers. Serial in the parent: its imports "
+    "(~0.65 CPU-s), the config (~0.8 CPU-s; no trial fits: the LS fits check their settings without one, and the "
+    "fit check's chi^2 tails need only scipy.special), collecting the shards (~0.1) and writing the tables (~0.65); "
+    "the workers start while the parent imports, "
+    "stay warm for every block, import matplotlib when idle after the last block is queued and draw the six figures "
+    "(one task each) while the parent writes the tables; --jobs 1 runs its blocks on one BLAS thread as a worker "
+    "does (a one-core baseline), and avbench run stops its idle workers instead of waiting for their exit. Not "
+    "used, since they change what a worker guarantees: workers forked after the imports (fork with OpenBLAS's "
+    "threads alive; the standard pool cannot kill a stuck worker) and the study's own process as a worker (a block "
+    "that crashes its process would end the study instead of being retried). On a machine busy with other work, "
+    "Linux's autogroup scheduler gives one session a fixed share of the cores however many processes it runs, so "
+    "the ratio only means something on a quiet machine.",
 }
 
 
@@ -203,7 +204,8 @@ def _with_ratio(d: pd.DataFrame) -> pd.DataFrame:
 
 
 def targets(df: pd.DataFrame, quick: bool) -> list[dict]:
-    """The issue's four targets: measured figure, target, met (None when not measured)."""
+    """The targets' rows: target, measured figure, met (None: no target, a quick run, or the size not run),
+    and what limits it."""
     rows = []
     for comp, key in (("gauss_markov", "gen_gm"), ("flicker", "gen_flicker")):
         d = _pick(df, "Generation", "time_simulate", composite=comp).pipe(_with_ratio) if len(df) else df
@@ -319,7 +321,7 @@ def _estimate_targets(df: pd.DataFrame) -> list[dict]:
 
 
 def _kernel_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
-    """Issue 14's kernel targets: mle, online filters with defaults, flicker preset, AV kernel."""
+    """The kernel targets: mle, whittle, online filters with defaults, flicker preset, AV kernel."""
     rows = []
     if not len(df):
         return rows
@@ -334,7 +336,7 @@ def _kernel_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
     if len(d):
         r = d.sort_values("param_n").iloc[-1]
         rows.append({"target": "mle QN+WN+GM+RW+DR (the studies' model), 2 h ADIS16405_X: against the exact "
-                               "initial filter of before (no target; the studies' share)",
+                               "initial (diffuse) filter (no target; the studies' share)",
                      "measured": f"{r['ratio']:.1f}x at n = {int(r['param_n']):.3g} ({r['median_s']:.2f} s vs "
                                  f"{r['baseline_median_s']:.2f} s)",
                      "met": None, "limit": LIMITS["mle"]})
@@ -381,7 +383,7 @@ def _kernel_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
         b = _pick(df, "AllanKernel", "track_bound", n=r["param_n"])
         bound = f"; {b.iloc[-1]['ours_over_bound']:.1f}x the bound of one cumsum + {int(b.iloc[-1]['n_taus'])} reads " \
                 f"of S ({b.iloc[-1]['bound_s'] * 1e3:.0f} ms)" if len(b) else ""
-        rows.append({"target": "overlapping AV >= 1.5x faster at 1e7 than before issue 14 (same run)",
+        rows.append({"target": "overlapping AV >= 1.5x faster at 1e7 than its unfused preparation (same run)",
                      "measured": f"{r['ratio']:.2f}x at n = {int(r['param_n']):.0e} ({r['median_s'] * 1e3:.0f} ms vs "
                                  f"{r['baseline_median_s'] * 1e3:.0f} ms){bound}",
                      "met": bool(r["ratio"] >= 1.5) if int(r["param_n"]) >= 10**7 else None, "limit": LIMITS["allan"]})
@@ -389,7 +391,7 @@ def _kernel_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
 
 
 def _startup_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
-    """Start-up, first call and parallel-study targets (issue 14)."""
+    """Start-up, first call and parallel-study targets."""
     rows = []
     if not len(df):
         return rows
@@ -420,7 +422,7 @@ def _startup_targets(df: pd.DataFrame, quick: bool) -> list[dict]:
     d = _pick(df, "LvStudy", "track_wall")
     if len(d) and "speedup" in d and pd.notna(d.iloc[-1].get("speedup", math.nan)):
         r = d.iloc[-1]
-        rows.append({"target": "lv2015 with --jobs 2 >= 1.6x faster than --jobs 1 (quiet machine; <= 15 s: row above)",
+        rows.append({"target": "lv2015 with --jobs 2 >= 1.6x faster than --jobs 1 (quiet machine)",
                      "measured": f"--jobs 1 {r['wall_jobs1_s']:.1f} s, --jobs 2 {r['wall_jobs2_s']:.1f} s: {r['speedup']:.2f}x "
                                  f"(medians of {int(r['rounds'])} alternated runs; load {r['loadavg_after'][0]:.1f} after)",
                      "met": bool(r["speedup"] >= 1.6), "limit": LIMITS["scaling"]})
@@ -558,40 +560,104 @@ def _memory_table(df):
     return "\n".join(lines)
 
 
-def write_outputs(cases, machine: dict, out: Path, quick: bool, seconds: float, notes: str = "") -> dict:
-    """Write results.json, results.csv, scaling.png, README.md under ``out``; return the JSON payload."""
+def write_outputs(cases, machine: dict, out: Path, quick: bool, seconds: float, notes: str = "", *,
+                  json_out: bool = True) -> dict:
+    """Write results.json, results.csv, scaling.png and README.md under ``out``; return the JSON payload.
+
+    ``json_out=False`` leaves results.json as it is (``--report-only`` renders from it).
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     df = _frame(cases)
     tg = targets(df, quick)
     payload = {"quick": quick, "seconds": seconds, "machine": machine, "targets": tg,
                "cases": json.loads(df.to_json(orient="records"))}
-    (out / "results.json").write_text(json.dumps(payload, indent=1, default=str))
+    if json_out:
+        (out / "results.json").write_text(json.dumps(payload, indent=1, default=str))
     df.to_csv(out / "results.csv", index=False)
     plot(df, out / "scaling.png")
-    md = [f"# avbench performance ({'quick smoke run: tiny sizes, no claims' if quick else 'full run'})", "",
-          f"`python -m bench{' --quick' if quick else ''}` (last run {machine['when']}): {machine['cpu_count']} cores "
-          f"({machine['processor']}), load average {machine['loadavg_1_5_15']} at the end (other work was running: "
-          f"figures are medians of interleaved repeats, and ratios compare runs made in the same loop). "
-          f"numpy {machine['numpy']}, numba {machine['numba']} ({machine['numba_threads']} threads), "
-          f"allantools {machine.get('allantools', '-')}." + ("" if machine.get("runs") else f" Total {seconds:.0f} s.")]
+    (out / "README.md").write_text(readme(df, tg, machine, quick, seconds, notes))
+    return payload
+
+
+#: the heading under the targets table that holds what limits each target (the rows link to it)
+LIMITS_HEADING = "What limits them"
+
+
+def targets_table(tg: list[dict]) -> list[str]:
+    """The targets table, each row's limit a link to a numbered note, then the notes: each text once.
+
+    >>> rows = [{"target": "a", "measured": "1", "met": True, "limit": "L"},
+    ...         {"target": "b", "measured": "2", "met": None, "limit": "L"}]
+    >>> print("\\n".join(targets_table(rows)))
+    | target | measured | met | what limits it |
+    |---|---|---|---|
+    | a | 1 | yes | [1](#what-limits-them) |
+    | b | 2 | n/a | [1](#what-limits-them) |
+    <BLANKLINE>
+    n/a: no target for this row, a quick run, or the size the target names was not run.
+    <BLANKLINE>
+    ### What limits them
+    <BLANKLINE>
+    1. L
+    """
+    anchor = "#" + LIMITS_HEADING.lower().replace(" ", "-")
+    number: dict[str, int] = {}
+    lines = ["| target | measured | met | what limits it |", "|---|---|---|---|"]
+    for t in tg:
+        k = number.setdefault(t["limit"], len(number) + 1)
+        met = {True: "yes", False: "**no**", None: "n/a"}[t["met"]]
+        lines.append(f"| {t['target']} | {t['measured']} | {met} | [{k}]({anchor}) |")
+    lines += ["", "n/a: no target for this row, a quick run, or the size the target names was not run."]
+    if number:
+        lines += ["", f"### {LIMITS_HEADING}", ""] + [f"{k}. {text}" for text, k in number.items()]
+    return lines
+
+
+def _summary(tg: list[dict], quick: bool) -> str:
+    """One sentence: how many targets are met."""
+    if quick:
+        return "A smoke run on tiny sizes: the figures check the plumbing and make no claims."
+    met, missed = sum(t["met"] is True for t in tg), sum(t["met"] is False for t in tg)
+    return (f"**{met} of {met + missed} targets met** in the last measurement of each ({missed} not met: **no** in "
+            f"the table; {len(tg) - met - missed} rows without a verdict: n/a).")
+
+
+def _runs(machine: dict, quick: bool, seconds: float) -> str:
+    """Where and when the figures were measured."""
+    text = (f"`python -m avbench.bench{' --quick' if quick else ''}` (last run {machine['when']}): "
+            f"{machine['cpu_count']} cores ({machine['processor']}), load average {machine['loadavg_1_5_15']} at the "
+            f"end (other work was running: figures are medians of interleaved repeats, and ratios compare runs made "
+            f"in the same loop). numpy {machine['numpy']}, numba {machine['numba']} ({machine['numba_threads']} "
+            f"threads), allantools {machine.get('allantools', '-')}." + ("" if machine.get("runs") else f" Total {seconds:.0f} s."))
     if machine.get("runs") or machine.get("earlier_run"):
         from avbench.bench.harness import run_history
 
         runs = run_history({"machine": machine})
-        md[-1] += " The figures come from these runs (later ones replace the benchmarks they re-ran): " + "; ".join(
+        text += " The figures come from these runs (later ones replace the benchmarks they re-ran): " + "; ".join(
             f"{r['when']} ({', '.join(r['benchmarks'])}; load average {r['loadavg_1_5_15']} at its end"
             + (f"; {r['note']}" if r.get("note") else "") + ")" for r in runs) + "."
-    md += [""]
-    md += ["## Targets", "", "| target | measured | met | what limits it |", "|---|---|---|---|"]
-    for t in tg:
-        met = {True: "yes", False: "**no**", None: "n/a (quick run or size not run)"}[t["met"]]
-        md.append(f"| {t['target']} | {t['measured']} | {met} | {t['limit']} |")
-    if notes:
-        md += ["", notes.strip()]
-    if not quick:
-        md += ["", HOT_PATHS]
-    md += ["", "![cost against record length](scaling.png)", ""]
+    return text
+
+
+def _demote(md: str) -> str:
+    """The Markdown with every heading one level lower (outside code fences)."""
+    out, fenced = [], False
+    for line in md.splitlines():
+        if line.startswith("```"):
+            fenced = not fenced
+        out.append("#" + line if not fenced and line.startswith("#") else line)
+    return "\n".join(out)
+
+
+def readme(df: pd.DataFrame, tg: list[dict], machine: dict, quick: bool, seconds: float, notes: str = "") -> str:
+    """README.md: the targets first (measured against each, what limits it), then the runs, the tables,
+    and last the diary (``notes`` and, in a full run, :data:`HOT_PATHS`)."""
+    md = [f"# avbench performance ({'quick smoke run: tiny sizes, no claims' if quick else 'full run'})", "",
+          _summary(tg, quick), "", "## Targets", ""]
+    md += targets_table(tg)
+    md += ["", "## Runs and machine", "", _runs(machine, quick, seconds), "",
+           "![cost against record length](scaling.png)", ""]
     for bench, title in (("Generation", "Generation: composite gyro vs raw normals (ratio = baseline / ours; >= 0.5 is the target)"),
                          ("AllanOverlapping", "Overlapping AV, octave taus, vs allantools oadev (ratio = speed-up)"),
                          ("Deviations", "Deviation family, octave taus, vs allantools (ratio = speed-up)"),
@@ -615,5 +681,8 @@ def write_outputs(cases, machine: dict, out: Path, quick: bool, seconds: float, 
         md += ["## First call of each estimator (fresh processes; first fit minus a second fit of the same record)", "",
                "The first-ever call compiles the kernels and writes numba's disk cache; every later process (and every "
                "study worker) loads them from there.", "", t, ""]
-    (out / "README.md").write_text("\n".join(md) + "\n")
-    return payload
+    diary = [text.strip() for text in (notes, "" if quick else HOT_PATHS) if text and text.strip()]
+    if diary:
+        md += ["## Diary", "", "What was measured, tried and changed, dated (the figures above are the current ones).", ""]
+        md += ["\n\n".join(_demote(text) for text in diary), ""]
+    return "\n".join(md) + "\n"

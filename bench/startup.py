@@ -12,7 +12,13 @@ Every figure is measured in fresh child processes (the runner's own imports and 
   first-call cost is the first fit minus the second (what the fit imports lazily included; the
   import of the estimator's own module is timed apart);
 * :func:`study_walls` -- ``avbench run studies/lv2015.toml`` with ``--jobs 1`` and ``--jobs 2``,
-  alternated, each into a fresh output folder.
+  alternated, each into a fresh output folder; :func:`replicate_profile` -- where a replicate's time goes.
+
+The benchmark classes that run them: :class:`StartUp` (``avbench --help`` and every subcommand's help
+against the bare interpreter, CPU time of ``from avbench import estimators, noise_models``),
+:class:`FirstCall` (each filter's first-ever compile and second-process first-call cost) and
+:class:`LvStudy` (lv2015 with ``--jobs 1`` and ``--jobs 2`` from fresh processes, alternated; full
+run only).
 """
 
 from __future__ import annotations
@@ -28,7 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["help_times", "import_cpu", "first_call", "study_walls", "HELP_COMMANDS", "FIRST_CALL_ESTIMATORS"]
+from avbench.bench.fits import ESTIMATOR_SETTINGS
+
+__all__ = ["help_times", "import_cpu", "first_call", "study_walls", "replicate_profile", "HELP_COMMANDS",
+           "FIRST_CALL_ESTIMATORS", "StartUp", "QuickStartUp", "FirstCall", "LvStudy"]
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the help screens timed: the program's and every subcommand's
@@ -171,3 +180,109 @@ def study_walls(study: str = "lv2015", rounds: int = 2, warm: bool = True) -> di
     j1, j2 = float(np.median(walls[1])), float(np.median(walls[2]))
     return {"wall_jobs1_s": j1, "wall_jobs2_s": j2, "speedup": j1 / j2, "rounds": rounds,
             "loadavg_after": list(os.getloadavg())}
+
+
+def _time_report(out: Path, study: str) -> float:
+    """Seconds to rewrite the finished study's tables and figures (avbench.studies.report.write_report)."""
+    from avbench.studies.config import load_config
+    from avbench.studies.report import read_tidy, write_report
+
+    cfg = load_config(ROOT / "studies" / f"{study}.toml")
+    tidy = read_tidy(out)
+    (out / "_bench_report").mkdir()
+    t0 = time.perf_counter()
+    write_report(cfg, tidy, out / "_bench_report")
+    return time.perf_counter() - t0
+
+
+def replicate_profile(study: str = "lv2015") -> dict:
+    """Where the time goes: imports (fresh process), config, one replicate's simulation and fits."""
+    code = "import time; t=time.perf_counter(); import avbench.studies.runner, avbench.studies.report; print(time.perf_counter()-t)"
+    imp = float(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                               check=True).stdout.strip())
+    from avbench.estimators.allan.variance import memoize_allan
+    from avbench.studies.config import load_config
+    from avbench.studies.runner import _fit_one, replicate_rng
+
+    t0 = time.perf_counter()
+    cfg = load_config(ROOT / "studies" / f"{study}.toml")
+    t_cfg = time.perf_counter() - t0
+    sims, fits = [], []
+    for r in range(4):
+        g = cfg.gyros[r % len(cfg.gyros)]
+        t0 = time.perf_counter()
+        rate = g.gyro.simulate(g.n_samples, replicate_rng(cfg.seed, r % len(cfg.gyros), 100 + r))
+        t1 = time.perf_counter()
+        with memoize_allan():
+            for e in cfg.estimators:
+                _fit_one(e, g, rate, g.gyro.dt)
+        sims.append(t1 - t0)
+        fits.append(time.perf_counter() - t1)
+    return {"imports_s": imp, "config_s": t_cfg, "replicate_simulate_s": float(np.median(sims[1:])),
+            "replicate_fits_s": float(np.median(fits[1:])), "replicates": cfg.replicates * len(cfg.gyros)}
+
+
+class StartUp:
+    """``avbench --help`` (and every subcommand's) vs the bare interpreter; CPU of the package imports."""
+
+    params = [["fresh process"]]
+    param_names = ["process"]
+    help_repeats = 5
+
+    def setup(self, process):
+        pass
+
+    def track_help(self, process):
+        return help_times(self.help_repeats)
+
+    def track_import(self, process):
+        return import_cpu(self.help_repeats)
+
+
+class QuickStartUp(StartUp):
+    """:class:`StartUp` with one repeat (``--quick``)."""
+
+    help_repeats = 1
+
+
+class FirstCall:
+    """Each estimator's first fit: first-ever (empty numba cache) and in a second process."""
+
+    params = [FIRST_CALL_ESTIMATORS]
+    quick_params = [["wls"]]
+    param_names = ["estimator"]
+
+    def setup(self, estimator):
+        from avbench import estimators
+
+        if estimator not in estimators.names():
+            raise NotImplementedError
+        self.settings = dict(ESTIMATOR_SETTINGS.get(estimator, {}))
+        if "terms" in estimators.estimator_class(estimator)._param_names():
+            self.settings["terms"] = "NBK"
+
+    def track_first_call(self, estimator):
+        return first_call(estimator, self.settings)
+
+
+class LvStudy:
+    """``avbench run studies/lv2015.toml --jobs 2`` from a fresh process, and a replicate's profile."""
+
+    params = [["lv2015"]]
+    quick_params = [[]]
+    param_names = ["study"]
+
+    def setup(self, study):
+        pass
+
+    def track_wall(self, study):
+        out = Path(tempfile.mkdtemp(prefix="avbench_bench_"))
+        try:  # untimed first run: warms numba's disk cache and the OS file cache, gives a tidy table
+            subprocess.run([sys.executable, "-m", "avbench.cli", "run", str(ROOT / "studies" / f"{study}.toml"),
+                            "--jobs", "2", "--out", str(out), "--no-progress"],
+                           check=True, capture_output=True, cwd=ROOT, timeout=1800)
+            t_report = _time_report(out, study)
+        finally:
+            shutil.rmtree(out, ignore_errors=True)
+        walls = study_walls(study, rounds=2, warm=False)
+        return {"wall_s": walls["wall_jobs2_s"], "report_s": t_report, **walls, **replicate_profile(study)}

@@ -44,6 +44,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from avbench.estimators.results import parameter_power as _parameter_power
 from avbench.estimators.validation import check_common_settings, check_dt, check_record
 from avbench.noise_models.units import COEFFICIENTS
 
@@ -572,11 +573,7 @@ def data_scale(rate: np.ndarray) -> float:
     return 1.0 if abs(unit - 1.0) < _UNIT_TOLERANCE else unit
 
 
-def _parameter_power(key) -> int:
-    """A latent model's parameter by its name (``"GM.sigma"``, ``"tc"``, ``"FW.tf"``): times and
-    frequencies (``tc``, ``tf``, ``f0``) do not carry the rate's unit, the other parameters (scales:
-    N, sigma, K, Q, B, R, A) carry it once."""
-    return 0 if str(key).rsplit(".", 1)[-1] in ("tc", "tf", "f0", "omega0", "T") else 1
+
 
 
 #: How the diagnostics every estimator may hold scale with the unit of the record: key -> power p

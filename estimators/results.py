@@ -196,7 +196,7 @@ class FitResult:
             coefs[c] = replace(e, value=e.value / factor, fitted=e.fitted / factor, std_err=e.std_err / factor,
                                interval=iv(e.interval), estimate_interval=iv(e.estimate_interval), evidence=ev)
         params = None if self.parameters is None else {
-            k: (v / factor if _parameter_power(k) else v) for k, v in self.parameters.items()}
+            k: (v / factor if parameter_power(k) else v) for k, v in self.parameters.items()}
         traj = self.trajectory
         if traj is not None:
             traj = traj.copy()
@@ -212,10 +212,11 @@ class FitResult:
         return replace(self, warnings=tuple(self.warnings) + tuple(m for m in messages if m not in self.warnings))
 
 
-def _parameter_power(key) -> int:
-    from avbench.estimators.base import _parameter_power as power
-
-    return power(key)
+def parameter_power(key) -> int:
+    """A latent model's parameter by its name (``"GM.sigma"``, ``"tc"``, ``"FW.tf"``): times and
+    frequencies (``tc``, ``tf``, ``f0``, ``omega0``, ``T``) do not carry the rate's unit (power 0), the
+    other parameters (scales: N, sigma, K, Q, B, R, A) carry it once (power 1)."""
+    return 0 if str(key).rsplit(".", 1)[-1] in ("tc", "tf", "f0", "omega0", "T") else 1
 
 
 def _scale_parts(value, spec, factor):

@@ -124,8 +124,8 @@ def fit_all(data: Path, methods) -> pd.DataFrame:
 
 #: the short records robotics users make: non-overlapping slices of these lengths (minutes)
 SLICE_MINUTES = (30, 60)
-#: plausible gyro values on the ADIS16405 (issue 24's check: the six full runs agree on N 2.3-2.6
-#: deg/sqrt(h) and B 36-48 deg/h; the datasheet says 3 and 25)
+#: plausible gyro values on the ADIS16405 (the six full runs agree on N 2.3-2.6 deg/sqrt(h) and B
+#: 36-48 deg/h; the datasheet says 3 and 25)
 SLICE_N_RANGE, SLICE_B_RANGE = (1.9, 3.0), (15.0, 80.0)
 
 

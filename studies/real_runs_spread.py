@@ -1,5 +1,6 @@
 """The run-to-run spread of N and B that a sensor which does *not* change between runs would show:
-simulated ADIS16405 gyros, today's default methods against the configuration before issue 24.
+simulated ADIS16405 gyros, the default methods against the plain-model configuration (GMWM's
+``WN+GM+RW`` from ``min_m="auto"``, no sensor filter, line or resonance).
 
 ``python -m avbench.studies.real_runs_spread --out results/real``             (simulate and fit; resumable)
 ``python -m avbench.studies.real_runs_spread --out results/real --models --data DIR``   (the models, from the runs)
@@ -24,10 +25,10 @@ The simulation: replicate ``r`` of axis ``a`` (index in :data:`AXES`) is :data:`
 :data:`DT` (2.78 h at 100 Hz, as the runs) drawn from the axis model with
 :func:`avbench.studies.seeding.replicate_rng` ``(SEED, a, r)``; every fit in :data:`FITS` runs on it through
 :func:`~avbench.recordings.fit.fit_axis` (as ``avbench estimate``). ``FITS``: the default methods of
-``avbench estimate`` when the study was made (``gmwm_filtered``, ``gmwm_despiked``, ``nnls_rel``; since
-issue 24's eighth session :data:`avbench.estimators.base.DEFAULT_METHODS` is the first two) and before issue 24 (``gmwm`` with its defaults -- ``WN+GM+RW``,
-``min_m="auto"``, no line, no resonance --, ``gmwm_despiked`` with those settings, ``nnls_rel``, whose code
-issue 24 did not change and which is therefore fitted once). One shard per (axis, replicate) under
+``avbench estimate`` (:data:`avbench.estimators.base.DEFAULT_METHODS`: ``gmwm_filtered``,
+``gmwm_despiked``), ``nnls_rel``, and the plain-model configuration (``gmwm`` with its defaults --
+``WN+GM+RW``, ``min_m="auto"``, no line, no resonance --, and ``gmwm_despiked`` with those settings,
+labelled ``gmwm_despiked_pre24``). One shard per (axis, replicate) under
 ``OUT/_shards/spread/`` (git-ignored); a rerun resumes. Writes ``spread_fits.csv`` (one row per axis x
 replicate x fit x coefficient: value, standard error, flag, poor fit, shortest cluster size, resonance
 kept; the shards also hold each fit's CPU seconds, left out here: the tables depend only on the seed) and,
@@ -84,7 +85,7 @@ SEED = 24_2026  #: the study's seed (replicates and bootstrap)
 BOOT = 2000  #: bootstrap resamples of the replicates for standard errors
 COEFS = ("N", "B")  #: the coefficients whose run-to-run CV the issue compares (K is written too)
 _PRE24 = {"model": "WN+GM+RW", "min_m": "auto", "lines": "model", "resonance": "model", "bias_evidence": False}
-#: label -> (estimator name, settings): today's default methods and the configuration before issue 24
+#: label -> (estimator name, settings): the default methods, ``nnls_rel``, and the plain-model configuration
 FITS = {
     "gmwm_filtered": ("gmwm_filtered", {}),
     "gmwm_despiked": ("gmwm_despiked", {}),
@@ -92,8 +93,8 @@ FITS = {
     "gmwm": ("gmwm", {}),
     "gmwm_despiked_pre24": ("gmwm_despiked", dict(_PRE24)),
 }
-#: (default method today, the one it replaced): the first default (whose values go into the yaml) was
-#: ``gmwm`` before issue 24; ``gmwm_despiked`` took ``gmwm_filtered``'s model in issue 24; ``nnls_rel`` did not change
+#: (default method, its plain-model counterpart): ``gmwm_filtered`` against ``gmwm`` (WN+GM+RW), and
+#: ``gmwm_despiked`` against the same despiking on the plain model
 PAIRS = (("gmwm_filtered", "gmwm"), ("gmwm_despiked", "gmwm_despiked_pre24"))
 #: what makes B's spread differ between today's first default and the one before (``--variants``, gyro x
 #: and y): today's model from the cut-off ``gmwm`` chooses (m >= 16: the scales it adds, or the model?),
@@ -117,7 +118,6 @@ VARIANT_PAIRS = (("gmwm_filtered_m16", "gmwm"), ("gmwm_filtered", "gmwm_filtered
                  ("gmwm_filtered_m16", "gmwm_m16"), ("gmwm_m16", "gmwm"),
                  ("gmwm_filtered", "gmwm_filtered_tf_held"), ("gmwm_filtered_tf_held", "gmwm"))
 #: parameters that are not rates (a record's scale leaves them unchanged): time constants and frequencies
-_SHAPE = ("tc", "tf", "f0")
 SIG = 6  # significant digits written
 
 

@@ -95,11 +95,13 @@ def test_no_module_imports_its_own_package():
 
 def test_the_contract_depends_on_nothing_above_it():
     """avbench.estimators.base (the estimator contract) imports only noise_models and the estimators'
-    leaves below it (validation, uncertainty, the five-term AV formula ``allan.model``): never the AV
-    engine, the fit check, a family or the studies."""
+    leaves below it (validation, uncertainty, the five-term AV formula ``allan.model``, the typed result
+    ``results`` and the declared settings ``settings``): never the AV engine, the fit check, a family or
+    the studies."""
     graph = import_graph(modules())
     allowed = ("avbench.noise_models", "avbench.renamed", "avbench.estimators.validation",
-               "avbench.estimators.uncertainty", "avbench.estimators.allan.model")
+               "avbench.estimators.uncertainty", "avbench.estimators.allan.model", "avbench.estimators.results",
+               "avbench.estimators.settings")
     reached, todo = set(), ["avbench.estimators.base"]
     while todo:
         for t in graph[todo.pop()]:

@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("allantools")
 
-from avbench.bench import harness, startup, suite  # noqa: E402
+from avbench.bench import harness, report, startup, suite  # noqa: E402
 from avbench.bench.__main__ import add_parser, main  # noqa: E402
 
 
@@ -119,3 +119,26 @@ def test_add_parser_registers_bench():
 def test_loglog_slope():
     n = np.array([1e4, 1e5, 1e6])
     assert suite.loglog_slope(n, 3e-8 * n) == pytest.approx(1.0)
+
+
+def test_readme_states_each_limit_once_after_the_targets(tmp_path):
+    """Rows sharing what limits them point to one numbered note under the table; the targets come
+    first, the diary (notes.md) last; --report-only renders README.md and leaves results.json as it is."""
+    result = {"median_s": 0.01, "min_s": 0.01, "repeats": 3, "baseline": "allantools", "baseline_median_s": 0.2,
+              "ratio": 20.0}
+    cases = [harness.Case("Deviations", "time_deviation", {"kind": k, "n": 10**6}, "time", dict(result))
+             for k in ("hvar", "ohvar", "mvar")]
+    machine = {"when": "now", "cpu_count": 2, "processor": "x86_64", "loadavg_1_5_15": [0.1, 0.1, 0.1],
+               "numpy": "2", "numba": "0.6", "numba_threads": 2}
+    report.write_outputs(cases, machine, tmp_path, False, 1.0)
+    (tmp_path / "notes.md").write_text("## A dated note\n\nwhat was tried\n")
+    before = (tmp_path / "results.json").read_bytes()
+    assert main(["--report-only", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "results.json").read_bytes() == before
+    readme = (tmp_path / "README.md").read_text()
+    assert readme.count(report.LIMITS["deviations"]) == 1
+    assert readme.count("[1](#what-limits-them)") == 3 and "### What limits them" in readme
+    assert "**3 of 3 targets met**" in readme
+    assert readme.index("## Targets") < readme.index("## Runs and machine") < readme.index("## Diary")
+    assert readme.index("## Diary") < readme.index("### A dated note")
+    assert "python -m avbench.bench" in readme and "python -m bench" not in readme

@@ -72,7 +72,7 @@ maximised by L-BFGS-B over the log-parameters, to a tighter tolerance than stats
 carries the derivative recursions of its state (and diffuse columns), covariance, gain and forecast
 variance in each parameter (Harvey 1989, Sec. 3.4.6), so one compiled pass gives the likelihood and
 its gradient. L-BFGS-B's end point is then polished to the maximum by trust-region Newton steps
-(:func:`_newton_polish`; issue 28: on 30 minutes of a real ADIS16405 record L-BFGS-B stopped at a
+(:func:`_newton_polish`: on 30 minutes of a real ADIS16405 record L-BFGS-B stopped at a
 saddle 2.9e3 below the maximum in log-likelihood, at a place the last bits of the samples decided);
 a variance the likelihood drives to zero is set to exactly zero (``diagnostics_["pinned_to_zero"]``;
 the contract's floor rule then reports it not resolved, with its bound). Standard errors are from the
@@ -84,7 +84,7 @@ Where the maximum lies can surprise: on that record (and on axis x) the white no
 the Gauss-Markov term takes its place with a correlation time under one sample (0.6 dt): the short-time
 noise is better described as slightly correlated than as white (the sensor's own filtering), and the
 "B" of such a term (0.664 sigma) is not a bias instability. That is the model's maximum-likelihood
-answer; the values L-BFGS-B reported before were not a maximum of anything.
+answer; where L-BFGS-B stopped on it is not a maximum.
 """
 
 from __future__ import annotations
@@ -95,6 +95,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.base import Estimator, register
+from avbench.estimators.settings import Check, Interval, Options
 from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.fit_check import assess_fit
 from avbench.estimators.likelihood.gmwm import GMWM, build_gyro, parse_model
@@ -102,6 +103,17 @@ from avbench.estimators.likelihood.gmwm import GMWM, build_gyro, parse_model
 __all__ = ["MLE", "block_means"]
 
 _ALLOWED = ("QN", "WN", "GM", "RW", "DR")
+
+
+def _check_model(model) -> None:
+    """A latent model the MLE can fit: :func:`~avbench.estimators.likelihood.gmwm.parse_model`'s grammar,
+    latents from :data:`_ALLOWED` only, at least one of them stochastic."""
+    latents = parse_model(model)
+    bad = [lat for lat in latents if lat not in _ALLOWED]
+    if bad:
+        raise ValueError(f"model: the MLE supports latents {', '.join(_ALLOWED)}; got {', '.join(bad)}")
+    if not any(lat in latents for lat in ("QN", "WN", "GM", "RW")):
+        raise ValueError("model: expected at least one stochastic latent (QN, WN, GM or RW)")
 
 
 def __getattr__(name):
@@ -153,7 +165,7 @@ class MLE(Estimator):
     Examples
     --------
     >>> import numpy as np
-    >>> from noise_models import Gyro, AngleRandomWalk, RateRandomWalk
+    >>> from avbench.noise_models import Gyro, AngleRandomWalk, RateRandomWalk
     >>> g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5)])
     >>> x = g.simulate(100_000, np.random.default_rng(3))
     >>> est = MLE(model="WN+RW", block=1).fit(x, 0.1)
@@ -166,33 +178,24 @@ class MLE(Estimator):
     #: not a setting: the benchmark sets "exact_initial" on an instance to time the path of before
     _loglike_method = "auto"
 
+    parameter_constraints = {
+        "model": [Check(_check_model, f"latents from {', '.join(_ALLOWED)} joined by '+' (e.g. 'WN+GM+RW') or a "
+                                      "list of them, without repeats, at least one stochastic (QN, WN, GM or RW)",
+                        explain=True)],
+        "block": [Options("auto"), Interval(int, 1, None)],
+        "max_blocks": [Interval(int, 1, None)],
+        "maxiter": [Interval(int, 1, None)],
+    }
+
     def __init__(self, *, model="WN+GM+RW", block="auto", max_blocks=50_000, maxiter=200):
         self.model = model
         self.block = block
         self.max_blocks = max_blocks
         self.maxiter = maxiter
 
-    def check_settings(self):
-        """Raise ValueError naming the first bad setting (no data needed; fit calls it, and study
-        configs call it instead of a trial fit); return the parsed latents."""
-        latents = parse_model(self.model)
-        bad = [lat for lat in latents if lat not in _ALLOWED]
-        if bad:
-            raise ValueError(f"model: the MLE supports latents {', '.join(_ALLOWED)}; got {', '.join(bad)}")
-        if not any(lat in latents for lat in ("QN", "WN", "GM", "RW")):
-            raise ValueError("model: expected at least one stochastic latent (QN, WN, GM or RW)")
-        if not (self.block == "auto" or (isinstance(self.block, (int, np.integer))
-                                         and not isinstance(self.block, bool) and self.block >= 1)):
-            raise ValueError(f"block: expected 'auto' or a positive integer, got {self.block!r}")
-        for name in ("max_blocks", "maxiter"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ValueError(f"{name}: expected a positive integer, got {v!r}")
-        return latents
-
     @one_blas_thread()
     def _fit(self, rate, dt):
-        latents = self.check_settings()
+        latents = parse_model(self.model)
         n = rate.size
         m = max(1, math.ceil(n / self.max_blocks)) if self.block == "auto" else int(self.block)
         if n // m < 16:
@@ -203,9 +206,9 @@ class MLE(Estimator):
                      n_starts=_START_TRIES)
         start._assess = False  # the start's own poor-fit check is not used (the fit gets its own below)
         start.fit(rate, dt)
-        sp = start.diagnostics_["params"]
-        if self.block == "auto" and "GM" in latents:
-            m = max(1, min(m, int(sp["GM.tc"] / (5 * dt))))
+        x0, tc = gmwm_start_values(start, latents, dt)
+        if self.block == "auto" and tc is not None:
+            m = max(1, min(m, int(tc / (5 * dt))))
         y = block_means(rate, m)
         if y.size < 16:
             raise ValueError(f"block: {m} samples per block leave {y.size} block means; expected at least 16")
@@ -213,7 +216,6 @@ class MLE(Estimator):
 
         system = BlockMeanSystem(latents, m, dt)
         scale = 1.0 / float(np.std(y) or 1.0)  # the filter runs on y * scale (see _mle_kernels)
-        x0 = _start_values(latents, sp, start.diagnostics_, dt)
         fit = maximize_loglike(system, y, scale, x0, self.maxiter, self._loglike_method)
         vals = system.values(fit["params"])
         cov = fit["cov"]
@@ -271,6 +273,13 @@ _START_TRIES = 3
 
 def _pow2_at_least(m: int) -> int:
     return 1 << max(0, math.ceil(math.log2(m)))
+
+
+def gmwm_start_values(start, latents, dt) -> tuple[np.ndarray, float | None]:
+    """The likelihood's starting log-parameters from a fitted GMWM ``start`` (:func:`_start_values`) and
+    that fit's Gauss-Markov correlation time (None without a Gauss-Markov latent)."""
+    sp = start.diagnostics_["params"]
+    return _start_values(latents, sp, start.diagnostics_, dt), (sp["GM.tc"] if "GM" in latents else None)
 
 
 def _start_values(latents, sp, gdiag, dt):
@@ -419,7 +428,7 @@ def _newton_polish(objective_and_score, p, names, nobs):
     likelihood's stiff and flat directions together (information eigenvalues from ~1e5 down to ~20
     and below, per log-parameter) can happen far from the maximum -- at a saddle, on the first 30
     minutes of ADIS16405 run 1 axis z, 2.9e3 below the maximum in log-likelihood with a gradient of
-    ~10 (issue 28); there the last bits of the samples (or their unit) decided where it stopped.
+    ~10; there the last bits of the samples (or their unit) decided where it stopped.
     A trust region handles the saddle (an indefinite Hessian) and converges quadratically once
     near the maximum, so that the end point no longer depends on the path.
 

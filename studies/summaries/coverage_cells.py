@@ -1,18 +1,18 @@
-"""Issue 23's count of a coverage study: the preset x Q/N/B cells that meet the target.
+"""The count of a coverage study: the preset x Q/N/B cells that meet the coverage target.
 
 ``studies/coverage_defaults.toml`` fits every preset with the recommended estimator's defaults (no
-true terms told). Its Done-when item: "93-97 % coverage in >= 27 of the 30 preset x Q/N/B cells and
+true terms told). Its target: "93-97 % coverage in >= 27 of the 30 preset x Q/N/B cells and
 |bias| < 0.5 CRLB-std there". Ten presets x three coefficients are 30 cells; on five of them (the
-ADIS16405 presets) the true Q is 0, the term is absent. The rule, fixed here before the counts are
-read and applied to every study alike:
+ADIS16405 presets) the true Q is 0, the term is absent. The rule, applied to every study alike
+(``results/README.md``, coverage_defaults, has the counts):
 
 * **present cell** (true value > 0): the share of 95 % intervals holding the truth is in
   [0.93, 0.97] *and* the mean error is below 0.5 CRLB standard deviations in magnitude
   (``scores.csv``'s ``coverage`` and ``bias_over_crlb``, the CRLB of the preset at the record's
   length);
 * **absent cell** (true value 0): the share of intervals holding 0 (lower bound 0) is at least
-  0.95 -- the issue's own criterion for absent terms ("≥ 95 % of intervals of absent terms
-  containing 0", its random-gyro item). The symmetric band around 0.95 does not apply there: a
+  0.95 -- the target's own criterion for absent terms ("≥ 95 % of intervals of absent terms
+  containing 0", as for the random gyros). The symmetric band around 0.95 does not apply there: a
   profile-likelihood interval on [0, inf) of a variance whose truth is the boundary 0 holds it with
   probability 1/2 + 0.95/2 = 0.975 (its statistic follows the 1/2 chi^2_0 + 1/2 chi^2_1 law, Self &
   Liang 1987), so an interval that is right there covers 0 at 0.975, above the band; and there is no
@@ -79,7 +79,7 @@ def cells(tidy: pd.DataFrame, scores: pd.DataFrame, coefficients="QNB") -> pd.Da
 def render(t: pd.DataFrame) -> str:
     from avbench.studies.scoring import _md_table
 
-    lines = ["# Cells meeting issue 23's coverage target", "",
+    lines = ["# Cells meeting the coverage target", "",
              f"present cell: coverage in [{BAND[0]}, {BAND[1]}] and |bias| < {MAX_ABS_BIAS} CRLB std; "
              f"absent cell (true value 0): the interval holds 0 in >= {ABSENT_HOLDS_ZERO} of the records "
              "(a boundary interval's nominal rate is 0.975; `studies/summaries/coverage_cells.py`). "
@@ -97,7 +97,7 @@ def main(argv=None) -> int:
     from avbench.studies.report import finished_studies_parser, parse_finished
 
     ap = finished_studies_parser("python -m avbench.studies.summaries.coverage_cells",
-                                 "Cells of a coverage study meeting issue 23's target.", "results/coverage_defaults")
+                                 "Cells of a coverage study meeting the coverage target (present: coverage in the band, small bias; absent: the interval holds 0).", "results/coverage_defaults")
     a, done = parse_finished(ap, argv)
     cfg, tidy = done[0]
     scores = pd.read_csv(Path(a.results) / cfg.name / "scores.csv")
