@@ -9,10 +9,11 @@ process (:mod:`avbench.noise_models.plugins`).
 
 Errors name the file, the key and what was expected (:class:`ConfigError`), and are raised before any
 work starts and before anything is written. Besides types and ranges, every gyro is simulated for a
-few samples and every estimator's settings are probed per gyro (:func:`probe_settings`): the
-estimator's own ``check_settings()`` if it has one, else a trial fit on short records simulated
-from that gyro at the study's dt; ``terms`` and ``taus`` settings are checked against the study's
-real record (a ``taus`` beyond half the record is rejected here, not on every replicate).
+few samples, and every estimator's settings are checked per gyro without fitting anything
+(:func:`settings_problem`): against what the estimator class declares (``parameter_constraints``,
+:func:`avbench.estimators.settings.validate_settings`), by its ``check_settings()`` (relations
+between settings) if it has one, and against the study's record (``terms`` a subset of QNBKR, a
+``taus`` within half the record: rejected here, not on every replicate).
 """
 
 from __future__ import annotations
@@ -30,10 +31,12 @@ from typing import Any
 import numpy as np
 
 from avbench import estimators
+from avbench.estimators.settings import validate_settings
 from avbench.noise_models import TERM_TYPES, Gyro, presets, term_class
 from avbench.noise_models.plugins import PluginError, import_module, version_of
 
-__all__ = ["ConfigError", "StudyConfig", "GyroSpec", "EstimatorSpec", "load_config", "parse_config"]
+__all__ = ["ConfigError", "StudyConfig", "GyroSpec", "EstimatorSpec", "load_config", "parse_config",
+           "settings_problem"]
 
 
 class ConfigError(ValueError):
@@ -132,8 +135,7 @@ class StudyConfig:
 MAX_REPLICATES = 1_000_000
 MAX_SAMPLES = 1_000_000_000  # 8 GB per record
 MAX_FILTER_TAPS = 100_000_000  # flicker filter memory tau_max / dt
-PROBE_SAMPLES = 1024  # trial-fit record length (see probe_settings)
-PROBE_LONG_SAMPLES = 1 << 20  # second chance for settings that need a longer record
+SIMULATION_CHECK_SAMPLES = 1024  # samples each gyro is simulated for when the config is read
 
 _STUDY_KEYS = {
     "name": str,
@@ -317,7 +319,6 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
     if not raw["gyros"]:
         ctx.fail("gyros", "expected at least one [[gyros]] entry")
     gyros = []
-    probes = []
     for i, g in enumerate(raw["gyros"]):
         ctx.check_keys(g, _GYRO_KEYS, f"gyros[{i}]")
         for k in ("label", "name", "paper_gyro"):
@@ -350,7 +351,7 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
                     f"filter memory of {taps(gyro.dt):,} samples (tau_max / dt); expected at most {MAX_FILTER_TAPS:,}",
                 )
         spec = GyroSpec(label, gyro, n, g, g.get("paper_gyro"))
-        probes.append(_probe_records(ctx, f"gyros[{i}]", spec))
+        _check_simulation(ctx, f"gyros[{i}]", spec)
         gyros.append(spec)
     labels = [g.label for g in gyros]
     if len(set(labels)) != len(labels):
@@ -421,14 +422,16 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
             paper_method=e.get("paper_method"),
             cls=cls,
         )
-        # build one per gyro now and probe it, so bad settings fail before any work
-        for g, records in zip(gyros, probes):
+        # check the settings for each gyro and build one estimator per gyro now, so bad settings fail
+        # before any work (no trial fits)
+        for g in gyros:
             where = f"{key}.gyro_settings.{g.label}" if g.label in gs else f"{key}.settings"
             try:
+                validate_settings(cls, spec.settings_for(g))
                 est = spec.make(g)
             except Exception as err:
                 ctx.fail(where, f"(gyro {g.label}) {err}")
-            problem = probe_settings(est, g, records)
+            problem = settings_problem(est, g)
             if problem:
                 ctx.fail(where, f"(gyro {g.label}) {problem}")
         ests.append(spec)
@@ -471,130 +474,67 @@ def _read_paper_table(ctx: _Ctx, path: Path):
 
 
 _SCHEDULER_RE = re.compile(r"^([a-z][a-z0-9+.-]*://[^\s/]+|[^\s:/]+:\d+)/?$")
-_PROBE_SEEDS = (20240601, 20240602)
+_SIMULATION_SEED = 20240601
 
 
-def _quiet_call(f, *args):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        with np.errstate(all="ignore"):
-            return f(*args)
+def _check_simulation(ctx: _Ctx, key: str, g: GyroSpec) -> None:
+    """Simulate :data:`SIMULATION_CHECK_SAMPLES` samples of the gyro (or its whole record, if shorter),
+    so that a gyro that cannot be simulated is a config error. Terms with a long filter memory (flicker
+    ``tau_max``) are copied with the memory cut to that length: the record keeps the gyro's scale and
+    dt, without the cost of a million-tap filter burn-in for a thousand samples."""
+    import copy
 
-
-class _ProbeRecords:
-    """Short records simulated (lazily) from a gyro, for the trial fits of :func:`probe_settings`.
-
-    Terms with a long filter memory (flicker ``tau_max``) are copied with the memory cut to the
-    probe record's length: the record keeps the gyro's scale and dt, without the cost of a
-    million-tap filter burn-in for 1024 samples.
-    """
-
-    def __init__(self, g: GyroSpec):
-        self.g = g
-        self.n = min(g.n_samples, PROBE_SAMPLES)
-        self._cache: dict[int, np.ndarray] = {}
-        self._gyro = None
-
-    def probe_gyro(self) -> Gyro:
-        if self._gyro is None:
-            import copy
-
-            dt = self.g.gyro.dt
-            terms = []
-            for t in self.g.gyro.terms:
-                if getattr(t, "tau_max", None) is not None and t.tau_max > self.n * dt:
-                    t = copy.copy(t)
-                    t.tau_max = float(self.n * dt)
-                terms.append(t)
-            self._gyro = Gyro(dt=dt, terms=terms, name=self.g.gyro.name)
-        return self._gyro
-
-    def __getitem__(self, k: int) -> np.ndarray:
-        if k not in self._cache:
-            self._cache[k] = _quiet_call(self.probe_gyro().simulate, self.n, np.random.default_rng(_PROBE_SEEDS[k]))
-        return self._cache[k]
-
-    def __len__(self) -> int:
-        return len(_PROBE_SEEDS)
-
-
-def _probe_records(ctx: _Ctx, key: str, g: GyroSpec) -> _ProbeRecords:
-    records = _ProbeRecords(g)
+    n = min(g.n_samples, SIMULATION_CHECK_SAMPLES)
+    dt = g.gyro.dt
+    terms = []
+    for t in g.gyro.terms:
+        if getattr(t, "tau_max", None) is not None and t.tau_max > n * dt:
+            t = copy.copy(t)
+            t.tau_max = float(n * dt)
+        terms.append(t)
     try:
-        records[0]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with np.errstate(all="ignore"):
+                Gyro(dt=dt, terms=terms, name=g.gyro.name).simulate(n, np.random.default_rng(_SIMULATION_SEED))
     except Exception as e:
         ctx.fail(key, f"cannot simulate this gyro: {type(e).__name__}: {e}")
-    return records
 
 
-def _fit_error(est, rate, dt) -> str | None:
-    try:
-        _quiet_call(est.fit, rate, dt)
-    except Exception as e:
-        return f"{type(e).__name__}: {e}".splitlines()[0][:300]
-    return None
+def settings_problem(est, gyro: GyroSpec) -> str | None:
+    """Why ``est`` (configured for ``gyro``) cannot run in the study, or None if it can; nothing is fitted.
 
+    1. the settings against what the estimator's class declares (its ``parameter_constraints``,
+       :func:`avbench.estimators.settings.validate_settings`): a setting the class does not declare is
+       not checked here, so a plugin estimator that declares nothing has only 2 and 3;
+    2. the estimator's own ``check_settings()``, if it has one (relations between settings, e.g. ``x0``
+       naming exactly the modelled ``terms``);
+    3. generic checks against the study's real record: a ``terms`` setting must be a subset of
+       QNBKR, a ``taus`` setting must give Allan-variance cluster sizes within half the record.
 
-def probe_settings(est, gyro: GyroSpec, records: list | None = None) -> str | None:
-    """Why ``est`` (configured for ``gyro``) cannot run in the study, or None if it can.
-
-    1. the estimator's own ``check_settings()``, if it defines one (then no trial fit is made);
-    2. generic checks against the study's real record: a ``terms`` setting must be a subset of
-       QNBKR, a ``taus`` setting must give Allan-variance cluster sizes within half the record;
-    3. otherwise a trial fit on short records (``PROBE_SAMPLES``) simulated from the gyro at the
-       study's dt, with an array ``taus`` replaced by "octave" (already checked in 2). The
-       settings are rejected only if the fit raises on every trial record and also on one
-       longer record (up to ``PROBE_LONG_SAMPLES``), so a data-dependent failure on one record,
-       or a setting that merely needs more data, is not mistaken for a settings error; and only if
-       the estimator with its default settings fits that record, so a gyro or record length on
-       which the method cannot work (``N = 0``, 16 samples) is not blamed on settings: such
-       failures are data, recorded per replicate. Reported failures
-       (``diagnostics_["failure"]``) are data, never a settings error.
+    What can only go wrong on data (a divergence, a record too short for the method) is recorded per
+    replicate when the study runs, never a configuration error.
     """
     from avbench.estimators.allan.variance import cluster_sizes
     from avbench.estimators.validation import check_terms
 
     dt, n = gyro.gyro.dt, gyro.n_samples
+    params = est.get_params()
+    try:
+        validate_settings(type(est), params)
+    except ValueError as e:
+        return str(e).splitlines()[0][:300]
     check = getattr(est, "check_settings", None)
     try:
         if callable(check):
             check()
-        params = est.get_params()
         if "terms" in params and params["terms"] is not None:
             check_terms(params["terms"])
         if "taus" in params and params["taus"] is not None:
             cluster_sizes(params["taus"], n, dt)
     except Exception as e:
         return f"{type(e).__name__}: {e}".splitlines()[0][:300]
-    if callable(check):
-        return None
-    trial = est.clone()
-    if "taus" in params and not isinstance(params["taus"], str | None):
-        trial.set_params(taus="octave")
-    if records is None:
-        records = _ProbeRecords(gyro)
-    first = None
-    for k in range(len(records)):
-        err = _fit_error(trial.clone(), records[k], dt)
-        if err is None:
-            return None
-        first = first or err
-    long_n = min(n, PROBE_LONG_SAMPLES)
-    rate = records[0]
-    if long_n > records.n:
-        rate = _quiet_call(gyro.gyro.simulate, long_n, np.random.default_rng(_PROBE_SEEDS[0]))
-        if _fit_error(trial.clone(), rate, dt) is None:
-            return None
-    # the settings are to blame only if the estimator's defaults fit where they fail; otherwise the
-    # failure belongs to the gyro or the record (N = 0, a 16-sample record, ...): it is data, recorded
-    # per replicate when the study runs, never a configuration error
-    if _fit_error(type(est)(), rate, dt) is not None:
-        return None
-    return (
-        f"a trial fit with these settings failed on every record simulated from this gyro "
-        f"({records.n} and {long_n} samples at dt = {dt} s): {first}; expected settings "
-        f"that estimator {est.name!r} accepts"
-    )
+    return None
 
 
 def load_config(path, overrides: dict[str, Any] | None = None) -> StudyConfig:

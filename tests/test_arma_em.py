@@ -351,6 +351,8 @@ def test_bad_settings(settings, match):
     y = np.random.default_rng(0).standard_normal(100)
     with pytest.raises(ValueError, match=match):
         ArmaEM(**settings).fit(y, 0.01)
+    with pytest.raises(ValueError, match=match):  # streaming use checks them too
+        ArmaEM(**settings).partial_fit(y, 0.01)
 
 
 def test_bad_data():

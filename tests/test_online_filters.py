@@ -268,16 +268,21 @@ def test_identifiability_warning_only_for_underdetermined_models():
 @pytest.mark.parametrize(
     "name,settings,match",
     [
-        ("shakf", {"b": 1.5}, "forgetting factor"),
+        ("shakf", {"b": 1.5}, "b=1.5: expected a finite number >= 0 and <= 1"),
         ("shakf", {"adapt": "qx"}, "adapt"),
         ("shakf", {"terms": "NZ"}, "terms"),
         ("shakf", {"terms": "NB", "x0": {"N": 1e-4}}, "missing"),
-        ("shakf", {"terms": "N", "x0": {"N": 0.0}}, "positive initial"),
+        ("shakf", {"terms": "N", "x0": {"N": 0.0}}, "x0=.*: expected None or a mapping .* > 0 .*N: 0, expected a positive"),
         ("shakf", {"terms": "N", "x0": {"N": [1.0, "furlong"]}}, "unit"),
         ("shakf", {"terms": "NB", "P0": [1.0, 2.0, 3.0]}, "P0"),
         ("shakf", {"terms": "N", "R0": -1.0}, "R0"),
         ("shakf_multitau", {"terms": "N", "m": [0, 2]}, "cluster sizes"),
-        ("nekf", {"terms": "N", "p": 0}, "p: expected"),
+        ("nekf", {"terms": "N", "p": 0}, "p=0: expected an integer >= 1"),
+        ("nekf", {"terms": "N", "seed": -1}, "seed=-1: expected an integer >= 0"),
+        ("nekf", {"terms": "N", "weights_Q0": "maybe"}, "weights_Q0"),
+        ("shakf", {"terms": "NB", "Q0": [[1.0, 2.0], [0.0, 1.0]]}, "Q0=.*symmetric"),
+        ("shakf_multitau", {"terms": "N", "m": 3, "R0": [1.0, 2.0]}, "R0: expected a positive number or 3"),
+        ("shakf_multitau", {"terms": "N", "m": [1, 2, 2]}, "distinct"),
         ("nekf", {"terms": "N", "seed": 1.5}, "seed"),
         ("nekf", {"terms": "N", "trajectory_every": -1}, "trajectory_every"),
     ],
@@ -285,6 +290,9 @@ def test_identifiability_warning_only_for_underdetermined_models():
 def test_bad_settings_raise_clear_errors(name, settings, match):
     with pytest.raises(ValueError, match=match):
         estimators.get(name, **settings).fit(white(100, 11), DT)
+    # streaming use (partial_fit, without Estimator.fit) checks them too
+    with pytest.raises(ValueError, match=match):
+        estimators.get(name).set_params(**settings).partial_fit(white(100, 11), DT)
 
 
 def test_partial_fit_rejects_changed_dt_and_bad_chunks():

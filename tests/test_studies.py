@@ -163,32 +163,58 @@ def test_failures_are_data(tmp_path, mode, reason):
     assert "flaky non-physical / failed" in (tmp_path / "out" / "table.md").read_text()
 
 
-def test_estimator_failing_on_every_record_is_a_config_error(tmp_path):
-    """The settings probe: an estimator that cannot fit any record simulated from the gyro is
-    rejected before any work (here: OLS trimmed with an impossible threshold)."""
+def test_impossible_setting_is_a_config_error(tmp_path):
+    """A value the estimator's declaration refuses (here: OLS trimmed with a negative threshold) is
+    rejected before any work, naming the setting, what it accepts and what it got."""
     extra = '\n[[estimators]]\nname = "ols_trimmed"\nsettings = { max_error_pct = -1.0 }\n'
-    with pytest.raises(ValueError, match=r"estimators\[2\]\.settings: \(gyro g1\).*max_error_pct"):
+    with pytest.raises(ValueError, match=r"estimators\[2\]\.settings: \(gyro g1\) estimator 'ols_trimmed': "
+                                         r"max_error_pct=-1\.0: expected a finite number > 0"):
         load_config(write(tmp_path, study_toml(extra_estimators=extra)))
 
 
-@pytest.mark.parametrize("name, bad, match", [("gmwm", 'model = "WN+XX"', "model"),
-                                              ("mle", "maxiter = 0", "maxiter"),
-                                              ("whittle", 'criterion = "aic"', "criterion")])
-def test_check_settings_replaces_the_trial_fit(tmp_path, monkeypatch, name, bad, match):
-    """Estimators that validate their settings without data (``check_settings``) are not fitted by
-    the settings probe (GMWM's trial fits made loading a 16-gyro config take minutes); bad settings
-    are still a config error naming the setting."""
-    from avbench.estimators import get
+@pytest.mark.parametrize("name, bad, match", [
+    ("gmwm", 'model = "WN+XX"', "model"),
+    ("mle", "maxiter = 0", "maxiter"),
+    ("whittle", 'criterion = "aic"', "criterion"),
+    ("ols_trimmed", 'max_error_pct = "40"', "max_error_pct"),
+    ("shakf", "b = 1.5", "b=1.5"),
+    ("nekf_multitau", "m = [1, 1]", "distinct"),
+    ("arma_em", 'terms = "QNBK"', "quantization"),
+    ("wls_edf_hadamard", 'terms = "NBKR"', "rate ramp"),
+    # relations between settings (the class's check_settings)
+    ("shakf", 'terms = "NB", x0 = { N = 1e-4 }', "x0: expected exactly the modelled terms NB, missing"),
+    ("shakf_multitau", 'terms = "N", m = 3, R0 = [1.0, 2.0]', "R0: expected a positive number or 3"),
+    ("nnls_rel", 'terms = "QB", filter = "fit"', "expected N in terms"),
+    ("arma_em", 'x0 = { N = 1e-3 }', "x0: expected exactly the modelled coefficients"),
+])
+def test_settings_are_checked_without_trial_fits(tmp_path, monkeypatch, name, bad, match):
+    """A config's estimator settings are checked by the class's declaration, its ``check_settings()``
+    and against the record, never by fitting (trial fits of GMWM made loading a 16-gyro config take
+    minutes): nothing is fitted for valid settings, and bad settings are a config error naming the
+    setting."""
+    from avbench.estimators import estimator_class
 
     fitted = []
-    monkeypatch.setattr(type(get(name)), "_fit", lambda self, rate, dt: fitted.append(rate.size))
+    monkeypatch.setattr(estimator_class(name), "_fit", lambda self, rate, dt: fitted.append(rate.size))
     ok = f'\n[[estimators]]\nname = "{name}"\n'
     load_config(write(tmp_path, study_toml(extra_estimators=ok)))
-    assert fitted == [], "the settings probe fitted an estimator that has check_settings"
+    assert fitted == [], "loading the config fitted an estimator"
     extra = f'\n[[estimators]]\nname = "{name}"\nsettings = {{ {bad} }}\n'
-    with pytest.raises(ValueError, match=rf"estimators\[2\]\.settings: .*{match}"):
+    with pytest.raises(ValueError, match=rf"estimators\[2\]\.settings: \(gyro g1\) .*{match}"):
         load_config(write(tmp_path, study_toml(extra_estimators=extra)))
     assert fitted == []
+
+
+def test_plugin_settings_are_checked_only_by_what_it_declares(tmp_path, monkeypatch):
+    """An estimator that declares nothing (``test_flaky``, a plugin of this module) is not fitted when
+    the config is read: any value of its settings passes, and the checks of the settings several
+    estimators share still apply (``terms``)."""
+    fitted = []
+    monkeypatch.setattr(Flaky, "_fit", lambda self, rate, dt: fitted.append(rate.size))
+    load_config(write(tmp_path, study_toml(extra_estimators=flaky_toml("no such mode", marker=3))))
+    assert fitted == []
+    with pytest.raises(ValueError, match=r"estimators\[2\]\.settings: \(gyro g1\) .*terms: expected a non-empty subset"):
+        load_config(write(tmp_path, study_toml(extra_estimators=flaky_toml("raise", terms="QX"))))
 
 
 def test_worker_death_retried_once_then_study_completes(tmp_path):

@@ -1,4 +1,4 @@
-"""Compiled passes of the least-squares AV-curve fits over their grid (issue 25).
+"""Compiled passes of the least-squares AV-curve fits over their grid.
 
 The five-term design has columns tau^p, p = -2 .. 2 (:mod:`avbench.estimators.allan.model`), so the
 normal equations of a row-weighted fit need only the power sums

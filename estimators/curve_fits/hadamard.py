@@ -36,7 +36,8 @@ from avbench.estimators.allan.model import PLATEAU, TAU_POWER
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.curve_fits.least_squares import ls_std_err, solve_scaled
-from avbench.estimators.validation import check_taus, check_terms
+from avbench.estimators.settings import Interval, Taus, Terms
+from avbench.estimators.validation import check_terms
 
 __all__ = ["HadamardEDFWeightedLS", "H_BETA_SCALE", "hadamard_design_matrix", "hadamard_model"]
 
@@ -81,23 +82,20 @@ class HadamardEDFWeightedLS(Estimator):
 
     uses_allan_variance = False  # it reads the record through the Hadamard variance, not allan_variance
 
+    parameter_constraints = {
+        "terms": [Terms("QNBK", why="the Hadamard variance is blind to a rate ramp: R cannot be fitted")],
+        "taus": [Taus()],
+        "n_iter": [Interval(int, 1, None)],
+    }
+
     def __init__(self, *, terms="QNBK", taus="octave", n_iter=5):
         self.terms = terms
         self.taus = taus
         self.n_iter = n_iter
 
-    def check_settings(self):
-        terms = check_terms(self.terms)
-        if "R" in terms:
-            raise ValueError(f"terms: the Hadamard variance is blind to a rate ramp, R cannot be fitted; got {self.terms!r}")
-        check_taus(self.taus)
-        if not isinstance(self.n_iter, int) or isinstance(self.n_iter, bool) or self.n_iter < 1:
-            raise ValueError(f"n_iter: expected a positive integer, got {self.n_iter!r}")
-        return terms
-
     @one_blas_thread()
     def _fit(self, rate, dt):
-        terms = self.check_settings()
+        terms = check_terms(self.terms)
         hv = deviation(rate, dt, "ohvar", self.taus, edf=False)
         X = hadamard_design_matrix(hv.tau, terms)
         if len(hv.tau) < len(terms):

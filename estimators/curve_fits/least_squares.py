@@ -29,7 +29,8 @@ import pandas as pd
 from avbench.estimators.allan.variance import allan_variance, edf_overlapping
 from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER, coefficients_from_beta, design_matrix
 from avbench.estimators.curve_fits._kernels import edf_weighted_sums, power_curve, power_sums
-from avbench.estimators.validation import check_taus, check_terms
+from avbench.estimators.settings import Boolean, Interval, Taus, Terms
+from avbench.estimators.validation import check_terms
 from avbench.noise_models.units import COEFFICIENTS
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
@@ -50,8 +51,7 @@ def solve_scaled(X: np.ndarray, y: np.ndarray, row_scale: np.ndarray | None = No
     The columns tau^-2 .. tau^2 span many decades; scaling them to unit norm gives the same
     solution with far better conditioning. The equilibrated normal equations are solved by
     Cholesky (:func:`solve_normal`); where their condition number exceeds :data:`MAX_GRAM_COND`,
-    the equilibrated weighted design is solved by ``lstsq`` (LAPACK gelsd: QR, then SVD), as before
-    issue 25.
+    the equilibrated weighted design is solved by ``lstsq`` (LAPACK gelsd: QR, then SVD).
     """
     if row_scale is not None:
         X = X * row_scale[:, None]
@@ -81,7 +81,7 @@ def solve_normal(G: np.ndarray, g: np.ndarray) -> np.ndarray | None:
     difference from an SVD of the weighted design (whose own error is ~cond(WXD^-1) eps) is
     below kappa x 3e-14 <= 3e-10 at :data:`MAX_GRAM_COND`. The designs the studies fit are far
     better conditioned (cond(WXD^-1) <= 31 on taus="all" for every record length and weighting of
-    the committed studies: kappa <= 1e3), issue 25's report.
+    the committed studies: kappa <= 1e3).
     """
     G = np.asarray(G, dtype=float)
     d = np.sqrt(np.diag(G))
@@ -133,19 +133,12 @@ class _AVCurveFit(Estimator):
 
     uses_allan_variance = True
 
+    parameter_constraints = {"terms": [Terms()], "taus": [Taus()], "overlapping": [Boolean()]}
+
     def __init__(self, *, terms="QNBKR", taus="all", overlapping=False):
         self.terms = terms
         self.taus = taus
         self.overlapping = overlapping
-
-    def check_settings(self):
-        """The settings' errors without data (a study's config asks this instead of a trial fit); the
-        modelled terms in canonical order."""
-        terms = check_terms(self.terms)
-        check_taus(self.taus)
-        if not isinstance(self.overlapping, bool | np.bool_):
-            raise ValueError(f"overlapping: expected True or False, got {self.overlapping!r}")
-        return terms
 
     def _weights(self, av, terms):
         """(row mask, row scale or None, extra diagnostics, power sums of those weights or None)."""
@@ -153,7 +146,7 @@ class _AVCurveFit(Estimator):
 
     @one_blas_thread()
     def _fit(self, rate, dt):
-        terms = self.check_settings()
+        terms = check_terms(self.terms)
         av = allan_variance(rate, dt, taus=self.taus, overlapping=bool(self.overlapping))
         mask, scale, extra, sums = self._weights(av, terms)
         if mask.sum() < len(terms):
@@ -205,19 +198,12 @@ class TrimmedOLS(_AVCurveFit):
     Lv et al. 2015, section 3.1 and eq. 8 (threshold 40 %, "empirically 30 % to 40 %").
     """
 
+    parameter_constraints = {**_AVCurveFit.parameter_constraints,
+                             "max_error_pct": [Interval(float, 0, None, closed="neither")]}
+
     def __init__(self, *, terms="QNBKR", taus="all", overlapping=False, max_error_pct=40.0):
         super().__init__(terms=terms, taus=taus, overlapping=overlapping)
         self.max_error_pct = max_error_pct
-
-    def check_settings(self):
-        terms = super().check_settings()
-        try:
-            thr = float(self.max_error_pct)
-        except (TypeError, ValueError):
-            thr = math.nan
-        if isinstance(self.max_error_pct, bool) or not np.isfinite(thr) or thr <= 0:
-            raise ValueError(f"max_error_pct: expected a positive percentage, got {self.max_error_pct!r}")
-        return terms
 
     def _weights(self, av, terms):
         with np.errstate(divide="ignore"):
@@ -273,15 +259,11 @@ class EDFWeightedLS(_AVCurveFit):
     #: the rows' weights sqrt(edf / 2) / AV carry the inverse of the AV's unit
     diagnostic_units = {"row_scale": -2}
 
+    parameter_constraints = {**_AVCurveFit.parameter_constraints, "n_iter": [Interval(int, 1, None)]}
+
     def __init__(self, *, terms="QNBKR", taus="all", overlapping=False, n_iter=5):
         super().__init__(terms=terms, taus=taus, overlapping=overlapping)
         self.n_iter = n_iter
-
-    def check_settings(self):
-        terms = super().check_settings()
-        if isinstance(self.n_iter, bool) or not isinstance(self.n_iter, int) or self.n_iter < 1:
-            raise ValueError(f"n_iter: expected a positive integer, got {self.n_iter!r}")
-        return terms
 
     def _weights(self, av, terms):
         tau, y = np.ascontiguousarray(av.tau, dtype=float), np.ascontiguousarray(av.avar, dtype=float)

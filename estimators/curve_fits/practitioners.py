@@ -34,6 +34,7 @@ from avbench.estimators.allan.model import (
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.fit_check import assess_five_term
+from avbench.estimators.settings import Boolean, Interval, Options, Taus, Terms
 from avbench.estimators.validation import check_terms
 
 __all__ = [
@@ -143,21 +144,23 @@ class _AVBaseline(Estimator):
     """Shared settings and AV computation of the three baselines.
 
     ``min_clusters`` (default 2: every AV value): AV values from fewer clusters floor(n/m) are not
-    used. (Raising it to 8 was tried on the ADIS16405 records: it does not remove the spurious
-    rate ramps of ``log_fit``/``nnls_rel`` on Y and Z -- fewer long-tau points leave the rise to
-    be explained by R -- so the default keeps every value.)
+    used. (8 does not remove the spurious rate ramps of ``log_fit``/``nnls_rel`` on the ADIS16405
+    records' Y and Z axes -- fewer long-tau points leave the rise to be explained by R -- so the
+    default keeps every value.)
     """
 
     uses_allan_variance = True
 
+    parameter_constraints = {
+        "terms": [Terms()],
+        "taus": [Taus()],
+        "overlapping": [Boolean()],
+        "min_clusters": [Interval(int, 2, None)],
+    }
+
     def _prepare(self, rate, dt):
         terms = check_terms(self.terms)
-        if not isinstance(self.overlapping, bool):
-            raise ValueError(f"overlapping: expected True or False, got {self.overlapping!r}")
-        mc = self.min_clusters
-        if isinstance(mc, bool) or not isinstance(mc, (int, np.integer)) or mc < 2:
-            raise ValueError(f"min_clusters: expected an integer >= 2, got {mc!r}")
-        tau, avar = _av(rate, dt, self.taus, self.overlapping, int(mc))
+        tau, avar = _av(rate, dt, self.taus, bool(self.overlapping), int(self.min_clusters))
         return terms, tau, avar
 
     def _refit(self, tau, avar, coefs_fn, model_jacobian=None):
@@ -199,12 +202,14 @@ class SlopeLines(_AVBaseline):
     Examples
     --------
     >>> import numpy as np
-    >>> from noise_models import Gyro, AngleRandomWalk
+    >>> from avbench.noise_models import Gyro, AngleRandomWalk
     >>> x = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3)]).simulate(100_000, np.random.default_rng(1))
     >>> est = SlopeLines(terms="N").fit(x, 0.01)
     >>> bool(abs(est.coefficients_["N"] / 1e-3 - 1) < 0.05)
     True
     """
+
+    parameter_constraints = {**_AVBaseline.parameter_constraints, "ordered": [Boolean()]}
 
     def __init__(self, *, terms="NBK", taus="octave", overlapping=True, ordered=True, min_clusters=2):
         self.terms = terms
@@ -216,12 +221,10 @@ class SlopeLines(_AVBaseline):
     @one_blas_thread()
     def _fit(self, rate, dt):
         terms, tau, avar = self._prepare(rate, dt)
-        if not isinstance(self.ordered, bool):
-            raise ValueError(f"ordered: expected True or False, got {self.ordered!r}")
-        coefs, used = slope_line_coefficients(tau, np.sqrt(avar), terms, ordered=self.ordered)
+        coefs, used = slope_line_coefficients(tau, np.sqrt(avar), terms, ordered=bool(self.ordered))
         diag = {"tau": tau, "avar": avar, "tau_used": {c: float(tau[i]) for c, i in used.items()}}
         refit = self._refit(tau, avar,
-                            lambda a: slope_line_coefficients(tau, np.sqrt(a), terms, ordered=self.ordered)[0])
+                            lambda a: slope_line_coefficients(tau, np.sqrt(a), terms, ordered=bool(self.ordered))[0])
         diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit))
         return coefs, {}, diag
 
@@ -296,7 +299,7 @@ def log_fit_beta(tau, avar, terms):
         return c / (c.sum(axis=1, keepdims=True) * math.log(10))
 
     # the analytic Jacobian matters: with finite differences, a term whose optimum is at its floor
-    # was approached so slowly that 2 % of 2 h MEMS records hit the evaluation limit unconverged
+    # is approached so slowly that 2 % of 2 h MEMS records hit the evaluation limit unconverged
     sol = least_squares(resid, u0, jac=jac, bounds=(np.log(floor), np.log(ceiling)), method="trf",
                         x_scale=1.0, xtol=1e-10, ftol=1e-10, max_nfev=5000)
     beta = np.exp(sol.x)
@@ -315,8 +318,8 @@ def log_fit_sensitivity(tau, avar, terms, beta, sol) -> np.ndarray:
 
     with :math:`c_{ij} = X_{ij} e^{u_j}`, :math:`s = X\\beta`, :math:`J = c / (s \\ln 10)` and
     :math:`\\nabla^2 r_i = (\\mathrm{diag}(c_i)/s_i - c_i c_i^T / s_i^2) / \\ln 10`; a term at a bound
-    (its beta 0, or at its ceiling) stays there. This is what the poor-fit check obtained by refitting
-    at AV values moved by +-0.01 standard deviations (34 refits, 90 % of a log_fit; issue 25), without
+    (its beta 0, or at its ceiling) stays there. The poor-fit check uses it in place of refits at AV
+    values moved by +-0.01 standard deviations (34 refits, costing 90 % of a log_fit), without
     their O(h^2) and solver-tolerance error (agreement ~1e-5 relative, ``tests/test_fit_check.py``).
     """
     tau, avar = np.asarray(tau, dtype=float), np.asarray(avar, dtype=float)
@@ -353,7 +356,7 @@ def _nnls_rel(X, avar) -> np.ndarray:
     return beta / s
 
 
-# --- nnls_rel's front-end filter and spectral line (issue 24) --------------------------------------------
+# --- nnls_rel's front-end filter and spectral line ------------------------------------------------------
 
 #: points per octave of the grid on which nnls_rel profiles the filter's time constant tf
 FILTER_GRID_PER_OCTAVE = 4
@@ -461,7 +464,7 @@ class NNLSRel(_AVBaseline):
     eqs 3-6). A zero element of beta is a coefficient the fit set to 0 (a physical value: the term
     is not needed), unlike OLS's negative elements.
 
-    Real sensors (issue 24; beyond Lv et al. 2015): the sensor's own low-pass filter bends the first
+    Real sensors (beyond Lv et al. 2015): the sensor's own low-pass filter bends the first
     octaves below the white-noise line, and a spectral line (IEEE Std 952-1997 Annex C's sinusoidal noise)
     makes a bump; the five-term model has neither and misses such curves (results/real). With
     ``filter="auto"`` and ``lines="auto"`` (:class:`NNLSRelFiltered`, ``nnls_rel_filtered``) the model
@@ -506,6 +509,12 @@ class NNLSRel(_AVBaseline):
     #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
     diagnostic_units = {"line_test": {"amplitude": 1}}
 
+    parameter_constraints = {
+        **_AVBaseline.parameter_constraints,
+        "filter": [Options("none", "auto", "fit")],
+        "lines": [Options("none", "auto")],
+    }
+
     def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True, min_clusters=2, filter="none",
                  lines="none"):
         self.terms = terms
@@ -515,15 +524,17 @@ class NNLSRel(_AVBaseline):
         self.filter = filter
         self.lines = lines
 
-    @one_blas_thread()
-    def _fit(self, rate, dt):
-        terms, tau, avar = self._prepare(rate, dt)
-        if self.filter not in ("none", "auto", "fit"):
-            raise ValueError(f"filter: expected 'none', 'auto' or 'fit', got {self.filter!r}")
-        if self.lines not in ("none", "auto"):
-            raise ValueError(f"lines: expected 'none' or 'auto', got {self.lines!r}")
+    def check_settings(self):
+        """The relation between settings: a filter (``filter`` "auto" or "fit") filters the white noise,
+        so N must be in ``terms``."""
+        terms = check_terms(self.terms)
         if self.filter != "none" and "N" not in terms:
             raise ValueError(f"filter={self.filter!r} filters the white noise N: expected N in terms, got {terms!r}")
+
+    @one_blas_thread()
+    def _fit(self, rate, dt):
+        self.check_settings()
+        terms, tau, avar = self._prepare(rate, dt)
         if self.filter == "none" and self.lines == "none":
             beta = nnls_rel_beta(tau, avar, terms)
             coefs, nonphys = coefficients_from_beta(beta, terms)
@@ -625,7 +636,7 @@ class NNLSRel(_AVBaseline):
 @register("nnls_rel_filtered")
 class NNLSRelFiltered(NNLSRel):
     """``nnls_rel`` for real sensors: the sensor's filter and a spectral line modelled on evidence
-    (``filter="auto"``, ``lines="auto"``; :class:`NNLSRel`), the default curve fit of ``avbench estimate``."""
+    (``filter="auto"``, ``lines="auto"``; :class:`NNLSRel`)."""
 
     def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True, min_clusters=2, filter="auto",
                  lines="auto"):

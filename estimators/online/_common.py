@@ -51,6 +51,7 @@ import warnings
 import numpy as np
 
 from avbench.estimators.online._kernels import FAILURES
+from avbench.estimators.settings import Check, Coefficients, Interval, NoneValue, Terms, validate_settings
 from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER, design_matrix
 from avbench.estimators.validation import check_terms
 from avbench.estimators.base import (
@@ -101,23 +102,62 @@ def initial_guess(rate, dt, terms) -> dict[str, float]:
     return out
 
 
+def _numbers(value) -> np.ndarray:
+    """``value`` (a number or nested lists of numbers; no strings, no booleans) as a float array."""
+    if isinstance(value, str | bool | np.bool_) or any(isinstance(v, str | bool | np.bool_) for v in np.ravel(
+            np.asarray(value, dtype=object))):
+        raise ValueError(f"expected numbers, got {value!r}")
+    return np.asarray(value, dtype=float)
+
+
+def check_covariance(value) -> None:
+    """A covariance setting on its own: a number >= 0 (times I), a non-empty list of diagonal values
+    >= 0, or a square, finite, symmetric, positive semi-definite matrix (its size is checked against
+    the modelled terms by :func:`_matrix`)."""
+    a = _numbers(value)
+    if a.ndim > 2 or a.size == 0 or (a.ndim == 2 and a.shape[0] != a.shape[1]):
+        raise ValueError(f"expected a number, a list of diagonal values or a square matrix, got shape {a.shape}")
+    full = np.diag(a) if a.ndim == 1 else a.reshape(1, 1) if a.ndim == 0 else a
+    if not np.all(np.isfinite(full)) or not np.allclose(full, full.T) or np.any(np.linalg.eigvalsh(full) < 0):
+        raise ValueError("expected a finite, symmetric, positive semi-definite covariance")
+
+
+#: the declared constraint of the covariance settings P0, Q0
+COVARIANCE = Check(check_covariance, "a number >= 0, a list of diagonal values >= 0 or a symmetric positive "
+                                     "semi-definite matrix (scaled units)", explain=True)
+
+
+def check_cluster_sizes(value) -> None:
+    """A list of distinct cluster sizes, each an integer >= 1."""
+    arr = np.asarray(value) if isinstance(value, list | tuple | np.ndarray) else None
+    if arr is None or arr.ndim != 1 or arr.size == 0 or arr.dtype.kind not in "iu" or np.any(arr < 1):
+        raise ValueError(f"expected a non-empty list of positive integer cluster sizes, got {value!r}")
+    if len(np.unique(arr)) != arr.size:
+        raise ValueError(f"cluster sizes must be distinct, got {value!r}")
+
+
+#: the declared constraints of ``m``, the cluster sizes of the filters with several (``_multitau``): a
+#: number of octaves or a list of cluster sizes
+CLUSTER_SIZES = [Interval(int, 1, None),
+                 Check(check_cluster_sizes, "a list of distinct positive integer cluster sizes", explain=True)]
+
+
 def _matrix(name, value, n) -> np.ndarray:
-    """A covariance setting: scalar (times I), length-n diagonal, or n x n symmetric PSD matrix."""
-    a = np.asarray(value, dtype=float) if not isinstance(value, str) else None
-    if a is None or a.dtype.kind != "f":
-        raise ValueError(f"{name}: expected a number, a length-{n} diagonal or an {n}x{n} matrix, got {value!r}")
+    """A covariance setting (declared :data:`COVARIANCE`) for ``n`` states: a number times I, a
+    length-n diagonal or an n x n matrix."""
+    a = np.asarray(value, dtype=float)
     if a.ndim == 0:
         a = np.eye(n) * float(a)
     elif a.ndim == 1 and a.shape == (n,):
         a = np.diag(a)
     elif a.shape != (n, n):
         raise ValueError(f"{name}: expected a number, a length-{n} diagonal or an {n}x{n} matrix, got shape {a.shape}")
-    if not np.all(np.isfinite(a)) or not np.allclose(a, a.T) or np.any(np.linalg.eigvalsh(a) < 0):
-        raise ValueError(f"{name}: expected a finite, symmetric, positive semi-definite covariance, got {value!r}")
     return np.ascontiguousarray(a)
 
 
 def _positive(name, value, *, integer=False, allow_zero=False):
+    """``value`` if it is a finite number (an integer with ``integer=True``) > 0 (>= 0 with
+    ``allow_zero=True``), as a float (int); else a ValueError naming ``name``."""
     ok = isinstance(value, int | np.integer) if integer else isinstance(value, int | float | np.number)
     if isinstance(value, bool) or not ok or not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
         kind = "integer" if integer else "number"
@@ -151,6 +191,17 @@ class OnlineAVFilter(Estimator):
 
     online = True
     _multitau = False
+
+    #: the settings every filter has (a subclass adds its own)
+    parameter_constraints = {
+        "terms": [Terms()],
+        "x0": [NoneValue(), Coefficients(positive=True)],
+        "P0": [COVARIANCE],
+        "Q0": [COVARIANCE],
+        "x0_samples": [Interval(int, 1, None)],
+        "trajectory_every": [Interval(int, 0, None)],
+        "pd_check_every": [Interval(int, 0, None)],
+    }
     coefficients_ = _published("coefficients_")
     nonphysical_ = _published("nonphysical_")
     std_err_ = _published("std_err_")
@@ -174,30 +225,15 @@ class OnlineAVFilter(Estimator):
         if not self._multitau:
             return np.array([1], dtype=np.int64)
         m = self.m
-        if isinstance(m, int | np.integer) and not isinstance(m, bool):
-            return octave_m(_positive("m", m, integer=True))
-        try:
-            arr = np.asarray(m)
-        except Exception:  # pragma: no cover - defensive
-            arr = None
-        if arr is None or arr.ndim != 1 or arr.size == 0 or arr.dtype.kind not in "iu" or np.any(arr < 1):
-            raise ValueError(
-                f"m: expected a number of octaves (int) or a list of positive integer cluster sizes, got {m!r}"
-            )
-        if len(np.unique(arr)) != arr.size:
-            raise ValueError(f"m: cluster sizes must be distinct, got {m!r}")
-        return np.sort(arr).astype(np.int64)
+        if isinstance(m, int | np.integer):
+            return octave_m(int(m))
+        return np.sort(np.asarray(m)).astype(np.int64)
 
-    def _validate(self, dt: float) -> dict:
+    def check_settings(self) -> None:
+        """The relations between settings: ``x0`` gives exactly the modelled ``terms``, and ``P0``,
+        ``Q0`` (and a filter's own per-state or per-cluster-size settings) have their sizes."""
         terms = check_terms(self.terms)
-        nq = len(terms)
-        if self.x0 is None:
-            x0 = None
-        else:
-            if not isinstance(self.x0, dict):
-                raise ValueError(
-                    f"x0: expected a mapping coefficient -> SI float or [value, 'unit'], got {self.x0!r}"
-                )
+        if self.x0 is not None:
             missing = [c for c in terms if c not in self.x0]
             extra = [c for c in self.x0 if c not in terms]
             if missing or extra:
@@ -205,21 +241,24 @@ class OnlineAVFilter(Estimator):
                     f"x0: expected exactly the modelled terms {''.join(terms)}, "
                     f"missing {missing or 'none'}, extra {extra or 'none'}"
                 )
-            x0 = {c: as_si(c, self.x0[c]) for c in terms}
-            zero = [c for c in terms if not x0[c] > 0]
-            if zero:
-                raise ValueError(
-                    f"x0: expected positive initial values, got 0 for {zero} "
-                    "(the Jacobian of c^2 vanishes at 0, the state would never move)"
-                )
+        _matrix("P0", self.P0, len(terms))
+        _matrix("Q0", self.Q0, len(terms))
+
+    def _validate(self, dt: float) -> dict:
+        # partial_fit starts here without Estimator.fit: the declared settings are checked here too
+        validate_settings(type(self), self.get_params())
+        self.check_settings()
+        terms = check_terms(self.terms)
+        nq = len(terms)
+        x0 = None if self.x0 is None else {c: as_si(c, self.x0[c]) for c in terms}
         m = self._cluster_sizes()
         cfg = dict(
             terms=terms,
             x0=x0,
             m=m,
-            x0_samples=_positive("x0_samples", self.x0_samples, integer=True),
-            every=_positive("trajectory_every", self.trajectory_every, integer=True, allow_zero=True),
-            pd_every=_positive("pd_check_every", self.pd_check_every, integer=True, allow_zero=True),
+            x0_samples=int(self.x0_samples),
+            every=int(self.trajectory_every),
+            pd_every=int(self.pd_check_every),
         )
         cfg.update(self._filter_settings(nq))
         if nq > len(m):

@@ -84,27 +84,23 @@ scaled to modulus 1) before :math:`Q` is formed from it (Q's update is the maxim
 A, so this is a conditional-maximisation step); eq. 63's model has eigenvalues 1 and
 :math:`1-\beta\tau`, none explosive. The count is ``diagnostics_["n_clipped"]``.
 
-Numerics: why the filter once diverged, and what keeps it stable
-------------------------------------------------------------------
-The measurement update is the Joseph form and stays symmetric positive semi-definite; it was not
-the cause. With the former diffuse, isotropic prior :math:`P_0 = I s^2/(CC^T)` (here ~1e8 where the
-model's state variance is ~1-20), a record started 5-30x away from the truth (the chunk test of
-``tests/test_arma_em.py``) failed at sample 2791 with "A P A' + Q singular", and 7 of 50 such
-records failed. Tracing it (float64 against 80-bit long double: the two follow the same path for
-2000 samples, so rounding is not the cause): (1) eq. 29's :math:`U^{(0)}` contains
-:math:`E[x_0x_0^T|Y_k]`, which with that prior stays ~:math:`P_0` in the directions the first
-samples do not resolve, so the first M-steps put ~:math:`P_0/k` ~ 1e6 into Q; (2) the next
-M-steps give an :math:`A` with an explosive eigenvalue (1.005) whose eigenvector is almost in
-the null space of C; (3) EM cannot correct an unobservable mode (its statistics reproduce the
-model's own dynamics) and :math:`C = E^T(U^{(0)})^{-1}` shrinks along it as its variance grows, so
-P and the E-K statistics grow like :math:`\lambda^{2k}` (P ~ 3e19 at sample 2790, condition
-number ~1e13) until rounding makes P indefinite; in exact arithmetic it would overflow at
-~7e4 samples. No covariance factorisation survives that, so both links are cut at the source: the
-prior is the model's own accumulated covariance (the x_0 term of eq. 29 is then the documented
-O(1/k) bias, not 1e8), and an explosive M-step is clipped onto the unit disk (a random-walk or
-Gauss-Markov state then grows at most linearly in an unobservable direction). Rejecting such
-steps instead freezes the recursion: with a unit root the unconstrained estimate is > 1 about half
-the time. The tests run 60 short records per mode (starts up to 100x off) and long records.
+Numerics: what keeps the filter stable
+--------------------------------------
+The measurement update is the Joseph form and stays symmetric positive semi-definite. Two links
+would otherwise make the recursion diverge on a record started far from the truth: (1) eq. 29's
+:math:`U^{(0)}` contains :math:`E[x_0x_0^T|Y_k]`, which under a diffuse, isotropic prior
+(:math:`P_0 = I s^2/(CC^T)`, ~1e8 where the model's state variance is ~1-20) stays ~:math:`P_0` in
+the directions the first samples do not resolve, so the first M-steps put ~:math:`P_0/k` into Q;
+(2) the next M-steps give an :math:`A` with an explosive eigenvalue whose eigenvector is almost in
+the null space of C. EM cannot correct an unobservable mode (its statistics reproduce the model's
+own dynamics) and :math:`C = E^T(U^{(0)})^{-1}` shrinks along it as its variance grows, so P and the
+E-K statistics grow like :math:`\lambda^{2k}` until rounding makes P indefinite. No covariance
+factorisation survives that, so both links are cut at the source: the prior is the model's own
+accumulated covariance (the x_0 term of eq. 29 is then the documented O(1/k) bias), and an
+explosive M-step is clipped onto the unit disk (a random-walk or Gauss-Markov state then grows at
+most linearly in an unobservable direction). Rejecting such steps instead would freeze the
+recursion: with a unit root the unconstrained estimate is > 1 about half the time. The tests run 60
+short records per mode (starts up to 100x off) and long records.
 
 Examples
 --------
@@ -127,6 +123,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.online import _arma_em_kernels as _k
+from avbench.estimators.settings import Boolean, Check, Coefficients, Interval, NoneValue, Options, validate_settings
 from avbench.estimators.validation import check_terms
 from avbench.estimators.base import DivergenceWarning, Estimator, register, warn
 from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA, GM_PEAK_TAU_OVER_TC
@@ -374,12 +371,6 @@ class EKFilter:
         return float(self.sc[_k.S_LOGLIK])
 
 
-def _positive_int(name, value, minimum=1) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
 @register("arma_em")
 class ArmaEM(Estimator):
     r"""Equivalent-ARMA state-space model with Elliott-Krishnamurthy recursive EM (Miao et al. 2015, §3).
@@ -437,6 +428,22 @@ class ArmaEM(Estimator):
 
     online = True
 
+    parameter_constraints = {
+        "terms": [Check(_check_supported, "'NK', 'NB' or 'NBK', the coefficient sets arma_em supports (a subset of "
+                                          "N, B, K with N; the equivalent ARMA model is driven by white noise only: "
+                                          "no quantization Q, no rate ramp R)", explain=True)],
+        "x0": [NoneValue(), Coefficients(positive=True)],
+        "tc0": [NoneValue(), Interval(float, 0, None, closed="neither")],
+        "init_form": [Options(*_INIT_FORMS)],
+        "passes": [Interval(int, 1, None)],
+        "recursive": [Boolean()],
+        "warmup": [Interval(int, 1, None)],
+        "update_every": [Interval(int, 1, None)],
+        "exact_q": [Boolean()],
+        "trace_every": [Interval(int, 0, None)],
+        "engine": [Options(*_ENGINES)],
+    }
+
     def __init__(self, *, terms="NBK", x0=None, tc0=None, init_form="eq63", passes=1, recursive=True,
                  warmup=100, update_every=1, exact_q=False, trace_every=1000, engine="numba"):
         self.terms = terms
@@ -452,44 +459,30 @@ class ArmaEM(Estimator):
         self.engine = engine
 
     # -- settings ---------------------------------------------------------------------------------
-    def _settings(self) -> dict:
+    def check_settings(self) -> None:
+        """The relation between settings: ``x0`` gives exactly the modelled ``terms``."""
         terms = _check_supported(self.terms)
-        if self.init_form not in _INIT_FORMS:
-            raise ValueError(f"init_form: expected one of {_INIT_FORMS}, got {self.init_form!r}")
-        if self.engine not in _ENGINES:
-            raise ValueError(f"engine: expected one of {_ENGINES}, got {self.engine!r}")
-        for name in ("recursive", "exact_q"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")
-        x0 = None
         if self.x0 is not None:
-            if not hasattr(self.x0, "keys"):
-                raise ValueError(f"x0: expected a mapping coefficient -> value, got {self.x0!r}")
             missing = [c for c in terms if c not in self.x0]
             extra = [c for c in self.x0 if c not in terms]
             if missing or extra:
                 raise ValueError(
                     f"x0: expected exactly the modelled coefficients {list(terms)}, got {list(self.x0)}"
                 )
-            x0 = {c: as_si(c, self.x0[c]) for c in terms}
-            zero = [c for c in terms if x0[c] == 0]
-            if zero:
-                raise ValueError(f"x0: expected positive initial values, got 0 for {zero}")
-        tc0 = self.tc0
-        if tc0 is not None:
-            if isinstance(tc0, bool) or not isinstance(tc0, (int, float, np.floating)) or not (
-                math.isfinite(tc0) and tc0 > 0
-            ):
-                raise ValueError(f"tc0: expected a positive correlation time in seconds, got {tc0!r}")
-            tc0 = float(tc0)
+
+    def _settings(self) -> dict:
+        # partial_fit starts here without Estimator.fit: the declared settings are checked here too
+        validate_settings(type(self), self.get_params())
+        self.check_settings()
+        terms = _check_supported(self.terms)
         return {
             "terms": terms,
-            "x0": x0,
-            "tc0": tc0,
-            "passes": _positive_int("passes", self.passes),
-            "warmup": _positive_int("warmup", self.warmup),
-            "update_every": _positive_int("update_every", self.update_every),
-            "trace_every": _positive_int("trace_every", self.trace_every, minimum=0),
+            "x0": None if self.x0 is None else {c: as_si(c, self.x0[c]) for c in terms},
+            "tc0": None if self.tc0 is None else float(self.tc0),
+            "passes": int(self.passes),
+            "warmup": int(self.warmup),
+            "update_every": int(self.update_every),
+            "trace_every": int(self.trace_every),
         }
 
     # -- initialisation -----------------------------------------------------------------------------

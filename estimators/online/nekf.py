@@ -48,7 +48,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from avbench.estimators.online._common import OnlineAVFilter, _matrix, _positive
+from avbench.estimators.online._common import CLUSTER_SIZES, OnlineAVFilter, _matrix
+from avbench.estimators.settings import Interval
 from avbench.estimators.online._kernels import nekf_run
 from avbench.estimators.base import register
 
@@ -60,20 +61,27 @@ class _NekfBase(OnlineAVFilter):
     #: in compiled kernels) to O(1) changes on some gyros (Estimator.round_off_amplified)
     round_off_amplified = True
 
+    parameter_constraints = {
+        **OnlineAVFilter.parameter_constraints,
+        "p": [Interval(int, 1, None)],
+        "R0": [Interval(float, 0, None, closed="neither")],
+        "weights_P0": [Interval(float, 0, None, closed="neither")],
+        "weights_Q0": [Interval(float, 0, None)],
+        "eta_scale": [Interval(float, 0, None)],
+        "lambda_scale": [Interval(float, 0, None)],
+        "seed": [Interval(int, 0, None)],
+    }
+
     def _filter_settings(self, nq):
-        p = _positive("p", self.p, integer=True)
-        if not isinstance(self.seed, int | np.integer) or isinstance(self.seed, bool):
-            raise ValueError(f"seed: expected an integer seed for the weight initialisation, got {self.seed!r}")
-        R0 = _positive("R0", self.R0)
         return dict(
-            p=p,
+            p=int(self.p),
             P0=_matrix("P0", self.P0, nq),
             Q0=_matrix("Q0", self.Q0, nq),
-            R0=R0,
-            wP0=_positive("weights_P0", self.weights_P0),
-            wQ0=_positive("weights_Q0", self.weights_Q0, allow_zero=True),
-            eta_scale=_positive("eta_scale", self.eta_scale, allow_zero=True),
-            lambda_scale=_positive("lambda_scale", self.lambda_scale, allow_zero=True),
+            R0=float(self.R0),
+            wP0=float(self.weights_P0),
+            wQ0=float(self.weights_Q0),
+            eta_scale=float(self.eta_scale),
+            lambda_scale=float(self.lambda_scale),
             seed=int(self.seed),
         )
 
@@ -149,7 +157,8 @@ class Nekf(_NekfBase):
     """ + _COMMON_DOC + """
     Examples
     --------
-    >>> import numpy as np, estimators
+    >>> import numpy as np
+    >>> from avbench import estimators
     >>> rate = 1e-3 * np.random.default_rng(1).standard_normal(100_000)
     >>> est = estimators.get("nekf", terms="N", x0={"N": 5e-5}).fit(rate, 0.01)
     >>> bool(abs(est.coefficients_["N"] / 1e-4 - 1) < 0.01)
@@ -185,6 +194,8 @@ class NekfMultitau(_NekfBase):
     """ + _COMMON_DOC
 
     _multitau = True
+
+    parameter_constraints = {**_NekfBase.parameter_constraints, "m": CLUSTER_SIZES}
 
     def __init__(self, *, terms="QNBKR", x0=None, m=17, p=5, P0=0.25, Q0=1e-8, R0=1.0, weights_P0=0.01,
                  weights_Q0=1e-10, eta_scale=1.0, lambda_scale=0.0, seed=0, x0_samples=65536,

@@ -44,7 +44,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from avbench.estimators.online._common import OnlineAVFilter, _matrix
+from avbench.estimators.online._common import CLUSTER_SIZES, OnlineAVFilter, _matrix, _numbers
+from avbench.estimators.settings import Check, Interval
 from avbench.estimators.online._kernels import shakf_run
 from avbench.estimators.base import register
 
@@ -62,17 +63,39 @@ def _adapt_flags(adapt) -> int:
     return sum(_ADAPT_BITS[ch] for ch in adapt)
 
 
+def _check_r0(value) -> None:
+    """R0 on its own: a finite number > 0, or a non-empty list of them (its length is checked against the
+    cluster sizes by :meth:`_ShakfBase.check_settings`)."""
+    r0 = _numbers(value)
+    if r0.ndim > 1 or r0.size == 0 or not np.all(np.isfinite(r0)) or not np.all(r0 > 0):
+        raise ValueError(f"expected a positive number or a list of them, got {value!r}")
+
+
 class _ShakfBase(OnlineAVFilter):
     #: an adaptive filter's end point: last-bit differences of the kernels move it by ~1e-5 relative
     #: (Estimator.round_off_amplified)
     round_off_amplified = True
 
+    parameter_constraints = {
+        **OnlineAVFilter.parameter_constraints,
+        "b": [Interval(float, 0, 1)],
+        "R0": [Check(_check_r0, "a finite number > 0 or a list of them, one per cluster size (scaled units)")],
+        "adapt": [Check(_adapt_flags, "a string of distinct letters from 'qQrR' (the noise statistics the "
+                                      "Sage-Husa rules adapt, Miao et al. 2014, eqs 3.16-3.19)")],
+    }
+
+    def check_settings(self) -> None:
+        """As :meth:`OnlineAVFilter.check_settings`, and a list ``R0`` has one value per cluster size."""
+        super().check_settings()
+        nm = len(self._cluster_sizes())
+        r0 = np.asarray(self.R0, dtype=float)
+        if r0.ndim == 1 and r0.shape != (nm,):
+            raise ValueError(f"R0: expected a positive number or {nm} positive numbers (one per cluster size), "
+                             f"got {self.R0!r}")
+
     def _filter_settings(self, nq):
-        b = self.b
-        if isinstance(b, bool) or not isinstance(b, int | float | np.number) or not 0.0 <= b <= 1.0:
-            raise ValueError(f"b: expected a forgetting factor 0 <= b <= 1 (Miao et al. 2014, eq 3.15), got {b!r}")
         return dict(
-            b=float(b),
+            b=float(self.b),
             adapt_flags=_adapt_flags(self.adapt),
             P0=_matrix("P0", self.P0, nq),
             Q0=_matrix("Q0", self.Q0, nq),
@@ -80,9 +103,7 @@ class _ShakfBase(OnlineAVFilter):
         )
 
     def _init_state(self, nq, nm, cfg):
-        R0 = np.asarray(cfg["R0"], dtype=float) if not isinstance(cfg["R0"], str | bool) else None
-        if R0 is None or R0.ndim > 1 or (R0.ndim == 1 and R0.shape != (nm,)) or not np.all(R0 > 0) or not np.all(np.isfinite(R0)):
-            raise ValueError(f"R0: expected a positive number or {nm} positive numbers (one per cluster size), got {cfg['R0']!r}")
+        R0 = np.asarray(cfg["R0"], dtype=float)
         st = dict(
             s=np.ones(nq),
             P=cfg["P0"].copy(),
@@ -147,7 +168,8 @@ class Shakf(_ShakfBase):
 
     Examples
     --------
-    >>> import numpy as np, estimators
+    >>> import numpy as np
+    >>> from avbench import estimators
     >>> rate = 1e-3 * np.random.default_rng(1).standard_normal(200_000)
     >>> est = estimators.get("shakf", terms="N", x0={"N": 5e-5}, adapt="qQR").fit(rate, 0.01)
     >>> bool(abs(est.coefficients_["N"] / 1e-4 - 1) < 0.01)
@@ -184,6 +206,8 @@ class ShakfMultitau(_ShakfBase):
     """
 
     _multitau = True
+
+    parameter_constraints = {**_ShakfBase.parameter_constraints, "m": CLUSTER_SIZES}
 
     def __init__(self, *, terms="QNBKR", x0=None, m=17, b=0.99, P0=0.25, Q0=1e-8, R0=1.0, adapt="qQR",
                  x0_samples=65536, trajectory_every=1000, pd_check_every=1024):

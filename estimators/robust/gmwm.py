@@ -101,12 +101,11 @@ m = 1, :math:`\\to 1/(1-f)` at large m for a fraction f left out. The slower ter
 over many samples and are not changed to first order. The GMWM matches the exact model AV with its
 white part times :math:`g_m` (:class:`avbench.estimators.likelihood.gmwm.WaveletVariance`), so N and B stay unbiased.
 
-Why not replace the spikes (as an earlier version did, by the running median): a filled sample
-loses its own white deviation and takes on 1/11 of each neighbour's, so the white AV of the
-filled record is about f lower at m = 1 and about f higher from m ~ 16 on (measured with 5 %
-spikes: -5.2 % at m = 1, +5.3 % at m = 64; every linear fill that keeps the local level does
-this). The GMWM read the bend as a Gauss-Markov term: B moved by +16 % (± 1) where N moved
--2.2 % (4 replicates). Left out instead (16 replicates): N +0.03 % (± 0.01), B -0.13 % (± 0.25)
+Why not replace the spikes (by the running median, say): a filled sample loses its own white
+deviation and takes on 1/11 of each neighbour's, so the white AV of the filled record is about f
+lower at m = 1 and about f higher from m ~ 16 on (measured with 5 % spikes: -5.2 % at m = 1, +5.3 %
+at m = 64; every linear fill that keeps the local level does this). The GMWM reads the bend as a
+Gauss-Markov term: B moves by +16 % (± 1) where N moves -2.2 % (4 replicates). Left out instead (16 replicates): N +0.03 % (± 0.01), B -0.13 % (± 0.25)
 on the same gyro; N +0.04 % (± 0.01), B -0.16 % (± 0.40), K +0.3 % (± 0.8) on the flicker gyro;
 the classical GMWM's N +145 % (± 0.2) on both, its B by 16 % and 11 % rms.
 
@@ -128,7 +127,7 @@ near 0.1 rad/s (50 robust sigmas). The fixed 5-sigma rule leaves out 8.3 % of th
 and the fit fails (N 1.22 deg/sqrt(h), B 152 deg/h, Tc 0.05 s, poor fit); the gap rule stops at
 t = 15.3 and leaves out 0.028 %: N 1.82, B 57.0 deg/h, Tc 3.0 s, the fit passes (p = 0.14),
 against the classical GMWM's N 1.93, B 58.1 (p = 0.15) (model ``WN+GM+RW``; with the default
-``FW+GM+RW`` since issue 24: N 1.83, B 56.4, Tc 3.1 s, p = 0.41, no line found, all octaves kept). The gross errors carry 11 % of the
+``FW+GM+RW``: N 1.83, B 56.4, Tc 3.1 s, p = 0.41, no line found, all octaves kept). The gross errors carry 11 % of the
 record's variance (6 % of N). What the wide half of the white noise is (the sensor's own noise or
 a contamination) the record cannot tell: a filter that integrates these rates sees its variance,
 which N = 1.82 describes.
@@ -146,6 +145,7 @@ from avbench.estimators.allan import _kernels
 from avbench.estimators.allan.variance import cluster_sizes
 from avbench.estimators.base import register
 from avbench.estimators.likelihood.gmwm import GMWM, REAL_SENSOR_MODEL, WaveletVariance, first_step_edf
+from avbench.estimators.settings import Interval, NoneValue, Options
 
 __all__ = ["GMWMRobust", "GMWMDespiked", "hampel_outliers", "masked_allan_variance", "robust_allan_variance",
            "tuning", "m_scale", "PSI"]
@@ -275,7 +275,7 @@ class GMWMRobust(GMWM):
 
     Examples
     --------
-    >>> from noise_models import Gyro, AngleRandomWalk
+    >>> from avbench.noise_models import Gyro, AngleRandomWalk
     >>> rate = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3)]).simulate(100_000, np.random.default_rng(3))
     >>> rate[::500] += 0.1  # 0.2 % spikes of 30 sigma
     >>> robust = GMWMRobust(model="WN").fit(rate, 0.1).coefficients_["N"]
@@ -285,6 +285,12 @@ class GMWMRobust(GMWM):
     """
 
     uses_allan_variance = False  # reads the samples themselves (its own robust AV / spike mask)
+
+    parameter_constraints = {
+        **getattr(GMWM, "parameter_constraints", {}),
+        "psi": [Options(*PSI)],
+        "eff": [Interval(float, 0.05, 0.99)],
+    }
 
     def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m=1, weighting="model", n_starts=6,
                  psi="huber", eff=0.6):
@@ -296,7 +302,6 @@ class GMWMRobust(GMWM):
     def _wavelet_variance(self, rate, dt):
         from avbench.estimators.allan.variance import _result
 
-        tuning(self.psi, self.eff)  # validates psi and eff
         tau, m, av = robust_allan_variance(rate, dt, "octave", psi=self.psi, eff=self.eff)
         # first-step weights: the engine's edf for the noise type of the local slope
         res = _result(m, av, rate.size, dt, True, "auto", 0.683)
@@ -402,13 +407,13 @@ def masked_allan_variance(rate, dt, outliers, taus="octave"):
 class GMWMDespiked(GMWM):
     """GMWM on the record with its spikes left out (beyond Guerrier et al.; module docstring).
 
-    Its model and choices are :class:`~avbench.estimators.likelihood.gmwm.GMWMFiltered`'s (issue 24):
+    Its model and choices are :class:`~avbench.estimators.likelihood.gmwm.GMWMFiltered`'s:
     ``FW+GM+RW`` (the sensor's filter modelled), ``lines="auto"``, ``min_m="adequate"``; with no
-    spike found the fit is ``gmwm_filtered``'s. With the plain ``WN+GM+RW`` and ``min_m="auto"`` (its
-    defaults before) the Gauss-Markov term took the filter's shape on short records: on the first
-    30/60-minute slices of the 18 ADIS16405 gyro axes N and B were in 1.9-3.0 deg/sqrt(h) and
-    15-80 deg/h on 44 % / 72 % (the rest flagged "not resolved"), now on 94 % / 100 % (the one
-    exception, run 1 z at 30 minutes, flagged poor fit; results/real/slices.md).
+    spike found the fit is ``gmwm_filtered``'s. With the plain ``WN+GM+RW`` and ``min_m="auto"`` the
+    Gauss-Markov term takes the filter's shape on short records: on the first 30/60-minute slices of
+    the 18 ADIS16405 gyro axes N and B are in 1.9-3.0 deg/sqrt(h) and 15-80 deg/h on 44 % / 72 % with
+    those settings (the rest flagged "not resolved"), on 94 % / 100 % with these (the one exception,
+    run 1 z at 30 minutes, flagged poor fit; results/real/slices.md).
 
     Why beside ``gmwm_robust``: with isolated spikes in a few % of the samples, a spike reaches
     2m wavelet coefficients at scale m, so from m of a few samples on nearly every coefficient is
@@ -446,7 +451,7 @@ class GMWMDespiked(GMWM):
 
     Examples
     --------
-    >>> from noise_models import Gyro, AngleRandomWalk
+    >>> from avbench.noise_models import Gyro, AngleRandomWalk
     >>> rate = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3)]).simulate(100_000, np.random.default_rng(3))
     >>> spiky = rate + 0.03 * (np.random.default_rng(4).random(rate.size) < 0.05)  # 5 % of 10 sigma
     >>> est = GMWMDespiked(model="WN").fit(spiky, 0.1)
@@ -455,6 +460,13 @@ class GMWMDespiked(GMWM):
     """
 
     uses_allan_variance = False  # reads the samples themselves (its own robust AV / spike mask)
+
+    parameter_constraints = {
+        **getattr(GMWM, "parameter_constraints", {}),
+        "half_window": [Interval(int, 1, None)],
+        "threshold": [Interval(float, 0, None, closed="neither")],
+        "gap_tol": [NoneValue(), Interval(float, 0, 1, closed="neither")],
+    }
 
     def __init__(self, *, model=REAL_SENSOR_MODEL, min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
                  lines="auto", resonance="auto", bias_evidence=True, filter_tf=None, half_window=5, threshold=5.0,
@@ -469,13 +481,6 @@ class GMWMDespiked(GMWM):
     def _wavelet_variance(self, rate, dt):
         from avbench.estimators.allan.variance import _result
 
-        if isinstance(self.half_window, bool) or not isinstance(self.half_window, (int, np.integer)) \
-                or self.half_window < 1:
-            raise ValueError(f"half_window: expected a positive integer, got {self.half_window!r}")
-        if not (isinstance(self.threshold, (int, float)) and math.isfinite(self.threshold) and self.threshold > 0):
-            raise ValueError(f"threshold: expected a positive number of robust sigmas, got {self.threshold!r}")
-        if self.gap_tol is not None and not (isinstance(self.gap_tol, (int, float)) and 0 < self.gap_tol < 1):
-            raise ValueError(f"gap_tol: expected None or a number between 0 and 1, got {self.gap_tol!r}")
         out, t = hampel_outliers(rate, self.half_window, self.threshold, self.gap_tol)
         f = float(out.mean())
         info = {"outlier_fraction": f, "outlier_threshold": t}
