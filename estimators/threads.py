@@ -4,7 +4,7 @@ The estimators' optimisers (L-BFGS-B, trust-region least squares, NNLS, the SVD 
 fit) call BLAS and LAPACK on matrices of a few to a few tens of columns. OpenBLAS hands even those
 to its thread pool, and waking the pool costs more than the arithmetic: on a machine whose cores
 are busy (other processes, a study's own workers) a thread waits for its time slice, and scipy's
-L-BFGS-B on 4 parameters took ~10 ms per iteration instead of ~0.1 ms (``results/bench``, issue 25).
+L-BFGS-B on 4 parameters takes ~10 ms per iteration instead of ~0.1 ms (``results/bench/README.md``).
 :func:`one_blas_thread` limits every loaded BLAS to one thread for the duration of a block (the
 values do not depend on it: OpenBLAS does not split matrices this small between threads). A
 study's worker processes already run with one BLAS thread (``studies.workers``); this makes a fit

@@ -85,7 +85,7 @@ def interval(coefs: pd.Series, se: pd.Series, level=0.95, conservative=False, up
 
 def _z(level, conservative, n_bounds):
     # the normal quantile by scipy.special.ndtri, which scipy.stats.norm.ppf calls: the same bits, without
-    # importing scipy.stats (~0.7 s, paid by every study worker's first block; issue 25)
+    # importing scipy.stats (~0.7 s, paid by every study worker's first block; results/bench/README.md)
     if conservative:
         return ndtri(1 - (1 - level) / max(int(n_bounds), 1))
     return ndtri(0.5 + level / 2)

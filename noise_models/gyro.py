@@ -64,7 +64,7 @@ class Gyro:
     Examples
     --------
     >>> import numpy as np
-    >>> from noise_models import Gyro, AngleRandomWalk, RateRandomWalk
+    >>> from avbench.noise_models import Gyro, AngleRandomWalk, RateRandomWalk
     >>> g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=(2.0, "deg/sqrt(h)")), RateRandomWalk(K=1e-6)])
     >>> x = g.simulate(1000, np.random.default_rng(0))
     >>> x.shape

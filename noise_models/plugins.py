@@ -118,7 +118,7 @@ def entry_point_names(group: str) -> list[str]:
 def entry_point_target(group: str, name: str) -> str | None:
     """The ``"module:Class"`` that entry point ``name`` of ``group`` points to, or None."""
     target = _entry_points(group).get(name)
-    if target is None:  # installed since the first look (e.g. in a running session)
+    if target is None:  # installed since the first look (e.g. in a running interpreter)
         _entry_points.cache_clear()
         target = _entry_points(group).get(name)
     return target

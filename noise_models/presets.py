@@ -17,7 +17,7 @@ ADIS16405_Y_2014          100 Hz  5 h     Miao et al. 2014, Table 2, 100 Hz colu
 FOG1, FOG2                100 Hz  3 h     Miao et al. 2015, Table 3, Allan-variance column (Q..R)
 ========================  ======  ======  ===================================================
 
->>> from noise_models import presets
+>>> from avbench.noise_models import presets
 >>> "SRS2000" in presets.names()
 True
 >>> presets.get("ADIS16405_Y").dt

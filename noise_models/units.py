@@ -208,7 +208,7 @@ def to_si(coef: str, value, unit: str, sensor: str = "gyro"):
     """Convert ``value`` of coefficient ``coef`` of ``sensor`` ("gyro", "accel") from ``unit`` to SI.
 
     >>> round(to_si("B", 50.0, "ug", sensor="accel"), 12)
-    0.000490333
+    0.0004903325
     """
     return value * _factor(coef, unit, sensor)
 

@@ -1,4 +1,4 @@
-"""Gyros drawn at random outside the presets, for ``studies/random_gyros.toml`` (issue 23).
+"""Gyros drawn at random outside the presets, for ``studies/random_gyros.toml``.
 
 ``python -m avbench.studies.random_gyros > studies/random_gyros.toml`` writes the config; the draw
 depends only on ``SEED`` (the config is committed, so the study's tables depend only on it).
@@ -27,13 +27,13 @@ RATIOS = {"Q": (0.03, 0.3), "B": (0.15, 1.5), "K": (0.005, 0.05)}
 P_PRESENT = 0.7
 TAU_MAX = (0.2, 5.0)
 
-HEADER = """# Gyros drawn at random outside the presets (issue 23): written by
+HEADER = """# Gyros drawn at random outside the presets: written by
 # `python -m avbench.studies.random_gyros` (seed {seed}); do not edit by hand.
 #
 # {n} gyros x 1 replicate of 2 h at 10 Hz: N always; Q, flicker B (tau_max 0.2-5 record lengths), K
 # each present with probability 0.7, sized relative to N within the presets' ratios. Estimators: the
 # recommended default (de-biased Whittle, every candidate term kept, profile-likelihood intervals),
-# the same with the plain Whittle likelihood, and the previous default (Whittle with BIC selection).
+# the same with the plain Whittle likelihood, and Whittle with BIC term selection (`whittle`).
 # Pooled coverage per coefficient: avbench.studies.summaries.random_gyros (results/random_gyros/pooled.md).
 
 [study]

@@ -117,7 +117,6 @@ VARIANT_PAIRS = (("gmwm_filtered_m16", "gmwm"), ("gmwm_filtered", "gmwm_filtered
                  ("gmwm_filtered_m2", "gmwm"), ("gmwm_filtered", "gmwm_filtered_m2"),
                  ("gmwm_filtered_m16", "gmwm_m16"), ("gmwm_m16", "gmwm"),
                  ("gmwm_filtered", "gmwm_filtered_tf_held"), ("gmwm_filtered_tf_held", "gmwm"))
-#: parameters that are not rates (a record's scale leaves them unchanged): time constants and frequencies
 SIG = 6  # significant digits written
 
 

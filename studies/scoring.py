@@ -62,7 +62,8 @@ def _clopper_pearson(k: int, n: int, level=0.95):
         return math.nan, math.nan
     a = (1 - level) / 2
     # the beta quantile by scipy.special.betaincinv: the same bits as scipy.stats.beta.ppf (both Boost's; checked
-    # for every k <= n < 600 at both levels), without importing scipy.stats (~0.7 s of every report; issue 25)
+    # for every k <= n < 600 at both levels), without importing scipy.stats (~0.7 s of every report;
+    # results/bench/README.md)
     lo = 0.0 if k == 0 else betaincinv(k, n - k + 1, a)
     hi = 1.0 if k == n else betaincinv(k + 1, n - k, 1 - a)
     return float(lo), float(hi)

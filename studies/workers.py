@@ -103,8 +103,8 @@ def _init_worker(parent_pid: int) -> None:
 
 
 #: what the study's own process imports for its tables (pandas-heavy report modules) in a thread
-#: once the last block is queued, while the workers compute (a study's config no longer imports it: the
-#: least-squares fits check their settings without a trial fit, issue 25)
+#: once the last block is queued, while the workers compute (a study's config does not import it: the
+#: least-squares fits check their settings without a trial fit; results/bench/README.md)
 PARENT_REPORT_IMPORTS = ("avbench.studies.report", "avbench.studies.scoring")
 
 

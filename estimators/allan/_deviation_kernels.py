@@ -17,31 +17,33 @@ Performance notes (``python -m avbench.bench --only Deviations``; serial, no thr
   block and m, the third differences (and the AV's squared second differences, which the edf's
   noise identification needs: no separate AV pass) in one SIMD pass into an L1 buffer, then the
   sequential chain over it as four chains over the buffer's quarters (``mvar_sums_blocked``).
-  Measured at n = 1e6, octave m (CPU time, loaded machine): 17 ms for both sums where the previous octave
-  box-sum passes (one memory pass per octave) took 21 ms for the modified AV alone and the AV pass 5 ms more;
+  Measured at n = 1e6, octave m (CPU time, loaded machine): 17 ms for both sums, against 21 ms for the
+  modified AV alone by box-sum passes over the whole record (one memory pass per octave) plus 5 ms for a
+  separate AV pass;
 * for octave m up to ``MVAR_BOX_MAX`` the modified AV is instead summed from box sums of the phase
   built level by level inside each block (the box of 2m is two boxes of m; ``mvar_sums_box_octaves``):
   one SIMD pass per level over an L1 buffer (the next level's boxes, the modified AV's and the AV's
   squares together), ~0.5 ms per level at n = 1e6 against ~0.8-1 ms per m for the chain; for larger m
-  the buffer (block + 3m) outgrows the block and the chain is kept. Measured (CPU, n = 1e6, octave m,
+  the buffer (block + 3m) outgrows the block and the chain is used. Measured (CPU, n = 1e6, octave m,
   best block/limit of 1024-8192 x 32-256): both sums 13.4-13.5 ms against 16.4 ms with the chain for
-  every m; issue 26's last session: blocks/limits up to 16384/4096 (the levels in L2) measured the same
-  14.6-15.8 ms (loaded machine). Tried and not kept: the inner sums advanced 16 start indices at a time
-  in SIMD lanes, v_{j+16} = v_j + (third difference of the box sums of 16 phases), which needs a second
-  8 MB array read at four offsets per m: 14.5 ms against 8.2 ms for the chain's ten m >= 512 (the
-  chain's third differences and the AV's share the four slices of x: it is bound by them, not by its
-  sequential part, 0.35 ns per step from L1);
+  every m; larger blocks/limits, up to 16384/4096 (the levels in L2), measure the same 14.6-15.8 ms
+  (loaded machine), so ``BLOCK_MVAR_BOX`` and ``MVAR_BOX_MAX`` keep the levels in L1. The chain is not
+  vectorised over start indices (v_{j+16} = v_j + the third difference of the box sums of 16 phases,
+  in SIMD lanes): that needs a second 8 MB array read at four offsets per m and measures 14.5 ms
+  against 8.2 ms for the chain's ten m >= 512 (the chain's third differences and the AV's share the
+  four slices of x: it is bound by them, not by its sequential part, 0.35 ns per step from L1);
+  ``results/bench/README.md`` holds these measurements;
 * the non-overlapping Hadamard variance (hdev) on octave m reads the rate, not the phase: blocks of 2m
   are pairs of blocks of m, and its third differences are second differences of consecutive blocks
   (``hvar_octave_sums``; the AV for the edf's noise identification from the same blocks). The record is
   read once, in chunks of 4096 samples; the block levels up to m = 128 are made and differenced inside
   each chunk (L1/L2), and only the next level is written out (n / 256 values). Measured (CPU, n = 1e6,
   19 octaves, right after allantools' hdev has run as in the bench): 2.3-2.8 ms, against 2.8-3.2 ms
-  when every level was made over the whole record in a 4 MB work array (~1.6 ms either way when the
+  with every level made over the whole record in a 4 MB work array (~1.6 ms either way when the
   record is in cache);
 * the edf (``edf_single_filter``): rho(k) = sum_d A(d) G(k + d) from the filter's nonzero lags (every
   m-th for the difference filters, SIMD over the dense modified-AV filter), once per distinct (m, noise)
-  of a call, then the K-sum per tau: ~0.05-0.12 ms for 19 octave taus (the Python per tau of before:
+  of a call, then the K-sum per tau: ~0.05-0.12 ms for 19 octave taus (a Python loop per tau takes
   0.4-1.4 ms);
 * Theo1 is its definition, (N - m) m / 2 terms per m: one SIMD pass per lag d over each block of
   start indices (the pair sums x[i] + x[i+m] formed once).

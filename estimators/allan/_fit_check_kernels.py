@@ -1,11 +1,11 @@
 """Compiled integrand of Imhof's (1961) integral for :func:`avbench.estimators.allan.fit_check.weighted_chi2_sf`.
 
 QUADPACK calls the integrand a few thousand times per p-value; as a Python function (two NumPy
-reductions per call) it cost 10-30 ms, most of a curve fit with its check (issue 25: ``nnls_rel``
+reductions per call) it costs 10-30 ms, most of a curve fit with its check (``nnls_rel`` would take
 26x the octave AV it fits). As a C callback (:class:`scipy.LowLevelCallable` of a numba ``cfunc``) the
-same integrals cost ~0.5 ms. The terms are summed in index order with the C library's ``atan`` and
-``log1p`` instead of NumPy's pairwise sums and SIMD loops: the p-values agree to ~3e-16 absolute
-(``tests/test_fit_check.py``), far below the integral's own error (~1e-14).
+same integrals cost ~0.5 ms (``results/bench/README.md``). The terms are summed in index order with
+the C library's ``atan`` and ``log1p`` instead of NumPy's pairwise sums and SIMD loops: the p-values
+agree to ~3e-16 absolute (``tests/test_fit_check.py``), far below the integral's own error (~1e-14).
 
 The callback's arguments (``xx``, ``n`` of them) are ``u, mode, x, w_1 ... w_k``: the integration
 variable, which part of the integral (0: the direct part sin(theta(u)) / (u rho(u)) on [0, a]; 1 and 2: the

@@ -92,7 +92,7 @@ def _gains(m, n_grid):
         w = omega_all[a : a + CHUNK]
         return _haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :])
 
-    if m.size * n_grid * 8 > GAIN_CACHE_BYTES // 2:  # too large to keep: one block at a time, as before
+    if m.size * n_grid * 8 > GAIN_CACHE_BYTES // 2:  # too large to keep: one block at a time, none kept
         return ((omega_all[a : a + CHUNK], block(a)) for a in starts)
     blocks = [block(a) for a in starts]
     key = (n_grid, m.tobytes())

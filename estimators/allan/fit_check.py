@@ -94,7 +94,7 @@ left. On the first 10 of these records: "auto" started at m = 1024-2048 in 6 and
 10; ``min_m=1`` flagged 10 of 10.
 Load average 8-10 on 2 cores while measuring (times not reported).
 
-``gmwm_filtered`` on its own model (issue 24; FW+GM+RW, the ADIS16405 gyro y model of
+``gmwm_filtered`` on its own model (FW+GM+RW, the ADIS16405 gyro y model of
 ``results/real/spread_models.csv``, 2.78 h at 100 Hz, 17 octaves from m = 1): the spread study flagged 6 of
 its 64 records (seed 242026). The check's null holds where it can be tested without the optimiser: on 400
 other records (seed 777) T at the true model is chi^2_17 (mean 16.7, variance 34.3; p < 0.01 in 5) and the

@@ -12,8 +12,9 @@ reference this follows, operation for operation) -- and the same result fields (
 Why: a GMWM fit solves ~70 small problems (10-20 scales, 3-8 parameters) to tolerances of 1e-15, ~27
 evaluations each, and the per-call machinery around scipy's arithmetic -- the differentiable-function
 wrappers of every evaluation, ``scipy.linalg.svd``'s finiteness check and LAPACK workspace query on every
-iteration, ``numpy.linalg.norm``'s dispatch, boolean-mask assignments on 3-8 elements -- was most of the fit
-(issue 25: 0.46 s on a 4 h, 10 Hz record against a target of 0.3 s). Here the same NumPy operations run
+iteration, ``numpy.linalg.norm``'s dispatch, boolean-mask assignments on 3-8 elements -- is most of the fit
+when scipy's function runs it (a GMWM fit of a 4 h, 10 Hz record then takes 0.46 s against a target of 0.3 s;
+``results/bench/README.md``). Here the same NumPy operations run
 without it: LAPACK's ``gesdd`` is called as ``scipy.linalg.svd`` calls it, with the workspace it computes,
 queried once per shape (:func:`_svd`); a vector's norm is ``sqrt(x.dot(x))``, what ``numpy.linalg.norm``
 computes.
@@ -21,9 +22,9 @@ computes.
 Same arithmetic, so the same bits: every product, sum, dot product (BLAS) and SVD (LAPACK) is the one scipy
 performs, on the same operands, in the same order (``tests/test_trf.py``: every result field equal to
 scipy's on 200 random bounded problems, in a fresh process on the committed studies' kernels and on
-whatever kernels the tests run on). A compiled version (numba) was tried and dropped: its BLAS and LAPACK
-bindings cost ~16 s of compilation on first use and ~0.3 s of cache loading in every new process, more than
-it saved in a single ``avbench estimate``.
+whatever kernels the tests run on). It is not compiled (numba): numba's BLAS and LAPACK bindings cost ~16 s
+of compilation on first use and ~0.3 s of cache loading in every new process, more than a compiled iteration
+saves in a single ``avbench estimate``.
 """
 
 from __future__ import annotations

@@ -202,7 +202,7 @@ def crlb(gyro, n_samples: int) -> pd.Series:
     --------
     White noise alone: var(N_hat)/N^2 = 1/(2n).
 
-    >>> from noise_models import Gyro, AngleRandomWalk
+    >>> from avbench.noise_models import Gyro, AngleRandomWalk
     >>> g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3)])
     >>> round(float(crlb(g, 5000)["N"] / 1e-3 * (2 * 5000) ** 0.5), 6)
     1.0

@@ -5,8 +5,8 @@ chosen set of a replicate is the set of modelled coefficients with a finite esti
 set is the gyro's coefficients that are present. For each study (one record length) and gyro:
 the share of replicates choosing exactly the true set (with its Clopper-Pearson 95 % interval), the
 share that keep each true term, the share that add a term that is absent, and the largest CRLB
-relative std of the present terms at that length (the issue's target: >= 90 % wherever that is
-< 30 %).
+relative std of the present terms at that length (the target: >= 90 % wherever that is < 30 %;
+``results/README.md``, model_selection).
 
 Usage::
 
