@@ -35,7 +35,6 @@ _OLD_NOISE_MODELS = "pre-0.2 name in an example: 'from noise_models import' -> '
 _OLD_ESTIMATORS = "pre-0.2 name in an example: 'import estimators' -> 'from avbench import estimators'"
 KNOWN_FAILING = {
     "avbench.estimators.likelihood.gmwm": _OLD_NOISE_MODELS,
-    "avbench.estimators.likelihood.whittle": _OLD_NOISE_MODELS,
 }
 
 

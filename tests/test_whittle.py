@@ -9,7 +9,7 @@ from avbench import estimators
 from conftest import assert_mc_recovery
 from avbench.estimators.likelihood._whittle_kernels import whittle_pass, whittle_pass_py
 from avbench.estimators.likelihood.crlb import crlb
-from avbench.estimators.likelihood.whittle import WhittleFit
+from avbench.estimators.likelihood.whittle_likelihood import WhittleFit
 from avbench.noise_models import AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
 
 DT = 0.1
@@ -29,7 +29,7 @@ def test_kernel_matches_reference():
     wf = WhittleFit(x, DT)
     comps = ["Q", "N", "GM", "K"]
     a = np.array([0.3, 1.2, 0.5, 0.01])
-    Bm = wf._matrix(comps, 30.0)
+    Bm = wf.basis_matrix(comps, 30.0)
     D = wf.basis("GM", 31.0) - wf.basis("GM", 29.0)
     args = (a, Bm, D, 0.5, wf.X2, wf.GX, wf.G2, wf.w, float(wf.n))
     for grad in (False, True):
@@ -207,7 +207,7 @@ def _check_ramp_z2(truth, fitted):
     R = truth.size
     tol = 3 * math.sqrt(2 / R)
     assert abs(truth.mean() - 1) < tol, truth.mean()
-    assert abs(fitted.mean() - 1) < tol, fitted.mean()  # the plug-in: the GLS formula gave ~6
+    assert abs(fitted.mean() - 1) < tol, fitted.mean()  # the plug-in (the frequency-domain GLS variance gives ~6)
 
 
 def test_ramp_standard_error_matches_the_spread_small():
