@@ -26,7 +26,7 @@ from avbench.text import plain_text
 # Heavy libraries (numpy, pandas, the simulators and estimators) are imported inside the commands:
 # `avbench --help` and every subcommand's help must start in a fraction of a second.
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "reader_options_parser"]
 
 
 def _fail(msg: str) -> int:
@@ -236,7 +236,7 @@ def cmd_run(args) -> int:
     with started_early(args.jobs if _local_pool_wanted(args) else None) as pool:
         code = _run(args)
     if pool is not None:  # the study is written: its idle workers are stopped now, not left to wind down
-        pool.shutdown(wait=True, kill_workers=True)  # at this process's exit (~0.8 s on 2 workers, issue 25)
+        pool.shutdown(wait=True, kill_workers=True)  # at this process's exit (~0.8 s on 2 workers)
     return code
 
 
@@ -293,12 +293,35 @@ def cmd_table(args) -> int:
 # -- parser -------------------------------------------------------------------------------------
 
 
+def reader_options_parser() -> argparse.ArgumentParser:
+    """The options that say how to read a recording, given as ``parents`` to every command that reads
+    one (``estimate``, ``deviations``): one definition, so their names, defaults and help cannot drift
+    apart. Their dests are the keywords of :func:`avbench.recordings.load.load_recording`
+    (``READER_OPTIONS`` there); a new parser per command, as argparse shares a parent's actions."""
+    p = argparse.ArgumentParser(add_help=False)
+    p.add_argument("--fs", type=float, default=None,
+                   help="sample rate in Hz (needed when the file has no time stamps; else only checked)")
+    p.add_argument("--units", default=None, help="gyro sample units when the format does not say: rad/s, deg/s, deg/h, mrad/s")
+    p.add_argument("--accel-units", default=None, help="accelerometer sample units when the format does not say: m/s^2, g, mg, ug")
+    p.add_argument("--column", default=None, help="one gyro column of a table: name or 0-based index")
+    p.add_argument("--gyro", default=None, help="gyro columns of a table (comma-separated names or indices), or the "
+                   "gyro array(s) of an .npz/.mat by name")
+    p.add_argument("--accel", default=None, help="accelerometer columns of a table, or array(s) of an .npz/.mat, comma-separated")
+    p.add_argument("--time", default=None, help="time column (or .npz/.mat array) (default: one named t/time/timestamp "
+                   "or with a time unit in its header; 'none' to ignore it)")
+    p.add_argument("--time-units", default=None, choices=["s", "ms", "us", "ns"],
+                   help="units of the time column (default: the header's [unit], else from the stamps' magnitude "
+                        "and step, else s)")
+    p.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
+    return p
+
+
 #: ``avbench deviations``: the statistics drawn when --deviation is not given
 DEVIATIONS_DEFAULT = "oadev,ohdev,mdev,totdev,htotdev,theo1"
 
 
 def _add_deviations_parser(sub) -> None:
-    """``avbench deviations FILE``: the reading options of ``avbench estimate``, then the statistics."""
+    """``avbench deviations FILE``: the reader options of ``avbench estimate``, then the statistics."""
     s = sub.add_parser(
         "deviations", help="the deviation family (ADEV, HDEV, MDEV, TOTDEV, Theo1, ...) of a recording, with intervals",
         description="Overlapping Allan, Hadamard, modified, time, total (plain, modified, Hadamard), Theo1 and TheoBR "
@@ -308,17 +331,8 @@ def _add_deviations_parser(sub) -> None:
                     "<stem>_av.csv) and <stem>_<sensor>_deviations.png, and prints the deviations per axis.",
         epilog="examples:\n  avbench deviations rec.npy --fs 100 --units deg/s\n"
                "  avbench deviations imu.bag --sensor gyro --deviation oadev,ohdev,theobr --taus decade --out devs",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("file", help="a recording: .npy .npz .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
-    s.add_argument("--fs", type=float, default=None, help="sample rate in Hz (needed when the file has no time stamps)")
-    s.add_argument("--units", default=None, help="gyro sample units when the format does not say: rad/s, deg/s, deg/h, mrad/s")
-    s.add_argument("--accel-units", default=None, help="accelerometer sample units when the format does not say")
-    s.add_argument("--column", default=None, help="one gyro column of a table: name or 0-based index")
-    s.add_argument("--gyro", default=None, help="gyro columns of a table, comma-separated names or indices")
-    s.add_argument("--accel", default=None, help="accelerometer columns of a table, comma-separated")
-    s.add_argument("--time", default=None, help="time column of a table (default: one named t/time/timestamp; 'none')")
-    s.add_argument("--time-units", default="s", choices=["s", "ms", "us", "ns"], help="units of the time column")
-    s.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
+        formatter_class=argparse.RawDescriptionHelpFormatter, parents=[reader_options_parser()])
+    s.add_argument("file", help="a recording: .npy .npz .mat .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
     s.add_argument("--sensor", default=None, choices=["gyro", "accel"], help="only this sensor (default: every one in the file)")
     s.add_argument("--deviation", default=DEVIATIONS_DEFAULT, metavar="NAMES",
                    help=f"comma-separated: oadev, hdev, ohdev, mdev, tdev, totdev, mtotdev, htotdev, theo1, theobr "
@@ -331,32 +345,30 @@ def _add_deviations_parser(sub) -> None:
 
 
 def cmd_deviations(args) -> int:
-    """``avbench deviations FILE``: read like ``avbench estimate`` (its ``_load``), compute, write CSV and plot."""
+    """``avbench deviations FILE``: read as ``avbench estimate`` reads, compute, write CSV and plot."""
     import io
 
     import pandas as pd
 
     from avbench.outputs import atomic_write_bytes, atomic_write_text, prepare_out_dir
     from avbench.recordings import figure
-    from avbench.recordings.estimate import _check_deviation, _check_deviations_feasible, _deviations, _load
-    from avbench.recordings.timing import check_fs
+    from avbench.recordings.deviations import axis_deviations, check_deviations_feasible, parse_deviations
+    from avbench.recordings.load import check_reader_options, load_recording, reader_options_of
 
-    check_fs(args.fs)
-    names = _check_deviation(args.deviation)
-    if args.column is not None and args.gyro is not None:
-        raise ValueError("--column: give either --column or --gyro, not both")
-    args.file = [args.file]
-    ((rec, timing, sensors),) = _load(args, not args.no_progress and sys.stderr.isatty())
+    options = reader_options_of(args)
+    check_reader_options(**options)
+    names = parse_deviations(args.deviation)
+    rec, timing, sensors = load_recording(args.file, progress=not args.no_progress and sys.stderr.isatty(), **options)
     sensors = [s for s in sensors if args.sensor in (None, s.sensor)]
     if not sensors:
         raise ValueError(f"--sensor {args.sensor}: {rec.path} has no {args.sensor} channels")
-    _check_deviations_feasible(names, timing.n_samples, timing.starts)
+    check_deviations_feasible(names, timing.n_samples, timing.starts)
     stem = (rec.path.stem or rec.path.name) + (f"_{args.column}" if args.column is not None else "")
     outputs = [f"{stem}_deviations.csv"] + [f"{stem}_{s.sensor}_deviations.png" for s in sensors]
     out = prepare_out_dir(args.out, "--out", outputs)
     rows, figs = [], []
     for s in sensors:
-        devs = {a: _deviations(x, timing.dt, timing.starts, names, args.taus) for a, x in s.axes.items()}
+        devs = {a: axis_deviations(x, timing.dt, timing.starts, names, args.taus) for a, x in s.axes.items()}
         for a, d in devs.items():
             for name, r in d.items():
                 unit = s.si_unit.split("/")[0] if r.kind == "tvar" else s.si_unit
@@ -460,7 +472,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     if argv is None or _command(argv) == "estimate":
         from avbench.recordings import estimate  # imports numpy and pandas: only when its parser is needed
 
-        estimate.add_parser(sub)
+        estimate.add_parser(sub, parents=[reader_options_parser()])
     else:  # the same entry in the list of commands, without importing it
         sub.add_parser("estimate", help=ESTIMATE_HELP)
     _add_deviations_parser(sub)

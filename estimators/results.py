@@ -171,9 +171,15 @@ class FitResult:
 
     def model_avar(self, tau) -> np.ndarray:
         """The AV of the fitted model at ``tau`` (s), in this result's unit (squared)."""
+        with np.errstate(over="ignore", under="ignore"):
+            return self.fitted_model_avar(tau) / np.float64(self.scale) / np.float64(self.scale)
+
+    def fitted_model_avar(self, tau) -> np.ndarray:
+        """The AV of the fitted model at ``tau`` (s) in the unit of the record as it was fitted (before
+        :meth:`rescaled`: ``scale`` times this result's unit), free of the rescaling's over- and underflow."""
         if self._model is None:
             raise ValueError(f"{self.method}: no fitted model ({self.failure or 'the fit failed'})")
-        return np.asarray(self._model(np.asarray(tau, dtype=float)), dtype=float) / self.scale**2
+        return np.asarray(self._model(np.asarray(tau, dtype=float)), dtype=float)
 
     def rescaled(self, factor: float) -> "FitResult":
         """The same result for the record divided by ``factor`` (every quantity in the record's unit

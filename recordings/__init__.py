@@ -3,9 +3,11 @@
 One module per step, in the order the data flows:
 
 1. :mod:`~avbench.recordings.readers` -- a file (CSV/text incl. EuRoC/TUM-VI, NPY/NPZ, MATLAB .mat, ROS 1/ROS 2
-   bag, PX4 ULog) becomes
-   a :class:`~avbench.recordings.readers.Recording`: named channels in the file's own units, their
-   sensor (gyro/accel), the units the format defines (if any) and the time stamps (if any);
+   bag, PX4 ULog) becomes a :class:`~avbench.recordings.readers.Recording`: named channels in the file's
+   own units, their sensor (gyro/accel), the units the format defines (if any) and the time stamps (if
+   any). One module per kind of file: :mod:`~avbench.recordings.text_tables`,
+   :mod:`~avbench.recordings.arrays` (npy, npz, mat), :mod:`~avbench.recordings.bags` (ROS bags, PX4 ULog),
+   sharing :mod:`~avbench.recordings.channels`;
 2. :mod:`~avbench.recordings.timing` -- time stamps (or ``--fs``) become a
    :class:`~avbench.recordings.timing.Timing`: the sample interval, its jitter, and the gaps, which
    split the record into gap-free runs;
@@ -19,5 +21,28 @@ One module per step, in the order the data flows:
    :mod:`~avbench.recordings.filter_yaml` (Kalibr ``imu.yaml``, imu_utils) and
    :mod:`~avbench.recordings.figure` (Allan deviation with each fitted term).
 
-:mod:`~avbench.recordings.estimate` is the command (``avbench estimate``) that strings them together.
+Steps 1-3 are one call, :func:`load_recording` (:mod:`~avbench.recordings.load`), with the reader options of
+the command line as keywords. :func:`estimate_file` (:mod:`~avbench.recordings.estimate`) reads a recording
+and fits every method to every axis: ``{sensor: {axis: {method: MethodFit}}}``. The command
+``avbench estimate`` (:mod:`~avbench.recordings.estimate`) strings every step together, with the outputs;
+``avbench deviations`` reads as it does.
 """
+
+__all__ = ["load_recording", "estimate_file"]
+
+
+def __getattr__(name):
+    # imported on first use: importing one step's module (avbench.recordings.files, ...) stays light
+    if name == "load_recording":
+        from avbench.recordings.load import load_recording
+
+        return load_recording
+    if name == "estimate_file":
+        from avbench.recordings.estimate import estimate_file
+
+        return estimate_file
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted([*globals(), *__all__])

@@ -9,7 +9,7 @@ avbench estimate rec.npy --fs 200 --units rad/s --json > coefs.json
 avbench estimate run1.npz run2.npz --combine --fs 100 --units rad/s   # several runs, one fit
 avbench estimate run*.npz --combine --inflate auto --kalibr imu.yaml  # + between-run spread, yaml inflated by it
 
-The pipeline (``studies/recordings/``): read the file (CSV/text, NPY/NPZ, ROS 1/2 bag, PX4 ULog) ->
+The pipeline (:mod:`avbench.recordings`): read the file (CSV/text, NPY/NPZ, MATLAB, ROS 1/2 bag, PX4 ULog) ->
 time stamps, jitter and gaps (``--fs`` only when the file has no time stamps, else a check) -> SI
 units (from the format, or ``--units``/``--accel-units``: never guessed) -> every method on every
 axis (gap-aware Allan variance) -> outputs.
@@ -22,6 +22,10 @@ flag per coefficient: ok / not modelled / non-physical / failed, plus poor fit),
 ``--kalibr FILE`` / ``--format allan_variance_ros`` a filter's ``imu.yaml``. Standard output gets
 one table per sensor, or with ``--json`` only the JSON object. Any problem with the input or an
 option ends with a one-line error (exit code 2) and nothing written.
+
+From Python, :func:`estimate_file` fits one recording and returns the fits per sensor, axis and method;
+the command reads with :func:`avbench.recordings.load.load_recording` and fits with :func:`fit_sensors`,
+as :func:`estimate_file` does.
 """
 
 from __future__ import annotations
@@ -33,32 +37,20 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "estimate_file", "fit_sensors"]
 
 
-def add_parser(subparsers):
-    """Add the ``estimate`` sub-command to an ``argparse`` sub-parsers object."""
+def add_parser(subparsers, parents):
+    """Add the ``estimate`` sub-command to an ``argparse`` sub-parsers object; ``parents`` holds the parser
+    of the reader options (:func:`avbench.cli.reader_options_parser`), shared with every command that
+    reads a recording."""
     import argparse
 
     s = subparsers.add_parser("estimate", help="fit the noise coefficients of a static IMU recording",
                               description=__doc__.split("\n\n")[0],
                               epilog=__doc__.split("Examples\n--------\n", 1)[1].split("\n\n")[0],
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
+                              formatter_class=argparse.RawDescriptionHelpFormatter, parents=list(parents))
     s.add_argument("file", nargs="+", help="recording(s): .npy .npz .mat .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
-    s.add_argument("--fs", type=float, default=None,
-                   help="sample rate in Hz (needed when the file has no time stamps; else only checked)")
-    s.add_argument("--units", default=None, help="gyro sample units when the format does not say: rad/s, deg/s, deg/h, mrad/s")
-    s.add_argument("--accel-units", default=None, help="accelerometer sample units when the format does not say: m/s^2, g, mg, ug")
-    s.add_argument("--column", default=None, help="one gyro column of a table: name or 0-based index")
-    s.add_argument("--gyro", default=None, help="gyro columns of a table (comma-separated names or indices), or the "
-                   "gyro array(s) of an .npz/.mat by name")
-    s.add_argument("--accel", default=None, help="accelerometer columns of a table, or array(s) of an .npz/.mat, comma-separated")
-    s.add_argument("--time", default=None, help="time column (or .npz/.mat array) (default: one named t/time/timestamp "
-                   "or with a time unit in its header; 'none' to ignore it)")
-    s.add_argument("--time-units", default=None, choices=["s", "ms", "us", "ns"],
-                   help="units of the time column (default: the header's [unit], else from the stamps' magnitude "
-                        "and step, else s)")
-    s.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
     s.add_argument("--method", default=None,
                    help="comma-separated estimator names (avbench estimators; default: the methods safe on real records, "
                         "avbench.estimators.base.DEFAULT_METHODS)")
@@ -86,23 +78,42 @@ def add_parser(subparsers):
     return s
 
 
-def _check_args(args):
+def _methods(spec) -> list[str]:
+    """Estimator names from a comma-separated string or a list (None: the default methods), each one
+    registered, installed (entry point) or "package.module:Class"."""
     from avbench import estimators
-    from avbench.recordings.filter_yaml import parse_inflate
-    from avbench.recordings.timing import check_fs
-
-    check_fs(args.fs)
     from avbench.estimators.base import DEFAULT_METHODS
 
-    spec = ",".join(DEFAULT_METHODS) if args.method is None else str(args.method)
-    methods = [m.strip() for m in spec.split(",") if m.strip()]
+    if spec is None:
+        spec = DEFAULT_METHODS
+    items = str(spec).split(",") if isinstance(spec, str) else [str(m) for m in spec]
+    methods = [m.strip() for m in items if m.strip()]
     if not methods:
         raise ValueError("--method: expected at least one estimator name")
-    for m in methods:  # registered, installed (entry point) or "package.module:Class"
+    for m in methods:
         try:
             estimators.estimator_class(m)
         except ValueError as e:
             raise ValueError(f"--method: {e}") from None
+    return methods
+
+
+def _check_settings(settings: dict) -> None:
+    """Unknown settings of a method raise here, before any work."""
+    from avbench import estimators
+
+    for method, kw in settings.items():
+        estimators.get(method, **kw)
+
+
+def _check_args(args):
+    from avbench.recordings.deviations import parse_deviations
+    from avbench.recordings.filter_yaml import parse_inflate
+    from avbench.recordings.load import check_reader_options, reader_options_of
+    from avbench.recordings.timing import check_fs
+
+    check_fs(args.fs)
+    methods = _methods(args.method)
     settings: dict = {}
     for item in args.set:
         key, eq, value = str(item).partition("=")
@@ -116,10 +127,8 @@ def _check_args(args):
         except json.JSONDecodeError:
             parsed = value
         settings.setdefault(method, {})[setting] = parsed
-    for method, kw in settings.items():
-        estimators.get(method, **kw)  # unknown settings raise here, before any work
-    if args.column is not None and args.gyro is not None:
-        raise ValueError("--column: give either --column or --gyro, not both")
+    _check_settings(settings)
+    check_reader_options(**reader_options_of(args))  # --fs once more, with the other reader options
     if len(args.file) > 1 and not args.combine:
         raise ValueError(f"{len(args.file)} files given; expected one recording, or --combine to pool recordings of one sensor")
     inflate = parse_inflate(args.inflate)
@@ -138,95 +147,60 @@ def _check_args(args):
             parent = parent.parent
         if parent.exists() and not parent.is_dir():
             raise ValueError(f"--kalibr {args.kalibr!r}: {str(parent)!r} is not a folder; expected a file path")
-    args.deviation = _check_deviation(getattr(args, "deviation", None))
+    args.deviation = parse_deviations(getattr(args, "deviation", None))
     return methods, settings, fm, inflate
 
 
-#: the deviations' cluster sizes stop where the terms summed reach this (Theo1 costs (N - m) m / 2 per tau)
-DEVIATION_BUDGET = 5e9
+def fit_sensors(sensors, timing, methods, settings=None, progress=None) -> dict:
+    """Every method on every axis of SI ``sensors`` timed by ``timing`` (gap-aware:
+    :func:`avbench.recordings.fit.fit_axis`): ``{sensor: {axis: {method: MethodFit}}}``. ``progress``
+    (a tqdm bar or None) is advanced once per fit."""
+    from avbench.recordings.fit import fit_axis
+
+    return {s.sensor: {a: fit_axis(x, timing.dt, timing.starts, methods, settings, progress) for a, x in s.axes.items()}
+            for s in sensors}
 
 
-def _check_deviation(spec):
-    """--deviation: a list of the deviation family's names (None when not given)."""
-    if spec is None:
-        return None
-    from avbench.estimators.allan.deviations import DEVIATION_NAMES
+def estimate_file(path, methods=None, settings=None, **reader_options) -> dict:
+    """The noise coefficients of one recording: every method fitted to every axis, as ``avbench estimate``
+    fits them, returned as ``{sensor: {axis: {method: MethodFit}}}``
+    (:class:`avbench.recordings.fit.MethodFit`; coefficients in SI).
 
-    names = [n.strip() for n in str(spec).split(",") if n.strip()]
-    bad = [n for n in names if n not in DEVIATION_NAMES]
-    if bad or not names:
-        raise ValueError(f"--deviation: expected names among {', '.join(DEVIATION_NAMES)}, got {spec!r}")
-    return names
+    ``path``: a recording in any format of :mod:`avbench.recordings.readers`; ``methods``: estimator
+    names, a list or a comma-separated string (default: the methods safe on real records,
+    :data:`avbench.estimators.base.DEFAULT_METHODS`); ``settings``: ``{method: {setting: value}}``;
+    ``reader_options``: the keywords of :func:`avbench.recordings.load.load_recording` (``fs``,
+    ``units``, ``accel_units``, ``column``, ``gyro``, ``accel``, ``time``, ``time_units``, ``topic``,
+    ``progress``). A problem with the file, an option, a method or a setting is a ``ValueError``; a
+    method failing on an axis is a fit flagged failed (its ``error``), as on the command line.
 
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from avbench.recordings import estimate_file
+    >>> rng = np.random.default_rng(1)
+    >>> n, dt, sigma = 60_000, 0.01, 0.05                  # 10 min at 100 Hz, white noise of 0.05 deg/s
+    >>> table = np.column_stack([np.arange(n) * dt, rng.normal(0.0, sigma, (n, 3))])
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = Path(folder) / "imu.csv"
+    ...     np.savetxt(path, table, delimiter=",", header="t [s],gx [deg/s],gy [deg/s],gz [deg/s]", comments="")
+    ...     fits = estimate_file(path, methods="wls")
+    >>> sorted(fits["gyro"])
+    ['x', 'y', 'z']
+    >>> N = fits["gyro"]["x"]["wls"].coefficients()["N"]  # angle random walk, rad/sqrt(s)
+    >>> print(f"{N / np.deg2rad(sigma * np.sqrt(dt)):.1f}")  # over its true value, sigma sqrt(dt)
+    1.0
+    """
+    from avbench.recordings.load import load_recording
 
-def _longest_run(n, starts):
-    """(start, stop) of the longest gap-free run of a record of ``n`` samples."""
-    edges = np.concatenate(([0], np.asarray(starts, dtype=np.int64), [n]))
-    k = int(np.argmax(np.diff(edges)))
-    return int(edges[k]), int(edges[k + 1])
-
-
-def _check_deviations_feasible(names, n, starts):
-    """--deviation: refuse, before any fit, a statistic the longest run is too long for (TheoBR)."""
-    if names:
-        from avbench.estimators.allan.deviations import check_feasible
-
-        a, b = _longest_run(n, starts)
-        try:
-            check_feasible(names, b - a)
-        except ValueError as e:
-            raise ValueError(f"--deviation: {e}") from None
-
-
-def _deviations(x, dt, starts, names, taus="octave"):
-    """{name: AllanResult} of one axis on its longest gap-free run (cost capped by DEVIATION_BUDGET terms)."""
-    from avbench.estimators.allan.deviations import deviation
-
-    a, b = _longest_run(len(x), starts)
-    run = np.asarray(x[a:b], dtype=float)
-    return {name: deviation(run, dt, name, taus, max_terms=DEVIATION_BUDGET) for name in names}
-
-
-def _load(args, progress):
-    """Read every file: [(Recording, Timing, [SensorRecord])]."""
-    from avbench.recordings.readers import read_recording
-    from avbench.recordings.sensors import to_si
-    from avbench.recordings.timing import timing_of
-
-    loaded = []
-    gyro = args.gyro if args.gyro is not None else args.column
-    for f in args.file:
-        rec = read_recording(f, gyro=gyro, accel=args.accel, time_column=args.time, time_units=args.time_units,
-                             topic=args.topic, progress=progress)
-        timing = timing_of(rec.time, args.fs, rec.n_samples, rec.path)
-        loaded.append((rec, timing, to_si(rec, args.units, args.accel_units)))
-    return loaded
-
-
-def _combine(loaded):
-    """One (timing, sensors) from several recordings: concatenated, file boundaries are gaps."""
-    from avbench.recordings.sensors import SensorRecord
-    from avbench.recordings.timing import FS_TOLERANCE, Timing
-
-    rec0, t0, s0 = loaded[0]
-    layout = [(s.sensor, tuple(s.axes)) for s in s0]
-    for rec, t, s in loaded[1:]:
-        if [(x.sensor, tuple(x.axes)) for x in s] != layout:
-            raise ValueError(f"--combine: {rec.path} has other sensors/axes than {rec0.path}; expected recordings of one sensor")
-        if abs(t.dt / t0.dt - 1) > FS_TOLERANCE:
-            raise ValueError(f"--combine: {rec.path} is sampled at {t.fs:.6g} Hz, {rec0.path} at {t0.fs:.6g} Hz; "
-                             "expected one sample rate")
-    offsets = np.cumsum([0] + [t.n_samples for _, t, _ in loaded[:-1]])
-    starts = np.concatenate([np.concatenate(([o] if o else [], t.starts + o)) for o, (_, t, _) in zip(offsets, loaded)])
-    gaps = np.concatenate([np.concatenate(([np.nan] if o else [], t.gap_seconds)) for o, (_, t, _) in zip(offsets, loaded)])
-    n = int(sum(t.n_samples for _, t, _ in loaded))
-    timing = Timing(t0.dt, t0.source + f" ({len(loaded)} recordings pooled; file boundaries are gaps)", n,
-                    starts.astype(np.int64), gaps, t0.jitter, t0.max_deviation)
-    sensors = []
-    for k, s in enumerate(s0):
-        axes = {a: np.concatenate([np.asarray(sl[k].axes[a]) for _, _, sl in loaded]) for a in s.axes}
-        sensors.append(SensorRecord(s.sensor, s.unit_in, axes, s.names))
-    return timing, sensors
+    methods = _methods(methods)
+    settings = dict(settings or {})
+    unknown = [m for m in settings if m not in methods]
+    if unknown:
+        raise ValueError(f"settings: method {unknown[0]!r} is not among the methods {', '.join(methods)}")
+    _check_settings(settings)
+    _, timing, sensors = load_recording(path, **reader_options)
+    return fit_sensors(sensors, timing, methods, settings)
 
 
 def _outputs(stem, sensors, args):
@@ -243,16 +217,18 @@ def run(args) -> int:
 
     from avbench.outputs import atomic_write_bytes, atomic_write_text, prepare_out_dir
     from avbench.recordings import figure, filter_yaml, report
+    from avbench.recordings.deviations import axis_deviations, check_deviations_feasible
     from avbench.recordings.fit import agreement, auto_inflation, between_runs, fit_axis, scaled_allan
+    from avbench.recordings.load import load_recording, pool_recordings, reader_options_of
 
     methods, settings, filter_method, inflate = _check_args(args)
     progress = not args.no_progress and sys.stderr.isatty()
-    loaded = _load(args, progress)
-    rec = loaded[0][0]
+    loaded = [load_recording(f, progress=progress, **reader_options_of(args)) for f in args.file]
+    rec = loaded[0].recording
     if len(loaded) > 1:
-        timing, sensors = _combine(loaded)
+        timing, sensors = pool_recordings(loaded)
     else:
-        timing, sensors = loaded[0][1], loaded[0][2]
+        timing, sensors = loaded[0].timing, loaded[0].sensors
     column = args.column if args.column is not None else None
     stem = (rec.path.stem or rec.path.name) + (f"_{column}" if column is not None else "") + \
         ("_combined" if len(loaded) > 1 else "")
@@ -260,7 +236,7 @@ def run(args) -> int:
         filter_yaml.check_sensors([s.sensor for s in sensors], "--kalibr" if args.kalibr else "--format")
     out = prepare_out_dir(args.out, "--out", _outputs(stem, sensors, args))
     dt = timing.dt
-    _check_deviations_feasible(args.deviation, timing.n_samples, timing.starts)
+    check_deviations_feasible(args.deviation, timing.n_samples, timing.starts)
 
     from avbench.recordings.static import static_check
 
@@ -272,10 +248,8 @@ def run(args) -> int:
               ("; ..." if len(still["reasons"]) > 4 else "") + ". The fits below assume rest: poor fits are expected.",
               file=sys.stderr)
     n_fits = sum(len(s.axes) for s in sensors) * len(methods)
-    fits: dict = {}
     with tqdm(total=n_fits, desc="fitting", unit="fit", disable=not progress, leave=False) as bar:
-        for s in sensors:
-            fits[s.sensor] = {a: fit_axis(x, dt, timing.starts, methods, settings, bar) for a, x in s.axes.items()}
+        fits = fit_sensors(sensors, timing, methods, settings, bar)
     extra = {"format": rec.format, "topic": rec.topic, "time_source": rec.time_source, "notes": rec.notes,
              "static_check": still}
     if len(loaded) > 1:
@@ -327,7 +301,7 @@ def run(args) -> int:
                 frame["adev"] = frame["adev"] / scale
             frame = frame.assign(sensor=s.sensor, axis=a, unit=f"avar ({s.si_unit})^2, adev {s.si_unit}")
             if args.deviation:
-                devs.setdefault(s.sensor, {})[a] = _deviations(x, dt, timing.starts, args.deviation)
+                devs.setdefault(s.sensor, {})[a] = axis_deviations(x, dt, timing.starts, args.deviation)
                 frame.insert(0, "statistic", "oadev")
                 for name, r in devs[s.sensor][a].items():
                     if r.kind == "avar":
@@ -372,7 +346,17 @@ def run(args) -> int:
     return 0
 
 
+def _say(text: str) -> None:
+    """Print a ``#`` line of the summary, wrapped at words to the screen's width."""
+    from avbench.recordings.report import wrap
+
+    print("\n".join(wrap(text, "#   ")))
+
+
 def _print_summary(data, tables, timing, fits, rec):
+    """The screen of ``avbench estimate``: the record, its notes, the coefficient tables with their
+    footnotes (:func:`avbench.recordings.report.screen`), the fit times and the between-run checks; no
+    line wider than :data:`avbench.recordings.report.SCREEN_WIDTH`."""
     from avbench.recordings import report
 
     src = ", ".join(data["sources"])
@@ -380,39 +364,26 @@ def _print_summary(data, tables, timing, fits, rec):
     gaps = (f", {timing.n_gaps - joins} gap(s) ({np.nansum(timing.gap_seconds):.3g} s missing)" if timing.n_gaps - joins else "") + \
         (f", {joins} file boundary(ies) treated as gaps" if joins else "")
     jit = f", jitter {timing.jitter:.2%} of dt" if timing.jitter is not None else ""
-    print(f"# {src}: {timing.n_samples} samples at {timing.fs:.6g} Hz ({timing.n_samples * timing.dt / 3600:.2f} h) "
-          f"from {timing.source}{jit}{gaps}" + (f"; topic {rec.topic}" if rec.topic else ""))
+    _say(f"# {src}: {timing.n_samples} samples at {timing.fs:.6g} Hz ({timing.n_samples * timing.dt / 3600:.2f} h) "
+         f"from {timing.source}{jit}{gaps}" + (f"; topic {rec.topic}" if rec.topic else ""))
     for note in rec.notes:
-        print(f"# note: {note}")
+        _say(f"# note: {note}")
     still = data.get("static_check")
     if still is not None and not still["static"]:
-        print("# NOT STATIC: " + "; ".join(still["reasons"]) + " -- the fits assume a sensor at rest; "
-              "a POOR FIT below is expected for this reason")
-    screen = report.screen_tables(data)
-    print("# each coefficient: value [95 % interval]; '< x': not resolved by this record, x its upper 95 % bound; "
-          "'(+- s)': a standard error only; '-': not in the method's model")
-    for sensor, table in tables.items():
-        sd = data["sensors"][sensor]
-        print(f"\n## {sensor} (samples in {sd['units_in']}): {', '.join(f'{c} = {n}' for c, n in sd['terms'].items())}")
-        with pd.option_context("display.width", 250, "display.max_columns", 20, "display.max_colwidth", 120):
-            print(screen[sensor].to_string())
-    for sensor, per_axis in fits.items():
-        for axis, per_method in per_axis.items():
-            for name, f in per_method.items():
-                md = data["sensors"][sensor]["axes"][axis]["methods"][name]
-                extra = [f"failed: {md['failure']}"] if md["failure"] else []
-                if md["poor_fit"]:
-                    extra.append("POOR FIT: the model misses the AV curve beyond its intervals" +
-                                 (" (the record does not look static: see NOT STATIC above)"
-                                  if still is not None and not still["static"] else ""))
-                extra += md["warnings"][:2]
-                print(f"# {sensor} {axis} {name}: {f.seconds:.1f} s" + (f"; {'; '.join(extra)}" if extra else ""))
+        _say("# NOT STATIC: " + "; ".join(still["reasons"]) + " -- the fits assume a sensor at rest; "
+             "a POOR FIT below is expected for this reason")
+    print(report.screen(data))
+    times = [(f.seconds, f"{sensor} {axis} {name}") for sensor, per_axis in fits.items()
+             for axis, per_method in per_axis.items() for name, f in per_method.items()]
+    if times:
+        slowest = max(times)
+        _say(f"# fits: {sum(t for t, _ in times):.1f} s in all; the slowest {slowest[1]} {slowest[0]:.1f} s")
     if "combine" in data:
         for sensor, per_axis in data["combine"].items():
             for axis, a in per_axis.items():
                 verdict = "agree" if a["agree"] else ("DISAGREE" if a["agree"] is not None else "not testable")
                 p = f"p = {a['p_value']:.3g}" if a["p_value"] is not None else a["note"]
-                print(f"# recordings {verdict} on {sensor} {axis} ({p})")
+                _say(f"# recordings {verdict} on {sensor} {axis} ({p})")
     if "between_runs" in data:
         _print_between_runs(data)
 
@@ -421,7 +392,8 @@ def _print_between_runs(data):
     from avbench.noise_models.units import DISPLAY_UNITS, from_si
 
     br = data["between_runs"]
-    print(f"\n## between-run spread ({br['method']} on each recording alone; random effects, DerSimonian & Laird 1986)")
+    print()
+    _say(f"## between-run spread ({br['method']} on each recording alone; random effects, DerSimonian & Laird 1986)")
     for sensor, per_axis in br["sensors"].items():
         for axis, per_coef in per_axis.items():
             for c, r in per_coef.items():
@@ -436,7 +408,7 @@ def _print_between_runs(data):
                 pred = (f"; a new run: {d(r['prediction'][0]):.4g} to {d(r['prediction'][1]):.4g}"
                         if r["prediction"] is not None else "")
                 cv = f" (CV {100 * r['cv']:.3g} %)" if r["cv"] is not None else ""
-                print(f"# {sensor} {axis} {c}: mean {d(r['mean']):.4g} +- {d(r['mean_se']):.2g} {unit} over {r['k']} runs; "
-                      f"between-run SD {d(r['tau']):.3g}{cv}, 95 % interval {d(lo):.3g} to {d(hi):.3g}{pred}")
+                _say(f"# {sensor} {axis} {c}: mean {d(r['mean']):.4g} +- {d(r['mean_se']):.2g} {unit} over {r['k']} runs; "
+                     f"between-run SD {d(r['tau']):.3g}{cv}, 95 % interval {d(lo):.3g} to {d(hi):.3g}{pred}")
     if "inflate" in br:
-        print("# --inflate auto: " + ", ".join(f"{k} x {v:.3g}" for k, v in br["inflate"].items()))
+        _say("# --inflate auto: " + ", ".join(f"{k} x {v:.3g}" for k, v in br["inflate"].items()))

@@ -1,6 +1,6 @@
 """Reading recordings given on the command line: every problem a ``ValueError`` naming the file.
 
-Small shared helpers for loaders such as ``avbench estimate`` (``studies/estimate.py``), for the
+Small shared helpers for the readers of ``avbench estimate`` (:mod:`avbench.recordings.readers`), for the
 cases where NumPy's own errors do not name the file or are misleading:
 
 * :func:`check_file` -- missing path (or a broken link), a folder, a FIFO/socket/device, an

@@ -144,13 +144,13 @@ def fitted_avar(fit: MethodFit, tau, scaled: bool = False) -> np.ndarray:
     (times ``fit.scale`` squared)."""
     if fit.error is not None:
         return np.full(np.shape(tau), np.nan)
-    return fit.result.model_avar(tau) * (fit.scale**2 if scaled else 1.0)
+    return fit.result.fitted_model_avar(tau) if scaled else fit.result.model_avar(tau)
 
 
 #: the interval level of every result of a recording (the screen's, the files' and the yaml's)
 LEVEL = 0.95
 #: a warning's message is kept up to this many characters, cut at a word
-_WARNING_CHARS = 240
+_WARNING_CHARS = 1000
 
 
 def _first_line(message: str) -> str:

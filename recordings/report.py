@@ -34,7 +34,7 @@ from avbench.estimators.results import REASONS
 from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, TERM_NAMES, from_si, si_units
 
 __all__ = ["coefficient_flags", "poor_fit", "payload", "method_entry", "tables", "screen", "screen_tables",
-           "shown_value", "shown_interval", "term_evidence", "model_choice_notes", "SCHEMA", "SCREEN_WIDTH"]
+           "shown_value", "shown_interval", "wrap", "term_evidence", "model_choice_notes", "SCHEMA", "SCREEN_WIDTH"]
 
 SCHEMA = "avbench-estimate/2"
 #: the width of every line :func:`screen` prints
@@ -233,12 +233,8 @@ def _notes(md: dict, sensor: str) -> list[str]:
         notes.append(f"failed: {md['failure']}")
     if md["poor_fit"]:
         notes.append("POOR FIT: the model misses the AV curve beyond its intervals")
-    for c in COEFFICIENTS:
-        e = md["coefficients"][c]
-        ev = e.get("evidence")
-        if e["flag"] == "not resolved":
-            notes.append(f"{c}: {ev['reading']}" if ev is not None and not ev["present"] else f"{c}: {e['reason']}")
-        elif e["flag"] == "non-physical":
+    for c in COEFFICIENTS:  # a bound is in its cell ("< x"); what a cell cannot say is here
+        if md["coefficients"][c]["flag"] == "non-physical":
             notes.append(f"{c}: non-physical (the fit's value has no physical meaning)")
     notes.extend(model_choice_notes(md, sensor))
     if md["fitted_on"] != "whole record":
@@ -272,7 +268,9 @@ def tables(data: dict) -> dict[str, pd.DataFrame]:
 def screen_tables(data: dict) -> dict[str, tuple[pd.DataFrame, list[str]]]:
     """Per sensor, the table :func:`screen` prints -- rows (axis, method), a column per coefficient some
     method models (:func:`shown_value`, the unit in the column name) and ``notes``, the numbers of the
-    footnotes of that row -- and the footnotes in order."""
+    footnotes of that row -- and the footnotes in order (each text once, whichever rows it applies to):
+    a failure, a poor fit, a non-physical value, the model choices, a fit on the longest gap-free run
+    only, and the warnings. Bounds are in their cells ("< x")."""
     out = {}
     for sensor, sd in data["sensors"].items():
         modelled = [c for c in COEFFICIENTS if any(md["coefficients"][c]["flag"] != "not modelled"
@@ -285,10 +283,10 @@ def screen_tables(data: dict) -> dict[str, tuple[pd.DataFrame, list[str]]]:
                     e = md["coefficients"][c]
                     row[f"{c} ({e['unit']})"] = shown_value(e, c, sensor)
                 marks = []
-                for note in _notes(md, sensor):
-                    text = f"{axis} {method}: {note}"
-                    footnotes.append(text)
-                    marks.append(str(len(footnotes)))
+                for note in _notes(md, sensor):  # a note shared by several rows is printed once
+                    if note not in footnotes:
+                        footnotes.append(note)
+                    marks.append(str(footnotes.index(note) + 1))
                 row["notes"] = ",".join(marks)
                 rows.append(row)
                 index.append((axis, method))
@@ -297,7 +295,7 @@ def screen_tables(data: dict) -> dict[str, tuple[pd.DataFrame, list[str]]]:
     return out
 
 
-def _wrap(text: str, indent: str = "") -> list[str]:
+def wrap(text: str, indent: str = "") -> list[str]:
     """``text`` wrapped to :data:`SCREEN_WIDTH` at spaces (a word longer than a line is not cut)."""
     return textwrap.wrap(text, SCREEN_WIDTH, subsequent_indent=indent, break_long_words=False,
                          break_on_hyphens=False) or [""]
@@ -307,15 +305,15 @@ def screen(data: dict) -> str:
     """The coefficient tables of ``avbench estimate`` as printed: per sensor a header, the table
     (:func:`screen_tables`, columns wrapped into blocks so that no line exceeds :data:`SCREEN_WIDTH`)
     and its numbered footnotes, wrapped at words."""
-    lines = _wrap("# each coefficient: value [95 % interval]; '< x': not resolved by this record, x its upper "
+    lines = wrap("# each coefficient: value [95 % interval]; '< x': not resolved by this record, x its upper "
                   "95 % bound; '(+- s)': a standard error only; '-': not in the method's model; notes: the "
                   "footnotes below each table", "# ")
     for sensor, (table, footnotes) in screen_tables(data).items():
         sd = data["sensors"][sensor]
         lines.append("")
-        lines += _wrap(f"## {sensor} (samples in {sd['units_in']}): "
+        lines += wrap(f"## {sensor} (samples in {sd['units_in']}): "
                        + ", ".join(f"{c} = {n}" for c, n in sd["terms"].items()), "#  ")
         lines += table.to_string(line_width=SCREEN_WIDTH).splitlines()
         for k, note in enumerate(footnotes, 1):
-            lines += _wrap(f"[{k}] {note}", " " * (len(str(k)) + 3))
+            lines += wrap(f"[{k}] {note}", " " * (len(str(k)) + 3))
     return "\n".join(lines)

@@ -1,6 +1,6 @@
 """Bad data files given to ``avbench estimate``: a clear message ("avbench: error: FILE: ..." on
 stderr), a non-zero exit, and nothing written for rejected input. Also the shared helpers of
-``studies/data_files.py`` for the cases where NumPy's own errors do not name the file."""
+:mod:`avbench.recordings.files` for the cases where NumPy's own errors do not name the file."""
 
 from __future__ import annotations
 
@@ -105,7 +105,7 @@ def test_good_file_still_works(tmp_path, capsys):
     assert (out / "r_coefficients.json").is_file()
 
 
-# -- gaps found in studies/estimate.py; fixed by studies/data_files.py once estimate.py uses it --
+# -- inputs whose raw errors (NumPy's, a NaN) would not name the file or the fault: each message does --
 
 GAPS = [
     ("corrupt npz", "r.npz", _bytes(os.urandom(300)), "r.npz: not a readable .npz archive"),

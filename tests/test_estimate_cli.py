@@ -177,7 +177,7 @@ def test_combine_pools_recordings_and_tests_agreement(tmp_path, capsys):
 
 def test_no_coefficient_is_a_bare_zero(tmp_path, record, capsys):
     """Every term reported 0 (or not resolved) carries its upper bound and, where the method gives
-    it, its evidence, on screen and in JSON (issue 23)."""
+    it, its evidence, on screen and in JSON."""
     f = tmp_path / "r.npy"
     np.save(f, record[:30_000])
     assert main(["estimate", str(f), "--fs", "100", "--units", "rad/s", "--method", "whittle_debiased,whittle",
@@ -189,15 +189,19 @@ def test_no_coefficient_is_a_bare_zero(tmp_path, record, capsys):
         assert e["upper"] is not None and 0 <= e["p_value"] <= 1
         if not e["present"]:
             assert "upper 95 % bound" in e["reading"]
-    from avbench.recordings.report import tables
+    from avbench.recordings.report import screen_tables
 
-    table = tables(payload)["gyro"]
+    table, _ = screen_tables(payload)["gyro"]
     for method in ("whittle_debiased", "whittle"):
         row = table.xs(method, level="method").iloc[0]
         for c in "QNBKR":
-            value = row[f"{c} ({_coef(payload, method, c)['unit']})"]
-            if value == 0:
-                assert f"{c}: " in row["flags"] and "upper 95 % bound" in row["flags"].split(f"{c}: ", 1)[1]
+            e = _coef(payload, method, c)
+            assert e["value"] != 0.0  # a zero is "not resolved", with its bound
+            absent = e.get("evidence") is not None and not e["evidence"]["present"]
+            if e.get("fitted_si") == 0.0 or absent:
+                assert e["flag"] == "not resolved" and e["interval_si"][0] == 0.0 < e["interval_si"][1]
+                assert row[f"{c} ({e['unit']})"].startswith("< ")
+
 
 
 def test_model_choice_is_reported(tmp_path, capsys):

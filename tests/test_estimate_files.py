@@ -1,5 +1,5 @@
 """``avbench estimate`` through a real subprocess: ROS 1 / ROS 2 bags with a gap to a Kalibr yaml, and
-the input/output edges (issue 11): each ends with exit code 2, a one-line error naming the file or
+the input/output edges: each ends with exit code 2, a one-line error naming the file or
 option and what was expected, and nothing written -- or, where the input is valid, a right answer."""
 
 from __future__ import annotations
@@ -112,7 +112,7 @@ def test_fast_bag_decoding_equals_rosbags_deserializer(tmp_path, kind, frame_id)
     pytest.importorskip("rosbags")
     from rosbags.highlevel import AnyReader
 
-    from avbench.recordings.readers import _decode_imu, _deserialize_imu
+    from avbench.recordings.bags import _decode_imu, _deserialize_imu
 
     gyro, acc = _imu(50, 7)
     bag = tmp_path / ("b" if kind == "ros2" else "b.bag")

@@ -246,3 +246,32 @@ def test_real_record_surfaces_agree():
         want = _expected_yaml(sub, sensor, c)
         if want is not None:
             assert _close(ch[key][0], want)
+
+
+def test_estimate_on_a_six_axis_record_prints_within_100_columns(tmp_path, capsys):
+    """``avbench estimate`` with its default methods on a 6-axis record: every printed line, the
+    tables and their footnotes included, fits a 100-column terminal; the JSON it writes beside them
+    says the same statuses as the table."""
+    import json
+
+    from avbench.cli import main
+
+    rng = np.random.default_rng(11)
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=2e-3), BiasInstability(B=5e-5, tau_max=600.0), RateRandomWalk(K=2e-5)])
+    gyro = np.column_stack([g.simulate(36_000, rng) for _ in range(3)]) * 180 / math.pi  # deg/s
+    accel = np.column_stack([0.02 * g.simulate(36_000, rng) for _ in range(3)]) + [0.0, 0.0, 9.80665]
+    np.savez(tmp_path / "imu.npz", gyro=gyro, accel=accel)
+    assert main(["estimate", str(tmp_path / "imu.npz"), "--fs", "100", "--units", "deg/s", "--accel-units", "m/s^2",
+                 "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "## gyro" in out and "## accel" in out and "[1]" in out
+    width = max(len(line) for line in out.splitlines())
+    assert width <= 100, f"{width} columns:\n{out}"
+    data = json.loads((tmp_path / "o" / "imu_coefficients.json").read_text())
+    for sensor, sd in data["sensors"].items():
+        assert len(sd["axes"]) == 3
+        for axis, ad in sd["axes"].items():
+            for method, md in ad["methods"].items():
+                for c, e in md["coefficients"].items():
+                    if e["flag"] == "not resolved" and e.get("interval_si"):
+                        assert e["value"] is None

@@ -1,4 +1,4 @@
-"""The ``avbench estimate`` pipeline step by step (``studies/recordings/``): gap-aware Allan variance,
+"""The ``avbench estimate`` pipeline step by step (:mod:`avbench.recordings`): gap-aware Allan variance,
 time stamps, readers, units, the Kalibr yaml, pooled recordings."""
 
 from __future__ import annotations
@@ -159,6 +159,86 @@ def test_npz_columns_must_match(tmp_path):
     np.savez(f, data=np.zeros((40, 2)), columns=np.array("ab"))
     with pytest.raises(ValueError, match="'columns' is a 0-d array"):
         read_recording(f)
+
+
+def test_readers_keep_their_public_names():
+    """avbench.recordings.readers is the one entry point; the readers live by kind of file."""
+    from avbench.recordings import readers
+
+    for name in ("Channel", "Recording", "read_recording", "header_unit", "time_in_seconds", "TEXT_SUFFIXES",
+                 "KNOWN_SUFFIXES"):
+        assert hasattr(readers, name) and name in readers.__all__
+    assert readers.Recording.__module__ == "avbench.recordings.channels"
+
+
+# -- loading: read, time, SI in one call ---------------------------------------------------------------
+
+
+def _csv(path, n=2000, seed=9):
+    x = np.random.default_rng(seed).standard_normal((n, 2))
+    np.savetxt(path, np.column_stack([np.arange(n) * 0.01, x]), delimiter=",",
+               header="t [s],gx [deg/s],ax [g]", comments="")
+    return x
+
+
+def test_load_recording_gives_si_sensors_timing_and_notes(tmp_path):
+    from avbench.recordings import load_recording
+
+    x = _csv(tmp_path / "r.csv")
+    loaded = load_recording(tmp_path / "r.csv")
+    rec, timing, sensors = loaded  # a tuple too
+    assert rec is loaded.recording and timing is loaded.timing and loaded.notes is rec.notes
+    assert loaded.path == tmp_path / "r.csv"
+    assert timing.fs == pytest.approx(100.0) and timing.n_gaps == 0
+    assert [(s.sensor, s.unit_in, list(s.axes)) for s in sensors] == [("gyro", "deg/s", ["x"]), ("accel", "g", ["x"])]
+    np.testing.assert_allclose(sensors[0].axes["x"], np.deg2rad(x[:, 0]), rtol=1e-12)
+    np.testing.assert_allclose(sensors[1].axes["x"], x[:, 1] * 9.80665, rtol=1e-12)
+    only = load_recording(tmp_path / "r.csv", column="gx", time="none", fs=50)
+    assert [s.sensor for s in only.sensors] == ["gyro"] and only.timing.fs == 50.0
+    with pytest.raises(ValueError, match="either --column or --gyro"):
+        load_recording(tmp_path / "r.csv", column="gx", gyro="gx")
+    with pytest.raises(ValueError, match="--fs: expected a positive"):
+        load_recording(tmp_path / "r.csv", fs=-1)
+    with pytest.raises(TypeError):
+        load_recording(tmp_path / "r.csv", colum="gx")  # a misspelt option is no option
+
+
+def test_pool_recordings_makes_file_boundaries_gaps(tmp_path):
+    from avbench.recordings.load import load_recording, pool_recordings
+
+    _csv(tmp_path / "a.csv", 1000, 1)
+    _csv(tmp_path / "b.csv", 1500, 2)
+    loaded = [load_recording(tmp_path / f) for f in ("a.csv", "b.csv")]
+    timing, sensors = pool_recordings(loaded)
+    assert timing.n_samples == 2500 and list(timing.starts) == [1000] and np.isnan(timing.gap_seconds[0])
+    assert sensors[0].axes["x"].size == 2500
+    np.testing.assert_array_equal(sensors[0].axes["x"][1000:], loaded[1].sensors[0].axes["x"])
+
+
+def test_estimate_file_docstring_example_runs():
+    import doctest
+    import time
+
+    from avbench.recordings import estimate
+
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
+    (test,) = doctest.DocTestFinder().find(estimate.estimate_file, "estimate_file", globs={})
+    t0 = time.perf_counter()
+    result = runner.run(test)
+    assert result.failed == 0 and result.attempted > 5
+    assert time.perf_counter() - t0 < 10  # about a second; a generous bound on a busy machine
+
+
+def test_estimate_file_refuses_unknown_methods_and_settings(tmp_path):
+    from avbench.recordings import estimate_file
+
+    _csv(tmp_path / "r.csv")
+    with pytest.raises(ValueError, match="--method"):
+        estimate_file(tmp_path / "r.csv", methods=["no_such_method"])
+    with pytest.raises(ValueError, match="'gmwm' is not among the methods"):
+        estimate_file(tmp_path / "r.csv", methods="wls", settings={"gmwm": {}})
+    fits = estimate_file(tmp_path / "r.csv", methods="wls", column="gx")
+    assert list(fits) == ["gyro"] and list(fits["gyro"]["x"]) == ["wls"]
 
 
 # -- units and the filter yaml -------------------------------------------------------------------------

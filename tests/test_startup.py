@@ -37,7 +37,8 @@ def test_import_loads_no_heavy_library_and_no_estimator_module():
     mods = _fresh_modules("from avbench import estimators, noise_models")
     assert not _heavy(mods)
     loaded = {m for m in mods if m.startswith("avbench.estimators.")}
-    assert loaded <= {"avbench.estimators.base", "avbench.estimators.validation", "avbench.estimators.uncertainty"}, loaded
+    assert loaded <= {"avbench.estimators.base", "avbench.estimators.validation", "avbench.estimators.uncertainty",
+                      "avbench.estimators.results"}, loaded
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["simulate", "--help"], ["studies", "--help"],
