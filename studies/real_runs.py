@@ -307,12 +307,12 @@ def within_run(data: Path, window_min=WITHIN_RUN["window_min"], batch_min=WITHIN
 def spectral_lines(data: Path, band=(0.3, 3.0)) -> pd.DataFrame:
     """The strongest spectral line of every axis in ``band`` (Hz): the accelerometers' AV bump.
 
-    :func:`avbench.estimators.likelihood.lines.strongest_line` (the line test GMWM's ``lines="auto"``
+    :func:`avbench.estimators.selection.lines.strongest_line` (the line test GMWM's ``lines="auto"``
     uses): Hann periodogram of the whole record, the peak over the median of the neighbouring
     frequencies (``prominence``), the line's amplitude A = sqrt(2 variance) from the periodogram's
     excess there, and the test's ``p_value`` (the evidence that the peak is a line, not broadband noise).
     """
-    from avbench.estimators.likelihood.lines import strongest_line
+    from avbench.estimators.selection.lines import strongest_line
     from avbench.noise_models.units import DISPLAY_UNITS, from_si
 
     rows = []

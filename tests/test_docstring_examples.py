@@ -34,7 +34,6 @@ FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 _OLD_NOISE_MODELS = "pre-0.2 name in an example: 'from noise_models import' -> 'from avbench.noise_models import'"
 _OLD_ESTIMATORS = "pre-0.2 name in an example: 'import estimators' -> 'from avbench import estimators'"
 KNOWN_FAILING = {
-    "avbench.estimators.likelihood.gmwm": _OLD_NOISE_MODELS,
 }
 
 

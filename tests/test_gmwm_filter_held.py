@@ -23,7 +23,7 @@ def _fit(x, **settings):
 
 @pytest.mark.parametrize("bad", [0.0, -0.01, math.inf, math.nan, "5 ms", True])
 def test_bad_filter_tf_is_named(bad):
-    with pytest.raises(ValueError, match="filter_tf: expected None or the sensor filter's time constant"):
+    with pytest.raises(ValueError, match=r"'gmwm': filter_tf=.*: expected None or a finite number > 0"):
         estimators.get("gmwm", model="FW+RW", filter_tf=bad).check_settings()
 
 

@@ -1,5 +1,5 @@
 """Spectral lines in GMWM's default model (issue 24): the test for a hidden periodicity
-(avbench.estimators.likelihood.lines), GMWM's lines="auto" (a sinusoid SN added on that evidence) and
+(avbench.estimators.selection.lines), GMWM's lines="auto" (a sinusoid SN added on that evidence) and
 min_m="adequate".
 
 The line test must hold its level on broadband records (colored noise: its p-values are conservative,
@@ -14,7 +14,7 @@ import pytest
 from scipy.stats import binom
 
 from avbench import estimators
-from avbench.estimators.likelihood.lines import strongest_line
+from avbench.estimators.selection.lines import strongest_line
 from avbench.noise_models import (AngleRandomWalk, FilteredWhiteNoise, GaussMarkov, Gyro, RateRandomWalk,
                                   Sinusoidal)
 
@@ -63,11 +63,11 @@ def test_gmwm_filtered_adds_a_sinusoid_on_evidence_only():
 
 
 def test_sinusoid_frequency_on_its_bound_is_reported(monkeypatch):
-    # a window of 1e-9 around the line (at least 0.1 % wide, _bounds): any fitted f0 lies on its edge
-    import avbench.estimators.likelihood.gmwm as gmwm_module
+    # a window of 1e-9 around the line (at least 0.1 % wide, Sinusoidal.fit_shape_bounds): any fitted f0 lies on its edge
+    import avbench.estimators.selection.lines as lines_module
 
     x = Gyro(dt=DT, terms=list(_broadband().terms) + [Sinusoidal(3e-3, 3.3)]).simulate(100_000, np.random.default_rng(8))
-    monkeypatch.setattr(gmwm_module, "LINE_FREQUENCY_FACTOR", 1.0 + 1e-9)
+    monkeypatch.setattr(lines_module, "LINE_FREQUENCY_FACTOR", 1.0 + 1e-9)
     lt = estimators.get("gmwm_filtered").fit(x, DT).diagnostics_["line_test"]
     assert lt["f0_at_bound"] is True
 

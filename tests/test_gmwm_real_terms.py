@@ -79,6 +79,7 @@ def test_gm_at_the_first_octaves_does_not_resolve_b():
     import warnings
 
     from avbench.estimators.base import IdentifiabilityWarning
+    from avbench.estimators.results import build
     from avbench.recordings.fit import MethodFit
     from avbench.recordings.report import coefficient_flags
 
@@ -98,7 +99,7 @@ def test_gm_at_the_first_octaves_does_not_resolve_b():
         unresolved = e.diagnostics_.get("unresolved", {})
         assert ("B" in unresolved) is expect
         assert any(issubclass(w.category, IdentifiabilityWarning) for w in caught) is expect
-        flags = coefficient_flags(MethodFit("gmwm", e, 1.0, 0.0))
+        flags = coefficient_flags(MethodFit("gmwm", build(e), 1.0, 0.0))
         assert flags["B"] == ("not resolved" if expect else "ok")
         if expect:
             assert flags["K"] == "not resolved"
@@ -116,6 +117,7 @@ def test_a_term_at_zero_is_reported_with_its_interval():
     not resolved with [0, upper], upper the largest K whose AV stays under the record's AV limits."""
     import warnings
 
+    from avbench.estimators.results import build
     from avbench.recordings.fit import MethodFit
     from avbench.recordings.report import coefficient_flags
 
@@ -128,7 +130,7 @@ def test_a_term_at_zero_is_reported_with_its_interval():
     lo, hi = e.diagnostics_["unresolved"]["K"]
     av = e.diagnostics_["avar"]
     assert lo == 0 and 0 < hi < math.sqrt(3 * av.max() / e.diagnostics_["tau"].min())
-    assert coefficient_flags(MethodFit("gmwm_filtered", e, 1.0, 0.0))["K"] == "not resolved"
+    assert coefficient_flags(MethodFit("gmwm_filtered", build(e), 1.0, 0.0))["K"] == "not resolved"
 
 
 # -- a resonance (band-pass Gauss-Markov, RS): the ADIS16405 gyro z's 17-21 Hz band ---------------------

@@ -18,7 +18,7 @@ from avbench.noise_models import (AngleRandomWalk, BiasInstability, FilteredWhit
 def _filtered_gyro(line=True):
     terms = [FilteredWhiteNoise(N=7e-4, tc=0.005), BiasInstability(B=1.8e-4), RateRandomWalk(K=1.2e-5)]
     if line:
-        # 2 Hz: on 30 minutes the line test searches from 1.4 Hz (avbench.estimators.likelihood.lines)
+        # 2 Hz: on 30 minutes the line test searches from 1.4 Hz (avbench.estimators.selection.lines)
         terms.append(Sinusoidal(amplitude=2e-3, frequency=2.0))
     return Gyro(dt=0.01, terms=terms)
 

@@ -43,3 +43,27 @@ def test_nothing_points_outside_the_project():
                 if rel != "tests/test_readme.py":
                     offenders.append(f"{rel}: {m.group(0)}")
     assert not offenders, offenders
+
+
+def test_readme_python_blocks_run(tmp_path, monkeypatch):
+    """The README's Python examples run in order in one namespace, in a folder holding the ``imu.csv``
+    its recording example reads (20 minutes at 100 Hz: gyro in deg/s, accelerometer in g, no units
+    in the header, as the example's options say)."""
+    import numpy as np
+
+    from avbench.noise_models import AngleRandomWalk, Gyro, RateRandomWalk
+
+    rng = np.random.default_rng(3)
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5)])
+    n = 120_000
+    cols = [np.arange(n) * 0.01] + [g.simulate(n, rng) * 180 / np.pi for _ in range(3)] + \
+        [0.002 * g.simulate(n, rng) + off for off in (0.0, 0.0, 1.0)]
+    np.savetxt(tmp_path / "imu.csv", np.column_stack(cols), delimiter=",", fmt="%.9g",
+               header="t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z", comments="")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    code = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    assert len(code) >= 3
+    namespace: dict = {"__name__": "__readme__"}
+    for i, block in enumerate(code):
+        exec(compile(block, f"README.md python block {i}", "exec"), namespace)

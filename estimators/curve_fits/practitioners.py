@@ -473,8 +473,8 @@ class NNLSRel(_AVBaseline):
     parameters profiled (:func:`profile_shapes`), each entering only on evidence:
 
     * the line: when the record's strongest spectral line passes the line test
-      (:func:`avbench.estimators.likelihood.lines.line_evidence`, level 0.001: GMWM's rule), its frequency
-      then profiled within :data:`~avbench.estimators.likelihood.lines.LINE_FREQUENCY_FACTOR` of the line's;
+      (:func:`avbench.estimators.selection.lines.line_evidence`, level 0.001: GMWM's rule), its frequency
+      then profiled within :data:`~avbench.estimators.selection.lines.LINE_FREQUENCY_FACTOR` of the line's;
     * the filter: when the model without it fails the poor-fit check (p < 0.01). The filtered model nests
       the five-term one (tf at its lower bound dt / 100 is white noise), so its criterion is never worse;
       the check is calibrated at 1 % for a model that holds, so a record without a filter gets one in
@@ -547,7 +547,7 @@ class NNLSRel(_AVBaseline):
 
     def _fit_shaped(self, rate, dt, terms, tau, avar):
         """The fit with the filter and line terms chosen on evidence (class docstring)."""
-        from avbench.estimators.likelihood.lines import LINE_FREQUENCY_FACTOR, line_evidence
+        from avbench.estimators.selection.lines import LINE_FREQUENCY_FACTOR, line_evidence
 
         f0_range, line = None, None
         if self.lines == "auto":

@@ -5,7 +5,16 @@
 * :mod:`~avbench.estimators.selection.profile` -- boundary-aware profile-likelihood intervals and the
   choice of the domain an interval is read in;
 * :mod:`~avbench.estimators.selection.elimination` -- backward elimination of terms by a penalised
-  likelihood, and model weights by an information criterion.
+  likelihood, and model weights by an information criterion;
+* :mod:`~avbench.estimators.selection.scales` -- the shortest AV scale a model fits (GMWM's ``min_m``);
+* :mod:`~avbench.estimators.selection.lines` -- the test for a spectral line (a hidden periodicity)
+  and the choice to model it;
+* :mod:`~avbench.estimators.selection.resonance` -- a band that stands out of the spectrum, and the
+  choice to model it as a resonance;
+* :mod:`~avbench.estimators.selection.bias_model` -- Gauss-Markov or flicker bias instability, by
+  the models' AIC weights;
+* :mod:`~avbench.estimators.selection.bounds` -- the upper bounds the record's AV allows a term it
+  does not resolve.
 
 The modules import the contract's leaves and numpy/scipy only, never an estimator family.
 """

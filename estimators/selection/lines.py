@@ -1,4 +1,6 @@
-r"""The strongest spectral line of a record and the evidence for it: a test for a hidden periodicity.
+r"""The strongest spectral line of a record and the evidence for it (a test for a hidden periodicity), and the
+choice a latent model makes on it: a sinusoid ``SN`` added where the line is significant (GMWM's
+``lines="auto"``, :func:`choose_line`), held near the line's frequency (:func:`sinusoid_hint`).
 
 A sinusoid of random phase (:class:`avbench.noise_models.Sinusoidal`, IEEE Std 952-1997 Annex C)
 adds a line to the spectrum; broadband noise does not. The test is Fisher's (1929) test for a
@@ -11,13 +13,11 @@ neighbours (:math:`\ln 2\, S(f)`, the exponential's median being ln 2) exceeds r
 .. math:: p = 1 - (1 - 2^{-r})^K ,
 
 taken here with K = every frequency searched (the Hann window correlates neighbouring ordinates, so
-the effective number is smaller and p is conservative). On the 2.8 h ADIS16405 records the largest
-ratio among the ~2.7e4 bins of 0.3-3 Hz of a broadband axis is 13-17 (log2 K = 14.7, as the test says);
-the accelerometers' line stands 550-2200 above its neighbours (results/real/lines.md).
+the effective number is smaller and p is conservative).
 
 Choices (not from a paper): periodogram of the whole record with a Hann window after removing the
-mean. A real line is not one bin wide (the ADIS16405's 0.47-0.57 Hz line wanders over ~0.01 Hz in
-2.8 h), so the background of bin k is taken beside it, not on it: the periodogram is cut into blocks
+mean. A real line is not one bin wide (a sensor's line wanders in frequency over a long record), so
+the background of bin k is taken beside it, not on it: the periodogram is cut into blocks
 of :data:`BLOCK` bins, and the background is the median of the bins of the blocks 2 to
 :data:`FAR_BLOCKS` away on each side (N = 2 (FAR_BLOCKS - 1) BLOCK bins). Its sampling error enters the
 p-value: the median of N' independent exponentials (N' = N / 2 for the Hann window's correlated
@@ -38,8 +38,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from avbench.noise_models.latents import parse_model
+from avbench.noise_models.term_base import FitHint
+
 __all__ = ["SpectralLine", "strongest_line", "line_evidence", "BLOCK", "FAR_BLOCKS", "LINE_TEST_LEVEL",
-           "LINE_FREQUENCY_FACTOR"]
+           "LINE_FREQUENCY_FACTOR", "LineChoice", "choose_line", "sinusoid_hint", "frequency_at_bound"]
 
 #: bins per block of the background (module docstring)
 BLOCK = 32
@@ -50,7 +53,9 @@ FAR_BLOCKS = 8
 LINE_TEST_LEVEL = 0.001
 
 #: a sinusoid started at a significant spectral line keeps its frequency within this factor of the line's
-#: (GMWM's bounds; nnls_rel's profile of the frequency)
+#: (GMWM's bounds, :func:`sinusoid_hint`; nnls_rel's profile of the frequency): the periodogram places the
+#: line to a few 1/T, the AV curve hardly at all, and a free frequency wanders off the line to shape
+#: another part of the curve
 LINE_FREQUENCY_FACTOR = 1.05
 
 
@@ -121,3 +126,56 @@ def line_evidence(x, dt, tau, level=LINE_TEST_LEVEL) -> dict | None:
     return {"f0": found.f0, "amplitude": found.amplitude, "prominence": found.prominence,
             "p_value": found.p_value, "n_searched": found.n_searched, "band": found.band,
             "significant": bool(found.p_value < level), "level": level}
+
+
+class LineChoice(NamedTuple):
+    """What :func:`choose_line` chose: ``latents`` (the model, with ``SN`` where it was added), ``line`` (the
+    line test's dict, :func:`line_evidence`, with ``included``: SN in the model; None where no frequency can
+    be searched; it is ``diagnostics_["line_test"]``) and ``reason`` (a sentence)."""
+
+    latents: tuple[str, ...]
+    line: dict | None
+    reason: str
+
+
+def choose_line(latents, x, dt, tau, auto: bool) -> LineChoice:
+    """The record's strongest spectral line in the band the taus ``tau`` see (:func:`line_evidence` at level
+    :data:`LINE_TEST_LEVEL`), and the model: with ``auto`` (GMWM's ``lines="auto"``) a significant line adds
+    a sinusoid ``SN`` to ``latents``; else the latents stay as given.
+
+    >>> import numpy as np
+    >>> t = np.arange(2**16) * 0.01
+    >>> x = np.random.default_rng(1).standard_normal(t.size) + 0.3 * np.sin(2 * np.pi * 7.7 * t)
+    >>> c = choose_line(("WN",), x, 0.01, 0.01 * 2.0 ** np.arange(10), auto=True)
+    >>> c.latents, round(c.line["f0"], 2), c.line["significant"]
+    (('WN', 'SN'), 7.7, True)
+    """
+    line = line_evidence(x, dt, tau, LINE_TEST_LEVEL)
+    if line is None:
+        return LineChoice(latents, None, "no frequency can be searched (record too short for the band)")
+    if line["significant"] and auto and "SN" not in latents:
+        latents = parse_model(latents + ("SN",))
+        reason = "a significant line: SN added"
+    elif line["significant"]:
+        reason = "a significant line" + ("; SN in the model" if "SN" in latents else "; lines='model': SN not added")
+    else:
+        reason = "no significant line"
+    line["included"] = "SN" in latents
+    return LineChoice(latents, line, reason)
+
+
+def sinusoid_hint(line) -> FitHint | None:
+    """Where a fitted sinusoid starts and stays (:meth:`avbench.noise_models.Sinusoidal.fit_starts`,
+    ``fit_shape_bounds``): at the line's amplitude and frequency, its frequency within
+    :data:`LINE_FREQUENCY_FACTOR` of the line's, for a significant ``line`` (:func:`line_evidence`); None
+    otherwise (the sinusoid is then started at the bumps of the AV curve)."""
+    if line is None or not line["significant"]:
+        return None
+    return FitHint(window=(line["f0"] / LINE_FREQUENCY_FACTOR, line["f0"] * LINE_FREQUENCY_FACTOR),
+                   starts=((line["amplitude"], line["f0"]),))
+
+
+def frequency_at_bound(f0, line) -> bool:
+    """Whether a fitted sinusoid's frequency ``f0`` lies on the edge of its window around the significant
+    ``line`` (:data:`LINE_FREQUENCY_FACTOR`): the bump's shape is then not one pure tone at the line."""
+    return bool(abs(math.log(f0 / line["f0"])) >= math.log(LINE_FREQUENCY_FACTOR) * (1 - 1e-6))

@@ -1,0 +1,137 @@
+"""Which scales a fit of the AV curve uses: the shortest cluster size (GMWM's ``min_m``).
+
+Real sensors low-pass filter their output (anti-aliasing, averaging), which bends the first octaves of
+the AV away from every latent model without a filter term: fitted on all octaves, a Gauss-Markov term
+then takes the filter's shape (Tc ~ dt) instead of the bias instability. The rules here choose the
+shortest cluster size ``m0`` a fit keeps (every longer usable one with it), from fits on the cut-offs
+tried in turn from the shortest up; each fit's Hansen J is chi^2 with (scales - parameters) degrees
+of freedom where the model holds.
+
+``"auto"``
+    Drop the shortest scale while the difference of the two J statistics, chi^2 with (number
+    dropped) degrees of freedom when the dropped values obey the model (the difference-in-Hansen / C
+    test of Eichenbaum, Hansen & Singleton 1988), rejects at level :data:`SCALE_TEST_LEVEL`; keep the
+    first scale that is not rejected. A model that misses the curve in the middle is not rescued this
+    way (dropping one shortest scale hardly changes its J): it stays on all scales.
+``"adequate"``
+    The shortest cut-off whose own fit Hansen's J test does not reject at :data:`SCALE_TEST_LEVEL`,
+    keeping at least the longer half of the usable scales (the model must explain the longer half of
+    the curve: without that bound a model that misses a Gauss-Markov bump "passes" on the last few
+    scales); if none is, the ``"auto"`` choice. It differs from ``"auto"`` only where the all-scale fit
+    is rejected, i.e. where the model misses the first octaves over more than one scale (dropping one
+    scale at a time changes J too little for the difference test).
+an integer
+    That cluster size, fixed.
+
+:func:`shorter_adequate` is the ``"adequate"`` rule below a given cut-off, with a further test of
+each fit (a resonance added to a model, :mod:`avbench.estimators.selection.resonance`).
+
+A fit is a dict with at least ``"J_stat"``; the rules add ``"k"``, the number of scales it used.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["SCALE_TEST_LEVEL", "ScaleChoice", "cutoffs", "adequate", "choose_scales", "shorter_adequate"]
+
+#: level of the difference-in-J test that drops a shortest scale (``"auto"``) and of Hansen's J test of one
+#: cut-off's fit (``"adequate"``)
+SCALE_TEST_LEVEL = 0.001
+
+
+class ScaleChoice(NamedTuple):
+    """What a scale rule chose: ``fit`` (the fit on the chosen scales, None where no cut-off was accepted),
+    ``tried`` (``(min_m, J, n_scales)`` for every cut-off fitted, in order: ``diagnostics_["scale_choice"]``)
+    and ``reason`` (a sentence)."""
+
+    fit: dict | None
+    tried: list
+    reason: str
+
+
+def cutoffs(rule, m, usable, n_free) -> list[int]:
+    """The cut-offs a rule tries: for ``"auto"`` and ``"adequate"`` every cluster size of ``m`` that leaves at
+    least ``n_free + 1`` usable scales (``usable``: a mask over ``m``), shortest first; for an integer, itself."""
+    if rule in ("auto", "adequate"):
+        return [int(v) for v in m if np.count_nonzero(usable & (m >= v)) >= n_free + 1]
+    return [int(rule)]
+
+
+def adequate(J, k, n_free) -> bool:
+    """Hansen's J test of a fit on ``k`` scales with ``n_free`` parameters does not reject at
+    :data:`SCALE_TEST_LEVEL` (chi^2 with max(k - n_free, 1) degrees of freedom)."""
+    from scipy.stats import chi2
+
+    return chi2.sf(J, max(k - n_free, 1)) >= SCALE_TEST_LEVEL
+
+
+def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free, rule) -> ScaleChoice:
+    """The scale rule ``rule`` (``"auto"``, ``"adequate"`` or an integer, module docstring) over the cut-offs
+    ``lows`` (:func:`cutoffs`); ``fit_on(keep)`` fits the scales of the mask ``keep`` (``usable & (m >= m0)``).
+
+    >>> J = {1: 400.0, 2: 9.0, 4: 8.5, 8: 8.2}  # the first octave bent: J falls 391 when it is dropped
+    >>> m, usable = np.array([1, 2, 4, 8, 16, 32, 64, 128, 256, 512]), np.ones(10, bool)
+    >>> fit_on = lambda keep: {"J_stat": J.get(int(m[keep][0]), 8.0)}
+    >>> c = choose_scales(fit_on, cutoffs("auto", m, usable, 3), m, usable, 3, "auto")
+    >>> [t[0] for t in c.tried], c.fit["k"]
+    ([1, 2, 4], 9)
+    """
+    from scipy.stats import chi2
+
+    best, tried, chosen, why = None, [], False, None
+    for m0 in lows:
+        keep = usable & (m >= m0)
+        fit = fit_on(keep)
+        k = int(np.count_nonzero(keep))
+        tried.append((m0, fit["J_stat"], k))
+        fit["k"] = k
+        if best is None:
+            k_all = k
+        if rule == "adequate" and 2 * k >= k_all and adequate(fit["J_stat"], k, n_free):
+            best = fit  # the shortest cut-off whose own J is not rejected
+            why = "the shortest cut-off whose own fit Hansen's J does not reject"
+            break
+        if chosen:
+            if 2 * k < k_all:
+                break  # "adequate" keeps at least the longer half of the scales
+            continue  # "adequate": the sequential choice is made; look on for an adequate cut-off
+        if best is not None and not best["J_stat"] - fit["J_stat"] > chi2.ppf(1 - SCALE_TEST_LEVEL, best["k"] - k):
+            why = "the difference-in-J test does not reject the shortest scale kept"
+            if rule != "adequate":
+                break  # the shorter scale agrees with the rest: keep it
+            chosen = True
+            continue
+        best = fit
+    if rule not in ("auto", "adequate"):
+        reason = f"fixed by the setting (min_m={rule!r})"
+    elif why is None:
+        reason = "the difference-in-J test rejected the shortest scale at every cut-off tried: the last one"
+    elif rule == "adequate" and not why.startswith("the shortest cut-off"):
+        reason = f"no cut-off is adequate by Hansen's J on the longer half of the scales; as 'auto': {why}"
+    else:
+        reason = why
+    return ScaleChoice(best, tried, reason)
+
+
+def shorter_adequate(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free, below, max_tau, dt,
+                     accept: Callable[[dict], bool] | None = None) -> ScaleChoice:
+    """The ``"adequate"`` rule among the cut-offs of ``lows`` shorter than ``below`` whose tau is at most
+    ``max_tau`` (s, sampling ``dt``): the shortest whose fit keeps at least the longer half of the usable
+    scales (counted from ``lows[0]``), is not rejected by Hansen's J at :data:`SCALE_TEST_LEVEL` and is
+    accepted by ``accept(fit)``; ``fit`` None where none is."""
+    k_all = int(np.count_nonzero(usable & (m >= lows[0]))) if lows else 0
+    lows = [v for v in lows if v < below and v * dt <= max_tau]
+    tried = []
+    for m0 in lows:
+        keep = usable & (m >= m0)
+        fit = fit_on(keep)
+        k = int(np.count_nonzero(keep))
+        fit["k"] = k
+        tried.append((m0, fit["J_stat"], k))
+        if 2 * k >= k_all and adequate(fit["J_stat"], k, n_free) and (accept is None or accept(fit)):
+            return ScaleChoice(fit, tried, f"the shortest adequate and accepted cut-off below {below} (min_m={m0})")
+    return ScaleChoice(None, tried, f"no cut-off below {below} is adequate and accepted")

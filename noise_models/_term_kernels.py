@@ -1,0 +1,116 @@
+"""The generators' sequential recursions, compiled with numba, and their plain-Python twins.
+
+Each kernel works in place on a chunk of standard normal draws and returns the state the next chunk
+starts from, so a record generated in chunks equals the record generated at once, bit for bit
+(:class:`avbench.noise_models.term_base.TermStream`). The ``*_py`` functions are the same arithmetic in
+plain Python: the kernels are compiled from them, and they are used where numba is not available.
+The Gauss-Markov AV with its derivative (:func:`_gm_shape_py`) is the analytic Jacobian column of
+:meth:`avbench.noise_models.GaussMarkov.avar_shape_derivative`.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__: list[str] = []
+
+
+def _diff_kernel_py(x, Q, prev, dt):
+    """x_k <- (Q x_k - theta_{k-1}) / dt in place (theta_{-1} = prev); returns theta_last."""
+    last = Q * x[x.shape[0] - 1]
+    for k in range(x.shape[0] - 1, 0, -1):
+        x[k] = (Q * x[k] - Q * x[k - 1]) / dt
+    x[0] = (Q * x[0] - prev) / dt
+    return last
+
+
+def _walk_kernel_py(x, step, acc):
+    """x_k <- acc_k = acc_{k-1} + step x_k in place; returns the last value."""
+    for k in range(x.shape[0]):
+        acc = acc + step * x[k]
+        x[k] = acc
+    return acc
+
+
+def _ar1_kernel_py(e, phi, z):
+    """e_k <- e_k + z, z <- phi e_k (in place); returns the carry phi x_last for the next chunk."""
+    for k in range(e.shape[0]):
+        x = e[k] + z
+        e[k] = x
+        z = phi * x
+    return z
+
+
+def _gm_shape_py(m, a, g, dg):
+    """g(m, a) = f(m) / (1 - phi)^2 (:func:`avbench.noise_models.markov_terms._gm_f_over_c2`, phi = exp(-a))
+    and its derivative dg/da,
+    per cluster size ``m`` (float array), written into ``g`` and ``dg``.
+
+    Element by element, the same two forms as :func:`_gm_f_over_c2`: where (2m+1) a < 1 the Taylor
+    series f = sum_{k>=3} (-a)^k / k! c_k, c_k = -m 2^k - 3 + 4 (m+1)^k - (2m+1)^k, and its term-by-term
+    derivative f' = sum_{k>=3} (-1)^k a^(k-1) / (k-1)! c_k (powers by recurrence); elsewhere
+    f = m (1 - phi^2) - phi (-4 expm1(-m a) + expm1(-2 m a)) and
+    f' = 2m phi^2 + 3 phi - 4(m+1) phi^(m+1) + (2m+1) phi^(2m+1)
+    = phi (2m expm1(-a) - 4(m+1) expm1(-m a) + (2m+1) expm1(-2 m a)) (no cancellation). Then
+    g' = f'/c^2 - 2 f phi / c^3 with c = 1 - phi. Each series stops where its next term is below
+    1e-18 of its sum (per element; ``_gm_f_over_c2`` stops for the whole array at once: the values
+    agree to round-off, tests)."""
+    c = -math.expm1(-a)
+    phi = math.exp(-a)
+    for i in range(m.shape[0]):
+        mi = m[i]
+        if (2.0 * mi + 1.0) * a < 1.0:
+            p2, pm, p2m = 8.0, (mi + 1.0) ** 3, (2.0 * mi + 1.0) ** 3
+            term = a * a * a / 6.0  # a^k / k!
+            dterm = a * a / 2.0  # a^(k-1) / (k-1)!
+            f = 0.0
+            df = 0.0
+            sign = -1.0
+            for k in range(3, 60):
+                ck = -mi * p2 - 3.0 + 4.0 * pm - p2m
+                f += sign * term * ck
+                df += sign * dterm * ck
+                dterm = term
+                term *= a / (k + 1)
+                p2 *= 2.0
+                pm *= mi + 1.0
+                p2m *= 2.0 * mi + 1.0
+                sign = -sign
+                if term * p2m < 1e-18 * abs(f) and dterm * p2m < 1e-18 * abs(df):
+                    break
+        else:
+            e1 = math.expm1(-mi * a)
+            e2 = math.expm1(-2.0 * mi * a)
+            f = mi * (-math.expm1(-2.0 * a)) - phi * (-4.0 * e1 + e2)
+            df = phi * (2.0 * mi * math.expm1(-a) - 4.0 * (mi + 1.0) * e1 + (2.0 * mi + 1.0) * e2)
+        g[i] = f / (c * c)
+        dg[i] = df / (c * c) - 2.0 * f * phi / (c * c * c)
+
+def _sogm_kernel_py(A, C, e, x, out):
+    """x_k = A x_{k-1} + C e_k (C lower-triangular), out_k = first state; x updated in place."""
+    a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    c00, c10, c11 = C[0, 0], C[1, 0], C[1, 1]
+    x0, x1 = x[0], x[1]
+    for k in range(e.shape[0]):
+        w0 = c00 * e[k, 0]
+        w1 = c10 * e[k, 0] + c11 * e[k, 1]
+        x0, x1 = a00 * x0 + a01 * x1 + w0, a10 * x0 + a11 * x1 + w1
+        out[k] = x0
+    x[0], x[1] = x0, x1
+
+
+try:  # compiled when numba is available (it is a dependency); same arithmetic either way
+    from numba import njit
+
+    _sogm_kernel = njit(cache=True)(_sogm_kernel_py)
+    _ar1_kernel = njit(cache=True)(_ar1_kernel_py)
+    _diff_kernel = njit(cache=True)(_diff_kernel_py)
+    _walk_kernel = njit(cache=True)(_walk_kernel_py)
+    _gm_shape_kernel = njit(cache=True)(_gm_shape_py)
+except ImportError:  # pragma: no cover
+    _gm_shape_kernel = _gm_shape_py
+    _diff_kernel = _diff_kernel_py
+    _walk_kernel = _walk_kernel_py
+    _sogm_kernel = _sogm_kernel_py
+    _ar1_kernel = _ar1_kernel_py
+

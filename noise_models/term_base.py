@@ -1,0 +1,254 @@
+"""The noise-term interface: what every term of a synthetic gyro answers, and the checks they share.
+
+Every term is sampled at interval ``dt`` (seconds) and produces rate samples in rad/s. Each term
+answers the same small questions:
+
+``coefficients()``
+    the IEEE coefficient(s) it stands for, in SI (e.g. ``{"N": 1e-4}``);
+``avar(m, dt)``
+    the exact Allan variance (rad^2/s^2) of the *discrete* generator at cluster sizes ``m``
+    (tau = m dt), for the non-overlapping and the overlapping estimator alike (both have that
+    expectation);
+``psd(f, dt)``
+    the one-sided power spectral density (rad^2/s^2/Hz) of the discrete sequence at frequencies
+    0 < f <= 1/(2 dt) (the pseudo-spectrum for the random walk; zero for the deterministic ramp);
+``stream(dt, rng)``
+    a :class:`TermStream` whose ``next(n)`` returns the next ``n`` samples. The samples do not depend
+    on how a record is cut into requests: ``next(a)`` then ``next(b)`` equals ``next(a + b)`` bit for
+    bit. Each term of a gyro draws from its own child generator, so terms do not interfere.
+
+A term a latent-model fit offers (GMWM's ``model="WN+GM+RW"``, :mod:`avbench.noise_models.latents`)
+also answers the fitting questions, as arch's volatility processes do (``parameter_names``,
+``starting_values``, ``bounds``): its code in a model (:attr:`NoiseTerm.latent`), the parameters a fit
+estimates in their order (:attr:`NoiseTerm.fit_parameters`: the amplitude, then the shape
+parameters), the term at fitted values (:meth:`NoiseTerm.from_fit`), the box of their logarithms
+(:meth:`NoiseTerm.fit_bounds`) and the starts read off an AV curve (:meth:`NoiseTerm.fit_starts`).
+The fitter loops over the terms of its model and keeps no table of them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+
+from avbench.noise_models.exact_variances import gcov_from_autocovariance
+
+__all__ = ["NoiseTerm", "TermStream", "FitHint", "PLATEAU"]
+
+#: the flicker plateau of the AV, (2 ln 2 / pi) B^2 (IEEE Std 952-1997, Annex C)
+PLATEAU = 2.0 * math.log(2.0) / math.pi
+
+
+def _check_dt(dt) -> float:
+    try:
+        dt = float(dt)
+    except (TypeError, ValueError):
+        raise ValueError(f"dt: expected a positive number of seconds, got {dt!r}") from None
+    if not math.isfinite(dt) or dt <= 0:
+        raise ValueError(f"dt: expected a positive, finite sample interval in seconds, got {dt!r}")
+    return dt
+
+
+def _positive(name: str, value, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a number, got {value!r}") from None
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        kind = "non-negative" if allow_zero else "positive"
+        raise ValueError(f"{name}: expected a finite, {kind} value, got {value!r}")
+    return v
+
+
+def _check_n(n) -> int:
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+        raise ValueError(f"n: expected a non-negative integer number of samples, got {n!r}")
+    return int(n)
+
+
+class TermStream:
+    """Chunk-invariant sample source of one term (see the module docstring)."""
+
+    def __init__(self, dt: float, rng: np.random.Generator):
+        self.dt = dt
+        self.rng = rng
+
+    def next(self, n: int) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+class NoiseTerm:
+    """Base class of the noise terms."""
+
+    #: the IEEE coefficient the term reports (None if it reports none)
+    coefficient: ClassVar[str | None] = None
+    #: False for a term without an exact Allan variance (a user's term may declare so): then
+    #: ``Gyro.avar`` is an error and study tables and figures say the truth curve is unavailable
+    has_exact_avar: ClassVar[bool] = True
+
+    def coefficients(self) -> dict[str, float]:
+        """The IEEE coefficient(s) the term stands for, in SI (none by default)."""
+        return {}
+
+    def avar(self, m, dt) -> np.ndarray:
+        raise NotImplementedError
+
+    def psd(self, f, dt) -> np.ndarray:
+        raise NotImplementedError
+
+    def psd_factor(self) -> tuple[float, "NoiseTerm"]:
+        """``(c, unit)`` with ``self.psd(f, dt) == c * unit.psd(f, dt)`` for every f and dt: the
+        spectrum's amplitude and a term of the same spectral shape (``c = 0``: no random part). Spectral
+        integrals that are quadratic in the spectrum (the AV covariance,
+        :mod:`avbench.estimators.allan.covariance`) are then computed once per shape and weighted.
+        Default ``(1.0, self)`` (always right; a term whose spectrum scales with a coefficient
+        overrides it so that fits with different coefficients share the integrals)."""
+        return 1.0, self
+
+    #: the parameter (a key of ``_params()``) that sets the shape of the term's AV curve beside its
+    #: amplitude (a correlation time, a frequency), or None: :meth:`avar_shape_derivative`
+    shape_parameter: ClassVar[str | None] = None
+
+    def avar_shape_derivative(self, m, dt) -> tuple[np.ndarray, np.ndarray]:
+        """``(avar, d avar / d ln p)`` at cluster sizes ``m`` for p the :attr:`shape_parameter`: the
+        Jacobian column a fit in log-parameters needs (GMWM, :mod:`avbench.estimators.likelihood.gmwm`).
+
+        Default: a central difference in ln p (relative step ``1e-4``: truncation ~1e-9 relative for
+        curves smooth in ln p) of :meth:`avar`, one-sided where a step leaves the values the term
+        accepts (a sinusoid at the Nyquist frequency; truncation ~1e-4 there); a term overrides it with
+        the analytic derivative (:class:`GaussMarkov`). A ValueError if the term has no shape parameter."""
+        name = self.shape_parameter
+        if name is None:
+            raise ValueError(f"{type(self).__name__}: no shape parameter (its AV is its amplitude squared "
+                             "times a fixed curve)")
+        params = self._params()
+        h = 1e-4
+        value = self.avar(m, dt)
+
+        def at(step):
+            try:
+                return type(self)(**{**params, name: params[name] * math.exp(step)}).avar(m, dt), step
+            except ValueError:  # outside the values the term accepts: the other side only
+                return value, 0.0
+
+        (up, a), (down, b) = at(h), at(-h)
+        return value, (up - down) / (a - b)
+
+    @classmethod
+    def shape_parameters(cls) -> tuple[str, ...]:
+        """Every parameter beside the amplitude that shapes the AV curve: ``(shape_parameter,)`` or ``()``
+        by default; a term with two (:class:`Resonance`: frequency and damping time) overrides it."""
+        return () if cls.shape_parameter is None else (cls.shape_parameter,)
+
+    def avar_shape_gradient(self, m, dt) -> tuple[np.ndarray, list[np.ndarray]]:
+        """``(avar, [d avar / d ln p for p in shape_parameters()])``: :meth:`avar_shape_derivative` for a
+        term with one shape parameter; central differences in ln p (as there) for more."""
+        names = self.shape_parameters()
+        if len(names) == 1:
+            value, d = self.avar_shape_derivative(m, dt)
+            return value, [d]
+        params, h = self._params(), 1e-4
+        value = self.avar(m, dt)
+        out = []
+        for name in names:
+            up = type(self)(**{**params, name: params[name] * math.exp(h)}).avar(m, dt)
+            down = type(self)(**{**params, name: params[name] * math.exp(-h)}).avar(m, dt)
+            out.append((up - down) / (2 * h))
+        return value, out
+
+    def spectral_lines(self, dt) -> list[tuple[float, float]]:
+        """Spectral lines [(frequency Hz, variance)] beside :meth:`psd` (none but for sinusoids)."""
+        return []
+
+    def stream(self, dt, rng: np.random.Generator) -> TermStream:
+        raise NotImplementedError
+
+    def phase_gcov(self, lags, dt) -> np.ndarray:
+        """Generalized covariance G(d) of the phase at integer lags (see ``noise_models.exact_variances``).
+
+        Default: from ``autocovariance(max_lag, dt)`` for a stationary term, G = -D/2.
+        """
+        lags = np.abs(np.asarray(lags, dtype=np.int64))
+        if not hasattr(self, "autocovariance"):
+            raise NotImplementedError(f"{type(self).__name__}: no phase_gcov and no autocovariance")
+        return gcov_from_autocovariance(self.autocovariance(int(lags.max()) if lags.size else 0, dt), lags, dt)
+
+    def simulate(self, n: int, dt, rng: np.random.Generator) -> np.ndarray:
+        """``n`` samples (rad/s) of this term alone."""
+        return self.stream(_check_dt(dt), rng).next(_check_n(n))
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self._params().items())
+        return f"{type(self).__name__}({args})"
+
+    def _params(self) -> dict:
+        return {}
+
+    def __eq__(self, other) -> bool:
+        return type(self) is type(other) and self._params() == other._params()
+
+    def __hash__(self):
+        return hash((type(self).__name__, tuple(self._params().items())))
+
+    # -- as a latent of a fitted model (:mod:`avbench.noise_models.latents`) ---------------------------------
+    #: the term's code in a latent model (``"WN"`` in ``"WN+GM+RW"``), or None where the fits do not offer it
+    latent: ClassVar[str | None] = None
+    #: the parameters a fit estimates, in their order in the parameter vector: the amplitude first (the AV
+    #: is its square times a curve set by the others), then the shape parameters; named as the fits report
+    #: them (``"GM.tc"``, ``"SN.f0"``)
+    fit_parameters: ClassVar[tuple[str, ...]] = ()
+    #: the reported :attr:`coefficient` per unit amplitude (B_equiv / sigma for a Gauss-Markov term)
+    coefficient_per_amplitude: ClassVar[float] = 1.0
+
+    @classmethod
+    def from_fit(cls, values, *, tau_max=None) -> "NoiseTerm":
+        """The term at the values of its :attr:`fit_parameters` (SI, in their order); ``tau_max``: the filter
+        memory of a flicker term (which the fit does not estimate)."""
+        raise NotImplementedError(f"{cls.__name__}: not a latent of the fits")
+
+    @classmethod
+    def fit_amplitude_top(cls, tau, avar) -> float:
+        """The amplitude at which the term alone reaches the AV curve ``avar`` (at ``tau``, s) where it rises
+        highest above the term's shape: the scale of the box of :meth:`fit_bounds`."""
+        raise NotImplementedError(f"{cls.__name__}: not a latent of the fits")
+
+    @classmethod
+    def fit_shape_bounds(cls, tau, dt, T, hint=None) -> tuple[list[float], list[float]]:
+        """``(lower, upper)``: the box of the logarithms of the shape parameters, for a fit at the taus
+        ``tau`` of a record of ``T`` seconds sampled every ``dt``; ``hint``: a :class:`FitHint` or None.
+        None by default (no shape parameter)."""
+        return [], []
+
+    @classmethod
+    def fit_bounds(cls, tau, avar, dt, T, hint=None) -> tuple[list[float], list[float]]:
+        """``(lower, upper)``: the box of the logarithms of the :attr:`fit_parameters` for a fit of the AV
+        curve ``avar`` at ``tau``: the amplitude from 1e-8 to 10 times :meth:`fit_amplitude_top`, the shape
+        parameters as :meth:`fit_shape_bounds`."""
+        top = cls.fit_amplitude_top(tau, avar)
+        lo, hi = cls.fit_shape_bounds(tau, dt, T, hint)
+        return [math.log(top * 1e-8), *lo], [math.log(top * 10), *hi]
+
+    @classmethod
+    def fit_starts(cls, tau, avar, lo, hi, *, n_starts=1, hint=None) -> list[tuple[float, ...]]:
+        """Starting values (SI, one tuple per start, in the order of :attr:`fit_parameters`) read off the AV
+        curve ``avar`` at ``tau``; ``lo``, ``hi``: the term's box (:meth:`fit_bounds`, logarithms);
+        ``n_starts``: how many values of a shape parameter to try; ``hint``: a :class:`FitHint` or None. A
+        fitter starts from every combination of its terms' starts."""
+        raise NotImplementedError(f"{cls.__name__}: not a latent of the fits")
+
+
+class FitHint(NamedTuple):
+    """What a fitter knows about a term beyond the AV curve: ``window`` (Hz), the range its frequency is held
+    in (a spectral line or band found in the record), or None; ``starts``, parameter tuples (SI, in the
+    order of :attr:`NoiseTerm.fit_parameters`) to start the fit at instead of values read off the curve."""
+
+    window: tuple[float, float] | None = None
+    starts: tuple = ()
+
+
+def _omega_dt(f, dt):
+    f = np.asarray(f, dtype=float)
+    if np.any(f <= 0) or np.any(f > 0.5 / dt * (1 + 1e-12)):
+        raise ValueError(f"f: expected frequencies in (0, 1/(2 dt)] = (0, {0.5 / dt}] Hz")
+    return f, 2 * np.pi * f * dt
