@@ -129,65 +129,6 @@ LIMITS = {
 }
 
 
-HOT_PATHS = """## What was done to the hot paths (issue 6)
-
-- **AV engine** (`estimators/_allan_kernels.py`): the overlapping sums were one scalar loop per tau
-  over S[k], S[k+m], S[k+2m] with per-element index checks (not vectorised; ~0.35 s at 1e7 on 2
-  threads). Now the loop runs over contiguous slices with `fastmath` (SIMD reassociation; values
-  change at 1e-14 relative) and, for up to 128 taus, is blocked over k (4096-sample blocks visit
-  every tau while the block of S is in cache); S is built in one fused centred-cumsum pass.
-  Kernels run serially below 2e7 sample-tau visits: waking the thread pool costs milliseconds on
-  a loaded machine, more than a short record's whole AV. `StreamingAllan.update` is one compiled
-  pass per chunk (octave cluster sums of level j+1 from pairs of level j), ~30x faster.
-- **Generators** (`noise_models/terms.py`, `gyro.py`): quantization, rate random walk and
-  Gauss-Markov each became one fused in-place compiled pass over the drawn normals (values bit-equal
-  to the previous NumPy / `lfilter` code); the ARW scale is in place; the gyro sums terms in place,
-  and `Gyro.simulate` fills long records in blocks of 2^16 samples, so every temporary stays in
-  cache and only the output array is touched once (at 1e8 samples this took the Gauss-Markov
-  composite from 34 % to ~58 % of the raw normal rate, the flicker one from 23 % to ~39 %).
-  The flicker FIR (overlap-save) used a segment of 2^ceil(log2 L) and an FFT of twice that, with the
-  filter's spectrum recomputed for every replicate: now the FFT lengths are 2-3-5-smooth and exactly
-  segment + L - 1 (no zero padding), a short first segment (nfft ~ 1.5 L covers the presets'
-  L/2-sample records in one FFT) and longer steady ones (nfft ~ 2-4 L) for long streams, the
-  spectrum is cached per (filter, nfft) and the buffers are reused (`rfft(..., out=)`). Segment
-  lengths depend on L only, so streaming stays bit-identical to one-shot generation and records of
-  different lengths from one seed share their prefix; values changed at rounding level only.
-- **Study** (`studies/runner.py`, minimal): the AV curve is memoised per replicate
-  (`avbench.estimators.allan.variance.memoize_allan`, keyed by the array's identity, holding a reference to it), so the
-  four LS estimators compute it once; loky workers run numba kernels on one thread. In
-  `estimators/least_squares.py` one per-row Python list in `wls_edf` became array indexing (same
-  values). `allan.py` and `terms.py` import scipy.stats / scipy.signal / scipy.linalg lazily.
-
-### Where lv2015's time went (before, measured at the start of this work)
-
-`avbench run studies/lv2015.toml --jobs 2`: 54.6 s wall, 24.0 s user + 4.8 s sys, load average 5.6-6.7
-on 2 cores. Per replicate (cProfile, one process): simulation 0.2 s (three FFTs of 2^20 for 144 000
-samples of a 288 000-tap flicker filter, the filter spectrum recomputed each time, 812 000 normals),
-four LS fits 0.4 s (the 'all'-grid AV computed four times, 80 ms of per-row Python in `wls_edf`,
-lstsq on 72 000 x 3). Start-up: ~5 s of imports per process (parent and each worker; scipy.signal,
-scipy.stats, statsmodels via `avbench.estimators.likelihood.mle`). Report: ~12-15 s (matplotlib `savefig(bbox_inches=
-'tight')` and mathtext parsing of log-axis tick labels).
-
-After (same command, fresh output folder, estimates equal to the earlier run's to 1e-13): 13.0 s wall
-at load average 1.4-1.5 (16.9 s user + 3.0 s sys), 23.0 s at load 2.8, 37.8 s at load ~4-5 (2026-11-22).
-The study needs ~10 CPU-seconds of its own on two cores (table above); the rest is waiting for a
-core while other work runs, so the 15 s target holds only on a lightly loaded machine.
-
-### What is left (not in this issue's files)
-
-- Imports: `estimators/__init__` imports every estimator module, and `estimators/mle.py` imports
-  statsmodels at module level (which pulls in scipy.stats, scipy.signal, formulaic, ...): ~1.1 s of the
-  ~1.9 s import time of `avbench.studies.runner` on an idle machine, paid by the parent and by every loky
-  worker, and ~40 MB of every process's resident memory (198 -> 238 MB when imported beside numpy,
-  pandas, numba and scipy.optimize/linalg/fft). A lazy import inside `mle` would remove it, and with
-  it the 24 h stream's peak would be ~290 MB, under the 300 MB target that it now misses by 28 MB.
-- Figures (`studies/figures.py`): six PNGs cost several seconds (`bbox_inches='tight'` lays every
-  figure out twice; log-axis tick labels go through mathtext).
-- `least_squares.solve_scaled` (SVD `lstsq` of 72 000 x 3, six times in `wls_edf`) and pandas result
-  packing in `Estimator._set_results` are now the largest parts of a replicate.
-"""
-
-
 def _frame(cases) -> pd.DataFrame:
     return pd.DataFrame([c.as_row() for c in cases])
 
@@ -652,7 +593,7 @@ def _demote(md: str) -> str:
 
 def readme(df: pd.DataFrame, tg: list[dict], machine: dict, quick: bool, seconds: float, notes: str = "") -> str:
     """README.md: the targets first (measured against each, what limits it), then the runs, the tables,
-    and last the diary (``notes`` and, in a full run, :data:`HOT_PATHS`)."""
+    and last the diary (``notes``: ``notes.md`` of the output folder, what was measured, tried and changed)."""
     md = [f"# avbench performance ({'quick smoke run: tiny sizes, no claims' if quick else 'full run'})", "",
           _summary(tg, quick), "", "## Targets", ""]
     md += targets_table(tg)
@@ -681,7 +622,7 @@ def readme(df: pd.DataFrame, tg: list[dict], machine: dict, quick: bool, seconds
         md += ["## First call of each estimator (fresh processes; first fit minus a second fit of the same record)", "",
                "The first-ever call compiles the kernels and writes numba's disk cache; every later process (and every "
                "study worker) loads them from there.", "", t, ""]
-    diary = [text.strip() for text in (notes, "" if quick else HOT_PATHS) if text and text.strip()]
+    diary = [notes.strip()] if notes and notes.strip() else []
     if diary:
         md += ["## Diary", "", "What was measured, tried and changed, dated (the figures above are the current ones).", ""]
         md += ["\n\n".join(_demote(text) for text in diary), ""]
