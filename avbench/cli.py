@@ -218,7 +218,7 @@ def cmd_simulate(args) -> int:
 
 #: files 'avbench run' writes into its --out (figures are named per gyro)
 REPORT_FILES = ("tidy.csv", "table.csv", "table.md", "leaderboard.md", "meta.json", "timings.csv", "timings.md",
-                "scores.csv", "scores.md")
+                "scores.csv", "scores.md", "report.html")
 
 
 def cmd_studies(args) -> int:
@@ -261,6 +261,11 @@ def _run(args) -> int:
         scheduler=args.scheduler,
         progress=not args.no_progress,
     )
+    if args.html:  # after meta.json, and not among its outputs: the page embeds the avbench version
+        from avbench.outputs import atomic_write_text
+        from avbench.studies.html import study_page
+
+        atomic_write_text(out / "report.html", study_page(out))
     print((out / "table.md").read_text())
     print(f"# results in {out}/ (tidy.csv, table.md, table.csv, leaderboard.md, figures; fit times in timings.md)", file=sys.stderr)
     return 0
@@ -460,6 +465,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     s.add_argument("--scheduler", help="dask scheduler address tcp://HOST:PORT (backend dask)")
     s.add_argument("--replicates", type=int, help="override the number of replicates")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.add_argument("--html", action="store_true",
+                   help="also write report.html: the table, leaderboard, scores and figures on one self-contained page")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("table", help="re-print a finished study's table")

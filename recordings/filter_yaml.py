@@ -49,7 +49,7 @@ import math
 
 import numpy as np
 
-__all__ = ["KEYS", "filter_values", "filter_choices", "check_sensors", "kalibr_yaml", "parse_inflate", "av_bound"]
+__all__ = ["KEYS", "axis_value", "filter_values", "filter_choices", "check_sensors", "kalibr_yaml", "parse_inflate", "av_bound"]
 
 #: (sensor, coefficient) -> Kalibr key
 KEYS = {("accel", "N"): "accelerometer_noise_density", ("accel", "K"): "accelerometer_random_walk",
@@ -144,7 +144,7 @@ def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) 
                 raise ValueError(f"{option}: method {method!r} was not fitted; expected one of --method")
             e = md["coefficients"][coef]
             av = (avs or {}).get(sensor, {}).get(axis)
-            v, why = _axis_value(e, md)
+            v, why = axis_value(e, md)
             if why is not None and v is None and av is not None:
                 v, why = av_bound(coef, *av), why + " and the method gives no interval: the bound the AV allows"
             elif md.get("poor_fit") and v is not None and av is not None:  # the model misses the curve: its
@@ -170,7 +170,7 @@ _BOUND_NOTES = {"record": "not resolved by this record: the upper end of its int
                 "zero": "zero (no random walk seen)"}
 
 
-def _axis_value(e, md):
+def axis_value(e, md):
     """(SI value, None) for a resolved estimate; (upper bound or None, reason) otherwise (``e``: a
     coefficient of the JSON payload, ``md``: its method)."""
     from avbench.estimators.results import REASONS

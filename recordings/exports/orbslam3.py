@@ -1,0 +1,66 @@
+"""ORB-SLAM3: the ``IMU.*`` noise keys of its OpenCV-YAML settings file.
+
+ORB-SLAM3 takes continuous-time densities (one number per sensor, the largest over the axes) and the
+IMU's rate, and discretises them itself:
+
+==================  =================  =====
+key                 unit               value
+==================  =================  =====
+``IMU.NoiseGyro``   rad/s/sqrt(Hz)     N of the gyro
+``IMU.NoiseAcc``    m/s^2/sqrt(Hz)     N of the accelerometer
+``IMU.GyroWalk``    rad/s^2/sqrt(Hz)   K of the gyro
+``IMU.AccWalk``     m/s^3/sqrt(Hz)     K of the accelerometer
+``IMU.Frequency``   Hz                 the rate of the IMU samples ORB-SLAM3 receives
+==================  =================  =====
+
+Sources:
+
+* doc: ORB-SLAM3's example settings (``Examples/Monocular-Inertial/EuRoC.yaml``: ``IMU.NoiseGyro:
+  1.7e-4 #1.6968e-04`` -- Kalibr's EuRoC densities) and the units it prints when it loads them
+  (``Tracking::ParseIMUParamFile``: "IMU gyro noise: ... rad/s/sqrt(Hz)", "IMU gyro walk: ...
+  rad/s^2/sqrt(Hz)");
+* source: ``src/Settings.cc``, ``Settings::readIMU`` reads the five keys; ``src/Tracking.cc``
+  (``Tracking::newParameterLoader`` / ``ParseIMUParamFile``): ``const float sf = sqrt(mImuFreq);
+  mpImuCalib = new IMU::Calib(Tbc, Ng*sf, Na*sf, Ngw/sf, Naw/sf);`` -- per sample the white noise's
+  standard deviation :math:`N \\sqrt{f}` and the bias increment's :math:`K / \\sqrt{f}`;
+  ``src/ImuTypes.cc``, ``Preintegrated::IntegrateNewMeasurement``: ``C = A C A^T + B Nga B^T`` with
+  ``B`` holding ``dt`` (angle variance :math:`N^2 f \\Delta t^2 = N^2 \\Delta t` per sample) and
+  ``C.block(9,9) += NgaWalk`` (bias variance :math:`K^2 / f = K^2 \\Delta t` per sample).
+
+``IMU.Frequency`` is the rate of the samples ORB-SLAM3 integrates: ``--filter-rate`` where that is not
+the record's rate. The fragment opens with ``%YAML:1.0`` (OpenCV's FileStorage); paste its ``IMU.*``
+lines into the settings file.
+"""
+
+from __future__ import annotations
+
+from avbench.recordings.exports.base import Exporter, Request, bound_lines, fmt, header, sensor_values
+
+__all__ = ["ORBSLAM3", "orbslam3"]
+
+#: key -> (sensor, coefficient, unit)
+KEYS = {"IMU.NoiseGyro": ("gyro", "N", "rad/s/sqrt(Hz)"), "IMU.NoiseAcc": ("accel", "N", "m/s^2/sqrt(Hz)"),
+        "IMU.GyroWalk": ("gyro", "K", "rad/s^2/sqrt(Hz)"), "IMU.AccWalk": ("accel", "K", "m/s^3/sqrt(Hz)")}
+
+
+def orbslam3(req: Request) -> str:
+    """ORB-SLAM3's ``IMU.*`` keys (module docstring)."""
+    values = sensor_values(req)
+    by_key = {k: values[(s, c)] for k, (s, c, _) in KEYS.items()}
+    lines = ["%YAML:1.0"]
+    lines += ["# " + s for s in header(
+        req, "ORB-SLAM3 IMU noise settings (paste the IMU.* lines into the settings file)",
+        "each value is the largest over the sensor's axes (axis in the comment)",
+        ["convention: continuous-time densities; ORB-SLAM3 discretises with sf = sqrt(IMU.Frequency): "
+         "IMU::Calib(Tbc, Ng*sf, Na*sf, Ngw/sf, Naw/sf) (src/Tracking.cc; src/ImuTypes.cc IntegrateNewMeasurement)"],
+        req.rate_text("IMU.Frequency"))]
+    lines += ["# " + s for s in bound_lines(by_key)]
+    for key, (_, _, unit) in KEYS.items():
+        v = by_key[key]
+        note = f", x {v.factor:.3g}" if v.factor != 1.0 else ""
+        lines.append(f"{key}: {fmt(v.value)}  # {unit}, axis {v.axis}{note}")
+    lines.append(f"IMU.Frequency: {req.used_rate:.6f}  # Hz")
+    return "\n".join(lines) + "\n"
+
+
+ORBSLAM3 = Exporter("orbslam3", "yaml", "ORB-SLAM3 settings (IMU.*)", False, orbslam3)
