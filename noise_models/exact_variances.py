@@ -31,7 +31,11 @@ term's exact discrete Allan variance (``NoiseTerm.avar``), e.g. RRW: (8m^3 + 4m)
 of independent terms has the sum of the terms' G.
 
 The total variance depends on the record length (its reflected ends are not stationary); every
-other statistic here has the same expectation for every term i of its sum.
+other statistic here has the same expectation for every term i of its sum, but TIE's mean square: the
+phase's first difference over m samples, taken after the record's mean rate is removed, is the filter
+x_{i+m} - x_i - (m/n)(x_n - x_0) (coefficients summing to 0 and cancelling linear phase, so G applies),
+whose expectation depends on i; ``tie_ms`` averages it over the N - m differences exactly. MTIE (a maximum
+of ranges) has no such closed form and is not here.
 """
 
 from __future__ import annotations
@@ -53,6 +57,9 @@ __all__ = [
     "mtotvar",
     "htotvar",
     "theobr",
+    "ttotvar",
+    "pvar",
+    "tie_ms",
     "KINDS",
 ]
 
@@ -323,8 +330,60 @@ def theobr(terms, m, n: int, dt) -> np.ndarray:
     return ratio * theo1(terms, m, dt)
 
 
+def ttotvar(terms, m, dt) -> np.ndarray:
+    """Time total variance tau^2/3 * MTOTVAR (SP1065 eq. 28), rad^2."""
+    m = _m(m)
+    return (m * dt) ** 2 / 3 * mtotvar(terms, m, dt)
+
+
+def _filter_acf(coef) -> np.ndarray:
+    """A(d) = sum_a c_a c_{a+d}, d = 0 .. len - 1 (direct below 4096 taps, FFT beyond)."""
+    P = coef.size
+    if P <= 4096:
+        return np.correlate(coef, coef, "full")[P - 1 :]
+    F = np.fft.rfft(coef, 2 * P)
+    return np.fft.irfft(F * np.conj(F), 2 * P)[:P]
+
+
+def pvar(terms, m, dt) -> np.ndarray:
+    """Parabolic variance (Vernotte et al. 2016): 72 E[w^2] / (m^4 tau^2), w = sum_{k<m} ((m-1)/2 - k)
+    (x_k - x_{k+m}); at m = 1 the AV (the weights vanish there, as the estimator takes)."""
+    out = []
+    for mi in _m(m):
+        mi = int(mi)
+        if mi == 1:
+            out.append(float(oavar(terms, [1], dt)[0]))
+            continue
+        c = 0.5 * (mi - 1) - np.arange(mi)
+        coef = np.concatenate((c, -c))
+        A = _filter_acf(coef)
+        G = phase_gcov(terms, np.arange(coef.size), dt)
+        mean = np.dot(coef, phase_mean(terms, np.arange(coef.size), dt))
+        E = A[0] * G[0] + 2 * np.dot(A[1:], G[1:]) + mean**2
+        out.append(72.0 * E / (mi**4 * (mi * dt) ** 2))
+    return np.array(out)
+
+
+def tie_ms(terms, m, n: int, dt) -> np.ndarray:
+    """Mean square TIE of a record of ``n`` rate samples with its mean removed: (1/(N - m)) sum_i E[(x_{i+m} -
+    x_i)^2] over the N - m = n + 1 - m differences (module docstring), rad^2."""
+    n = int(n)
+    out = []
+    for mi in _m(m):
+        mi = int(mi)
+        if mi > n:
+            raise ValueError(f"tie_ms: m = {mi} exceeds the record's n = {n} samples")
+        i = np.arange(n + 1 - mi)
+        pos = np.stack([np.zeros_like(i), i, i + mi, np.full_like(i, n)], axis=-1)
+        coef = np.array([mi / n, -1.0, 1.0, -mi / n])
+        out.append(float(np.mean(filter_expectation(terms, pos, coef, dt))))
+    return np.array(out)
+
+
 #: kind -> callable(terms, m, n, dt): the exact expected value of each statistic
 KINDS = {
+    "avar": lambda t, m, n, dt: oavar(t, m, dt),  # the non-overlapping AV: the same terms, fewer of them
+    "gradev": lambda t, m, n, dt: oavar(t, m, dt),  # the gap-resistant AV: the terms a gap leaves
     "oavar": lambda t, m, n, dt: oavar(t, m, dt),
     "hvar": lambda t, m, n, dt: ohvar(t, m, dt),  # the same filter, fewer terms: the same expectation
     "ohvar": lambda t, m, n, dt: ohvar(t, m, dt),
@@ -333,6 +392,8 @@ KINDS = {
     "totvar": lambda t, m, n, dt: totvar(t, m, n, dt),
     "theo1": lambda t, m, n, dt: theo1(t, m, dt),
     "mtotvar": lambda t, m, n, dt: mtotvar(t, m, dt),
+    "ttotvar": lambda t, m, n, dt: ttotvar(t, m, dt),
+    "pvar": lambda t, m, n, dt: pvar(t, m, dt),
     "htotvar": lambda t, m, n, dt: htotvar(t, m, dt),
     "theobr": theobr,
 }

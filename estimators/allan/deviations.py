@@ -1,5 +1,5 @@
 """The variance family beside the Allan variance: Hadamard, modified, time, total (plain, modified,
-Hadamard), Theo1 and TheoBR.
+time, Hadamard), parabolic, Theo1 and TheoBR, with avbench's exact edf or Stable32's intervals.
 
 All are computed on the phase (angle) record x of the rate record w: x_0 = 0,
 x_k = dt * sum_{j<k} (w_j - mean w), N = n + 1 phase points (allantools ``frequency2phase``; the
@@ -66,7 +66,24 @@ Definitions (NIST SP 1065, Riley 2008; tau = m dt unless said otherwise):
   (N >= 90 phases), at tau = 0.75 m dt. The ratio needs Theo1 at k + 1 ~ N/30 sizes up to m ~ 0.13 N:
   O(N^3) work, refused beyond ``THEOBR_MAX_TERMS`` (about N = 1.7e4) with an error saying so. Its
   edf is taken as Theo1's (the ratio averages k + 1 values; its own spread is not counted).
-* ``oavar`` the overlapping AV of :func:`~avbench.estimators.allan.variance.allan_variance`.
+* ``ttotvar`` time total variance, SP1065 eq. 28: tau^2/3 * mtotvar (rad^2, as tvar).
+* ``pvar`` parabolic variance (Vernotte, Lenczner, Bourgeois & Rubiola 2016, "The parabolic variance
+  (PVAR): a wavelet variance based on the least-square fit", IEEE UFFC 63(4)), in phase samples:
+  72 / (M m^4 tau^2) sum_{i=0}^{M-1} [sum_{k=0}^{m-1} ((m-1)/2 - k)(x_{i+k} - x_{i+k+m})]^2 with M = N - 2m
+  terms (allantools ``pdev``, which drops the last of the N - 2m + 1 windows; SigmaTheta's published values
+  agree, tests/test_deviations_tf.py), and PVAR = AVAR at m = 1 (the weights vanish there; allantools and
+  SigmaTheta take the AV). The inner sum is carried along i
+  (``_tf_kernels.pvar_sums``): O(N) per m.
+* ``oavar`` the overlapping AV and ``avar`` the non-overlapping AV of
+  :func:`~avbench.estimators.allan.variance.allan_variance`.
+
+Intervals and bias corrections. ``intervals="exact"`` (the default) gives the edf below; ``intervals=
+"stable32"`` gives Stable32's edf, noise identification and interval rule
+(:mod:`~avbench.estimators.allan.stable32`, :mod:`~avbench.estimators.allan.noise_id`), equal to its
+published PHASE.DAT bounds (tests/test_deviations.py). ``bias_corrected=True`` divides the total
+variances by their bias at the noise type (MTOT, TTOT 0.94 ... 0.69; HTOT 1 + a; TOT 1 - a tau/T) and
+multiplies Theo1 by Stable32's run ratio AVAR/Theo1 (its default Theo1 output), as
+:mod:`~avbench.estimators.allan.stable32` states; it changes the values, not the edf.
 
 Equivalent degrees of freedom. Each statistic (bar totvar) is V = (1/K) sum_i sum_f w_f q_{i,f}^2, a
 stationary average of squared phase filters. For Gaussian noise with phase generalized covariance G
@@ -89,7 +106,8 @@ approximation, measured in tests/test_deviations.py against the ensemble varianc
 HTOTVAR are exactly of the quadratic form above (per window, 6m filters of 3m (+1) phases whose
 coefficients come from ``noise_models.exact_variances.total_window_filters``: detrending and
 reflection are linear), so their edf is exact for their filters, with m' = 16 for the scale-free
-limit (the F x F cross-correlations of 6m filters cost F^2 P). Intervals: chi^2 with that edf, like
+limit (the F x F cross-correlations of 6m filters cost F^2 P); TTOTVAR has MTOTVAR's edf (a constant
+factor). PVAR is one dense filter of 2m phases, taken through the several-filter path (m' = 64). Intervals: chi^2 with that edf, like
 the AV engine. Computation (``edf_quadratics``, all taus of a call at once): for the single-filter
 statistics one compiled call (``_deviation_kernels.edf_single_filter``): rho once per distinct (m, noise)
 from the filter's nonzero lags -- exact integers or halves for white PM, white FM and random-walk FM,
@@ -105,6 +123,7 @@ described in :mod:`~avbench.estimators.allan._deviation_kernels`.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 
@@ -112,6 +131,10 @@ import numpy as np
 
 from avbench.estimators.allan import _deviation_kernels as _k
 from avbench.estimators.allan import _kernels
+from avbench.estimators.allan import _tf_kernels as _tf
+from avbench.estimators.allan.noise_id import ALPHA_NAMES, noise_id
+from avbench.estimators.allan.stable32 import (Stable32Result, alpha_of, bias_factor, stable32_edf, theo1_bias_sizes,
+                                               theo1_noise_from_ratio, theo1_nominal_bias)
 from avbench.estimators.allan.variance import (
     AllanResult,
     _checked_record_and_mean,
@@ -125,13 +148,17 @@ from avbench.estimators.allan.variance import (
 from avbench.estimators.validation import check_taus
 from avbench.noise_models.exact_variances import total_window_filters
 
-__all__ = ["KINDS", "DEVIATION_NAMES", "deviation", "deviations", "phase_of", "edf_quadratic", "edf_quadratics", "clear_caches", "terms_per_tau",
-           "theobr_bias_sizes", "check_feasible"]
+__all__ = ["KINDS", "DEVIATION_NAMES", "INTERVALS", "deviation", "deviations", "phase_of", "edf_quadratic", "edf_quadratics",
+           "clear_caches", "terms_per_tau", "theobr_bias_sizes", "check_feasible"]
 
 #: the statistics
-KINDS = ("oavar", "hvar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1", "theobr")
+KINDS = ("avar", "oavar", "hvar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "ttotvar", "htotvar", "pvar", "theo1",
+         "theobr")
+#: interval rules of ``deviation``
+INTERVALS = ("exact", "stable32")
 #: names users type (allantools' deviations) -> kind
 DEVIATION_NAMES = {
+    "adev": "avar",
     "oadev": "oavar",
     "ohdev": "ohvar",
     "hdev": "hvar",
@@ -139,14 +166,16 @@ DEVIATION_NAMES = {
     "tdev": "tvar",
     "totdev": "totvar",
     "mtotdev": "mtotvar",
+    "ttotdev": "ttotvar",
     "htotdev": "htotvar",
+    "pdev": "pvar",
     "theo1": "theo1",
     "theobr": "theobr",
 }
 _M_PRIME = 64
 #: statistics made of several filters per term, and the m' their scale-free edf is evaluated at (the
 #: F x F filter cross-correlations cost F^2 P: 6m filters of 3m points for the total variances)
-_MULTI_FILTER = {"theo1": _M_PRIME, "theobr": _M_PRIME, "mtotvar": 16, "htotvar": 16}
+_MULTI_FILTER = {"theo1": _M_PRIME, "theobr": _M_PRIME, "mtotvar": 16, "ttotvar": 16, "htotvar": 16, "pvar": _M_PRIME}
 #: the Theo1 values TheoBR's bias ratio needs are refused beyond this many terms (see ``deviation``)
 THEOBR_MAX_TERMS = 5e9
 
@@ -190,6 +219,8 @@ def _max_m(kind: str, N: int) -> int:
         "tvar": N // 3,
         "totvar": (N - 1) // 2,
         "mtotvar": (N - 1) // 3,  # at least two windows of 3m phases (allantools drops one)
+        "ttotvar": (N - 1) // 3,
+        "pvar": (N - 1) // 2,  # M = N - 2m >= 1 terms
         "htotvar": (N - 2) // 3,  # at least two windows of 3m rates
         "theo1": N - 1,
         "theobr": N - 1,
@@ -215,13 +246,13 @@ def _cluster_sizes(kind, taus, n, dt, points_per_decade, theo1_max_m):
 def terms_per_tau(kind: str, m, N: int) -> np.ndarray:
     """Number of terms summed per cluster size (the cost of one value).
 
-    (N - m) m / 2 for Theo1 and TheoBR; (N - 3m + 1) 15m for the modified and Hadamard total
+    (N - m) m / 2 for Theo1 and TheoBR; (N - 3m + 1) 15m for the modified, time and Hadamard total
     variances (9m reflected points and 6m running sums per window); ~N otherwise.
     """
     m = np.asarray(m, dtype=float)
     if kind in ("theo1", "theobr"):
         return (N - m) * m / 2
-    if kind in ("mtotvar", "htotvar"):
+    if kind in ("mtotvar", "ttotvar", "htotvar"):
         return np.maximum(N - 3 * m + 1, 1) * 15 * m
     return np.full(m.shape, float(N))
 
@@ -251,10 +282,15 @@ def _filters(kind: str, m: int):
         d = np.arange(h)
         pos = np.stack([0 * d, h - d, np.full(h, m), h + d], axis=-1)
         return pos, np.tile([1.0, -1.0, 1.0, -1.0], (h, 1)), 1.0 / (h - d)
-    if kind in ("mtotvar", "htotvar"):
+    if kind == "pvar":
+        if m == 1:  # PVAR is the AV at m = 1
+            return _filters("oavar", 1)
+        c = 0.5 * (m - 1) - np.arange(m)
+        return np.arange(2 * m)[None, :], np.concatenate((c, -c))[None, :], np.ones(1)
+    if kind in ("mtotvar", "ttotvar", "htotvar"):
         if kind == "htotvar" and m == 1:  # the overlapping Hadamard variance stands in at m = 1
             return _filters("ohvar", 1)
-        C = total_window_filters(kind, m)
+        C = total_window_filters("htotvar" if kind == "htotvar" else "mtotvar", m)
         return np.broadcast_to(np.arange(C.shape[1]), C.shape), C, np.ones(C.shape[0])
     raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
 
@@ -280,10 +316,13 @@ _NOISE_CODE = {"white_pm": _k.WHITE_PM, "white_fm": _k.WHITE_FM, "flicker_fm": _
 
 
 def _noise_codes(noise) -> np.ndarray:
+    """Codes of noise type names or integer alphas (the exact edf's four types)."""
     try:
-        return np.array([_NOISE_CODE[str(v)] for v in noise], dtype=np.int64)
+        return np.array([_NOISE_CODE[v if isinstance(v, str) else ALPHA_NAMES.get(int(v), str(v))] for v in noise],
+                        dtype=np.int64)
     except KeyError as e:
-        raise ValueError(f"noise: expected white_pm, white_fm, flicker_fm or rw_fm, got {e.args[0]!r}") from None
+        raise ValueError(f"noise: expected white_pm, white_fm, flicker_fm or rw_fm (alpha 2, 0, -1, -2) for the exact edf, "
+                         f"got {e.args[0]!r}") from None
 
 
 @functools.lru_cache(maxsize=4096)
@@ -395,6 +434,8 @@ def deviation(
     theo1_max_m: int | None = None,
     max_terms: float | None = None,
     edf: bool = True,
+    intervals: str = "exact",
+    bias_corrected: bool = False,
 ) -> AllanResult:
     """One statistic of the family (module docstring) with its edf and chi^2 interval.
 
@@ -405,14 +446,17 @@ def deviation(
     dt : float
         Sample interval (s).
     kind : str
-        One of ``KINDS`` ("oavar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "htotvar", "theo1",
-        "theobr"), or a deviation name (``DEVIATION_NAMES``: "oadev", "ohdev", "hdev", "mdev", "tdev",
-        "totdev", "mtotdev", "htotdev", "theo1", "theobr").
+        One of ``KINDS`` ("avar", "oavar", "hvar", "ohvar", "mvar", "tvar", "totvar", "mtotvar", "ttotvar",
+        "htotvar", "pvar", "theo1", "theobr"), or a deviation name (``DEVIATION_NAMES``: "adev", "oadev",
+        "hdev", "ohdev", "mdev", "tdev", "totdev", "mtotdev", "ttotdev", "htotdev", "pdev", "theo1", "theobr").
     taus : "octave", "decade", "all" or array of seconds
         As :func:`~avbench.estimators.allan.variance.allan_variance`; each statistic keeps the m its
         definition allows (ohvar, mvar: m <= N/3; totvar: m <= (N-1)/2; theo1: even m <= N-1, tau = 0.75 m dt).
-    noise : "auto" or a noise type name
-        For the edf ("white_pm", "white_fm", "flicker_fm", "rw_fm"); "auto" reads it from the AV slope.
+    noise : "auto", a noise type name or an integer alpha (one, or one per tau)
+        For the edf and the bias correction ("white_pm", "white_fm", "flicker_fm", "rw_fm"; with
+        ``intervals="stable32"`` also "flicker_pm", "fw_fm", "rr_fm", or alpha 2 ... -4). "auto": from the
+        AV slope (``intervals="exact"``) or by Stable32's identification (:func:`~avbench.estimators.allan.
+        noise_id.noise_id`: lag-1 autocorrelation, B1, R(n)).
     theo1_max_m : int, optional
         Largest Theo1 (TheoBR) m (its cost grows as N m / 2 per tau).
     max_terms : float, optional
@@ -421,20 +465,45 @@ def deviation(
         15 m (N - 3m + 1); the others about N): a bound on the cost. TheoBR's bias ratio has its own
         bound, ``THEOBR_MAX_TERMS``.
     edf : bool
-        False: skip the noise identification and the edf (``edf`` NaN, no interval): the values only.
+        False: skip the noise identification and the edf (``edf`` NaN, no interval): the values only
+        (a bias correction still identifies the noise it needs).
+    intervals : "exact" or "stable32"
+        The edf and interval rule (module docstring): avbench's exact Gaussian edf, or Stable32's (its
+        noise identification, edf formulas and quantile rule; a ``Stable32Result``). PDEV has no
+        Stable32 interval.
+    bias_corrected : bool
+        Divide the total variances by their bias at the noise type and give Theo1 Stable32's bias-removed
+        value (module docstring); no other statistic changes.
 
     Returns
     -------
     AllanResult
-        ``kind`` names the statistic; ``avar`` holds its variance (rad^2/s^2; tvar: rad^2),
+        ``kind`` names the statistic; ``avar`` holds its variance (rad^2/s^2; tvar, ttotvar: rad^2),
         ``deviation`` its square root; ``J`` the number of terms averaged; ``edf``, ``ci_low``, ``ci_high``.
+        With ``intervals="stable32"`` a :class:`~avbench.estimators.allan.stable32.Stable32Result` (a
+        subclass) that also holds each tau's ``alpha`` and ``bias``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> w = np.random.default_rng(0).standard_normal(1000)
+    >>> r = deviation(w, 1.0, "mtotdev", [1.0, 16.0], intervals="stable32", noise=0, bias_corrected=True)
+    >>> r.bias.tolist(), [round(float(e), 2) for e in r.edf]
+    ([0.73, 0.73], [782.03, 81.32])
     """
     kind = DEVIATION_NAMES.get(kind, kind)
     if kind not in KINDS:
         raise ValueError(f"kind: expected one of {', '.join(KINDS)} or {', '.join(DEVIATION_NAMES)}, got {kind!r}")
+    if intervals not in INTERVALS:
+        raise ValueError(f"intervals: expected one of {', '.join(INTERVALS)}, got {intervals!r}")
+    if intervals == "stable32" and kind == "pvar":
+        raise ValueError("intervals: Stable32 has no PDEV (parabolic deviation) interval; use intervals='exact'")
     check_taus(taus)
-    if kind == "oavar":
-        return allan_variance(rate, dt, taus, points_per_decade=points_per_decade, noise=noise, confidence=confidence)
+    plain = intervals == "exact" and not bias_corrected
+    if kind in ("oavar", "avar"):  # no bias correction applies to the AV
+        res = allan_variance(rate, dt, taus, kind == "oavar", points_per_decade=points_per_decade,
+                             noise=noise if intervals == "exact" else "auto", confidence=confidence)
+        return res if intervals == "exact" else _finish(kind, res, rate, None, noise, intervals, False, edf)
     fast = _record_rules(rate, dt) if kind == "hvar" else None  # hvar's octave pass tests finiteness itself
     if fast is None:
         rate, dt, mean = _checked_record_and_mean(rate, dt)
@@ -483,10 +552,18 @@ def deviation(
         K = np.full(m.size, N - 2)
         sums, av_sums = _k.totvar_sums(x, m, _k.BLOCK if m.size <= _k.MAX_BLOCKED_TAUS else x.size)
         var = sums / (2.0 * mf * mf * (N - 2))
-    elif kind == "mtotvar":
+    elif kind in ("mtotvar", "ttotvar"):
         K = N - 3 * m + 1
         sums = np.array([_k.total_window_sums(x, int(mi), True) for mi in m])
         var = sums / (2.0 * mf * mf * K)
+        if kind == "ttotvar":
+            var = var * (mf * dt) ** 2 / 3.0
+    elif kind == "pvar":
+        K = N - 2 * m
+        var = 72.0 * _tf.pvar_sums(x, m) / (K * mf**6)
+        if m[0] == 1:  # the AV at m = 1 (the parabolic weights vanish there)
+            K[0] = N - 2
+            var[0] = _kernels.oavar_sums(x, m[:1])[0] / (2.0 * K[0])
     elif kind == "htotvar":
         y = np.asarray(rate, dtype=float)
         y = y - np.mean(y)  # cancelled by the differences, but a large bias would cost digits there
@@ -503,9 +580,14 @@ def deviation(
         if kind == "theobr":
             var = var * _theobr_ratio(x, N)
     tau = mf * dt * (0.75 if kind in ("theo1", "theobr") else 1.0)
+    K = np.asarray(K, dtype=np.int64)
+    if intervals == "stable32" or not edf:
+        nan = np.full(m.size, np.nan)
+        res = AllanResult(tau, m, var, K, nan, nan, True, n, dt, confidence, kind=kind)
+        return res if plain else _finish(kind, res, rate, x, noise, intervals, bias_corrected, edf)
     if not edf:
         nan = np.full(m.size, np.nan)
-        return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), nan, nan, True, n, dt, confidence, kind=kind)
+        return AllanResult(tau, m, var, K, nan, nan, True, n, dt, confidence, kind=kind)
     if noise == "auto" and levels:
         # the AV's slope as for every statistic, the AV from hvar's own block sums (at every start offset
         # that is a multiple of m/2: an unbiased AV with about twice the non-overlapping AV's terms)
@@ -522,15 +604,66 @@ def deviation(
         codes = _noise_codes([table[int(keys[np.argmin(np.abs(keys - mi))])] for mi in m_av])
     else:
         codes = _noise_codes(np.broadcast_to(np.asarray(noise, dtype=object), m.shape))
-    edf_kind = {"totvar": "oavar", "theobr": "theo1", "hvar": "ohvar"}.get(kind, kind)
+    edf_kind = {"totvar": "oavar", "theobr": "theo1", "hvar": "ohvar", "ttotvar": "mtotvar"}.get(kind, kind)
     # hvar: its K terms are the m = 1 statistic of the phase decimated by m, whose G is that of the same
     # noise type scaled (white PM, white FM; flicker FM up to a quadratic in the lag, which the third
     # difference cancels): exact for them. RW FM approximately: the decimated G is m^3 (|d|^3 - |d|/m^2)/12,
     # the canonical discrete one (|d|^3 - |d|)/12.
     m_edf = np.ones_like(m) if kind == "hvar" else m
     e = _edf_codes(edf_kind, m_edf, K, codes)
-    return AllanResult(tau, m, var, np.asarray(K, dtype=np.int64), 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence,
-                       kind=kind)
+    res = AllanResult(tau, m, var, K, 1.0 / np.sqrt(2.0 * e), e, True, n, dt, confidence, kind=kind)
+    return res if plain else _finish(kind, res, rate, x, noise, intervals, bias_corrected, edf, _CODE_ALPHA[codes])
+
+
+#: the exact path's noise codes (``_deviation_kernels.WHITE_PM`` ...) -> alpha
+_CODE_ALPHA = np.array([2, 0, -1, -2], dtype=np.int64)
+
+
+def _noise_alpha(kind, res, rate, noise):
+    """alpha per tau for a bias correction or Stable32's edf: given, or by Stable32's identification at the
+    tau of the AV (Theo1: 0.75 m; beyond half the record, the type at half the record)."""
+    if not (isinstance(noise, str) and noise == "auto"):
+        return np.broadcast_to(alpha_of(noise), res.m.shape).copy()
+    n = res.n_samples
+    m_id = np.clip(np.rint(res.tau / res.dt).astype(np.int64), 1, n // 2)
+    ids = noise_id(rate, res.dt, np.unique(m_id) * res.dt, kind=kind)
+    return ids.alpha[np.searchsorted(ids.m, m_id)]
+
+
+def _finish(kind, res, rate, x, noise, intervals, bias_corrected, edf, exact_alpha=None):
+    """``res`` with the bias correction and/or Stable32's edf and interval rule (module docstring).
+
+    ``x``: the unit phase when the caller has it (Theo1's run ratio reads it); ``exact_alpha``: the types the
+    exact path identified (a bias correction of its result uses them)."""
+    n, dt, m = res.n_samples, res.dt, res.m
+    N = n + 1
+    need_alpha = bias_corrected or (intervals == "stable32" and edf)
+    auto_theo1 = bias_corrected and kind == "theo1" and isinstance(noise, str) and noise == "auto"
+    if auto_theo1:  # Stable32's run ratio AVAR/Theo1 and the type it implies, for every tau
+        if x is None:
+            x, _, _ = _sample_phase(rate, dt)
+        k = _theo1_ratio(x, N, theo1_bias_sizes(N))
+        alpha = np.full(m.size, theo1_noise_from_ratio(k), dtype=np.int64)
+    elif exact_alpha is not None and isinstance(noise, str) and noise == "auto":
+        alpha = exact_alpha
+    else:
+        alpha = _noise_alpha(kind, res, rate, noise) if need_alpha else None
+    var, bias = res.avar, np.ones(m.size)
+    if bias_corrected and kind == "theo1":
+        bias = np.full(m.size, 1.0 / k) if auto_theo1 else 1.0 / theo1_nominal_bias(alpha)
+        var = var / bias
+    elif bias_corrected:
+        bias = bias_factor(kind, m, N, alpha)
+        var = var / bias
+    if intervals == "exact":
+        return dataclasses.replace(res, avar=var)
+    if edf:
+        e = stable32_edf({"theobr": "theo1"}.get(kind, kind), m, N, alpha)
+        rel = 1.0 / np.sqrt(2.0 * e)
+    else:
+        e = rel = np.full(m.size, np.nan)
+    return Stable32Result(res.tau, m, var, res.J, rel, e, res.overlapping, n, dt, res.confidence, kind=kind,
+                          alpha=alpha, bias=bias)
 
 
 def check_feasible(kinds, n: int) -> None:
@@ -551,7 +684,16 @@ def check_feasible(kinds, n: int) -> None:
 def _theobr_ratio(S, N):
     """1/(k+1) sum_i AV(9 + 3i) / Theo1(12 + 4i) on the unit phase S (Howe & Tasset 2004; SP1065)."""
     check_feasible(["theobr"], N - 1)
-    m_av, m_th = theobr_bias_sizes(N)
+    return _theo1_ratio(S, N, theobr_bias_sizes(N))
+
+
+def _theo1_ratio(S, N, sizes):
+    """mean_i AV(m_av[i]) / Theo1(m_th[i]) on the unit phase S (TheoBR's and Stable32's bias ratios)."""
+    m_av, m_th = sizes
+    cost = float(np.sum(terms_per_tau("theo1", m_th, N)))
+    if cost > THEOBR_MAX_TERMS:
+        raise ValueError(f"theo1: its bias ratio needs Theo1 at {m_th.size} cluster sizes ({cost:.2g} terms, beyond "
+                         f"THEOBR_MAX_TERMS = {THEOBR_MAX_TERMS:.2g}): the record of {N - 1} samples is too long for it")
     mf = m_av.astype(float)
     av = _kernels.oavar_sums(S, m_av) / (2.0 * mf * mf * (N - 2 * mf))
     mt = m_th.astype(float)
