@@ -404,6 +404,61 @@ def cmd_deviations(args) -> int:
     return 0
 
 
+def _add_hat_parser(sub) -> None:
+    """``avbench three-cornered-hat A B C``: each unit's own deviation from three recordings made together."""
+    s = sub.add_parser(
+        "three-cornered-hat", help="each of three sensors' own deviation from three recordings made together",
+        description="The three-cornered hat: three units recorded side by side (three gyros on one table) see the "
+                    "same motion; the pairwise differences cancel it, and each unit's own variance follows from the "
+                    "three pairwise variances (avbench.recordings.hat). A negative estimate (a unit too quiet to be "
+                    "seen beside the others at that tau) is kept, with an upper bound. Writes <stem>_hat.csv (one row "
+                    "per unit and tau) and prints each unit's deviation.",
+        epilog="example:\n  avbench three-cornered-hat a.csv b.csv c.csv --units deg/s --sensor gyro --axis z",
+        formatter_class=argparse.RawDescriptionHelpFormatter, parents=[reader_options_parser()])
+    s.add_argument("files", nargs=3, metavar="FILE", help="three recordings of the same instants and rate")
+    s.add_argument("--sensor", default=None, choices=["gyro", "accel"], help="the sensor (default: the first)")
+    s.add_argument("--axis", default=None, help="the axis (default: the first, e.g. x)")
+    s.add_argument("--deviation", default="oadev", choices=["oadev", "mdev", "ohdev", "totdev"],
+                   help="the statistic of each pair (default oadev)")
+    s.add_argument("--taus", default="octave", choices=["octave", "decade"], help="tau grid (default octave)")
+    s.add_argument("--confidence", type=float, default=0.683, help="interval level (default 0.683, one sigma)")
+    s.add_argument("--out", default=".", help="output folder (default: .)")
+    s.set_defaults(func=cmd_hat)
+
+
+def cmd_hat(args) -> int:
+    import pandas as pd
+
+    from avbench.outputs import atomic_write_text, prepare_out_dir
+    from avbench.recordings.hat import hat_of_recordings, hat_table
+    from avbench.recordings.load import check_reader_options, reader_options_of
+
+    if not 0 < args.confidence < 1:
+        raise ValueError(f"--confidence: expected a level between 0 and 1, got {args.confidence}")
+    options = reader_options_of(args)
+    check_reader_options(**options)
+    stem = Path(args.files[0]).stem or "hat"
+    out = prepare_out_dir(args.out, "--out", [f"{stem}_hat.csv"])
+    hat, srec, axis, dt = hat_of_recordings(args.files, sensor=args.sensor, axis=args.axis, kind=args.deviation,
+                                            taus=args.taus, confidence=args.confidence, **options)
+    labels = [Path(f).name for f in args.files]
+    table = hat_table(hat, srec, labels)
+    atomic_write_text(out / f"{stem}_hat.csv", table.to_csv(index=False))
+    from avbench.recordings.report import wrap
+
+    print("\n".join(wrap(f"# three-cornered hat of {srec.sensor} {axis} ({args.deviation}, {hat.n_samples} samples at "
+                          f"{1 / dt:.6g} Hz): each unit's own deviation in {srec.si_unit}; '< x': not seen beside "
+                          "the other two, x its upper bound; 'negative': below zero beyond its error bar (the "
+                          "noises are not independent, or a unit is far quieter)", "#   ")))
+    wide = table.assign(shown=[f"{d:.4g}" if not neg else (f"< {u:.3g}" if u > 0 else "negative")
+                               for d, u, neg in zip(table["deviation"], table["upper_dev"], table["negative"])])
+    with pd.option_context("display.width", 100):
+        print(wide.pivot_table(index="tau", columns="unit", values="shown", aggfunc="first", sort=True)[labels]
+              .to_string())
+    print(f"# wrote {stem}_hat.csv in {out}")
+    return 0
+
+
 #: the one-line help of ``avbench estimate`` in the list of commands (as in avbench.recordings.estimate.add_parser)
 ESTIMATE_HELP = "fit the noise coefficients of a static IMU recording"
 
@@ -483,6 +538,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     else:  # the same entry in the list of commands, without importing it
         sub.add_parser("estimate", help=ESTIMATE_HELP)
     _add_deviations_parser(sub)
+    _add_hat_parser(sub)
     try:
         import avbench.bench.__main__ as bench_main
         bench_main.add_parser(sub)
