@@ -8,19 +8,32 @@ One way for all commands (``avbench run``, ``estimate``, ``simulate``, ``bench``
   file system, a missing permission), or where one of the command's output names is taken by a
   folder or a special file; only then does it create the folder;
 * :func:`atomic_write_text` / :func:`atomic_write_bytes` write a file under a hidden temporary name
-  and rename it into place, so a reader sees either the old file or the new one, never a part.
+  and rename it into place, so a reader sees either the old file or the new one, never a part;
+* :func:`write_set` writes several files as one set: each is rendered and written under a temporary
+  name first, then all are renamed into place with SIGINT, SIGTERM and SIGHUP held back, and a rename
+  that fails puts back every file already replaced. An error or a signal before the renames leaves
+  the previous set and no temporary file; a signal during them waits until the new set is in place
+  (and then ends the process as it would have). Only a power cut or SIGKILL in the microseconds of
+  the renames can leave a mix;
+* :func:`safe_name` makes a file-name component of any text (a column name, a file's stem): no
+  separator, no ``..``, no ``$``, at most :data:`NAME_BYTES` bytes.
 """
 
 from __future__ import annotations
 
 import errno
+import hashlib
 import os
+import re
+import signal
 import stat
+import threading
 import uuid
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
-__all__ = ["OutputError", "prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "tmp_name"]
+__all__ = ["OutputError", "prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "tmp_name", "write_set",
+           "safe_name", "NAME_BYTES", "Interrupted"]
 
 
 #: significant digits of the committed numbers: results move by ~1e-12 (relative) between machines
@@ -30,8 +43,20 @@ TIDY_DIGITS = 9
 TABLE_DIGITS = 6
 
 
+#: the longest file name :func:`safe_name` makes (bytes of UTF-8): file systems allow 255, and a
+#: temporary name (:func:`tmp_name`) and a suffix (``_coefficients.json``) must still fit
+NAME_BYTES = 180
+#: the longest file name a file system takes (NAME_MAX on Linux, macOS and Windows)
+_NAME_MAX = 255
+
+
 class OutputError(ValueError):
     """An output location cannot be used; the message names the option, the path and the reason."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """A signal (SIGTERM, SIGHUP) arrived while :func:`write_set` wrote its temporary files: nothing was
+    renamed into place, every temporary file is gone."""
 
 
 def _kind(st_mode: int) -> str:
@@ -114,9 +139,33 @@ def prepare_out_dir(path, option: str = "--out", outputs: Iterable[str] = ()) ->
 
 
 def tmp_name(path: Path) -> Path:
-    """A hidden temporary name beside ``path``, unique per process and call."""
+    """A hidden temporary name beside ``path``, unique per process and call, never longer than a file
+    system allows (a long name is shortened to a digest of it)."""
     path = Path(path)
-    return path.with_name(f".{path.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp")
+    tag = f"{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp"
+    name = f".{path.name}.{tag}"
+    if len(name.encode("utf-8")) > _NAME_MAX:
+        name = f".avbench-{hashlib.sha256(path.name.encode('utf-8', 'surrogateescape')).hexdigest()[:16]}.{tag}"
+    return path.with_name(name)
+
+
+def safe_name(text: str, limit: int = NAME_BYTES) -> str:
+    """A file-name component made of ``text``: every run of characters other than letters, digits, ``.``,
+    ``-``, ``+`` and ``_`` (a ``/``, a blank, a bracket, a ``$``, a control character) becomes one ``_``;
+    leading dots and underscores and trailing underscores go (no hidden file, no ``..``); an empty result
+    is ``_``; a result longer than ``limit`` bytes of UTF-8 is cut and ends with ``~`` and 8 hex digits of
+    the SHA-256 of ``text``, so that distinct long texts keep distinct names.
+
+    >>> safe_name("gx [deg/s]"), safe_name("../x"), safe_name("$a$ b"), len(safe_name("é" * 300).encode()) <= 180
+    ('gx_deg_s', 'x', 'a_b', True)
+    """
+    name = re.sub(r"[^\w.+-]+", "_", str(text), flags=re.UNICODE).lstrip("._").rstrip("_") or "_"
+    raw = name.encode("utf-8", "surrogateescape")
+    if len(raw) <= limit:
+        return name
+    digest = hashlib.sha256(str(text).encode("utf-8", "surrogateescape")).hexdigest()[:8]
+    cut = raw[: limit - 9].decode("utf-8", "ignore")
+    return f"{cut}~{digest}"
 
 
 def atomic_write_bytes(path, data: bytes) -> None:
@@ -135,3 +184,80 @@ def atomic_write_bytes(path, data: bytes) -> None:
 def atomic_write_text(path, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` through a temporary file and an atomic rename."""
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+#: the signals whose default would end the process between the renames of :func:`write_set`
+_HELD = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(f"interrupted by {signal.Signals(signum).name}")
+
+
+def write_set(items: Iterable[tuple[Path, Callable[[], bytes]]]) -> list[Path]:
+    """Write ``items`` (``(path, render)``: ``render()`` gives the file's bytes) as one set (see the module
+    docstring); returns the paths. Each file's temporary name lies beside it (so that a rename stays
+    within one file system); an existing file is kept under a hard link until the set is complete.
+    A SIGTERM or SIGHUP before the renames raises :class:`Interrupted` (a ``KeyboardInterrupt``); one
+    during the renames is held back (Python runs signal handlers in the main thread, whichever thread
+    the signal reached) and raised again once the set is in place."""
+    items = [(Path(p), render) for p, render in items]
+    main = threading.current_thread() is threading.main_thread()
+    old = {sig: signal.getsignal(sig) for sig in _HELD} if main else {}
+    held: list[int] = []
+    temps: list[tuple[Path, Path]] = []
+    try:
+        for sig in old:  # SIGTERM / SIGHUP while the temporary files are written: remove them, rename nothing
+            if sig != signal.SIGINT:
+                signal.signal(sig, _raise_interrupted)
+        for path, render in items:
+            data = render()
+            tmp = tmp_name(path)
+            temps.append((tmp, path))
+            with open(tmp, "wb") as f:
+                f.write(data)
+        for sig in old:  # from here on a signal waits for the set to be whole
+            signal.signal(sig, lambda signum, frame: held.append(signum))
+        _commit(temps)
+        temps = []
+    finally:
+        for tmp, _ in temps:
+            tmp.unlink(missing_ok=True)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+    for sig in dict.fromkeys(held):  # the set is in place: each held signal now does what it would have done
+        signal.raise_signal(sig)
+    return [p for p, _ in items]
+
+
+def _commit(temps: list[tuple[Path, Path]]) -> None:
+    """Rename every temporary file into place; on a failure, put back every file already replaced (from
+    its hard link) and remove the new ones that had no predecessor."""
+    done: list[tuple[Path, Path | None]] = []  # (final path, hard link to the file it replaced)
+    try:
+        for tmp, path in temps:
+            keep = None
+            if os.path.lexists(path):
+                keep = tmp_name(path)
+                try:
+                    os.link(path, keep, follow_symlinks=False)
+                except OSError:
+                    keep = None  # a file system without hard links: this file cannot be put back
+            try:
+                os.replace(tmp, path)
+            except BaseException:
+                if keep is not None:
+                    keep.unlink(missing_ok=True)
+                raise
+            done.append((path, keep))
+    except BaseException:
+        for path, keep in reversed(done):
+            if keep is not None:
+                os.replace(keep, path)
+            else:
+                path.unlink(missing_ok=True)
+        raise
+    finally:
+        for _, keep in done:
+            if keep is not None:
+                keep.unlink(missing_ok=True)

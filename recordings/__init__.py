@@ -8,9 +8,9 @@ One module per step, in the order the data flows:
    any). One module per kind of file: :mod:`~avbench.recordings.text_tables`,
    :mod:`~avbench.recordings.arrays` (npy, npz, mat), :mod:`~avbench.recordings.bags` (ROS bags, PX4 ULog),
    sharing :mod:`~avbench.recordings.channels`;
-2. :mod:`~avbench.recordings.timing` -- time stamps (or ``--fs``) become a
-   :class:`~avbench.recordings.timing.Timing`: the sample interval, its jitter, and the gaps, which
-   split the record into gap-free runs;
+2. :mod:`~avbench.recordings.timing` -- time stamps (their unit by :mod:`~avbench.recordings.time_units`),
+   the file's stated rate or ``--fs`` become a :class:`~avbench.recordings.timing.Timing`: the sample
+   interval, its jitter, and the gaps, which split the record into gap-free runs;
 3. :mod:`~avbench.recordings.sensors` -- channels in SI units (through :mod:`avbench.noise_models.units`, the
    one units module), grouped by sensor and axis;
 3b. :mod:`~avbench.recordings.static` -- does the record look like a sensor at rest (said before the fits);
@@ -19,7 +19,8 @@ One module per step, in the order the data flows:
    recordings pooled and tested for agreement;
 5. :mod:`~avbench.recordings.report` -- the JSON payload with explicit flags, the screen tables, and
    :mod:`~avbench.recordings.filter_yaml` (Kalibr ``imu.yaml``, imu_utils) and
-   :mod:`~avbench.recordings.figure` (Allan deviation with each fitted term).
+   :mod:`~avbench.recordings.figure` (Allan deviation with each fitted term); the files are planned
+   before the fits and written as one set (:mod:`~avbench.recordings.plan`).
 
 Steps 1-3 are one call, :func:`load_recording` (:mod:`~avbench.recordings.load`), with the reader options of
 the command line as keywords. :func:`estimate_file` (:mod:`~avbench.recordings.estimate`) reads a recording

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from avbench.recordings.channels import Channel, Recording
+from avbench.recordings.time_units import Stamps
 
 __all__ = ["read_bag", "read_ulog", "BAG_SUFFIXES"]
 
@@ -87,15 +88,15 @@ def read_bag(path, topic, progress):
         raise ValueError(f"{path}: topic {topic} holds no messages")
     rec = Recording(Path(path), "ros1" if bag.suffix == ".bag" else "ros2", [], topic=topic)
     if np.any(stamp != 0):
-        t, rec.time_source = stamp, "header stamps"
+        t, what = stamp, "header stamps"
     else:
-        t, rec.time_source = recv, "bag receive times (every header stamp is zero)"
+        t, what = recv, "bag receive times (every header stamp is zero)"
         rec.notes.append("header stamps are all zero; the bag's receive times are used")
     order = np.argsort(t, kind="stable")
     if np.any(order != np.arange(k)):
         rec.notes.append("messages were not in time order; sorted by time stamp")
         out, t = out[order], t[order]
-    rec.time = (t - t[0]).astype(np.float64) * 1e-9
+    rec.stamps = Stamps(t, what, "ns", "the format")
     for j, (sensor, axis) in enumerate([("gyro", "x"), ("gyro", "y"), ("gyro", "z"),
                                         ("accel", "x"), ("accel", "y"), ("accel", "z")]):
         unit = "rad/s" if sensor == "gyro" else "m/s^2"
@@ -171,9 +172,8 @@ def read_ulog(path, progress):
     missing = [k for k in need + ["timestamp"] if k not in d]
     if missing:
         raise ValueError(f"{path}: sensor_combined lacks {', '.join(missing)}")
-    rec = Recording(Path(path), "ulog", [], topic="sensor_combined", time_source="timestamp (us)")
-    t = np.asarray(d["timestamp"], dtype=np.int64)
-    rec.time = (t - t[0]).astype(np.float64) * 1e-6
+    rec = Recording(Path(path), "ulog", [], topic="sensor_combined")
+    rec.stamps = Stamps(np.asarray(d["timestamp"], dtype=np.int64), "timestamp", "us", "the format")
     for i, axis in enumerate("xyz"):
         rec.channels.append(Channel(f"gyro_rad[{i}]", "gyro", axis, np.asarray(d[f"gyro_rad[{i}]"], dtype=np.float64), "rad/s"))
     for i, axis in enumerate("xyz"):

@@ -5,14 +5,18 @@ table's columns (:func:`choose_columns`). The rules are those of :mod:`avbench.r
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from avbench.recordings.time_units import TIME_SCALE, Stamps, check_time_units, stamps_in_seconds
+
 __all__ = ["Channel", "Recording", "header_unit", "time_in_seconds", "TIME_NAMES", "split_names", "axis_label",
-           "choose_columns", "numeric_array", "table_recording", "columns_recording", "set_time"]
+           "choose_columns", "numeric_array", "table_recording", "columns_recording", "set_time", "resolve_time",
+           "listing", "KIND_WORDS", "samples_first"]
 
 #: column (or array) names read as the time stamps
 TIME_NAMES = {"t", "time", "timestamp", "time_s", "times", "t_s"}
@@ -25,17 +29,20 @@ _GYRO_RE = re.compile(r"^(gyro|gyr|g|w|omega|wx|wy|wz|angular_velocity)[_ .\-\[]
 _ACCEL_RE = re.compile(r"^(accel|acc|a|alpha|linear_acceleration|accelerometer)[_ .\-\[]?([xyz012])\]?" + _UNIT_SUFFIX
                        + r"$|acc.*[_ .\-]?([xyz])$"
                        + r"|^(?:a|alpha|linear_acceleration|lin_acc)[_ .\-].*[_ .\-]([xyz])$", re.I)
-_TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: a unit in brackets at the end of a column name: ``w_RS_S_x [rad s^-1]``, ``acc (m/s^2)``
 _BRACKET_UNIT = re.compile(r"^(.*?)\s*[\[(]\s*([^\[\]()]+?)\s*[\])]\s*$")
 _UNIT_SPELLINGS = {"dps": "deg/s", "deg/sec": "deg/s", "degree/s": "deg/s", "degrees/s": "deg/s", "rps": "rad/s",
                    "rad/sec": "rad/s", "m/s2": "m/s^2", "m/s/s": "m/s^2", "m/sec^2": "m/s^2", "mps2": "m/s^2",
                    "sec": "s", "second": "s", "seconds": "s", "usec": "us", "msec": "ms", "nsec": "ns",
                    "deg/hr": "deg/h", "dph": "deg/h", "g0": "g"}
-#: epoch stamps: the first stamp in seconds lies between these (1973 and 2286)
-_EPOCH_S = (1e8, 1e10)
-#: integer stamps that are not epoch stamps: the unit whose median step makes a rate in this range (Hz)
-_STEP_RATE = (5.0, 5e3)
+#: units of channels that are neither inertial nor time, read so that they are never taken for one:
+#: magnetic flux density (G is gauss, g standard gravity) and temperature
+_OTHER_UNITS = {"magnetic": ("G", "mG", "uG", "gauss", "Gs", "T", "mT", "uT", "nT"),
+                "temperature": ("degC", "degF", "K")}
+#: what a header's kind of unit says a column holds, in messages
+KIND_WORDS = {"time": "a time", "gyro": "an angular rate", "accel": "an acceleration", "magnetic": "a magnetic field",
+              "temperature": "a temperature"}
+_LISTED = 8  #: names listed in a message before "..."
 
 
 @dataclass
@@ -61,6 +68,9 @@ class Recording:
     time_source: str | None = None  # e.g. "column 't'", "header stamps"
     topic: str | None = None
     notes: list[str] = field(default_factory=list)
+    stamps: Stamps | None = None  # raw stamps until :func:`resolve_time` makes ``time`` of them
+    time_resolution: float | None = None  # the stamps' resolution (s)
+    rate: tuple[float, str] | None = None  # (Hz, what said it): a rate the file states (``fs``, ``dt``)
 
     @property
     def n_samples(self) -> int:
@@ -93,7 +103,7 @@ def _resolve(path, names: list[str], n_cols: int, spec: str, option: str, bases=
     try:
         idx = int(spec)
     except ValueError:
-        known = ", ".join(names) if names else f"indices 0..{n_cols - 1}"
+        known = listing(names) if names else f"indices 0..{n_cols - 1}"
         raise ValueError(f"{path}: unknown column {spec!r} ({option}); expected one of {known}") from None
     if not 0 <= idx < n_cols:
         raise ValueError(f"{path}: column index {idx} out of range ({option}); expected 0..{n_cols - 1}")
@@ -135,7 +145,7 @@ def choose_columns(path, names: list[str], n_cols: int, gyro, accel, time_column
             found = [(i, sensor_of(i)) for i in rest] if names else []
             picks = [(i, k) for i, k in found if k == "gyro"] + [(i, k) for i, k in found if k == "accel"]
             if not picks:
-                listed = ", ".join(shown[i] for i in rest)
+                listed = listing(shown[i] for i in rest)
                 raise ValueError(f"{path}: {len(rest)} columns ({listed}); choose them with --gyro COLS and/or "
                                  "--accel COLS (or one with --column NAME|INDEX)")
     idx = [i for i, _ in picks]
@@ -151,22 +161,33 @@ def numeric_array(arr, path, what="data"):
     return arr
 
 
-def table_recording(path, fmt, arr, names, gyro, accel, time_column, time_units, time=None):
-    """A Recording from a 1-D or 2-D numeric array (columns are views: no copy)."""
+def samples_first(arr, path):
+    """A 2-D (samples x columns) view of a 1-D or 2-D array: samples along its longer dimension (a record
+    has more samples than columns; MATLAB and HDF5 store n x 3 as often as 3 x n)."""
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2:
         raise ValueError(f"{path}: expected a 1-D record or a 2-D (samples x columns) table, got shape {arr.shape}")
     if arr.shape[0] == 0 or arr.shape[1] == 0:
         raise ValueError(f"{path}: the record is empty")
+    return arr.T if arr.shape[0] < arr.shape[1] else arr
+
+
+def table_recording(path, fmt, arr, names, gyro, accel, time_column, time_units, time=None, time_what=None):
+    """A Recording from a 1-D or 2-D numeric array (:func:`samples_first`; columns are views: no copy);
+    ``time``: stamps kept beside the table (``time_what`` names them), used when no column is the time."""
+    arr = samples_first(arr, path)
     names = names or []
+    if names and len(names) != arr.shape[1]:
+        raise ValueError(f"{path}: 'columns' names {len(names)} column(s) but the data has {arr.shape[1]}; "
+                         "expected one name per column")
     t_idx, picks = choose_columns(path, names, arr.shape[1], gyro, accel, time_column)
     rec = columns_recording(path, fmt, [arr[:, i] for i in range(arr.shape[1])], names, t_idx, picks, time_units)
     if t_idx is None and time is not None:
         t = np.asarray(time)
         if t.shape != (arr.shape[0],):
             raise ValueError(f"{path}: the time array has shape {t.shape}; expected ({arr.shape[0]},), one per sample")
-        set_time(rec, path, t, time_units, None, "array 't'")
+        set_time(rec, path, t, time_units, None, time_what or "the time array")
     return rec
 
 
@@ -178,9 +199,10 @@ def columns_recording(path, fmt, cols, names, t_idx, picks, time_units):
     for i, sensor in picks:
         _, kind, unit = header_unit(label(i)) if names else (None, None, None)
         if kind is not None and kind != sensor:
+            fix = {"gyro": "--gyro for it", "accel": "--accel for it", "time": "--time for it"}.get(
+                kind, f"{'--gyro' if sensor == 'gyro' else '--accel'} to name {sensor} columns only")
             raise ValueError(f"{path}: column {label(i)!r} is chosen as {sensor} but its header says {unit} "
-                             f"({'a time' if kind == 'time' else 'an angular rate' if kind == 'gyro' else 'an acceleration'}); "
-                             f"expected {'--gyro' if kind == 'gyro' else '--accel' if kind == 'accel' else '--time'} for it")
+                             f"({KIND_WORDS[kind]}); expected {fix}")
         axis = axis_label(label(i), sensor) if names else ("x" if n_cols == 1 else str(i))
         channels.append(Channel(label(i), sensor, axis, cols[i], unit if kind == sensor else None))
     rec = Recording(Path(path), fmt, channels)
@@ -191,81 +213,92 @@ def columns_recording(path, fmt, cols, names, t_idx, picks, time_units):
 
 
 def set_time(rec, path, t, time_units, declared, what):
-    rec.time, unit, how = time_in_seconds(path, t, time_units, declared, what)
-    rec.time_source = f"{what} ({unit}, from {how})"
-    if how.startswith("its integer step") or how.startswith("the magnitude"):
-        rec.notes.append(f"{what} read in {unit}: inferred from {how}")
+    """Keep the raw stamps ``t`` of ``rec`` with what the file says of their unit (``declared``: a header's
+    bracket); :func:`resolve_time` turns them into seconds once the whole file is read."""
+    check_time_units(time_units)
+    rec.stamps = Stamps(np.asarray(t), what, declared, "the header" if declared is not None else None)
 
 
-def _time_scale(units) -> float:
-    try:
-        return _TIME_SCALE[units]
-    except KeyError:
-        raise ValueError(f"--time-units: expected one of {', '.join(_TIME_SCALE)}, got {units!r}") from None
+@functools.lru_cache(maxsize=1)
+def _unit_table() -> dict[str, tuple[str, str]]:
+    """spelling -> (kind, unit) of every unit a header may state."""
+    from avbench.noise_models.units import SAMPLE_UNITS
+
+    table = {u: ("time", u) for u in TIME_SCALE}
+    for kind in ("gyro", "accel"):
+        table.update({u: (kind, u) for u in SAMPLE_UNITS[kind]})
+    for alias, unit in _UNIT_SPELLINGS.items():
+        table[alias] = table[unit]
+    for kind, units in _OTHER_UNITS.items():
+        table.update({u: (kind, u) for u in units})
+    return table
+
+
+def _match_unit(u: str) -> tuple[str, str] | None:
+    """(kind, unit) of a normalised unit spelling: its exact (case-sensitive) spelling if known, else the
+    one unit it spells whatever the case; None where the case would decide between units (``MG``: mg or mG)."""
+    table = _unit_table()
+    if u in table:
+        return table[u]
+    found = {v for k, v in table.items() if k.lower() == u.lower()}
+    return found.pop() if len(found) == 1 else None
 
 
 def header_unit(name: str) -> tuple[str, str | None, str | None]:
     """(name without its unit, kind, unit) of a column name ending in a bracketed unit: kind is
-    "gyro", "accel" or "time" and unit its avbench spelling (``[rad s^-1]`` -> ("gyro", "rad/s"),
-    ``[m s^-2]`` -> ("accel", "m/s^2"), ``[ns]`` -> ("time", "ns")); (name, None, None) when there
-    is no bracket or its unit is none of these (``[degC]``)."""
-    from avbench.noise_models.units import SAMPLE_UNITS
-
+    "gyro", "accel", "time", "magnetic" or "temperature" and unit its avbench spelling (``[rad s^-1]`` ->
+    ("gyro", "rad/s"), ``[m s^-2]`` -> ("accel", "m/s^2"), ``[ns]`` -> ("time", "ns"), ``[G]`` ->
+    ("magnetic", "G"), ``[degC]`` -> ("temperature", "degC")); (name, None, None) when there is no
+    bracket or its unit is none of these. Units are matched case-sensitively where case carries meaning
+    (``g`` is standard gravity, ``G`` gauss; ``mg`` vs ``mG``), case-insensitively elsewhere (``RAD/S``)."""
     base = name.strip().lstrip("#").strip()
     m = _BRACKET_UNIT.match(base)
     if not m:
         return base, None, None
-    u = m.group(2).strip().lower().replace("°", "deg").replace("µ", "u").replace("μ", "u")
-    u = re.sub(r"\b(degrees|degree)\b", "deg", u)
-    u = re.sub(r"\b(radians|radian)\b", "rad", u)
+    u = m.group(2).strip().replace("°", "deg").replace("µ", "u").replace("μ", "u")
+    u = re.sub(r"\b(degrees|degree)\b", "deg", u, flags=re.I)
+    u = re.sub(r"\b(radians|radian)\b", "rad", u, flags=re.I)
     u = re.sub(r"\s*\*\s*|\s+", " ", u)
-    u = re.sub(r" ?\b(s|sec)\s*\^?\s*-1$", "/s", u)
-    u = re.sub(r" ?\b(s|sec)\s*\^?\s*-2$", "/s^2", u)
-    u = re.sub(r" ?\b(h|hr)\s*\^?\s*-1$", "/h", u)
+    u = re.sub(r" ?\b(s|sec)\s*\^?\s*-1$", "/s", u, flags=re.I)
+    u = re.sub(r" ?\b(s|sec)\s*\^?\s*-2$", "/s^2", u, flags=re.I)
+    u = re.sub(r" ?\b(h|hr)\s*\^?\s*-1$", "/h", u, flags=re.I)
     u = u.replace(" ", "")
-    u = _UNIT_SPELLINGS.get(u, u)
-    for kind, units in (("time", tuple(_TIME_SCALE)), ("gyro", SAMPLE_UNITS["gyro"]), ("accel", SAMPLE_UNITS["accel"])):
-        if u in units:
-            return m.group(1).strip(), kind, u
-    return base, None, None
+    found = _match_unit(u)
+    if found is None:
+        return base, None, None
+    return m.group(1).strip(), found[0], found[1]
 
 
-def time_in_seconds(path, t, time_units=None, declared=None, what="the time column"):
+def time_in_seconds(path, t, time_units=None, declared=None, what="the time column", fs=None):
     """(seconds since the first stamp as float64, the unit used, how it was chosen) for raw stamps ``t``.
 
-    The unit: ``time_units`` (the user's) if given, else ``declared`` (the file's header), else the
-    rule of the module docstring (epoch magnitude, then the step of integer stamps, then seconds).
-    Integer stamps are differenced in int64 first, so 1.4e18 ns keep every nanosecond."""
-    t = np.asarray(t)
-    if t.ndim != 1 or t.size == 0:
-        raise ValueError(f"{path}: {what} has shape {t.shape}; expected one time stamp per sample")
-    if t.dtype.kind not in "iuf":
-        raise ValueError(f"{path}: {what} is not numeric (dtype {t.dtype}); expected time stamps")
-    integer = t.dtype.kind in "iu"
-    if time_units is not None:
-        unit, how = time_units, "--time-units"
-        _time_scale(unit)
-    elif declared is not None:
-        unit, how = declared, "the header"
-    else:
-        unit, how = _infer_time_unit(t, integer)
-    rel = (t - t[0]) if integer else t
-    return np.asarray(rel, dtype=np.float64) * _time_scale(unit), unit, how
+    The unit: ``time_units`` (the user's) if given, else ``declared`` (the file's header, held to the
+    rates an IMU samples at), else the plausibility rule of :mod:`avbench.recordings.time_units`
+    (``fs``, if given, chooses between two plausible units). Integer stamps are differenced in int64
+    first, so 1.4e18 ns keep every nanosecond."""
+    stamps = Stamps(np.asarray(t), what, declared, "the header" if declared is not None else None)
+    seconds, unit, how, _, _ = stamps_in_seconds(path, stamps, time_units, (fs, "--fs") if fs else None)
+    return seconds, unit, how
 
 
-def _infer_time_unit(t, integer):
-    t0 = abs(float(t[0]))
-    finite = np.isfinite(t0)
-    if finite and t0 >= _EPOCH_S[0]:
-        for u, f in _TIME_SCALE.items():
-            if _EPOCH_S[0] <= t0 * f < _EPOCH_S[1]:
-                return u, f"the magnitude of its epoch stamps ({t0:.4g})"
-    whole = integer or (t.size > 1 and bool(np.all(np.isfinite(t[:1000])) and np.all(t[:1000] == np.round(t[:1000]))))
-    if whole and t.size > 1:
-        d = np.diff(t[: min(t.size, 10001)])
-        step = float(np.median(d))
-        if step > 0:
-            for u, f in _TIME_SCALE.items():
-                if _STEP_RATE[0] <= 1.0 / (step * f) < _STEP_RATE[1]:
-                    return u, f"its integer step ({step:.6g} -> {1 / (step * f):.6g} Hz; --time-units to override)"
-    return "s", "the default (seconds)"
+def resolve_time(rec, time_units=None, fs=None) -> None:
+    """Turn ``rec.stamps`` (raw, as the file holds them) into ``rec.time`` in seconds, with the unit's
+    source in ``rec.time_source``, the stamps' resolution in ``rec.time_resolution`` and any inference in
+    ``rec.notes``. ``fs`` (``--fs``), else the rate the file states, chooses between two plausible units."""
+    if rec.stamps is None:
+        return
+    hint = (fs, "--fs") if fs else rec.rate
+    seconds, unit, how, q, notes = stamps_in_seconds(rec.path, rec.stamps, time_units, hint)
+    rec.time = seconds
+    rec.time_resolution = q
+    rec.time_source = f"{rec.stamps.what} ({unit}, from {how})"
+    rec.notes.extend(notes)
+    rec.stamps = None
+
+
+def listing(names, limit: int = _LISTED) -> str:
+    """Names for a message: all of them, or the first ``limit`` and how many there are."""
+    names = list(names)
+    if len(names) <= limit:
+        return ", ".join(names)
+    return ", ".join(names[:limit]) + f", ... ({len(names)} in all)"

@@ -14,14 +14,21 @@ time stamps, jitter and gaps (``--fs`` only when the file has no time stamps, el
 units (from the format, or ``--units``/``--accel-units``: never guessed) -> every method on every
 axis (gap-aware Allan variance) -> outputs.
 
-Outputs (in ``--out DIR``, default the current directory, names prefixed with the input's stem):
-``<stem>_<sensor>_av.png`` (ADEV of each axis, each method's curve, the first method's terms),
-``<stem>_av.csv`` (the AV tables), ``<stem>_coefficients.csv`` and ``.json`` (per sensor, axis and
-method: values in display and SI units, standard errors/intervals where the method has them, and a
-flag per coefficient: ok / not modelled / non-physical / failed, plus poor fit), and with
-``--kalibr FILE`` / ``--format allan_variance_ros`` a filter's ``imu.yaml``. Standard output gets
-one table per sensor, or with ``--json`` only the JSON object. Any problem with the input or an
-option ends with a one-line error (exit code 2) and nothing written.
+Outputs (in ``--out DIR``, default the current directory, names prefixed with the input's stem made
+safe for a file name: :func:`avbench.recordings.plan.output_stem`): ``<stem>_<sensor>_av.png`` (ADEV of
+each axis, each method's curve, the first method's terms), ``<stem>_av.csv`` (the AV tables),
+``<stem>_coefficients.csv`` and ``.json`` (per sensor, axis and method: values in display and SI units,
+standard errors/intervals where the method has them, and a flag per coefficient: ok / not modelled /
+non-physical / failed, plus poor fit), and with ``--kalibr FILE`` / ``--format allan_variance_ros`` a
+filter's ``imu.yaml``. Standard output gets one table per sensor (a sensor whose values overflow the
+display units is shown in SI), or with ``--json`` only the JSON object.
+
+Every option (methods, ``--set`` settings by their declarations and relations, ``--inflate``,
+``--deviation``, ``--title``) is checked before the file is read, and every output is planned and
+checked before the first fit (:mod:`avbench.recordings.plan`): names, folders, no output over an input
+or over another output. The outputs are written as one set (:func:`avbench.outputs.write_set`): an
+interrupted run leaves the previous set or the new one. Any problem with the input or an option ends
+with a one-line error (exit code 2) and nothing written.
 
 From Python, :func:`estimate_file` fits one recording and returns the fits per sensor, axis and method;
 the command reads with :func:`avbench.recordings.load.load_recording` and fits with :func:`fit_sensors`,
@@ -98,21 +105,50 @@ def _methods(spec) -> list[str]:
     return methods
 
 
-def _check_settings(settings: dict) -> None:
-    """Unknown settings of a method raise here, before any work."""
+def _check_settings(settings: dict, option: str = "--set") -> None:
+    """Every setting of every method checked before any work: unknown settings, each value against the
+    estimator's declaration (:func:`avbench.estimators.settings.validate_settings`) and the relations
+    between them (the estimator's ``check_settings()``); a ``ValueError`` naming ``option``."""
     from avbench import estimators
+    from avbench.estimators.settings import validate_settings
 
     for method, kw in settings.items():
-        estimators.get(method, **kw)
+        try:
+            cls = estimators.estimator_class(method)
+            validate_settings(cls, kw)
+            est = estimators.get(method, **kw)
+            check = getattr(est, "check_settings", None)
+            if callable(check):
+                check()
+        except ValueError as e:
+            raise ValueError(f"{option}: {e}") from None
+
+
+def _check_title(title) -> None:
+    """``--title``: a text matplotlib can draw (``$...$`` must be valid mathtext; ``\\$`` is a dollar sign)."""
+    if title is None or "$" not in str(title):
+        return
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    FigureCanvasAgg(fig)
+    fig.suptitle(str(title))
+    try:
+        fig.canvas.draw()
+    except Exception as e:  # matplotlib's mathtext raises ValueError (and others) for a bad expression
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise ValueError(f"--title {title!r}: matplotlib cannot draw it ({first[:120]}); expected plain text, or "
+                         "$...$ holding valid mathtext (\\$ for a dollar sign)") from None
 
 
 def _check_args(args):
     from avbench.recordings.deviations import parse_deviations
     from avbench.recordings.filter_yaml import parse_inflate
     from avbench.recordings.load import check_reader_options, reader_options_of
-    from avbench.recordings.timing import check_fs
+    from avbench.recordings.plan import check_file_target
 
-    check_fs(args.fs)
+    check_reader_options(**reader_options_of(args))
     methods = _methods(args.method)
     settings: dict = {}
     for item in args.set:
@@ -128,7 +164,6 @@ def _check_args(args):
             parsed = value
         settings.setdefault(method, {})[setting] = parsed
     _check_settings(settings)
-    check_reader_options(**reader_options_of(args))  # --fs once more, with the other reader options
     if len(args.file) > 1 and not args.combine:
         raise ValueError(f"{len(args.file)} files given; expected one recording, or --combine to pool recordings of one sensor")
     inflate = parse_inflate(args.inflate)
@@ -139,14 +174,8 @@ def _check_args(args):
     if fm not in methods:
         raise ValueError(f"--filter-method {fm!r}: not among --method {', '.join(methods)}")
     if args.kalibr is not None:
-        k = Path(args.kalibr)
-        if k.is_dir():
-            raise ValueError(f"--kalibr {args.kalibr!r}: is a folder; expected a file name for the imu.yaml")
-        parent = k.parent
-        while not parent.exists() and parent != parent.parent:
-            parent = parent.parent
-        if parent.exists() and not parent.is_dir():
-            raise ValueError(f"--kalibr {args.kalibr!r}: {str(parent)!r} is not a folder; expected a file path")
+        check_file_target(Path(args.kalibr), "--kalibr")
+    _check_title(args.title)
     args.deviation = parse_deviations(getattr(args, "deviation", None))
     return methods, settings, fm, inflate
 
@@ -198,28 +227,80 @@ def estimate_file(path, methods=None, settings=None, **reader_options) -> dict:
     unknown = [m for m in settings if m not in methods]
     if unknown:
         raise ValueError(f"settings: method {unknown[0]!r} is not among the methods {', '.join(methods)}")
-    _check_settings(settings)
+    _check_settings(settings, "settings")
     _, timing, sensors = load_recording(path, **reader_options)
     return fit_sensors(sensors, timing, methods, settings)
 
 
-def _outputs(stem, sensors, args):
-    names = [f"{stem}_{s.sensor}_av.png" for s in sensors] + [f"{stem}_av.csv", f"{stem}_coefficients.csv",
-                                                             f"{stem}_coefficients.json"]
+def _png(fig) -> bytes:
+    import io
+
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    finally:
+        plt.close(fig)
+    return buf.getvalue()
+
+
+def _plan(args, stem, sensors):
+    """The outputs of ``avbench estimate`` (:class:`avbench.recordings.plan.OutputPlan`), each with its
+    writer: a function of the results (a dict: ``figures`` per sensor, ``av_table``, ``tables``,
+    ``data`` the JSON payload, ``yaml`` the filter yaml's text)."""
+    from avbench.recordings.plan import OutputPlan
+
+    plan = OutputPlan(Path(args.out))
+    for s in sensors:
+        plan.add(f"{stem}_{s.sensor}_av.png", lambda r, sensor=s.sensor: _png(r["figures"][sensor]))
+    plan.add(f"{stem}_av.csv", lambda r: r["av_table"].to_csv(index=False).encode("utf-8"))
+    plan.add(f"{stem}_coefficients.csv",
+             lambda r: pd.concat(dict(r["tables"]), names=["sensor"]).to_csv().encode("utf-8"))
     if args.format:
-        names.append(f"{stem}_imu.yaml")
-    return names
+        plan.add(f"{stem}_imu.yaml", lambda r: r["yaml"].encode("utf-8"))
+    if args.kalibr is not None:
+        plan.add_path(args.kalibr, "--kalibr", lambda r: r["yaml"].encode("utf-8"))
+    plan.add(f"{stem}_coefficients.json", lambda r: (json.dumps(r["data"], indent=2) + "\n").encode("utf-8"))
+    return plan
+
+
+def shown_in_si_where_display_overflows(data: dict) -> list[str]:
+    """Switch to SI, in the payload ``data``, every sensor one of whose values, intervals or standard errors
+    is finite in SI but overflows its display unit (a record of 1e306 rad/s in deg/h); returns a note per
+    sensor switched (also appended to ``data["notes"]``)."""
+    from avbench.noise_models.units import from_si
+
+    def overflows(c, sensor, e):
+        values = [e.get("si"), e.get("std_err_si"), e.get("fitted_si"), *(e.get("interval_si") or [])]
+        with np.errstate(over="ignore"):
+            return any(v is not None and np.isfinite(v) and not np.isfinite(from_si(c, v, e["unit"], sensor))
+                       for v in values)
+
+    notes = []
+    for sensor, sd in data["sensors"].items():
+        entries = [(c, e) for ad in sd["axes"].values() for md in ad["methods"].values()
+                   for c, e in md["coefficients"].items()]
+        if not any(overflows(c, sensor, e) for c, e in entries):
+            continue
+        for c, e in entries:
+            e["value"] = e["si"] if e["flag"] == "ok" else e["value"]
+            e["unit"] = e["si_unit"]
+        notes.append(f"{sensor}: coefficients shown in SI units, as their values overflow the usual display units")
+    data.setdefault("notes", []).extend(notes)
+    return notes
 
 
 def run(args) -> int:
     """Run ``avbench estimate`` (see the module docstring); returns the exit code."""
     from tqdm import tqdm
 
-    from avbench.outputs import atomic_write_bytes, atomic_write_text, prepare_out_dir
+    from avbench.outputs import Interrupted
     from avbench.recordings import figure, filter_yaml, report
     from avbench.recordings.deviations import axis_deviations, check_deviations_feasible
     from avbench.recordings.fit import agreement, auto_inflation, between_runs, fit_axis, scaled_allan
     from avbench.recordings.load import load_recording, pool_recordings, reader_options_of
+    from avbench.recordings.plan import output_stem
 
     methods, settings, filter_method, inflate = _check_args(args)
     progress = not args.no_progress and sys.stderr.isatty()
@@ -229,12 +310,11 @@ def run(args) -> int:
         timing, sensors = pool_recordings(loaded)
     else:
         timing, sensors = loaded[0].timing, loaded[0].sensors
-    column = args.column if args.column is not None else None
-    stem = (rec.path.stem or rec.path.name) + (f"_{column}" if column is not None else "") + \
-        ("_combined" if len(loaded) > 1 else "")
+    stem = output_stem(rec.path, args.column, len(loaded) > 1)
     if args.kalibr is not None or args.format:  # checked from the file to the fit: the yaml's needs before any fit
         filter_yaml.check_sensors([s.sensor for s in sensors], "--kalibr" if args.kalibr else "--format")
-    out = prepare_out_dir(args.out, "--out", _outputs(stem, sensors, args))
+    plan = _plan(args, stem, sensors)
+    out = plan.check([r.path for r, _, _ in loaded])
     dt = timing.dt
     check_deviations_feasible(args.deviation, timing.n_samples, timing.starts)
 
@@ -250,7 +330,8 @@ def run(args) -> int:
     n_fits = sum(len(s.axes) for s in sensors) * len(methods)
     with tqdm(total=n_fits, desc="fitting", unit="fit", disable=not progress, leave=False) as bar:
         fits = fit_sensors(sensors, timing, methods, settings, bar)
-    extra = {"format": rec.format, "topic": rec.topic, "time_source": rec.time_source, "notes": rec.notes,
+    notes = list(rec.notes) if len(loaded) == 1 else [f"{r.path.name}: {n}" for r, _, _ in loaded for n in r.notes]
+    extra = {"format": rec.format, "topic": rec.topic, "time_source": rec.time_source, "notes": notes,
              "static_check": still}
     if len(loaded) > 1:
         extra["combine"] = {}
@@ -277,8 +358,9 @@ def run(args) -> int:
             inflate[key] = max(fs_) if fs_ else 1.0
         extra["between_runs"]["inflate"] = inflate
     data = report.payload([r.path for r, _, _ in loaded], timing, sensors, fits, extra)
+    shown_in_si_where_display_overflows(data)
 
-    # everything that can refuse is checked before anything is written
+    # everything that can refuse is checked, and every output rendered, before anything is written
     yaml_text = None
     if args.kalibr is not None or args.format:
         choices = filter_yaml.filter_choices(data, filter_method, "--kalibr" if args.kalibr else "--format", all_avs)
@@ -289,7 +371,8 @@ def run(args) -> int:
                                "values_si": {k: v for k, (v, _, _) in choices.items()},
                                "bounds": {k: why for k, (_, _, why) in choices.items() if why}}
     tables = report.tables(data)
-    av_rows, figs, devs = [], [], {}
+    av_rows, figs, devs = [], {}, {}
+    title = args.title if args.title is not None else rec.path.name.replace("$", r"\$")  # a file name is no mathtext
     for s in sensors:
         avs = all_avs[s.sensor]
         for a, x in s.axes.items():
@@ -312,88 +395,73 @@ def run(args) -> int:
                                             unit=f"variance ({unit})^2, deviation {unit}")[["statistic", *f.columns, "sensor", "axis", "unit"]])
             av_rows.append(frame)
         flags = {a: {m: data["sensors"][s.sensor]["axes"][a]["methods"][m]["poor_fit"] for m in methods} for a in s.axes}
-        figs.append((s.sensor, figure.figure(s, fits[s.sensor], avs, dt, args.title or rec.path.name, flags,
-                                             deviations=devs.get(s.sensor))))
-
-    import io
-
-    import matplotlib.pyplot as plt
-
-    for sensor, fig in figs:
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-        plt.close(fig)
-        atomic_write_bytes(out / f"{stem}_{sensor}_av.png", buf.getvalue())
-    atomic_write_text(out / f"{stem}_av.csv", pd.concat(av_rows, ignore_index=True).to_csv(index=False))
-    long = pd.concat({k: v for k, v in tables.items()}, names=["sensor"])
-    atomic_write_text(out / f"{stem}_coefficients.csv", long.to_csv())
-    atomic_write_text(out / f"{stem}_coefficients.json", json.dumps(data, indent=2) + "\n")
-    written = [f"{stem}_{s}_av.png" for s, _ in figs] + [f"{stem}_av.csv", f"{stem}_coefficients.csv/.json"]
-    if args.format:
-        atomic_write_text(out / f"{stem}_imu.yaml", yaml_text)
-        written.append(f"{stem}_imu.yaml")
-    if args.kalibr is not None:
-        k = Path(args.kalibr)
-        k.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(k, yaml_text)
-
-    if args.json:
-        print(json.dumps(data))
-    else:
-        _print_summary(data, tables, timing, fits, rec)
-    print(f"avbench estimate: wrote {', '.join(written)} in {out}" + (f"; {args.kalibr}" if args.kalibr else ""),
-          file=sys.stderr)
+        figs[s.sensor] = figure.figure(s, fits[s.sensor], avs, dt, title, flags, deviations=devs.get(s.sensor))
+    screen = json.dumps(data) if args.json else _summary_text(data, timing, fits, rec)
+    results = {"figures": figs, "av_table": pd.concat(av_rows, ignore_index=True), "tables": tables, "data": data,
+               "yaml": yaml_text}
+    try:
+        plan.write(results)
+    except KeyboardInterrupt as e:  # SIGINT, or SIGTERM/SIGHUP (avbench.outputs.Interrupted), before the renames
+        why = str(e) if isinstance(e, Interrupted) else "interrupted"
+        print(f"avbench estimate: {why} before the outputs were put in place; nothing was written (the previous "
+              f"outputs in {out} are unchanged)", file=sys.stderr)
+        return 143 if "SIGTERM" in why else 130
+    print(screen)
+    print(f"avbench estimate: wrote {', '.join(o.name for o in plan.outputs)} (in {out})", file=sys.stderr)
     return 0
 
 
-def _say(text: str) -> None:
-    """Print a ``#`` line of the summary, wrapped at words to the screen's width."""
+def _say(lines: list, text: str) -> None:
+    """A ``#`` line of the summary, wrapped at words to the screen's width."""
     from avbench.recordings.report import wrap
 
-    print("\n".join(wrap(text, "#   ")))
+    lines.extend(wrap(text, "#   "))
 
 
-def _print_summary(data, tables, timing, fits, rec):
+def _summary_text(data, timing, fits, rec) -> str:
     """The screen of ``avbench estimate``: the record, its notes, the coefficient tables with their
     footnotes (:func:`avbench.recordings.report.screen`), the fit times and the between-run checks; no
-    line wider than :data:`avbench.recordings.report.SCREEN_WIDTH`."""
+    line wider than :data:`avbench.recordings.report.SCREEN_WIDTH`. Rendered before the outputs are
+    written, so that nothing the screen shows can fail after them."""
     from avbench.recordings import report
 
+    lines: list[str] = []
     src = ", ".join(data["sources"])
     joins = int(np.isnan(timing.gap_seconds).sum())  # --combine: file boundaries
     gaps = (f", {timing.n_gaps - joins} gap(s) ({np.nansum(timing.gap_seconds):.3g} s missing)" if timing.n_gaps - joins else "") + \
         (f", {joins} file boundary(ies) treated as gaps" if joins else "")
     jit = f", jitter {timing.jitter:.2%} of dt" if timing.jitter is not None else ""
-    _say(f"# {src}: {timing.n_samples} samples at {timing.fs:.6g} Hz ({timing.n_samples * timing.dt / 3600:.2f} h) "
+    _say(lines, f"# {src}: {timing.n_samples} samples at {timing.fs:.6g} Hz ({timing.n_samples * timing.dt / 3600:.2f} h) "
          f"from {timing.source}{jit}{gaps}" + (f"; topic {rec.topic}" if rec.topic else ""))
-    for note in rec.notes:
-        _say(f"# note: {note}")
+    for note in data.get("notes") or []:
+        _say(lines, f"# note: {note}")
     still = data.get("static_check")
     if still is not None and not still["static"]:
-        _say("# NOT STATIC: " + "; ".join(still["reasons"]) + " -- the fits assume a sensor at rest; "
+        _say(lines, "# NOT STATIC: " + "; ".join(still["reasons"]) + " -- the fits assume a sensor at rest; "
              "a POOR FIT below is expected for this reason")
-    print(report.screen(data))
+    lines.append(report.screen(data))
     times = [(f.seconds, f"{sensor} {axis} {name}") for sensor, per_axis in fits.items()
              for axis, per_method in per_axis.items() for name, f in per_method.items()]
     if times:
         slowest = max(times)
-        _say(f"# fits: {sum(t for t, _ in times):.1f} s in all; the slowest {slowest[1]} {slowest[0]:.1f} s")
+        _say(lines, f"# fits: {sum(t for t, _ in times):.1f} s in all; the slowest {slowest[1]} {slowest[0]:.1f} s")
     if "combine" in data:
         for sensor, per_axis in data["combine"].items():
             for axis, a in per_axis.items():
                 verdict = "agree" if a["agree"] else ("DISAGREE" if a["agree"] is not None else "not testable")
                 p = f"p = {a['p_value']:.3g}" if a["p_value"] is not None else a["note"]
-                _say(f"# recordings {verdict} on {sensor} {axis} ({p})")
+                _say(lines, f"# recordings {verdict} on {sensor} {axis} ({p})")
     if "between_runs" in data:
-        _print_between_runs(data)
+        _between_runs_text(lines, data)
+    return "\n".join(lines)
 
 
-def _print_between_runs(data):
+def _between_runs_text(lines, data):
     from avbench.noise_models.units import DISPLAY_UNITS, from_si
 
     br = data["between_runs"]
-    print()
-    _say(f"## between-run spread ({br['method']} on each recording alone; random effects, DerSimonian & Laird 1986)")
+    lines.append("")
+    _say(lines, f"## between-run spread ({br['method']} on each recording alone; random effects, DerSimonian & Laird 1986)")
     for sensor, per_axis in br["sensors"].items():
         for axis, per_coef in per_axis.items():
             for c, r in per_coef.items():
@@ -408,7 +476,7 @@ def _print_between_runs(data):
                 pred = (f"; a new run: {d(r['prediction'][0]):.4g} to {d(r['prediction'][1]):.4g}"
                         if r["prediction"] is not None else "")
                 cv = f" (CV {100 * r['cv']:.3g} %)" if r["cv"] is not None else ""
-                _say(f"# {sensor} {axis} {c}: mean {d(r['mean']):.4g} +- {d(r['mean_se']):.2g} {unit} over {r['k']} runs; "
-                     f"between-run SD {d(r['tau']):.3g}{cv}, 95 % interval {d(lo):.3g} to {d(hi):.3g}{pred}")
+                _say(lines, f"# {sensor} {axis} {c}: mean {d(r['mean']):.4g} +- {d(r['mean_se']):.2g} {unit} over "
+                     f"{r['k']} runs; between-run SD {d(r['tau']):.3g}{cv}, 95 % interval {d(lo):.3g} to {d(hi):.3g}{pred}")
     if "inflate" in br:
-        _say("# --inflate auto: " + ", ".join(f"{k} x {v:.3g}" for k, v in br["inflate"].items()))
+        _say(lines, "# --inflate auto: " + ", ".join(f"{k} x {v:.3g}" for k, v in br["inflate"].items()))

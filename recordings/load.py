@@ -24,7 +24,8 @@ from typing import NamedTuple
 import numpy as np
 
 from avbench.recordings.readers import Recording, read_recording
-from avbench.recordings.sensors import SensorRecord, to_si
+from avbench.recordings.sensors import SensorRecord, check_units, to_si
+from avbench.recordings.time_units import check_time_units, coarse, gap_threshold
 from avbench.recordings.timing import FS_TOLERANCE, Timing, check_fs, timing_of
 
 __all__ = ["READER_OPTIONS", "LoadedRecording", "load_recording", "check_reader_options", "reader_options_of",
@@ -54,9 +55,11 @@ class LoadedRecording(NamedTuple):
 
 def check_reader_options(*, fs=None, units=None, accel_units=None, column=None, gyro=None, accel=None, time=None,
                          time_units=None, topic=None) -> None:
-    """Refuse, before any file is read, reader options that contradict themselves: a sample rate that
-    is not one, or a gyro chosen both as ``column`` and ``gyro``."""
+    """Refuse, before any file is read, reader options that are wrong by themselves or together: a sample
+    rate that is not one, an unknown sample or time unit, a gyro chosen both as ``column`` and ``gyro``."""
     check_fs(fs)
+    check_units(units, accel_units)
+    check_time_units(time_units)
     if column is not None and gyro is not None:
         raise ValueError("--column: give either --column or --gyro, not both")
 
@@ -65,7 +68,8 @@ def load_recording(path, *, fs=None, units=None, accel_units=None, column=None, 
                    time_units=None, topic=None, progress=False) -> LoadedRecording:
     """Read ``path`` (any format of :mod:`avbench.recordings.readers`) into its SI sensor records and timing.
 
-    ``fs``: sample rate in Hz, needed when the file has no time stamps, else only checked against them;
+    ``fs``: sample rate in Hz, needed when the file has neither time stamps nor a stated rate, else only
+    checked against them (and choosing between two plausible time units);
     ``units`` / ``accel_units``: the gyro / accelerometer sample units when the file does not state
     them (never guessed); ``column``: one gyro column of a table; ``gyro`` / ``accel``: columns of a
     table or arrays of an .npz/.mat (names or indices, comma-separated); ``time``: the time column
@@ -76,8 +80,14 @@ def load_recording(path, *, fs=None, units=None, accel_units=None, column=None, 
     check_reader_options(fs=fs, units=units, accel_units=accel_units, column=column, gyro=gyro, accel=accel, time=time,
                          time_units=time_units, topic=topic)
     rec = read_recording(path, gyro=gyro if gyro is not None else column, accel=accel, time_column=time,
-                         time_units=time_units, topic=topic, progress=progress)
-    timing = timing_of(rec.time, fs, rec.n_samples, rec.path)
+                         time_units=time_units, topic=topic, progress=progress, fs=fs)
+    timing = timing_of(rec.time, fs, rec.n_samples, rec.path, rec.time_resolution, rec.rate)
+    if rec.time is None and rec.rate is not None:
+        rec.notes.append(f"sample rate {rec.rate[0]:.6g} Hz from the file's {rec.rate[1]}")
+    if coarse(timing.dt, timing.resolution):
+        rec.notes.append(f"time stamps resolved to {timing.resolution:.3g} s, {timing.resolution / timing.dt:.0%} of "
+                         f"the interval: the rate is their span over the samples ({timing.fs:.6g} Hz), and steps "
+                         f"up to {gap_threshold(timing.dt, timing.resolution):.3g} s are not gaps")
     return LoadedRecording(rec, timing, to_si(rec, units, accel_units))
 
 
@@ -104,7 +114,7 @@ def pool_recordings(loaded: list[LoadedRecording]) -> tuple[Timing, list[SensorR
     gaps = np.concatenate([np.concatenate(([np.nan] if o else [], t.gap_seconds)) for o, (_, t, _) in zip(offsets, loaded)])
     n = int(sum(t.n_samples for _, t, _ in loaded))
     timing = Timing(t0.dt, t0.source + f" ({len(loaded)} recordings pooled; file boundaries are gaps)", n,
-                    starts.astype(np.int64), gaps, t0.jitter, t0.max_deviation)
+                    starts.astype(np.int64), gaps, t0.jitter, t0.max_deviation, t0.resolution)
     sensors = []
     for k, s in enumerate(s0):
         axes = {a: np.concatenate([np.asarray(sl[k].axes[a]) for _, _, sl in loaded]) for a in s.axes}

@@ -1,12 +1,30 @@
-"""Text tables (``.csv .txt .dat .tsv``): the separator and decimal mark by rule (:func:`_dialect`), a
-header row or an EuRoC / TUM-VI ``#`` header line, pandas' C parser straight to float64 (an integer
-time column to int64), and a one-line message naming the line for every fault of the file. The rules
-are those of :mod:`avbench.recordings.readers`.
+"""Text tables (``.csv .txt .dat .tsv``), read by their structure:
+
+* **Encoding.** UTF-8, a leading byte-order mark (Excel's "CSV UTF-8") dropped.
+* **Fields.** Lines split as RFC 4180 says: fields in double quotes may hold the separator, and the
+  quotes are not part of the field (R's ``write.csv`` quotes every header name); with blank
+  separators, quoted fields may hold blanks.
+* **Dialect** (:func:`_dialect`): the separator and decimal mark under which the first data lines split
+  into equally many numeric fields and a header row into as many names; the most fields first, then
+  ``;``, tab, ``,``, blanks; a decimal comma only where ``,`` is not the separator.
+* **Shape.** Every line has as many fields as the first data line, and a header as many names: a
+  header with one name fewer than the fields (a table written with its row index) is refused, never
+  read with the first field as an index and every name shifted onto the next column.
+* **Decimal commas under comma separators** (:func:`_decimal_comma_check`) are refused whatever the
+  exponent: a table whose fields hold no ``.`` and are all integers or digits with an exponent
+  (``5e-03``, only after an integer field), some of them a fraction's marks (a leading zero, ``0123``,
+  or an exponent), was written as ``0,0123`` or ``1,5e-03``.
+
+Parsed by pandas' C parser straight to float64 (an integer time column to int64), with a one-line
+message naming the line for every fault of the file. The other rules are those of
+:mod:`avbench.recordings.readers`.
 """
 
 from __future__ import annotations
 
+import csv
 import re
+import shlex
 
 import numpy as np
 
@@ -16,11 +34,15 @@ from avbench.recordings.channels import choose_columns, columns_recording
 __all__ = ["read_text"]
 
 
-def _first_lines(path, k=20):
+#: the encoding of text tables: UTF-8, its byte-order mark (if any) dropped
+ENCODING = "utf-8-sig"
+
+
+def _first_lines(path, k=100):
     """(number of leading comment/blank lines, the first k data lines, the last leading comment line or None)."""
     lead, lines, comment = 0, [], None
     try:
-        with open(path, encoding="utf-8", errors="strict") as fh:
+        with open(path, encoding=ENCODING, errors="strict") as fh:
             for line in fh:
                 s = line.strip()
                 if not lines and (not s or s.startswith("#")):
@@ -41,6 +63,7 @@ def _first_lines(path, k=20):
 
 _LEADING_ZERO_INT = re.compile(r"^[+-]?0\d+$")
 _INT = re.compile(r"^[+-]?\d+$")
+_FRACTION_EXP = re.compile(r"^\d+[eE][+-]?\d+$")  # the fraction of 1,5e-03 after the comma
 
 
 #: candidate separators, in the order of preference among those that fit (see :func:`_dialect`)
@@ -48,7 +71,16 @@ _SEPARATORS = (";", "\t", ",", r"\s+")
 
 
 def _split_cells(line, sep):
-    return re.split(sep, line.strip()) if sep == r"\s+" else line.split(sep)
+    """The fields of one line under ``sep`` (RFC 4180 quoting; blanks: quoted fields may hold blanks)."""
+    line = line.strip()
+    if '"' not in line:
+        return re.split(sep, line) if sep == r"\s+" else line.split(sep)
+    if sep == r"\s+":
+        try:
+            return shlex.split(line, posix=True)
+        except ValueError:  # an unbalanced quote: split as written, the checks after it name the line
+            return re.split(sep, line)
+    return next(csv.reader([line], delimiter=sep, quotechar='"')) if line else [""]
 
 
 def _is_number(cell, decimal) -> bool:
@@ -97,8 +129,8 @@ def _dialect(path, lines):
 
     The rule: the separators under which the first lines form a table (:func:`_fitting_dialects`),
     the most columns first, then ``;``, tab, ``,``, blanks; a decimal comma only where ``,`` is not
-    the separator. A file that fits none (an empty field, a text cell) gets the reading of its first
-    line, so that pandas' error or the checks after it name the faulty line.
+    the separator. A file that fits none (an empty field, a text cell, a header that names the fields
+    wrongly) gets the reading of its first data line, so that the checks after it name the faulty line.
     """
     fits = _fitting_dialects(lines)
     if fits:
@@ -108,6 +140,8 @@ def _dialect(path, lines):
             _decimal_comma_check(path, lines)
         return sep, decimal
     first = lines[0]
+    if len(lines) > 1 and data_files.is_header_row(re.split(r"[;,\s]+", first.strip())):
+        first = lines[1]  # the header row's own separators do not decide
     for sep in (";", "\t"):
         if sep in first:
             return sep, ("," if any("," in c for ln in lines[1:] or lines for c in ln.split(sep)) else ".")
@@ -120,13 +154,47 @@ def _dialect(path, lines):
 
 
 def _decimal_comma_check(path, lines):
-    """Refuse a comma-separated table that looks written with decimal commas (every cell an integer,
-    some with a leading zero: ``0,0123``)."""
+    """Refuse a comma-separated table written with decimal commas (the rule of the module docstring):
+    ``0,0123`` and ``1,5e-03`` split at their decimal comma."""
     data = [ln for ln in lines if ln and not ln.startswith("#")]
-    cells = [c.strip() for ln in data[1:] or data for c in ln.split(",")]
-    if cells and all(_INT.match(c) for c in cells) and any(_LEADING_ZERO_INT.match(c) for c in cells):
+    rows = [[c.strip() for c in _split_cells(ln, ",")] for ln in data]
+    rows = [r for r in rows if not data_files.is_header_row(r)] or rows
+    marks = False
+    for r in rows:
+        for j, c in enumerate(r):
+            if _FRACTION_EXP.match(c):
+                if j == 0 or not _INT.match(r[j - 1]):
+                    return
+                marks = True
+            elif not _INT.match(c):
+                return
+            elif j > 0 and _LEADING_ZERO_INT.match(c):
+                marks = True
+    if marks:
         raise ValueError(f"{path}: looks written with decimal commas ({data[-1]!r}); expected '.' as the decimal "
                          "mark with ',' separators (or ';'/tab separated columns with decimal commas)")
+
+
+def _shape_check(path, lead, rows, names, header):
+    """Every first data line has as many fields as the first; a header as many names (see the module
+    docstring). ``rows``: the fields of the first lines (the header's first when ``header``)."""
+    data = rows[1:] if header else rows
+    first = next((i for i, r in enumerate(data) if r != [""] and not r[0].startswith("#")), None)
+    if first is None:
+        return
+    k = len(data[first])
+    line0 = lead + int(header) + first + 1
+    for i, r in enumerate(data):
+        if r == [""] or r[0].startswith("#") or len(r) == k:
+            continue
+        line = lead + int(header) + i + 1
+        raise ValueError(f"{path}: cannot parse as a text table: line {line} has {len(r)} field(s) where line "
+                         f"{line0} has {k}; expected the same number of fields on every line")
+    if names is not None and len(names) != k:
+        what = ("a header with no name for the first field (a row index?)" if len(names) == k - 1 else
+                "one name per field")
+        raise ValueError(f"{path}: the header names {len(names)} column(s) but line {line0} has {k} fields; expected "
+                         f"{what} -- fix the header, or remove the index column")
 
 
 def read_text(path, gyro, accel, time_column, time_units):
@@ -134,33 +202,33 @@ def read_text(path, gyro, accel, time_column, time_units):
 
     lead, lines, last_comment = _first_lines(path)
     sep, decimal = _dialect(path, lines)
-    cells = _split_cells(lines[0], sep)
-    header = _is_header(cells, decimal)
-    names = [c.strip() for c in cells] if header else None
+    rows = [_split_cells(ln, sep) for ln in lines]
+    header = _is_header(rows[0], decimal)
+    names = [c.strip() for c in rows[0]] if header else None
     if names is None and last_comment is not None:  # EuRoC / TUM-VI: "#timestamp [ns],w_RS_S_x [rad s^-1],..."
-        k = len(_split_cells(lines[0], sep))
+        k = len(rows[0])
         cand = [c.strip() for c in _split_cells(last_comment.lstrip("#").strip(), sep)]
         if k > 1 and len(cand) == k and all(cand) and _is_header(cand, decimal):
             names = cand
-    n_cols = len(names) if names else len(_split_cells(lines[1] if header and len(lines) > 1 else lines[0], sep))
+    _shape_check(path, lead, rows, names if header else None, header)
+    n_cols = len(names) if names else len(rows[1] if header and len(rows) > 1 else rows[0])
     try:  # the time column, to read it as int64 when it holds integers; a bad choice is said after parsing
         t_idx = choose_columns(path, names or [], n_cols, gyro, accel, time_column)[0]
     except ValueError:
         t_idx = None
     dtype = np.float64
     if t_idx is not None and _integer_column(lines[int(header):], sep, t_idx):
-        key = names[t_idx] if names else t_idx
-        dtype = {(nm if names else j): np.float64 for j, nm in enumerate(names or range(n_cols))}
-        dtype[key] = np.int64
+        dtype = {j: np.float64 for j in range(n_cols)}
+        dtype[t_idx] = np.int64
+    options = dict(sep=sep, decimal=decimal, header=None, skiprows=lead + int(header), comment="#",
+                   skip_blank_lines=False, engine="c", encoding=ENCODING, quotechar='"')
     try:
         try:
-            df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=lead + int(header), comment="#",
-                             skip_blank_lines=False, engine="c", dtype=dtype, names=names)
+            df = pd.read_csv(path, dtype=dtype, **options)
         except (ValueError, OverflowError):
             if dtype is np.float64:
                 raise
-            df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=lead + int(header), comment="#",
-                             skip_blank_lines=False, engine="c", dtype=np.float64, names=names)
+            df = pd.read_csv(path, dtype=np.float64, **options)
     except pd.errors.EmptyDataError:
         raise ValueError(f"{path}: a header but no samples" if header else f"{path}: the file is empty") from None
     except (ValueError, pd.errors.ParserError) as e:
@@ -179,7 +247,7 @@ def read_text(path, gyro, accel, time_column, time_units):
     label = (lambda i: nm[i]) if nm else (lambda i: f"column {i}")
     for i in range(n_cols):  # the file's own faults first, then the choice of columns
         if arr_cols[i].dtype.kind == "f":
-            _blank_line_check(path, arr_cols[i], lead + int(header), label(i))
+            _blank_line_check(path, arr_cols[i], lead + int(header), label(i), sep, n_cols)
     t_idx, picks = choose_columns(path, nm, n_cols, gyro, accel, time_column)
     return columns_recording(path, "text", arr_cols, nm, t_idx, picks, time_units)
 
@@ -196,20 +264,21 @@ def _trailing_blank_rows(path, df, skip):
     if not nan_rows[-1]:
         return df
     k = len(nan_rows) - np.argmin(nan_rows[::-1]) if not nan_rows.all() else 0
-    with open(path, encoding="utf-8") as fh:
+    with open(path, encoding=ENCODING) as fh:
         tail = fh.read().splitlines()[skip + k:]
     if all(not ln.strip() for ln in tail):
         return df.iloc[:k]
     return df
 
 
-def _blank_line_check(path, col, skip, label):
-    """Say *why* a column holds NaN where the file has a blank line (instead of a NaN sample)."""
+def _blank_line_check(path, col, skip, label, sep, n_cols):
+    """Say *why* a column holds NaN where the file has a blank line, a comment, an empty field or a line
+    with fewer fields (instead of a NaN sample)."""
     bad = np.flatnonzero(np.isnan(col))
     if bad.size == 0:
         return
     i = int(bad[0])
-    with open(path, encoding="utf-8") as fh:
+    with open(path, encoding=ENCODING) as fh:
         for k, line in enumerate(fh):
             if k == skip + i:
                 if not line.strip():
@@ -218,7 +287,11 @@ def _blank_line_check(path, col, skip, label):
                 if line.strip().startswith("#"):
                     raise ValueError(f"{path}: line {k + 1} is a comment between samples (sample {i} of {label}); "
                                      "expected comments only before the data")
-                if "," in line or ";" in line or "\t" in line:
+                fields = _split_cells(line.split("#", 1)[0], sep)
+                if len(fields) < n_cols:
+                    raise ValueError(f"{path}: cannot parse as a text table: line {k + 1} has {len(fields)} field(s) "
+                                     f"where the table has {n_cols}; expected the same number of fields on every line")
+                if any(not f.strip() for f in fields):
                     raise ValueError(f"{path}: line {k + 1} has an empty field (sample {i} of {label}); "
                                      "expected a number in every field")
                 break
@@ -230,7 +303,7 @@ def _explain_text_error(path, skip, sep, decimal, err):
 
     try:
         df = pd.read_csv(path, sep=sep, decimal=decimal, header=None, skiprows=skip, comment="#",
-                         skip_blank_lines=False, engine="python", dtype=str)
+                         skip_blank_lines=False, engine="python", dtype=str, encoding=ENCODING, quotechar='"')
     except (pd.errors.ParserError, ValueError) as e:
         return ValueError(f"{path}: cannot parse as a text table ({str(e).splitlines()[0][:200]})")
     except UnicodeDecodeError:

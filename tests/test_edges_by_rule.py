@@ -31,7 +31,7 @@ def _name(s: str) -> bool:
     s = s.strip()
     if not s or s.lower() in {"t", "time", "timestamp", "time_s", "times", "t_s", "nan", "inf", "infinity"}:
         return False
-    if header_unit(s)[1] in ("accel", "time"):  # its header declares another kind ("[G]": g), which the
+    if header_unit(s)[1] not in (None, "gyro"):  # its header declares another kind ("[G]": gauss), which the
         return False  # reader rightly refuses for a gyro column (test_a_declared_unit_of_another_kind_is_refused)
     try:
         float(s)
@@ -77,11 +77,13 @@ def test_any_table_reads_back_as_written(tmp_path_factory, table):
         np.testing.assert_array_equal(np.asarray(c.values, float), values[:, j])
 
 
-@pytest.mark.parametrize("name,kind", [("[G]", "accel"), ("x [m/s^2]", "accel"), ("t0 [ms]", "time")])
+@pytest.mark.parametrize("name,kind", [("[G]", "magnetic"), ("x [g]", "accel"), ("x [m/s^2]", "accel"),
+                                       ("t0 [ms]", "time"), ("temp [degC]", "temperature")])
 def test_a_declared_unit_of_another_kind_is_refused(tmp_path, name, kind):
     """A column chosen as gyro whose header declares an acceleration or a time unit is an error naming both."""
     p = tmp_path / "rec.csv"
     p.write_text(name + "\n" + "\n".join(["0.0", "1.0", "2.0"]) + "\n")
+    assert header_unit(name)[1] == kind
     with pytest.raises(ValueError, match="chosen as gyro but its header says"):
         read_recording(p, gyro=name, time_column="none")
 
@@ -135,9 +137,17 @@ def test_absurd_magnitude_is_noted_with_what_was_expected(tmp_path):
     assert "5.73e+04 deg/s" in rec.notes[0]
 
 
-def test_all_zero_record_is_noted(tmp_path):
+def test_constant_axes_are_skipped_and_said_and_all_constant_is_refused(tmp_path):
+    """A constant (or all-zero) axis has no noise to fit: skipped with a note naming it; a record whose
+    every chosen axis is constant is refused before any fit."""
     p = tmp_path / "zeros.csv"
     p.write_text("0.0\n" * 64)
-    rec = read_recording(p)
-    to_si(rec, "deg/s")
-    assert "every sample is zero" in rec.notes[0]
+    with pytest.raises(ValueError, match=r"every chosen axis is constant \(gyro column 0\)"):
+        to_si(read_recording(p), "deg/s")
+    x = np.random.default_rng(4).normal(size=64)
+    q = tmp_path / "mixed.csv"
+    q.write_text("gx,gy,gz\n" + "".join(f"{float(v)!r},3.5,0\n" for v in x))
+    rec = read_recording(q)
+    (s,) = to_si(rec, "deg/s")
+    assert list(s.axes) == ["x"]
+    assert sum("constant" in n and "skipped" in n for n in rec.notes) == 2
