@@ -164,6 +164,29 @@ def _available_memory() -> int | None:
         return None
 
 
+#: the accelerometer of ``avbench simulate --imu``: a MEMS accelerometer of the ADIS16405's datasheet
+#: class (velocity random walk 0.2 m/s/sqrt(h), in-run bias stability 0.2 mg, an acceleration random
+#: walk of 0.03 m/s^2/sqrt(h)), SI, at rest with gravity on z
+IMU_ACCEL = {"N": 0.2 / 60.0, "B": 0.2e-3 * 9.80665, "K": 0.03 / 60.0}
+
+
+def _write_imu_csv(path, rate, gyro, n, rng) -> None:
+    """A six-axis static IMU record as a CSV with its units in the header: the first gyro axis is
+    ``rate``, the other two fresh draws of the same gyro, and three accelerometer axes of
+    :data:`IMU_ACCEL` with standard gravity on z."""
+    import numpy as np
+
+    from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, RateRandomWalk
+
+    accel = Gyro(dt=gyro.dt, terms=[AngleRandomWalk(N=IMU_ACCEL["N"]),
+                                    BiasInstability(B=IMU_ACCEL["B"], tau_max=max(n * gyro.dt, 100 * gyro.dt)),
+                                    RateRandomWalk(K=IMU_ACCEL["K"])])
+    cols = [np.arange(n) * gyro.dt, rate, gyro.simulate(n, rng), gyro.simulate(n, rng),
+            accel.simulate(n, rng), accel.simulate(n, rng), accel.simulate(n, rng) + 9.80665]
+    np.savetxt(path, np.column_stack(cols), delimiter=",", fmt="%.10g", comments="",
+               header="t [s],gx [rad/s],gy [rad/s],gz [rad/s],ax [m/s^2],ay [m/s^2],az [m/s^2]")
+
+
 def cmd_simulate(args) -> int:
     import numpy as np
 
@@ -182,6 +205,8 @@ def cmd_simulate(args) -> int:
         if out.suffix not in (".npy", ".csv"):
             raise ValueError(f"--out: expected a .npy or .csv file name, got {args.out!r}")
         prepare_out_dir(out.parent, "--out", outputs=(out.name,))
+    if args.imu and (out is None or out.suffix != ".csv"):
+        raise ValueError("--imu: writes a six-axis CSV; expected --out FILE.csv")
     rng = np.random.default_rng(args.seed)
     rate = gyro.simulate(n, rng)
     av = allan_variance(rate, gyro.dt, taus=args.taus, overlapping=not args.non_overlapping)
@@ -203,14 +228,16 @@ def cmd_simulate(args) -> int:
 
         tmp = tmp_name(out).with_suffix(out.suffix)
         try:
-            if out.suffix == ".npy":
+            if args.imu:
+                _write_imu_csv(tmp, rate, gyro, n, rng)
+            elif out.suffix == ".npy":
                 np.save(tmp, rate)
             else:
                 np.savetxt(tmp, rate, header=f"rate_rad_s (dt = {gyro.dt} s, preset {args.preset}, seed {args.seed})")
             tmp.replace(out)
         finally:
             tmp.unlink(missing_ok=True)
-        print(f"# wrote {n} samples (rad/s) to {out}", file=sys.stderr)
+        print(f"# wrote {n} samples ({'six axes, units in the header' if args.imu else 'rad/s'}) to {out}", file=sys.stderr)
     return 0
 
 
@@ -498,6 +525,9 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     s.add_argument("--non-overlapping", action="store_true", help="non-overlapping AV (default: overlapping)")
     s.add_argument("--units", default="deg/h", choices=["rad/s", "deg/s", "deg/h"], help="ADEV units (default deg/h)")
     s.add_argument("--out", help="also write the samples (rad/s) to FILE.npy or FILE.csv")
+    s.add_argument("--imu", action="store_true",
+                   help="with --out FILE.csv: a six-axis static IMU record instead (three gyro axes of the preset, "
+                        "three accelerometer axes of a MEMS accelerometer with gravity on z; units in the header)")
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("check-estimator", help="check an estimator against the estimator contract")

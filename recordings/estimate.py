@@ -38,6 +38,7 @@ as :func:`estimate_file` does.
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -67,8 +68,16 @@ def add_parser(subparsers, parents):
                    help="pool several recordings of one sensor in one fit, test that they agree, and report the "
                         "between-run spread of each coefficient (the --filter-method fitted to each run alone; random effects)")
     s.add_argument("--kalibr", default=None, metavar="FILE", help="also write a Kalibr imu.yaml to FILE")
-    s.add_argument("--format", default=None, choices=["kalibr", "allan_variance_ros"],
-                   help="also write <stem>_imu.yaml in --out in this style")
+    s.add_argument("--format", default=None, metavar="NAME[,NAME...]",
+                   help="also write the noise parameters in the file each filter stack reads, <stem>_<name>.<ext> in "
+                        "--out: kalibr, allan_variance_ros, openvins, vins, orbslam3, basalt, gtsam, px4, matlab, "
+                        "ros_imu_covariance (keys, units and conventions: docs/EXPORTS.md)")
+    s.add_argument("--filter-rate", default=None, type=float, metavar="HZ",
+                   help="the rate at which the filter receives the samples, where a stack needs a discrete value at "
+                        "it (PX4: EKF2's prediction rate; default: the record's rate; the file says which)")
+    s.add_argument("--html", action="store_true",
+                   help="also write <stem>_report.html: one self-contained page (the record, the static check, the "
+                        "figures, the coefficient tables, the fit checks and every exported file, ready to copy)")
     s.add_argument("--filter-method", default=None, help="method whose N and K go into the yaml (default: the first of --method)")
     s.add_argument("--inflate", default=None, metavar="F|F_NOISE,F_WALK|auto",
                    help="multiply the yaml's noise densities / random walks (default: no inflation); 'auto' (with --combine "
@@ -175,6 +184,14 @@ def _check_args(args):
         raise ValueError(f"--filter-method {fm!r}: not among --method {', '.join(methods)}")
     if args.kalibr is not None:
         check_file_target(Path(args.kalibr), "--kalibr")
+    if args.format:
+        from avbench.recordings.exports import parse_names
+
+        args.format = parse_names(args.format)
+    if args.filter_rate is not None and not (math.isfinite(args.filter_rate) and args.filter_rate > 0):
+        raise ValueError(f"--filter-rate: expected the filter's rate in Hz (a number > 0), got {args.filter_rate:g}")
+    if args.filter_rate is not None and not args.format:
+        raise ValueError("--filter-rate: sets the rate of the --format files; expected --format NAME as well")
     _check_title(args.title)
     args.deviation = parse_deviations(getattr(args, "deviation", None))
     return methods, settings, fm, inflate
@@ -247,18 +264,24 @@ def _png(fig) -> bytes:
 
 def _plan(args, stem, sensors):
     """The outputs of ``avbench estimate`` (:class:`avbench.recordings.plan.OutputPlan`), each with its
-    writer: a function of the results (a dict: ``figures`` per sensor, ``av_table``, ``tables``,
-    ``data`` the JSON payload, ``yaml`` the filter yaml's text)."""
+    writer: a function of the results (a dict: ``pngs`` the figures per sensor, ``av_table``, ``tables``,
+    ``data`` the JSON payload, ``yaml`` the Kalibr yaml's text, ``exports`` each ``--format`` file's
+    ``(suffix, text)``, ``html`` the page)."""
     from avbench.recordings.plan import OutputPlan
 
     plan = OutputPlan(Path(args.out))
     for s in sensors:
-        plan.add(f"{stem}_{s.sensor}_av.png", lambda r, sensor=s.sensor: _png(r["figures"][sensor]))
+        plan.add(f"{stem}_{s.sensor}_av.png", lambda r, sensor=s.sensor: r["pngs"][sensor])
     plan.add(f"{stem}_av.csv", lambda r: r["av_table"].to_csv(index=False).encode("utf-8"))
     plan.add(f"{stem}_coefficients.csv",
              lambda r: pd.concat(dict(r["tables"]), names=["sensor"]).to_csv().encode("utf-8"))
     if args.format:
-        plan.add(f"{stem}_imu.yaml", lambda r: r["yaml"].encode("utf-8"))
+        from avbench.recordings.exports import FORMATS
+
+        for name in args.format:
+            plan.add(f"{stem}{FORMATS[name].suffix}", lambda r, name=name: r["exports"][name][1].encode("utf-8"))
+    if getattr(args, "html", False):
+        plan.add(f"{stem}_report.html", lambda r: r["html"].encode("utf-8"))
     if args.kalibr is not None:
         plan.add_path(args.kalibr, "--kalibr", lambda r: r["yaml"].encode("utf-8"))
     plan.add(f"{stem}_coefficients.json", lambda r: (json.dumps(r["data"], indent=2) + "\n").encode("utf-8"))
@@ -361,12 +384,11 @@ def run(args) -> int:
     shown_in_si_where_display_overflows(data)
 
     # everything that can refuse is checked, and every output rendered, before anything is written
-    yaml_text = None
+    yaml_text, exported = None, {}
     if args.kalibr is not None or args.format:
         choices = filter_yaml.filter_choices(data, filter_method, "--kalibr" if args.kalibr else "--format", all_avs)
-        style = args.format or "kalibr"
         yaml_text = filter_yaml.kalibr_yaml(choices, timing.fs, rec.topic, filter_method,
-                                            [r.path for r, _, _ in loaded], inflate, style)
+                                            [r.path for r, _, _ in loaded], inflate, "kalibr")
         data["filter_yaml"] = {"method": filter_method, "inflate": dict(inflate) if isinstance(inflate, dict) else list(inflate),
                                "values_si": {k: v for k, (v, _, _) in choices.items()},
                                "bounds": {k: why for k, (_, _, why) in choices.items() if why}}
@@ -396,9 +418,22 @@ def run(args) -> int:
             av_rows.append(frame)
         flags = {a: {m: data["sensors"][s.sensor]["axes"][a]["methods"][m]["poor_fit"] for m in methods} for a in s.axes}
         figs[s.sensor] = figure.figure(s, fits[s.sensor], avs, dt, title, flags, deviations=devs.get(s.sensor))
+    if args.format:
+        from avbench.recordings import exports
+
+        exported = exports.render(data, args.format, filter_method, timing.fs, args.filter_rate, inflate, rec.topic,
+                                  [r.path for r, _, _ in loaded], avs=all_avs)
     screen = json.dumps(data) if args.json else _summary_text(data, timing, fits, rec)
-    results = {"figures": figs, "av_table": pd.concat(av_rows, ignore_index=True), "tables": tables, "data": data,
-               "yaml": yaml_text}
+    pngs = {k: _png(f) for k, f in figs.items()}
+    results = {"pngs": pngs, "av_table": pd.concat(av_rows, ignore_index=True), "tables": tables, "data": data,
+               "yaml": yaml_text, "exports": exported}
+    if args.html:
+        from avbench.recordings.html import recording_page
+
+        pages = {name: (f"{stem}{suffix}", text) for name, (suffix, text) in exported.items()}
+        if args.kalibr is not None and "kalibr" not in pages:
+            pages["kalibr"] = (Path(args.kalibr).name, yaml_text)
+        results["html"] = recording_page(data, pngs, pages, title=title)
     try:
         plan.write(results)
     except KeyboardInterrupt as e:  # SIGINT, or SIGTERM/SIGHUP (avbench.outputs.Interrupted), before the renames

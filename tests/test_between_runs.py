@@ -87,7 +87,7 @@ def test_combine_reports_between_run_spread_and_inflates_the_yaml(tmp_path, caps
     assert r["tau"] > 5 * r["mean_se"] / math.sqrt(6)  # the spread dwarfs one run's sampling error
     f = data["between_runs"]["inflate"]["gyroscope_noise_density"]
     assert f == pytest.approx(r["prediction"][1] / r["mean"], rel=1e-12) and f > 1.2
-    text = (tmp_path / "o" / "run0_combined_imu.yaml").read_text()
+    text = (tmp_path / "o" / "run0_combined_kalibr.yaml").read_text()
     assert "--inflate auto" in text
     val = float(text.split("gyroscope_noise_density:")[1].split()[0])
     assert val == pytest.approx(data["filter_yaml"]["values_si"]["gyroscope_noise_density"] * f, rel=1e-12)

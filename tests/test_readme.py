@@ -67,3 +67,24 @@ def test_readme_python_blocks_run(tmp_path, monkeypatch):
     namespace: dict = {"__name__": "__readme__"}
     for i, block in enumerate(code):
         exec(compile(block, f"README.md python block {i}", "exec"), namespace)
+
+
+def test_readme_robotics_section_runs_as_written(tmp_path):
+    """The robotics path of the README (simulate a record, estimate it with --format and --html) runs
+    as written, and writes every file it names."""
+    import os
+    import subprocess
+    import sys
+
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("**From a recording to your filter (robotics).**"):]
+    block = re.search(r"```bash\n(.*?)```", section, re.S).group(1)
+    env = dict(os.environ, MPLBACKEND="Agg", PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
+    run = subprocess.run(["bash", "-euo", "pipefail", "-c", block], cwd=tmp_path, env=env, capture_output=True,
+                         text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    named = re.findall(r"`est/([^`]+)`", section.split("**What to inflate", 1)[0])
+    assert {"imu_vins.yaml", "imu_kalibr.yaml", "imu_px4.params", "imu_report.html"} <= set(named)
+    for name in named:
+        assert (tmp_path / "est" / name).is_file(), name
+    assert "## accel" in run.stdout and "## gyro" in run.stdout
