@@ -332,9 +332,11 @@ def reader_options_parser() -> argparse.ArgumentParser:
     (``READER_OPTIONS`` there); a new parser per command, as argparse shares a parent's actions."""
     p = argparse.ArgumentParser(add_help=False)
     p.add_argument("--fs", type=float, default=None,
-                   help="sample rate in Hz (needed when the file has no time stamps; else only checked)")
+                   help="sample rate in Hz (needed without time stamps or a rate in the file; else a check, which "
+                        "also chooses between two plausible time units)")
     p.add_argument("--units", default=None, help="gyro sample units when the format does not say: rad/s, deg/s, deg/h, mrad/s")
-    p.add_argument("--accel-units", default=None, help="accelerometer sample units when the format does not say: m/s^2, g, mg, ug")
+    p.add_argument("--accel-units", default=None, help="accelerometer sample units when the format does not say: m/s^2, "
+                   "g, mg, ug (else from gravity for a static three-axis accelerometer)")
     p.add_argument("--column", default=None, help="one gyro column of a table: name or 0-based index")
     p.add_argument("--gyro", default=None, help="gyro columns of a table (comma-separated names or indices), or the "
                    "gyro array(s) of an .npz/.mat by name")
@@ -342,8 +344,8 @@ def reader_options_parser() -> argparse.ArgumentParser:
     p.add_argument("--time", default=None, help="time column (or .npz/.mat array) (default: one named t/time/timestamp "
                    "or with a time unit in its header; 'none' to ignore it)")
     p.add_argument("--time-units", default=None, choices=["s", "ms", "us", "ns"],
-                   help="units of the time column (default: the header's [unit], else from the stamps' magnitude "
-                        "and step, else s)")
+                   help="units of the time column (default: the header's [unit], else the one unit giving an IMU's "
+                        "rate, 1 Hz-32 kHz; two plausible units are refused)")
     p.add_argument("--topic", default=None, help="sensor_msgs/Imu topic of a bag (default: the only one)")
     return p
 
@@ -367,9 +369,14 @@ def _add_deviations_parser(sub) -> None:
     s.add_argument("file", help="a recording: .npy .npz .mat .csv .txt .dat .tsv .bag .ulg or a ROS 2 bag folder")
     s.add_argument("--sensor", default=None, choices=["gyro", "accel"], help="only this sensor (default: every one in the file)")
     s.add_argument("--deviation", default=DEVIATIONS_DEFAULT, metavar="NAMES",
-                   help=f"comma-separated: oadev, hdev, ohdev, mdev, tdev, totdev, mtotdev, htotdev, theo1, theobr "
-                        f"(default {DEVIATIONS_DEFAULT})")
+                   help=f"comma-separated: adev, oadev, hdev, ohdev, mdev, tdev, totdev, mtotdev, ttotdev, htotdev, "
+                        f"pdev, theo1, theobr (default {DEVIATIONS_DEFAULT})")
     s.add_argument("--taus", default="octave", choices=["octave", "decade"], help="tau grid (default octave)")
+    s.add_argument("--intervals", default="exact", choices=["exact", "stable32"],
+                   help="exact: the edf of the statistic's filters under the AV's noise type (default); stable32: "
+                        "Stable32's edf and noise identification, at its confidence factor")
+    s.add_argument("--bias-corrected", action="store_true",
+                   help="Stable32's bias-corrected MTOTDEV, TTOTDEV, HTOTDEV and Theo1 values")
     s.add_argument("--out", default=".", help="output folder (default: .)")
     s.add_argument("--title", default=None, help="plot title (default: the file name)")
     s.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -377,57 +384,71 @@ def _add_deviations_parser(sub) -> None:
 
 
 def cmd_deviations(args) -> int:
-    """``avbench deviations FILE``: read as ``avbench estimate`` reads, compute, write CSV and plot."""
+    """``avbench deviations FILE``: read as ``avbench estimate`` reads, compute, write CSV and plot as one
+    planned set of outputs (:class:`avbench.recordings.plan.OutputPlan`)."""
     import io
 
     import pandas as pd
 
-    from avbench.outputs import atomic_write_bytes, atomic_write_text, prepare_out_dir
     from avbench.recordings import figure
     from avbench.recordings.deviations import axis_deviations, check_deviations_feasible, parse_deviations
     from avbench.recordings.load import check_reader_options, load_recording, reader_options_of
+    from avbench.recordings.plan import OutputPlan, output_stem
 
     options = reader_options_of(args)
     check_reader_options(**options)
     names = parse_deviations(args.deviation)
+    if args.intervals == "stable32" and "pdev" in names:
+        raise ValueError("--intervals stable32: Stable32 gives no PDEV interval; expected --deviation without pdev, "
+                         "or --intervals exact")
     rec, timing, sensors = load_recording(args.file, progress=not args.no_progress and sys.stderr.isatty(), **options)
     sensors = [s for s in sensors if args.sensor in (None, s.sensor)]
     if not sensors:
         raise ValueError(f"--sensor {args.sensor}: {rec.path} has no {args.sensor} channels")
     check_deviations_feasible(names, timing.n_samples, timing.starts)
-    stem = (rec.path.stem or rec.path.name) + (f"_{args.column}" if args.column is not None else "")
-    outputs = [f"{stem}_deviations.csv"] + [f"{stem}_{s.sensor}_deviations.png" for s in sensors]
-    out = prepare_out_dir(args.out, "--out", outputs)
+    stem = output_stem(rec.path, args.column)
+    plan = OutputPlan(Path(args.out))
+    plan.add(f"{stem}_deviations.csv", lambda r: r["table"].to_csv(index=False).encode("utf-8"))
+    for s in sensors:
+        plan.add(f"{stem}_{s.sensor}_deviations.png", lambda r, sensor=s.sensor: r["pngs"][sensor])
+    out = plan.check([rec.path])
+    title = args.title if args.title is not None else rec.path.name.replace("$", r"\$")  # a file name is no mathtext
     rows, figs = [], []
     for s in sensors:
-        devs = {a: axis_deviations(x, timing.dt, timing.starts, names, args.taus) for a, x in s.axes.items()}
+        devs = {a: axis_deviations(x, timing.dt, timing.starts, names, args.taus, args.intervals, args.bias_corrected)
+                for a, x in s.axes.items()}
         for a, d in devs.items():
             for name, r in d.items():
-                unit = s.si_unit.split("/")[0] if r.kind == "tvar" else s.si_unit
+                unit = s.si_unit.split("/")[0] if r.kind in ("tvar", "ttotvar") else s.si_unit
                 f = r.to_frame()  # column "adev" holds the statistic's deviation
                 rows.append(f.assign(statistic=name, sensor=s.sensor, axis=a,
                                      unit=f"variance ({unit})^2, deviation {unit}")[["statistic", *f.columns, "sensor", "axis", "unit"]])
         confidence = next(iter(next(iter(devs.values())).values())).confidence
-        figs.append((s.sensor, figure.deviations_figure(s.sensor, s.si_unit, devs, args.title or rec.path.name, confidence)))
+        figs.append((s.sensor, figure.deviations_figure(s.sensor, s.si_unit, devs, title, confidence)))
     table = pd.concat(rows, ignore_index=True)
 
     import matplotlib.pyplot as plt
 
+    pngs = {}
     for sensor, fig in figs:
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
         plt.close(fig)
-        atomic_write_bytes(out / f"{stem}_{sensor}_deviations.png", buf.getvalue())
-    atomic_write_text(out / f"{stem}_deviations.csv", table.to_csv(index=False))
-    print(f"# {rec.path.name}: {timing.n_samples} samples at {1 / timing.dt:.6g} Hz; deviations on each axis' longest "
-          f"gap-free run, SI units (TDEV in rad or m/s), 'edf' the equivalent degrees of freedom")
+        pngs[sensor] = buf.getvalue()
+    plan.write({"table": table, "pngs": pngs})
+    from avbench.recordings.report import wrap
+
+    print("\n".join(wrap(f"# {rec.path.name}: {timing.n_samples} samples at {1 / timing.dt:.6g} Hz; deviations on each "
+                          "axis' longest gap-free run, SI units (TDEV and TTOTDEV in rad or m/s), 'edf' the equivalent "
+                          "degrees of freedom" + ("; Stable32's intervals" if args.intervals == "stable32" else "")
+                          + ("; bias-corrected where Stable32 corrects" if args.bias_corrected else ""), "#   ")))
     for (sensor, axis), g in table.groupby(["sensor", "axis"], sort=False):
         wide = g.assign(tau=g["tau"].map(lambda t: float(f"{t:.4g}"))).pivot_table(
             index="tau", columns="statistic", values="adev", sort=True)[list(dict.fromkeys(g["statistic"]))]
         print(f"\n## {sensor} {axis}")
-        with pd.option_context("display.float_format", "{:.4g}".format, "display.width", 160):
+        with pd.option_context("display.float_format", "{:.4g}".format, "display.width", 100):
             print(wide.to_string(na_rep="-"))
-    print(f"\n# wrote {', '.join(outputs)} in {out}")
+    print(f"\n# wrote {', '.join(plan.names)} in {out}")
     return 0
 
 

@@ -45,10 +45,20 @@ def check_deviations_feasible(names, n, starts) -> None:
             raise ValueError(f"--deviation: {e}") from None
 
 
-def axis_deviations(x, dt, starts, names, taus="octave") -> dict:
-    """{name: AllanResult} of one axis on its longest gap-free run (cost capped by DEVIATION_BUDGET terms)."""
+def axis_deviations(x, dt, starts, names, taus="octave", intervals="exact", bias_corrected=False) -> dict:
+    """{name: AllanResult} of one axis on its longest gap-free run (cost capped by DEVIATION_BUDGET terms);
+    ``intervals`` and ``bias_corrected`` as :func:`avbench.estimators.allan.deviations.deviation` takes
+    them (Stable32's intervals and bias-corrected values; PDEV has no Stable32 interval: its exact one)."""
     from avbench.estimators.allan.deviations import deviation
 
     a, b = longest_run(len(x), starts)
     run = np.asarray(x[a:b], dtype=float)
-    return {name: deviation(run, dt, name, taus, max_terms=DEVIATION_BUDGET) for name in names}
+    out = {}
+    for name in names:
+        kw = {}
+        if intervals != "exact" and name != "pdev":
+            kw["intervals"] = intervals
+        if bias_corrected:
+            kw["bias_corrected"] = bias_corrected
+        out[name] = deviation(run, dt, name, taus, max_terms=DEVIATION_BUDGET, **kw)
+    return out

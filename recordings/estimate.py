@@ -84,7 +84,7 @@ def add_parser(subparsers, parents):
                         "and >= 3 recordings): by the between-run spread's 95 %% prediction limit over the mean")
     s.add_argument("--deviation", default=None, metavar="NAMES",
                    help="also draw and tabulate these deviations on each axis (comma-separated: oadev, hdev, ohdev, "
-                        "mdev, tdev, totdev, mtotdev, htotdev, theo1, theobr), on the longest gap-free run; rows of "
+                        "mdev, tdev, totdev, mtotdev, ttotdev, htotdev, pdev, theo1, theobr), on the longest gap-free run; rows of "
                         "<stem>_av.csv by 'statistic' (alone: avbench deviations FILE)")
     s.add_argument("--json", action="store_true", help="print only the JSON object on stdout")
     s.add_argument("--out", default=".", help="output folder for the plots and tables (default: .)")
@@ -412,7 +412,7 @@ def run(args) -> int:
                     if r.kind == "avar":
                         continue  # oadev: the engine's rows above
                     f = r.to_frame()  # column "adev" holds the statistic's deviation
-                    unit = f"{s.si_unit.split('/')[0]}" if r.kind == "tvar" else s.si_unit
+                    unit = f"{s.si_unit.split('/')[0]}" if r.kind in ("tvar", "ttotvar") else s.si_unit
                     av_rows.append(f.assign(statistic=name, sensor=s.sensor, axis=a,
                                             unit=f"variance ({unit})^2, deviation {unit}")[["statistic", *f.columns, "sensor", "axis", "unit"]])
             av_rows.append(frame)
