@@ -3,7 +3,9 @@
 Modules: :mod:`avbench.bench.harness` (asv-style runner: medians of interleaved repeats, same-run
 baselines), :mod:`avbench.bench.suite` (the classes of a run), the benchmark classes by what they
 measure -- :mod:`avbench.bench.engine` (simulators, Allan variances), :mod:`avbench.bench.fits` (the
-estimators), :mod:`avbench.bench.recordings` (reading a recording, ``avbench estimate``) and
+estimators), :mod:`avbench.bench.recordings` (reading a recording, ``avbench estimate``),
+:mod:`avbench.bench.real_e2e` (``avbench estimate`` on real and consumer-grade records, with its records in
+:mod:`avbench.bench.real_records`) and
 :mod:`avbench.bench.startup` (start-up, first calls, the lv2015 study) -- with their helpers
 :mod:`avbench.bench.streaming` (peak memory of the streaming path, in a child process),
 :mod:`avbench.bench.estimate_e2e` and the kernel-vs-reference throughput modules

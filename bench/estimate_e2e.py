@@ -8,7 +8,8 @@
   screen table, CSV, JSON, the two figures) in a fresh process, after one untimed run on a short file
   of the same shape (numba's disk cache warm, as for any user's second run); then, in this process, the
   same pipeline step by step: reading the file, timing + SI, the static check, the six Allan variances;
-  each default method's fits over the six axes as the timed run itself reports them; and within the
+  each default method's fits over the six axes as the timed run itself reports them (the timed process
+  of :mod:`avbench.bench.real_e2e`); and within the
   fits, by a profile of one more pass, the share of the fit check (:mod:`avbench.estimators.allan.fit_check`, its AV covariance) and of
   GMWM's model evaluations; what is left of the wall time is imports, figures and writing.
 
@@ -66,19 +67,12 @@ def write_euroc(path, hours: float, fs: float, seed: int = 0) -> Path:
 
 def _wall(path: Path, out: Path) -> tuple[float, dict]:
     """(wall seconds of ``avbench estimate FILE`` in a fresh process, seconds per method summed over the
-    axes as the command itself reports them: its ``# gyro x gmwm: 1.2 s`` lines)."""
-    import re
+    axes): the timed process of :mod:`avbench.bench.real_e2e`, which writes them."""
+    from avbench.bench.real_e2e import _run
 
-    cmd = [sys.executable, "-m", "avbench.cli", "estimate", str(path), "--out", str(out), "--no-progress"]
-    t0 = time.perf_counter()
-    r = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "MPLBACKEND": "Agg"})
-    wall = time.perf_counter() - t0
-    if r.returncode != 0:
-        raise RuntimeError(f"avbench estimate failed: {r.stderr[-800:]}")
-    per: dict = {}
-    for m in re.finditer(r"^# (?:gyro|accel) \S+ (\S+): ([\d.]+) s", r.stdout, re.M):
-        per[m.group(1)] = per.get(m.group(1), 0.0) + float(m.group(2))
-    return wall, per
+    with tempfile.TemporaryDirectory(prefix="avbench_e2e_breakdown_") as d:
+        wall, _, breakdown = _run(path, [], out, Path(d) / "breakdown.json")
+    return wall, breakdown["fits_per_method_s"]
 
 
 def _steps(path: Path) -> dict:
@@ -122,8 +116,8 @@ def _steps(path: Path) -> dict:
     out["fits_profile_share"] = {
         "fit check (allan/fit_check.assess_fit)": share(("assess_fit",), "fit_check"),
         "AV covariance (allan/covariance.av_covariance)": share(("av_covariance",), "covariance"),
-        "gmwm model AV and its Jacobian (likelihood/gmwm._LatentAV)": share(("__call__", "jacobian"),
-                                                                                 os.path.join("likelihood", "gmwm.py")),
+        "gmwm model AV and its Jacobian (likelihood/_gmwm_model.LatentAV)": share(
+            ("__call__", "jacobian"), os.path.join("likelihood", "_gmwm_model.py")),
         "Gauss-Markov exact AV (noise_models/terms._gm_f_over_c2)": share(("_gm_f_over_c2",), "terms")}
     return out
 

@@ -10,7 +10,8 @@ The classes live with what they measure:
   :class:`OnlineKernels`, :class:`OnlineDefaults`, :class:`MleFit`, :class:`MleFitDrift`,
   :class:`WhittleFit`;
 * :mod:`avbench.bench.recordings` -- a user's recording: :class:`ReadRecording`,
-  :class:`EstimateMemory`, :class:`EstimateEndToEnd`;
+  :class:`EstimateMemory`, :class:`EstimateEndToEnd`; :mod:`avbench.bench.real_e2e` -- real and
+  consumer-grade records end to end: :class:`EstimateRealRecords`;
 * :mod:`avbench.bench.startup` -- whole processes: :class:`StartUp`, :class:`FirstCall`,
   :class:`LvStudy`.
 
@@ -41,6 +42,7 @@ from avbench.bench.fits import (
     QuickOnlineKernels,
     WhittleFit,
 )
+from avbench.bench.real_e2e import EstimateRealRecords
 from avbench.bench.recordings import EstimateEndToEnd, EstimateMemory, ReadRecording
 from avbench.bench.report import loglog_slope
 from avbench.bench.startup import FirstCall, LvStudy, QuickStartUp, StartUp
@@ -65,6 +67,7 @@ __all__ = [
     "ReadRecording",
     "EstimateMemory",
     "EstimateEndToEnd",
+    "EstimateRealRecords",
     "FitCost",
     "ALL",
     "classes",
@@ -74,13 +77,13 @@ __all__ = [
 #: every benchmark of a full run
 ALL = [Generation, AllanOverlapping, Deviations, AllanEngine, AllanKernel, EstimatorScaling, FitCost, OnlineKernels,
        OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory,
-       EstimateEndToEnd, LvStudy, StartUp, FirstCall]
+       EstimateEndToEnd, EstimateRealRecords, LvStudy, StartUp, FirstCall]
 
 #: the ``--quick`` run (tiny sizes, for CI): the quick variants of OnlineKernels and StartUp; no
-#: EstimateEndToEnd, no LvStudy
+#: EstimateEndToEnd, no LvStudy; EstimateRealRecords on a 2-minute consumer record
 QUICK = [Generation, AllanOverlapping, Deviations, AllanEngine, AllanKernel, EstimatorScaling, FitCost,
          QuickOnlineKernels, OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory,
-         ReadRecording, EstimateMemory, QuickStartUp, FirstCall]
+         ReadRecording, EstimateMemory, EstimateRealRecords, QuickStartUp, FirstCall]
 
 
 def classes(quick: bool) -> list:

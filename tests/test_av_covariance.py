@@ -1,6 +1,7 @@
-"""The AV covariance's per-pair cache (avbench.estimators.allan.covariance): the weighted sum of kept
-per-shape integrals equals the direct midpoint sum of the squared total spectrum to round-off, for
-every term kind, on first and later calls, and for coefficients the cache has not seen."""
+"""The AV covariance's caches (avbench.estimators.allan.covariance): the weighted sum of kept per-shape
+integrals equals the direct midpoint sum of the squared total spectrum to round-off, for every term
+kind, on first and later calls, and for coefficients the cache has not seen; a kept covariance and kept
+Haar gains give the values computed afresh bit for bit, within their budgets."""
 
 import numpy as np
 import pytest
@@ -48,6 +49,7 @@ M = 2 ** np.arange(0, 10)
 def test_cached_covariance_equals_the_direct_sum(q, n, b, k, tc, dt):
     g = gyro_of(q, n, b, k, tc, dt)
     first = av_covariance(g, M, 20_000)
+    covariance._RESULTS.clear()  # not the kept covariance: its pairs
     again = av_covariance(g, M, 20_000)  # every pair from the cache
     ref = direct(g, M, 20_000)
     assert close(first, ref) and close(again, ref)
@@ -153,3 +155,91 @@ def test_a_sinusoid_adds_its_cross_term_with_the_noise():
     without = model - np.diag(covariance._line_cross(g, m.astype(float))) / (2.0 * M_)
     assert np.any(np.abs(var - without) > 8 * se_var)  # the check can fail: the cross term matters here
     assert close(av_covariance(g, m, n, reuse=False), av_covariance(g, m, n), rtol=1e-9)
+
+
+def test_a_kept_covariance_is_the_one_computed_afresh_and_a_copy():
+    """A covariance asked again (same model, sizes, length, path) is the kept one: equal bit for bit to a
+    fresh computation, returned as a copy (the caller may scale it in place); another length, another
+    path or other coefficients are computed."""
+    from avbench.noise_models import FilteredWhiteNoise
+
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=1e-4, tc=20.0), RateRandomWalk(K=1e-6)])
+    for reuse in (True, False):
+        covariance._RESULTS.clear()
+        first = av_covariance(g, M, 50_000, reuse=reuse)
+        first *= 2.0  # the caller's copy
+        covariance._PAIRS.clear()
+        covariance._GAINS.clear()
+        covariance._RESULTS.clear()
+        fresh = av_covariance(g, M, 50_000, reuse=reuse)
+        kept = av_covariance(g, M, 50_000, reuse=reuse)
+        np.testing.assert_array_equal(kept, fresh)
+        np.testing.assert_array_equal(first, 2.0 * fresh)
+        assert kept is not av_covariance(g, M, 50_000, reuse=reuse)
+    assert not np.array_equal(av_covariance(g, M, 60_000), fresh)
+    other = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=1e-4, tc=21.0), RateRandomWalk(K=1e-6)])
+    assert not np.array_equal(av_covariance(other, M, 50_000), av_covariance(g, M, 50_000))
+    # a FIR filter's taps are a parameter of the key; a term with an array parameter is not kept (no key)
+    taps = Gyro(dt=0.01, terms=[FilteredWhiteNoise(N=1e-3, taps=[0.25, 0.5, 0.25])])
+    assert close(av_covariance(taps, M, 50_000), direct(taps, M, 50_000))
+    odd = Gyro(dt=0.01, terms=[ArrayParameter(N=1e-3)])
+    assert covariance._result_key(odd, np.asarray(M, float), 50_000, 4096, True) is None
+    assert close(av_covariance(odd, M, 50_000), direct(odd, M, 50_000))
+
+
+class ArrayParameter(AngleRandomWalk):
+    """A user's term with an array among its parameters (unhashable)."""
+
+    def _params(self):
+        return {**super()._params(), "weights": np.ones(2)}
+
+
+def test_the_kept_covariances_are_bounded(monkeypatch):
+    monkeypatch.setattr(covariance, "RESULT_CACHE_SIZE", 3)
+    covariance._RESULTS.clear()
+    for n in range(10_000, 10_005):
+        av_covariance(Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3)]), M, n)
+    assert len(covariance._RESULTS) == 3
+
+
+def test_kept_gains_stay_within_their_budget_and_give_the_same_covariance(monkeypatch):
+    """Gains up to the whole budget are kept, the least recently used dropped first so that what is held
+    never exceeds it; gains beyond it come block by block; every covariance equals the fresh one."""
+    g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=1e-4, tc=30.0)])
+    m_small, m_big = 2.0 ** np.arange(0, 8), 2.0 ** np.arange(0, 10)
+    fresh = {}
+    for m in (m_small, m_big):
+        covariance._GAINS.clear()
+        covariance._RESULTS.clear()
+        fresh[m.size] = av_covariance(g, m, 100_000, reuse=False)
+    big = m_big.size * covariance._grid_size(m_big, 8, 1 << 21) * 8
+    monkeypatch.setattr(covariance, "GAIN_CACHE_BYTES", big)  # room for the big set alone
+    covariance._GAINS.clear()
+    for m in (m_small, m_big, m_small):
+        covariance._RESULTS.clear()
+        np.testing.assert_array_equal(av_covariance(g, m, 100_000, reuse=False), fresh[m.size])
+        held = sum(v[0].size * k[0] * 8 for k, v in covariance._GAINS.items())
+        assert 0 < held <= big
+    monkeypatch.setattr(covariance, "GAIN_CACHE_BYTES", big - 1)  # the big set no longer fits: not kept
+    covariance._GAINS.clear()
+    covariance._RESULTS.clear()
+    np.testing.assert_array_equal(av_covariance(g, m_big, 100_000, reuse=False), fresh[m_big.size])
+    assert not covariance._GAINS
+
+
+def test_fitted_shapes_take_the_direct_sum(monkeypatch):
+    """A model with two or more pairs of a fitted shape (Gauss-Markov tc, a filter's tc) not kept takes the
+    direct midpoint sum (one product, not one per pair) and nothing is integrated per pair; a five-term
+    model keeps its pairs. Both equal the direct sum to round-off."""
+    from avbench.noise_models import FilteredWhiteNoise
+
+    calls = []
+    real = covariance._pair_integrals
+    monkeypatch.setattr(covariance, "_pair_integrals", lambda *a: calls.append(list(a[1])) or real(*a))
+    covariance._RESULTS.clear()
+    fitted = Gyro(dt=0.01, terms=[FilteredWhiteNoise(N=1e-3, tc=0.02), GaussMarkov(sigma=1e-4, tc=17.0),
+                                  RateRandomWalk(K=1e-6)])
+    assert close(av_covariance(fitted, M, 50_000), direct(fitted, M, 50_000)) and not calls
+    five = gyro_of(1e-6, 1e-3, 1e-4, 1e-6, None, 0.01)
+    covariance._PAIRS.clear()
+    assert close(av_covariance(five, M, 50_000), direct(five, M, 50_000)) and len(calls) == 1

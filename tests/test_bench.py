@@ -58,6 +58,11 @@ def test_quick_run_writes_outputs(tmp_path, monkeypatch):
         assert row["met"] is None and row["measured"]
     first = next(c for c in cases if c["benchmark"] == "FirstCall")
     assert first["first_ever_s"] > -1 and first["second_process_s"] > -1 and first["fit_s"] > 0
+    # the real-record path, on 2 minutes of the consumer record: the whole process and where its time went
+    real = next(c for c in cases if c["benchmark"] == "EstimateRealRecords")
+    assert real["param_case"] == "quick_consumer_2min" and real["wall_s"] > 0 and real["cpu_s"] > 0
+    assert real["parts_s"]["fits"] > 0 and set(real["fits_per_method_s"]) == {"gmwm_filtered", "gmwm_despiked"}
+    assert real["calls"]["latent model AV + Jacobian (likelihood LatentAV)"] > 0
     assert "## First call of each estimator" in readme
 
 
@@ -142,3 +147,65 @@ def test_readme_states_each_limit_once_after_the_targets(tmp_path):
     assert readme.index("## Targets") < readme.index("## Runs and machine") < readme.index("## Diary")
     assert readme.index("## Diary") < readme.index("### A dated note")
     assert "python -m avbench.bench" in readme and "python -m bench" not in readme
+
+
+def test_consumer_record_is_what_it_says_and_motion_turns_gravity(tmp_path):
+    """The consumer IMU's terms, and the record in motion: the gyro integrates to whole quarter turns and
+    the accelerometer keeps |g| (the same noise with and without motion)."""
+    import math
+
+    from avbench.bench import real_records
+
+    imu = real_records.consumer_imu(0.0025, hours=0.1)  # 400 Hz: the line and the resonance stay
+    assert [type(t).__name__ for t in imu["accel"][2].terms] == [
+        "FilteredWhiteNoise", "Sinusoidal", "Resonance", "BiasInstability", "RateRandomWalk", "Quantization"]
+    dt, n = 0.01, 40_000
+    gyro, accel = np.zeros((n, 3)), np.tile([0.0, 0.0, real_records.GRAVITY], (n, 1))
+    real_records.add_motion(gyro, accel, dt, every_s=100.0)
+    turns = gyro.sum(axis=0) * dt / (math.pi / 2)
+    np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
+    assert turns.sum() == pytest.approx(3.0)  # at 100, 200, 300 s: about x, y, z
+    np.testing.assert_allclose(np.linalg.norm(accel, axis=1), real_records.GRAVITY, rtol=1e-12)
+    np.testing.assert_allclose(accel[-1], [real_records.GRAVITY, 0.0, 0.0], atol=1e-9)
+    a = np.load(real_records.write_consumer(tmp_path / "a.npz", 0.01, 100.0))
+    b = np.load(real_records.write_consumer(tmp_path / "b.npz", 0.01, 100.0, motion=True))
+    np.testing.assert_array_equal(a["gyro"], b["gyro"])  # 36 s: before the first move
+    assert float(a["fs"]) == 100.0
+
+
+def test_real_data_cases_skip_without_the_data(monkeypatch):
+    from avbench.bench import real_e2e, real_records
+
+    monkeypatch.delenv("AVBENCH_REAL_DATA", raising=False)
+    assert real_records.real_data_folder() is None
+    with pytest.raises(NotImplementedError):
+        real_e2e.EstimateRealRecords().setup("adis_1h_100Hz")
+    real_e2e.EstimateRealRecords().setup("consumer_1h_100Hz")  # simulated: runs anywhere
+    with pytest.raises(FileNotFoundError):
+        real_records.write_adis("x.npz", 10)
+    cases = harness.run_class(type("Only", (real_e2e.EstimateRealRecords,), {"params": [["adis_1h_100Hz"]]}),
+                              log=lambda s: None)
+    assert cases == []
+
+
+def test_real_record_rows_state_the_targets_and_the_motion_ratio():
+    """The targets rows of EstimateRealRecords: wall against the target with the breakdown, and the record in
+    motion against the static one of the same length by CPU seconds."""
+    import pandas as pd
+
+    def row(case, wall, cpu, target=None, static=None):
+        return {"benchmark": "EstimateRealRecords", "method": "track_end_to_end", "kind": "track", "param_case": case,
+                "n": 360_000, "wall_s": wall, "cpu_s": cpu, "target_s": target, "static_case": static,
+                "loadavg_before": [1.0, 1, 1], "loadavg_after": [1.5, 1, 1], "imports_s": 1.0, "rest_s": 2.0,
+                "parts_s": {"reading (read, timing, SI)": 0.1, "static check": 0.05, "fits": wall - 3.2,
+                            "AV covariance (allan.covariance.av_covariance)": 0.5},
+                "calls": {"AV covariance (allan.covariance.av_covariance)": 40},
+                "fits_per_method_s": {"gmwm_filtered": 3.0, "gmwm_despiked": 2.0}}
+
+    df = pd.DataFrame([row("consumer_1h_100Hz", 8.0, 7.0, 10.0), row("consumer_1h_100Hz_motion", 12.0, 10.5,
+                                                                          static="consumer_1h_100Hz")])
+    rows = {r["target"]: r for r in report.targets(df, quick=False)}
+    static = next(r for t, r in rows.items() if "consumer MEMS record" in t and "<= 10 s" in t)
+    assert static["met"] is True and "AV covariance (allan.covariance.av_covariance) 0.5 s (40 calls)" in static["measured"]
+    motion = next(r for t, r in rows.items() if t.startswith("a non-static record"))
+    assert motion["met"] is False and motion["measured"].startswith("1.50x the static record's CPU seconds")

@@ -16,9 +16,18 @@ with the integrals :math:`P_{ab}` of unit-amplitude shapes computed once per (sa
 sizes, grid, pair of shapes) and kept (:data:`CACHE_SIZE` entries, least recently used dropped): a fit
 check of a five-term model or the second step of a fit whose term shapes do not depend on the fitted
 values (white, quantization, flicker, random walk) costs a weighted sum of a few k x k matrices after
-the first record of a study. A Gauss-Markov term's shape depends on its correlation time, so its pairs
-are integrated for each new value. The integrals are the same midpoint sums as without the cache:
-values agree with the direct sum of the squared total spectrum to round-off (tests).
+the first record of a study. A Gauss-Markov term's shape depends on its correlation time (a filter's on
+its time constant, a resonance's on its frequency and damping), so its pairs would be integrated for
+each new value: where two or more such pairs are not kept, the covariance is the direct midpoint sum of
+the squared total spectrum (one product instead of one per pair; a GMWM fit check). The integrals are
+the same midpoint sums either way: values agree with the direct sum to round-off (tests).
+
+The Haar gains :math:`|H_m|^2` on the grid (sin^4 at k x n_grid points) are most of the cost of one
+covariance, and GMWM asks for the covariance on the same grid some hundred times per record (each
+candidate set of scales, each model its choices try): they are kept per grid (:data:`GAIN_CACHE_BYTES`:
+a 2^21-point grid of 20 octaves, 320 MB; a 2-hour record at 400 Hz needs 19). A covariance asked again for the same
+model, cluster sizes and record length is the kept result (:data:`RESULT_CACHE_SIZE`). Both return the
+values computed afresh, bit for bit.
 """
 
 from __future__ import annotations
@@ -34,9 +43,14 @@ CACHE_SIZE = 512
 _PAIRS: OrderedDict = OrderedDict()
 #: grid points per block of the integration (bounds the work arrays: k x CHUNK floats)
 CHUNK = 1 << 17
-#: bytes of Haar filter gains kept between calls (per cluster sizes and grid; :func:`_gains`)
-GAIN_CACHE_BYTES = 64 << 20
+#: bytes of Haar filter gains kept between calls (per cluster sizes and grid; :func:`_gains`): the gains
+#: of the longest grid (2^21 points) for 20 octaves (records of up to 8.4e6 samples: 5.8 h at 400 Hz);
+#: a longer record's gains come block by block on every call, as its memory matters more than their time
+GAIN_CACHE_BYTES = 320 << 20
 _GAINS: OrderedDict = OrderedDict()
+#: number of covariances kept between calls (per model, cluster sizes, record length and grid)
+RESULT_CACHE_SIZE = 64
+_RESULTS: OrderedDict = OrderedDict()
 
 
 def _haar_gain(m, w, s):
@@ -69,12 +83,12 @@ def _gains(m, n_grid):
     """``[(w, G)]`` per block of the midpoint grid: the frequencies and the Haar gains |H_m(w)|^2 of
     every cluster size (k x block). The same values as computing them on each call (they are: the
     same elementwise arithmetic per row), kept per grid for the last cluster sizes asked
-    (:data:`GAIN_CACHE_BYTES` in all): a request for a run of consecutive cluster sizes of the kept
-    ones gets views of them. GMWM's second step on each candidate set of scales (the same grid, the
-    shortest scale dropped each time) and the fit check integrate on the same grid, and the gains
-    (sin^4 at k x n_grid points) were most of the cost of a direct sum. Gains larger than half the
-    budget (long records: up to 2^21 points per size) are not kept and come one block at a time, so
-    that the work arrays stay k x :data:`CHUNK`."""
+    (:data:`GAIN_CACHE_BYTES` in all, the least recently used dropped first): a request for a run of
+    consecutive cluster sizes of the kept ones gets views of them. GMWM's second step on each candidate
+    set of scales (the same grid, the shortest scale dropped each time) and the fit check integrate on
+    the same grid, and the gains (sin^4 at k x n_grid points) are most of the cost of a direct sum.
+    Gains larger than the whole budget are not kept and come one block at a time, so that the work
+    arrays stay k x :data:`CHUNK`."""
     omega_all = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)
     starts = range(0, n_grid, CHUNK)
     for key, (m_kept, blocks) in list(_GAINS.items()):
@@ -92,17 +106,19 @@ def _gains(m, n_grid):
         w = omega_all[a : a + CHUNK]
         return _haar_gain(m[:, None], w[None, :], np.sin(w / 2)[None, :])
 
-    if m.size * n_grid * 8 > GAIN_CACHE_BYTES // 2:  # too large to keep: one block at a time, none kept
+    size = m.size * n_grid * 8
+    if size > GAIN_CACHE_BYTES:  # too large to keep: one block at a time, none kept
         return ((omega_all[a : a + CHUNK], block(a)) for a in starts)
-    blocks = [block(a) for a in starts]
-    key = (n_grid, m.tobytes())
-    _GAINS[key] = (m.copy(), blocks)
-    _GAINS.move_to_end(key)
-    while sum(v[0].size * k[0] * 8 for k, v in list(_GAINS.items())) > GAIN_CACHE_BYTES:
+    # room first (the least recently used dropped), so that the budget bounds what is held at any time
+    while _GAINS and sum(v[0].size * k[0] * 8 for k, v in list(_GAINS.items())) + size > GAIN_CACHE_BYTES:
         try:
             _GAINS.popitem(last=False)
         except KeyError:
             break
+    blocks = [block(a) for a in starts]
+    key = (n_grid, m.tobytes())
+    _GAINS[key] = (m.copy(), blocks)
+    _GAINS.move_to_end(key)
     return [(omega_all[a : a + CHUNK], G) for a, G in zip(starts, blocks)]
 
 
@@ -143,10 +159,45 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
     ``reuse=False``: one midpoint sum of the squared total spectrum, nothing kept but the Haar gains
     (the same values to round-off). GMWM's second step asks for it: its model has a Gauss-Markov term
     whose shape changes with every fit, so the pairs with it would be integrated anew each time (one
-    product per pair instead of one for the sum).
+    product per pair instead of one for the sum). ``reuse=True`` takes that sum too where two or more
+    pairs with a fitted shape are not kept (module docstring).
     """
     m = np.asarray(m, dtype=float)
     n_grid = _grid_size(m, grid_per_cycle, max_grid)
+    key = _result_key(gyro, m, n_samples, n_grid, reuse)
+    kept = _RESULTS.get(key) if key is not None else None
+    if kept is not None:
+        try:
+            _RESULTS.move_to_end(key)
+        except KeyError:  # dropped meanwhile by another thread: ``kept`` holds it
+            pass
+        return kept.copy()
+    out = _covariance(gyro, m, n_samples, n_grid, reuse)
+    if key is not None:
+        _RESULTS[key] = out.copy()
+        while len(_RESULTS) > RESULT_CACHE_SIZE:
+            try:
+                _RESULTS.popitem(last=False)
+            except KeyError:
+                break
+    return out
+
+
+def _result_key(gyro, m, n_samples, n_grid, reuse):
+    """The key of a covariance among those kept: the model's terms (each its class and the values of its
+    parameters, as the terms compare), dt, the cluster sizes, the record length, the grid and the path;
+    None for a term with a parameter that cannot be hashed (an array): such a covariance is computed on
+    every call."""
+    try:
+        terms = tuple((type(t), tuple(t._params().items())) for t in gyro.terms)
+        hash(terms)
+    except TypeError:
+        return None
+    return (terms, float(gyro.dt), m.tobytes(), int(n_samples), n_grid, bool(reuse))
+
+
+def _covariance(gyro, m, n_samples, n_grid, reuse) -> np.ndarray:
+    """:func:`av_covariance` computed (nothing kept but the gains and, with ``reuse``, the pairs)."""
     M = n_samples - 2 * m + 1
     if not reuse:
         return (_direct(gyro, m, n_grid) + _line_cross(gyro, m)) / (2.0 * np.sqrt(np.outer(M, M)))
@@ -170,6 +221,11 @@ def av_covariance(gyro, m, n_samples, grid_per_cycle: int = 8, max_grid: int = 1
                         _PAIRS.move_to_end(key)
                     except KeyError:  # dropped meanwhile by another thread: found[] holds it
                         pass
+        fitted = [bool(u.shape_parameters()) for u in shapes]
+        if sum(fitted[i] or fitted[j] for i, j in missing) >= 2:
+            # two or more pairs with a shape the fit chose (a correlation time, a filter's, a frequency): such
+            # pairs are seldom asked again, and one product per pair costs more than the direct sum's one
+            return (_direct(gyro, m, n_grid) + _line_cross(gyro, m)) / (2.0 * np.sqrt(np.outer(M, M)))
         found.update(_pair_integrals(shapes, missing, m, dt, n_grid) if missing else {})
         new = {p: found[p] for p in missing}
         for (i, j) in keys:
