@@ -133,7 +133,7 @@ LIMITS = {
     "used, since they change what a worker guarantees: workers forked after the imports (fork with OpenBLAS's "
     "threads alive; the standard pool cannot kill a stuck worker) and the study's own process as a worker (a block "
     "that crashes its process would end the study instead of being retried). On a machine busy with other work, "
-    "Linux's autogroup scheduler gives one session a fixed share of the cores however many processes it runs, so "
+    "Linux's autogroup scheduler gives one login group a fixed share of the cores however many processes it runs, so "
     "the ratio only means something on a quiet machine.",
 }
 

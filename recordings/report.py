@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.results import REASONS
+from avbench.estimators.results import jsonable as _jsonable
 from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, TERM_NAMES, from_si, si_units
 
 __all__ = ["coefficient_flags", "poor_fit", "payload", "method_entry", "tables", "screen", "screen_tables",
@@ -43,12 +44,6 @@ SCREEN_WIDTH = 100
 
 def _num(v):
     return float(v) if v is not None and math.isfinite(v) else None
-
-
-def _jsonable(v):
-    from avbench.estimators.results import jsonable
-
-    return jsonable(v)
 
 
 def coefficient_flags(fit) -> dict[str, str]:
