@@ -62,10 +62,12 @@ REASONS = {"record": "the record does not resolve it", "evidence": "its evidence
 
 #: the model choices an estimator reports (its ``diagnostics_`` entries of these names): the
 #: spectral-line test, the sensor filter entered on evidence or held at a given time constant, the
-#: resonance test, the evidence between a Gauss-Markov and a flicker bias instability, and the
-#: first AV scale fitted; each a JSON-able mapping (``min_m`` an integer). Parts in the record's
-#: unit, by name (power of the unit); :meth:`FitResult.rescaled` converts them.
-MODEL_CHOICES = ("line_test", "filter_test", "filter_held", "resonance_test", "bias_evidence", "min_m")
+#: resonance test, the evidence between a Gauss-Markov and a flicker bias instability, the first AV
+#: scale fitted, and the weights of the models averaged over; each a JSON-able mapping (``min_m`` an
+#: integer). Parts in the record's unit, by name (power of the unit); :meth:`FitResult.rescaled`
+#: converts them.
+MODEL_CHOICES = ("line_test", "filter_test", "filter_held", "resonance_test", "bias_evidence", "min_m",
+                 "term_weights")
 _CHOICE_UNITS = {"line_test": {"amplitude": 1}, "resonance_test": {"sigma": 1},
                  "bias_evidence": {"GM": {"B": 1, "coefficients": 1, "std_err": 1},
                                    "FL": {"B": 1, "coefficients": 1, "std_err": 1}}}

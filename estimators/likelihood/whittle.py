@@ -94,6 +94,18 @@ every other term keeps the signed domain's
 estimated far below 0, where the signed domain's profile statistic of B is inflated. The estimates
 are the same. The measurements behind it: ``results/README.md``, coverage_defaults.
 
+Model averaging (setting ``averaging``)
+---------------------------------------
+``"akaike"`` (with ``select=False``): each variance is the average of its estimates over the full
+model and every submodel without some of the terms whose absence the data do not rule out (Wald
+:math:`z^2` below :data:`~avbench.estimators.selection.averaging.NEGLIGIBLE_Z2`), each weighted by
+its Akaike weight :math:`\\propto e^{-\\mathrm{AIC}/2}`, a dropped term counting 0 (Buckland, Burnham
+& Augustin 1997; :mod:`~avbench.estimators.selection.averaging`). The submodels are fitted over the
+same domain; a positive combination of valid spectra is valid. A Gauss-Markov Tc and the trend slope
+stay the full model's. The intervals stay the full model's profile-likelihood intervals (valid
+whatever the true terms); ``diagnostics_["term_weights"]`` gives each model's weight. Measured in
+``results/random_gyros``.
+
 Where it is not exact
 ---------------------
 * The Whittle likelihood replaces the Toeplitz covariance by a circulant one: ordinates at distinct
@@ -137,6 +149,7 @@ import pandas as pd
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.likelihood.whittle_intervals import evidence_table, profile_evidence, zero_bounds
 from avbench.estimators.likelihood.whittle_likelihood import WhittleFit, spectral_fit_check, whittle_fit
+from avbench.estimators.selection import averaging
 from avbench.estimators.selection.elimination import (PENALTY, SLOPE_PENALTY, backward_elimination,
                                                       choose_by_criterion, penalised, wald_drop_candidates)
 from avbench.estimators.selection.profile import steeper_negative_neighbours
@@ -196,6 +209,11 @@ class Whittle(Estimator):
         evidence for a term whose steeper-spectrum neighbour the signed fit puts below 0 by more than
         1.96 of its standard errors (``"switch_steeper"``, the default of ``whittle_debiased``). The
         estimates are the same.
+    averaging : {"none", "akaike"}
+        With ``select=False``: the estimates of the full model (``"none"``, the default), or their
+        Akaike-weighted average over the submodels without the terms whose absence the data do not
+        rule out (``"akaike"``; module docstring, "Model averaging"). Intervals, evidence and
+        standard errors stay the full model's.
 
     Attributes
     ----------
@@ -234,10 +252,11 @@ class Whittle(Estimator):
         "intervals": [Options("wald", "profile")],
         "domain": [Options("nonnegative", "spectrum")],
         "interval_domain": [Options("fit", "switch_steeper")],
+        "averaging": [Options("none", "akaike")],
     }
 
     def __init__(self, *, terms="QNBKR", bias="flicker", select=True, criterion="bic", n_starts=4, reml=False,
-                 spectrum="plain", intervals="wald", domain="nonnegative", interval_domain="fit"):
+                 spectrum="plain", intervals="wald", domain="nonnegative", interval_domain="fit", averaging="none"):
         self.terms = terms
         self.bias = bias
         self.select = select
@@ -248,6 +267,7 @@ class Whittle(Estimator):
         self.intervals = intervals
         self.domain = domain
         self.interval_domain = interval_domain
+        self.averaging = averaging
 
     def check_settings(self):
         """The parsed ``terms``. Every setting is declared in :attr:`parameter_constraints` and none
@@ -294,6 +314,9 @@ class Whittle(Estimator):
                 candidates=lambda f: wald_drop_candidates(f["comps"], f["detail"]["info"], f["absent"], pen),
                 refit=refit, admissible=lambda sub: any(x in sub for x in _STOCHASTIC))
             fits, chosen = elimination.visited, elimination.chosen
+        weights = None
+        if self.averaging == "akaike" and not self.select:
+            chosen, weights = self._averaged(wf, full, n_par, signed)
         # terms at their floor are absent
         kept = [c for c in chosen["comps"] if c not in chosen["absent"]]
         full_kept = [c for c in full["comps"] if c not in full["absent"]]
@@ -321,6 +344,8 @@ class Whittle(Estimator):
             "bias_model": shape,
             "bias_models": bias_choice.criteria,
         }
+        if weights is not None:
+            diag["term_weights"] = {"penalty": averaging.PENALTY, "models": weights}
         if bias_choice.weights is not None:  # bias="select": the full models' weights exp(-criterion/2), normalised
             diag["bias_weights"] = bias_choice.weights
         n_params = sum(2 if c == "GM" else 1 for c in kept) + 1
@@ -330,6 +355,37 @@ class Whittle(Estimator):
         if not chosen["converged"]:
             diag["failure"] = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
         return coefs, {}, diag
+
+    def _averaged(self, wf, full, n_par, signed):
+        """The full fit with its variances replaced by their Akaike-weighted average over the
+        submodels without some of the terms whose absence the data do not rule out
+        (:mod:`~avbench.estimators.selection.averaging`; the trend slope and a Gauss-Markov Tc stay
+        the full model's), and the weights by model (its terms joined, e.g. ``"NBK"``)."""
+        comps = full["comps"]
+        k = len(comps)
+        a = np.asarray(full["a"], dtype=float)
+        try:
+            var = np.diag(np.linalg.inv(full["detail"]["info"]))[:k]
+        except np.linalg.LinAlgError:
+            var = np.full(k, np.nan)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # the information is in the variances at a signed maximum, in their logarithms otherwise
+            z2 = np.where(var > 0, a**2 / var if signed else 1.0 / var, np.nan)
+        z2 = np.where([c in full["absent"] for c in comps], 0.0, z2)
+        cands = averaging.droppable(comps, z2)
+        models = {tuple(comps): full}
+        for sub in averaging.submodels(comps, cands, admissible=lambda sub: any(x in sub for x in _STOCHASTIC)):
+            if tuple(sub) not in models:
+                warm = {x: a[comps.index(x)] for x in sub}
+                warm["tc"] = full["tc"]
+                models[tuple(sub)] = whittle_fit(wf, sub, self.n_starts, warm=warm, signed=signed)
+        w = averaging.akaike_weights({m: (f["loglik"], n_par(f)) for m, f in models.items()})
+        params = {m: dict(zip(f["comps"], np.asarray(f["a"], dtype=float).tolist())) for m, f in models.items()}
+        mean = averaging.average(params, w, comps)
+        a_bar = np.array([mean[c] for c in comps])
+        absent = [c for c in comps if c in full["absent"] or mean[c] <= 0]
+        named = {"".join("B" if c == "GM" else c for c in m): float(v) for m, v in w.items()}
+        return dict(full, a=a_bar, absent=absent), named
 
     #: level of the profile-likelihood intervals computed by ``fit`` (``intervals="profile"``)
     PROFILE_LEVEL = 0.95
@@ -431,7 +487,8 @@ class WhittleDebiased(Whittle):
     :class:`Whittle` applies; only the defaults differ."""
 
     def __init__(self, *, terms="QNBKR", bias="flicker", select=False, criterion="bic", n_starts=4, reml=False,
-                 spectrum="debiased", intervals="profile", domain="spectrum", interval_domain="switch_steeper"):
+                 spectrum="debiased", intervals="profile", domain="spectrum", interval_domain="switch_steeper",
+                 averaging="none"):
         super().__init__(terms=terms, bias=bias, select=select, criterion=criterion, n_starts=n_starts,
                          reml=reml, spectrum=spectrum, intervals=intervals, domain=domain,
-                         interval_domain=interval_domain)
+                         interval_domain=interval_domain, averaging=averaging)
