@@ -11,6 +11,8 @@
   and the choice to model it;
 * :mod:`~avbench.estimators.selection.resonance` -- a band that stands out of the spectrum, and the
   choice to model it as a resonance;
+* :mod:`~avbench.estimators.selection.averaging` -- model averaging by Akaike weights over the
+  terms a fit cannot tell from absent, and the weights of models by an information criterion;
 * :mod:`~avbench.estimators.selection.bias_model` -- Gauss-Markov or flicker bias instability, by
   the models' AIC weights;
 * :mod:`~avbench.estimators.selection.bounds` -- the upper bounds the record's AV allows a term it

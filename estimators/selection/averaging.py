@@ -39,7 +39,7 @@ from collections.abc import Callable, Hashable, Sequence
 
 import numpy as np
 
-__all__ = ["PENALTY", "NEGLIGIBLE_WEIGHT", "NEGLIGIBLE_Z2", "akaike_weights", "droppable", "submodels", "average"]
+__all__ = ["PENALTY", "NEGLIGIBLE_WEIGHT", "NEGLIGIBLE_Z2", "criterion_weights", "akaike_weights", "droppable", "submodels", "average"]
 
 #: the penalty per parameter of the Akaike information criterion
 PENALTY = 2.0
@@ -50,14 +50,19 @@ NEGLIGIBLE_WEIGHT = 1e-6
 NEGLIGIBLE_Z2 = PENALTY - 2 * math.log(NEGLIGIBLE_WEIGHT)
 
 
+def criterion_weights(criteria: dict) -> dict:
+    """Each model's weight :math:`e^{-\\Delta_m/2}/\\sum_k e^{-\\Delta_k/2}` from its information
+    criterion (key -> criterion, lower is better; :math:`\\Delta_m` its excess over the lowest)."""
+    best = min(criteria.values())
+    raw = {k: math.exp(-(c - best) / 2) for k, c in criteria.items()}
+    total = sum(raw.values())
+    return {k: v / total for k, v in raw.items()}
+
+
 def akaike_weights(models: dict) -> dict:
     """Each model's Akaike weight from ``models``: key -> (maximised log-likelihood, number of
     parameters)."""
-    aic = {k: -2 * ll + PENALTY * p for k, (ll, p) in models.items()}
-    best = min(aic.values())
-    raw = {k: math.exp(-(a - best) / 2) for k, a in aic.items()}
-    total = sum(raw.values())
-    return {k: v / total for k, v in raw.items()}
+    return criterion_weights({k: -2 * ll + PENALTY * p for k, (ll, p) in models.items()})
 
 
 def droppable(names: Sequence[str], z2: Sequence[float], keep: Callable[[str], bool] = lambda c: False) -> list[str]:

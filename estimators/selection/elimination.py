@@ -30,6 +30,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from avbench.estimators.selection.averaging import criterion_weights
 from avbench.estimators.selection.evidence import CHI2_CRITICAL_5, CHIBAR2_CRITICAL_5
 
 __all__ = ["PENALTY", "SLOPE_PENALTY", "penalised", "wald_drop_candidates", "Elimination", "backward_elimination",
@@ -129,7 +130,5 @@ def choose_by_criterion(models: dict, criterion: Callable[[Any], float]) -> Mode
     chosen = min(models, key=lambda k: criterion(models[k]))
     weights = None
     if len(models) > 1:
-        crit = np.array([criterion(m) for m in models.values()])
-        wts = np.exp(-(crit - crit.min()) / 2)
-        weights = dict(zip(models, (wts / wts.sum()).tolist()))
+        weights = criterion_weights({k: criterion(m) for k, m in models.items()})
     return ModelChoice(chosen=chosen, criteria={k: float(criterion(m)) for k, m in models.items()}, weights=weights)
