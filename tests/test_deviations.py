@@ -144,10 +144,7 @@ STABLE32_BOUNDS = [("adev_octave.txt", "adev", False), ("oadev_octave.txt", "oad
 @pytest.mark.parametrize("name,kind,bias", STABLE32_BOUNDS, ids=[t[0] for t in STABLE32_BOUNDS])
 def test_intervals_equal_stable32(name, kind, bias):
     """Every value and bound Stable32 prints for PHASE.DAT, at its noise type (the Alpha column; Theo1's from its
-    own run ratio AVAR/Theo1) and confidence factor 0.683, with ``intervals="stable32"``.
-
-    Known departure (stable32 module docstring): HTOTDEV at flicker PM (AF 128 and 256, alpha = 1), where
-    Stable32 uses an edf we could not recover; there the bounds differ by <= 1.4 %, and the test holds them to it."""
+    own run ratio AVAR/Theo1) and confidence factor 0.683, with ``intervals="stable32"``."""
     t = stable32_table(name)
     m, alpha = t[:, 0].astype(int), t[:, 3].astype(int)
     theo1 = kind == "theo1"
@@ -156,11 +153,36 @@ def test_intervals_equal_stable32(name, kind, bias):
     assert r.m.tolist() == m.tolist() and r.alpha.tolist() == alpha.tolist()
     np.testing.assert_allclose(r.deviation, t[:, 5], rtol=1e-4)
     lo, hi = np.sqrt(r.ci_low), np.sqrt(r.ci_high)
-    known = (alpha == 1) if kind == "htotdev" else np.zeros(m.size, bool)
-    np.testing.assert_allclose(lo[~known], t[~known, 4], rtol=3e-4)
-    np.testing.assert_allclose(hi[~known], t[~known, 6], rtol=3e-4)
-    if known.any():
-        assert np.all(np.abs(lo[known] / t[known, 4] - 1) < 0.015) and np.all(np.abs(hi[known] / t[known, 6] - 1) < 0.015)
+    np.testing.assert_allclose(lo, t[:, 4], rtol=3e-4)
+    np.testing.assert_allclose(hi, t[:, 6], rtol=3e-4)
+
+
+#: Stable32's HTOTDEV and TOTDEV on the BIPM Sr87 phase record (1253 points), copied from allantoolkit's
+#: tests/assets/Sr87/phase/{octave,decade}/{htotdev,totdev}.txt (github.com/amv213/allantoolkit): AF, Alpha, lower
+#: bound, deviation, upper bound. Rows with alpha = 1 and HTOTDEV's below AF 16 use the total-variance fallback.
+SR87_N = 1253
+SR87 = {
+    "htotvar": [(1, -1, 8.0946e-17, 8.2651e-17, 8.4469e-17), (2, -2, 7.5923e-17, 7.8025e-17, 8.0313e-17),
+                (4, -1, 8.8264e-17, 9.1349e-17, 9.4785e-17), (8, 0, 8.5090e-17, 8.8938e-17, 9.3364e-17),
+                (10, 0, 8.1805e-17, 8.5915e-17, 9.0718e-17), (16, 0, 7.8591e-17, 8.3165e-17, 8.8649e-17),
+                (32, 0, 6.4085e-17, 6.9376e-17, 7.6241e-17), (100, 1, 4.4525e-17, 4.7680e-17, 5.1617e-17),
+                (200, -1, 2.2752e-17, 2.8300e-17, 4.1983e-17), (400, -1, 1.1419e-17, 1.5213e-17, 3.1436e-17)],
+    "totvar": [(1, -1, 8.8689e-17, 9.0304e-17, 9.2011e-17), (2, -2, 8.6445e-17, 8.8930e-17, 9.1644e-17),
+               (10, 0, 9.2942e-17, 9.7582e-17, 1.0300e-16), (100, 1, 4.2698e-17, 4.5724e-17, 4.9499e-17),
+               (200, -1, 2.0582e-17, 2.5261e-17, 3.5911e-17), (512, 0, 1.4893e-17, 1.9264e-17, 3.3449e-17)],
+}
+
+
+@pytest.mark.parametrize("kind", sorted(SR87))
+def test_total_variance_edf_equals_stable32_on_a_second_record(kind):
+    """Stable32's bounds on another record, from its printed deviation and noise type: the edf of
+    ``stable32_edf`` (the total-variance fits, and the Table 5 AV edf + 2 where they do not apply)."""
+    from avbench.estimators.allan.stable32 import stable32_edf, stable32_interval
+
+    m, alpha, lo, dev, hi = (np.array(c) for c in zip(*SR87[kind]))
+    bounds = np.sqrt(stable32_interval(dev**2, stable32_edf(kind, m, SR87_N, alpha), 0.683))
+    np.testing.assert_allclose(bounds[0], lo, rtol=3e-4)
+    np.testing.assert_allclose(bounds[1], hi, rtol=3e-4)
 
 
 def test_avbench_exact_intervals_are_not_stable32s():
@@ -210,8 +232,8 @@ def test_stable32_result_is_an_allan_result_with_its_noise_types():
                                        ("htotdev_octave_bias_corrected.txt", "htotvar"), ("totdev_octave.txt", "totvar")])
 def test_noise_identification_equals_stable32_where_it_uses_the_lag1_acf(name, kind):
     """Stable32 identifies the type by the lag-1 autocorrelation where the decimated phase has >= 30 points (AF <=
-    33 here): its Alpha column there is ours. (Below 30 points it turns to B1 and R(n), whose details it does not
-    publish: see ``test_b1_and_rn_tell_the_types_apart``.)"""
+    33 here): its Alpha column there is ours. (Below 30 points it turns to B1 and R(n):
+    ``test_noise_identification_equals_stable32_on_every_row_of_its_runs``.)"""
     from avbench.estimators.allan.noise_id import noise_id
 
     t = stable32_table(name)
@@ -219,6 +241,33 @@ def test_noise_identification_equals_stable32_where_it_uses_the_lag1_acf(name, k
     acf = -(-1001 // m) >= 30
     r = noise_id(nbs_1000(), 1.0, m[acf] * 1.0, kind=kind)
     assert np.all(r.method == "acf") and r.alpha.tolist() == t[acf, 3].astype(int).tolist()
+
+
+#: every PHASE.DAT table with Stable32's noise type per AF, and the statistic whose identification it used
+NOISE_TABLES = {"adev_octave.txt": "avar", "oadev_octave.txt": "oavar", "mdev_octave.txt": "mvar", "tdev_octave.txt": "tvar",
+                "hdev_octave.txt": "hvar", "ohdev_octave.txt": "ohvar", "totdev_octave.txt": "totvar",
+                "mtotdev_octave.txt": "mtotvar", "mtotdev_decade.txt": "mtotvar", "ttotdev_octave.txt": "ttotvar",
+                "ttotdev_decade.txt": "ttotvar", "htotdev_octave_bias_corrected.txt": "htotvar",
+                "mtotdev_all_bias_corrected.txt": "mtotvar", "ttotdev_all_bias_corrected.txt": "ttotvar"}
+#: the rows where ours differ (noise_id module docstring): B1 within 2 % of a boundary, and TOTDEV at AF 128 (256 kept)
+NOISE_DEPARTURES = {("totdev_octave.txt", 128), ("totdev_octave.txt", 256)} | {
+    (t, m) for t in ("mtotdev_all_bias_corrected.txt", "ttotdev_all_bias_corrected.txt") for m in (75, 93, 113)}
+
+
+def test_noise_identification_equals_stable32_on_every_row_of_its_runs():
+    """Each run's types at its own AF grid (B1 decides up to half the largest AF, the previous type is kept
+    beyond): equal to Stable32's Alpha column on every row of every PHASE.DAT run but the eight listed."""
+    from avbench.estimators.allan.noise_id import noise_id
+
+    differ, b1_rows = set(), 0
+    for name, kind in NOISE_TABLES.items():
+        t = stable32_table(name)
+        m = t[:, 0].astype(int)
+        r = noise_id(nbs_1000(), 1.0, m * 1.0, kind=kind)
+        assert r.m.tolist() == m.tolist()
+        b1_rows += int(np.sum(r.method != "acf"))
+        differ |= {(name, int(mi)) for mi, a, b in zip(m, r.alpha, t[:, 3].astype(int)) if a != b}
+    assert b1_rows == 278 and differ == NOISE_DEPARTURES
 
 
 def _av_sum(x, m):

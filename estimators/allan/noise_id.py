@@ -25,10 +25,19 @@ non-overlapping AV), against its expectation for S_x ~ f^mu, B1(N, mu) = N (1 - 
 the boundary between adjacent mu at the geometric mean of their expectations, mu = -alpha - 1 (mu = 2,
 flicker-walk FM, for the Hadamard family only); for PM (mu = -2) the ratio R(n) = MVAR / AVAR (both
 overlapping) against 1/m (white PM) and 3.37 / (1.04 + 3 ln(pi m)) (flicker PM; NIST TN1337, A-6)
-separates alpha = 2 from 1. Where even B1 has fewer than three averages the type of the longest
-identified tau is kept. Agreement with Stable32's printed types on PHASE.DAT (every AF of its ADEV ... MTOTDEV
-tables): all 272 lag-1 rows; 682 of the 877 B1 rows (78 %) -- Stable32 does not publish its B1 details (which
-N, which AV), and a B1 decision from under 30 averages is itself uncertain.
+separates alpha = 2 from 1. B1 decides only while the N = n/m averages number at least twice the
+statistic's Stable32 stop ratio (``B1_MIN_AVERAGES``: the stop ratio is the record length over the largest
+AF of its octave and decade runs, 5 for ADEV and HDEV, 4 for OADEV, MDEV, TDEV and OHDEV, 3 for MTOTDEV,
+TTOTDEV and HTOTDEV, 2 for TOTDEV, as allantoolkit's tables.yml gives them from W. J. Riley's Stable32 papers),
+i.e. up to half the largest AF; beyond, and where B1 has fewer than three averages, the type of the previous
+tau is kept. That is what Stable32's printed types show: on its every-AF runs the type never changes beyond
+that AF (PHASE.DAT MTOTDEV and TTOTDEV from AF 167 = 1000/6 on; on the BIPM Sr87 record of allantoolkit's
+tests, 1252 frequency points, ADEV from AF 127 > 1252/10, TDEV from AF 158 > 1252/8, HTOTDEV from AF 209 >
+1252/6), and two runs print different types at the same AF (PHASE.DAT MTOTDEV at AF 200: 1 on the decade run,
+kept from AF 100; 0 on the every-AF run). Agreement with Stable32's
+printed types on PHASE.DAT (every AF of its ADEV ... HTOTDEV tables): every lag-1 row; 270 of the 278 B1 rows.
+The other eight are three B1 decisions within 2 % of a boundary (MTOTDEV and TTOTDEV at AF 75, 93 and 113)
+and TOTDEV at AF 128 (and 256, kept from it), where Stable32 1.60 prints white FM and B1 says flicker PM.
 
 Computation: per tau the decimated or averaged series (n/m points) and up to three differences, its
 least-squares trend of degree 2 or 1 from the normal equations in a centred, scaled index and the lag-1
@@ -48,7 +57,8 @@ from avbench.estimators.allan import _tf_kernels as _tf
 from avbench.estimators.allan._deviation_kernels import mvar_sums
 from avbench.estimators.allan.variance import _checked_record_and_mean, cluster_sizes
 
-__all__ = ["NoiseId", "noise_id", "lag1_acf", "acf_noise_id", "b1_ratio_expected", "D_MAX", "ALPHA_NAMES"]
+__all__ = ["NoiseId", "noise_id", "lag1_acf", "acf_noise_id", "b1_ratio_expected", "D_MAX", "ALPHA_NAMES",
+           "B1_MIN_AVERAGES"]
 
 #: the differencing order d_max of each statistic's family (Allan 2, Hadamard 3)
 D_MAX = {"avar": 2, "oavar": 2, "mvar": 2, "tvar": 2, "totvar": 2, "mtotvar": 2, "ttotvar": 2, "theo1": 2,
@@ -57,6 +67,10 @@ D_MAX = {"avar": 2, "oavar": 2, "mvar": 2, "tvar": 2, "totvar": 2, "mtotvar": 2,
 ALPHA_NAMES = {2: "white_pm", 1: "flicker_pm", 0: "white_fm", -1: "flicker_fm", -2: "rw_fm", -3: "fw_fm", -4: "rr_fm"}
 #: Stable32 uses the lag-1 autocorrelation from this many points on
 MIN_ACF_POINTS = 30
+#: B1 decides from this many averages on: twice Stable32's stop ratio of the statistic (module docstring); fewer
+#: keep the previous tau's type (3 where Stable32 prints no such run)
+B1_MIN_AVERAGES = {"avar": 10, "hvar": 10, "oavar": 8, "mvar": 8, "tvar": 8, "ohvar": 8, "totvar": 4, "mtotvar": 6,
+                   "ttotvar": 6, "htotvar": 6}
 
 
 @dataclass(frozen=True)
@@ -183,7 +197,8 @@ def noise_id(rate, dt, taus="octave", *, kind: str = "oavar", data: str = "phase
             a, e, dd, _ = acf_noise_id(zd, dmax=dmax, phase=data == "phase")
             alpha[j], est[j], d[j], method[j] = a, e, dd, "acf"
         else:
-            got = _b1_alpha(rate, S, mi, n, dmax)
+            few = n // mi < B1_MIN_AVERAGES.get(kind, 3) and last is not None
+            got = None if few else _b1_alpha(rate, S, mi, n, dmax)
             if got is None:
                 if last is None:
                     raise ValueError(f"noise_id: too few samples ({n}) to identify a noise type at m = {mi}")

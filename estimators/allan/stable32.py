@@ -25,7 +25,8 @@ the total variances and Theo1, so that ``deviation(..., intervals="stable32")`` 
   (0.667 for 2/3, 0.778 for 7/9 ...: Riley's CombinedEDF); so does this module, to print its bounds.
 * TOTDEV (SP1065 Table 7, Howe & Greenhall 1997): edf = b (T/tau) - c with T/tau = N/m (N phases);
   Stable32 keeps the unrounded b, c: (1.500, 0), (1.16832, 0.222), (0.92715, 0.358) for white, flicker and
-  random-walk FM (SP1065 prints 1.50, 1.17/0.22, 0.93/0.36). Other noise types: the OADEV edf.
+  random-walk FM (SP1065 prints 1.50, 1.17/0.22, 0.93/0.36). White and flicker PM: the total-variance fallback
+  below.
 * MTOTDEV and TTOTDEV: edf = b (N/m) - c. Stable32 departs from SP1065 Table 8 ((1.90, 2.10), (1.20,
   1.40), (1.10, 1.20), (0.85, 0.50), (0.75, 0.31) for alpha = 2 ... -2): it uses Howe's revised values
   (2.16, 2.28), (1.73, 2.99), (1.33, 1.89), (0.92, 0.76), (0.79, 0.37), and they are what its published
@@ -34,13 +35,29 @@ the total variances and Theo1, so that ``deviation(..., intervals="stable32")`` 
   PHASE.DAT's AF 1-8 rows show.
 * HTOTDEV (Howe et al. 2000, 32nd PTTI): edf = (N/m) / (b0 + b1 m/N), (b0, b1) = (0.559, 1.004),
   (0.868, 1.140), (0.938, 1.696), (0.974, 2.554), (1.276, 3.149) for alpha = 0 ... -4, for m >= 16.
-  Below m = 16 Stable32's bounds (PHASE.DAT and the BIPM Sr87 set of allantoolkit's tests, alpha = 0, -1,
-  -2) follow SP1065 Table 5's overlapping-AV edf in its large-N form, T/tau = N/m: white FM
-  (3/2)(N/m) 4m^2/(4m^2 + 5), flicker FM 2N/2.3 (m = 1) or 5N/(4m), random-walk FM N/m (white PM N/2);
-  avbench uses those (within 0.4 % of the edf its bounds imply; FW and RR FM: the OHDEV edf). For flicker
-  PM (alpha = 1, outside HTOT's published fits) avbench takes Table 5's flicker-PM edf; Stable32's printed
-  bounds there imply a larger edf by a rule we could not recover (50.6 against 48.6 at AF 128 of PHASE.DAT,
-  18.6 against 16.5 at AF 256): those two bounds differ by up to 1.4 % (tests/test_deviations.py).
+* The total-variance fallback, where those fits do not apply (TOTDEV at white and flicker PM; HTOTDEV below
+  m = 16 and at white and flicker PM): the overlapping-AV edf of SP1065 Table 5 (NIST TN 1337 Table 12-4) for N
+  phase points, plus 2:
+
+  .. math::
+
+      \\mathrm{edf} = 2 + \\begin{cases}
+      (N+1)(N-2m) / (2(N-m)) & \\text{white PM} \\\\
+      \\exp\\sqrt{\\ln\\frac{N-1}{2m}\\,\\ln\\frac{(2m+1)(N-1)}{4}} & \\text{flicker PM} \\\\
+      \\left(\\frac{3(N-1)}{2m} - \\frac{2(N-2)}{N}\\right)\\frac{4m^2}{4m^2+5} & \\text{white FM} \\\\
+      \\frac{2(N-2)^2}{2.3N-4.9}\\ (m=1),\\ \\frac{5N^2}{4m(N+3m)}\\ (m>1) & \\text{flicker FM} \\\\
+      \\frac{N-2}{m(N-3)^2}\\left((N-1)^2 - 3m(N-1) + 4m^2\\right) & \\text{random-walk FM}
+      \\end{cases}
+
+  (Table 5's term taken as 1 where 2m = N, as CalcDegFree does). Source: W. J. Riley's edf program
+  (github.com/k2hrt/edf): edf.c states that Stable32 "uses AVAR edf+2 for TOTVAR where TotvarEDF() doesn't
+  apply"; edf4.c's CalcDegFree is the Table 5 edf above, and its HadTotvarEDF applies only to alpha = 0 ... -4.
+  Stable32 does the same for HTOTVAR: its printed bounds on PHASE.DAT (HTOTDEV white FM at AF 1-8, flicker PM
+  at AF 128 and 256) and on the BIPM Sr87 set of allantoolkit's tests (tests/assets/Sr87/phase: HTOTDEV
+  flicker FM, random-walk FM and white FM below AF 16, flicker PM at AF 100; TOTDEV flicker PM at AF 100) are
+  those of this edf to <= 4e-5 (the SP1065 Table 5 edf alone, or the OADEV edf of Greenhall's algorithm,
+  misses the flicker-PM bounds by 0.1-1.4 %). HTOTDEV at flicker-walk and random-run FM below m = 16, which
+  Table 5 does not cover: the OHDEV edf (no published Stable32 value to compare).
 * Theo1 (Howe & Peppler 2003, "Estimation of very long-term frequency stability using a special-purpose
   statistic", EFTF/FCS), with r = 0.75 m and N phases:
   white PM 0.86 (N + 1)(N - 4r/3)/(N - r) * r/(r + 1.14); flicker PM (4.798 N^2 - 6.374 N r + 12.387 r)
@@ -272,18 +289,27 @@ def _table(coef: dict, alpha, what: str):
         raise ValueError(f"{what}: no edf for alpha = {e.args[0]}") from None
 
 
-def _table5_large_n(alpha: int, m: int, N: int) -> float:
-    """SP1065 Table 5's overlapping-AV edf with T/tau = N/m at large N (Stable32's HTOT below m = 16; flicker PM
-    in full, module docstring)."""
+def _avar_table5(alpha: int, m: int, N: int) -> float:
+    """SP1065 Table 5's overlapping-AV edf for N phase points (NIST TN 1337 Table 12-4 as corrected; Riley's
+    CalcDegFree, Stable32's "AVAR edf"), alpha = 2 ... -2."""
+    n, k = float(N), float(m)
     if alpha == 2:
-        return N / 2.0
+        return 1.0 if 2 * m == N else (n + 1) * (n - 2 * k) / (2 * (n - k))
     if alpha == 1:
-        return math.exp(math.sqrt(math.log((2 * m + 1) * (N - 1) / 4.0) * math.log((N - 1) / (2.0 * m))))
+        if 2 * m == N:
+            return 1.0
+        return math.exp(math.sqrt(math.log((2 * k + 1) * (n - 1) / 4) * math.log((n - 1) / (2 * k))))
     if alpha == 0:
-        return 1.5 * N / m * 4.0 * m * m / (4.0 * m * m + 5.0)
+        return (3 * (n - 1) / (2 * k) - 2 * (n - 2) / n) * 4 * k * k / (4 * k * k + 5)
     if alpha == -1:
-        return 2.0 * N / 2.3 if m == 1 else 5.0 * N / (4.0 * m)
-    return N / float(m)
+        return 2 * (n - 2) ** 2 / (2.3 * n - 4.9) if m == 1 else 5 * n * n / (4 * k * (n + 3 * k))
+    return (n - 2) / (k * (n - 3) ** 2) * ((n - 1) ** 2 - 3 * k * (n - 1) + 4 * k * k)
+
+
+def _total_fallback(alpha, m, N: int) -> np.ndarray:
+    """Stable32's edf of TOTVAR and HTOTVAR where their fits do not apply: the AV edf of SP1065 Table 5 plus 2
+    (module docstring)."""
+    return np.array([_avar_table5(int(a), int(k), N) + 2.0 for a, k in zip(alpha, m)])
 
 
 def stable32_edf(kind: str, m, N: int, alpha) -> np.ndarray:
@@ -305,8 +331,12 @@ def stable32_edf(kind: str, m, N: int, alpha) -> np.ndarray:
         if fm.any():
             bc = _table(_TOT, alpha[fm], kind)
             out[fm] = bc[:, 0] * ratio[fm] - bc[:, 1]
-        if (~fm).any():
-            out[~fm] = stable32_edf("oavar", m[~fm], N, alpha[~fm])
+        pm = alpha > 0
+        if pm.any():
+            out[pm] = _total_fallback(alpha[pm], m[pm], N)
+        rest = ~fm & ~pm
+        if rest.any():
+            out[rest] = stable32_edf("oavar", m[rest], N, alpha[rest])
         return out
     if kind in ("mtotvar", "ttotvar"):
         small = m <= 8
@@ -322,8 +352,8 @@ def stable32_edf(kind: str, m, N: int, alpha) -> np.ndarray:
             b = _table(_HTOT, alpha[total], kind)
             out[total] = ratio[total] / (b[:, 0] + b[:, 1] / ratio[total])
         table5 = ~total & (alpha >= -2)
-        for j in np.flatnonzero(table5):
-            out[j] = _table5_large_n(int(alpha[j]), int(m[j]), N)
+        if table5.any():
+            out[table5] = _total_fallback(alpha[table5], m[table5], N)
         rest = ~total & ~table5
         if rest.any():
             out[rest] = stable32_edf("ohvar", m[rest], N, alpha[rest])
