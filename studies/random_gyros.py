@@ -7,8 +7,9 @@ Each gyro (10 Hz, 2 h records): angle random walk N log-uniform over the presets
 (2.5e-8 .. 9e-4 rad/s/sqrt(Hz)); each of quantization, flicker bias instability and rate random walk
 present with probability 0.7, its size relative to N log-uniform over the presets' ratios
 (Q/N in 0.03 .. 0.3 sqrt(s), B/N in 0.15 .. 1.5 sqrt(Hz), K/N in 0.005 .. 0.05 /s); the flicker's
-memory ``tau_max`` log-uniform in 0.2 .. 5 record lengths (below and above the record). One replicate
-per gyro: every replicate is a different gyro, and coverage is pooled over them
+memory ``tau_max`` log-uniform in 0.2 .. 5 record lengths (below and above the record).
+:data:`REPLICATES` records per gyro give each gyro's RMSE / CRLB (the leaderboard's median over the
+gyros); coverage is pooled over gyros and replicates
 (:func:`avbench.studies.summaries.random_gyros.pooled`).
 """
 
@@ -20,6 +21,9 @@ SEED = 2323
 N_GYROS = 200
 DT = 0.1
 RECORD_S = 7200.0
+#: records per gyro: enough for each gyro's own RMSE (relative standard error ~0.3) and a median over
+#: the gyros
+REPLICATES = 6
 
 #: (low, high) of the log-uniform draws
 N_RANGE = (2.5e-8, 9e-4)
@@ -30,17 +34,19 @@ TAU_MAX = (0.2, 5.0)
 HEADER = """# Gyros drawn at random outside the presets: written by
 # `python -m avbench.studies.random_gyros` (seed {seed}); do not edit by hand.
 #
-# {n} gyros x 1 replicate of 2 h at 10 Hz: N always; Q, flicker B (tau_max 0.2-5 record lengths), K
+# {n} gyros x {reps} replicates of 2 h at 10 Hz: N always; Q, flicker B (tau_max 0.2-5 record lengths), K
 # each present with probability 0.7, sized relative to N within the presets' ratios. Estimators: the
 # recommended default (de-biased Whittle, every candidate term kept, profile-likelihood intervals),
-# the same with the plain Whittle likelihood, and Whittle with BIC term selection (`whittle`).
-# Pooled coverage per coefficient: avbench.studies.summaries.random_gyros (results/random_gyros/pooled.md).
+# the same with its estimates averaged over the submodels by Akaike weight, the same with the plain
+# Whittle likelihood, and Whittle with BIC term selection (`whittle`). Per gyro: RMSE / CRLB over its
+# replicates (scores.md, leaderboard.md: the median over gyros). Pooled coverage per coefficient:
+# avbench.studies.summaries.random_gyros (results/random_gyros/pooled.md).
 
 [study]
 name = "random_gyros"
-description = "{n} gyros drawn at random (seed {seed}) outside the presets, 2 h at 10 Hz, one replicate each."
+description = "{n} gyros drawn at random (seed {seed}) outside the presets, 2 h at 10 Hz, {reps} replicates each."
 seed = {seed}
-replicates = 1
+replicates = {reps}
 duration_s = {record}
 block_size = 1
 figure_gyros = ["g000", "g001"]
@@ -49,6 +55,11 @@ figure_gyros = ["g000", "g001"]
 name = "whittle_debiased"
 label = "Whittle debiased (profile)"
 settings = {{ terms = "QNBKR" }}
+
+[[estimators]]
+name = "whittle_debiased"
+label = "Whittle debiased, Akaike-averaged"
+settings = {{ terms = "QNBKR", averaging = "akaike" }}
 
 [[estimators]]
 name = "whittle_debiased"
@@ -86,7 +97,7 @@ def draw(seed: int = SEED, n_gyros: int = N_GYROS) -> list[dict]:
 
 
 def config_text(seed: int = SEED, n_gyros: int = N_GYROS) -> str:
-    lines = [HEADER.format(seed=seed, n=n_gyros, record=RECORD_S)]
+    lines = [HEADER.format(seed=seed, n=n_gyros, reps=REPLICATES, record=RECORD_S)]
     for i, g in enumerate(draw(seed, n_gyros)):
         terms = []
         if "Q" in g:

@@ -90,3 +90,19 @@ def test_defaults_cover_on_random_gyros_slow():
     out = _hits(n_gyros=200, seed=2331, record_s=random_gyros.RECORD_S)
     _check(out)
     assert all(out[c]["present"][1] > 50 for c in "QNBK")  # every coefficient drawn present often enough
+
+
+def test_efficiency_takes_each_gyros_rmse_over_its_replicates_then_the_median():
+    from avbench.studies.summaries.random_gyros import EFFICIENT, efficiency
+
+    # CRLB std = 0.1 x true; errors in CRLB std: gyro a (3, 4) -> RMSE sqrt(12.5), b (1, 1) -> 1, c (0, 2) -> sqrt(2)
+    tidy = pd.DataFrame({
+        "gyro": ["a", "a", "b", "b", "c", "c", "d", "d"], "estimator": "E", "coefficient": "N",
+        "true": [1.0, 1.0, 1.0, 1.0, 1.0, 1.0, math.nan, math.nan],
+        "estimate": [1.3, 0.6, 1.1, 0.9, 1.0, 1.2, 0.1, 0.0]})
+    crlb = pd.DataFrame({"gyro": ["a", "b", "c"], "estimator": "E", "coefficient": "N", "crlb_rel": 0.1})
+    t = efficiency(tidy, crlb).iloc[0]
+    assert (t["gyros"], t["records"]) == (3, 6)
+    assert t["median"] == pytest.approx(math.sqrt(2))
+    assert t["median_lo"] <= t["median"] <= t["median_hi"]
+    assert t["share_efficient"] == pytest.approx(1 / 3) and EFFICIENT == 1.25
