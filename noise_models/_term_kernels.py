@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 __all__: list[str] = []
 
 
@@ -86,6 +88,68 @@ def _gm_shape_py(m, a, g, dg):
         g[i] = f / (c * c)
         dg[i] = df / (c * c) - 2.0 * f * phi / (c * c * c)
 
+
+def _gm_rows_py(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, out):
+    """g(m, a) = f(m) / (1 - phi)^2 (phi = exp(-a)) for each row's ``a[r]``, written into ``out[r]``: the
+    arithmetic of :func:`avbench.noise_models.markov_terms._gm_f_over_c2_numpy` in its order, one row at a
+    time, so each row is bit for bit that function's result at ``a[r]``.
+
+    The values that function takes from NumPy's vectorised math or from scalar ``pow`` / ``expm1`` /
+    ``exp`` come in precomputed by the caller (:func:`avbench.noise_models.markov_terms._gm_f_over_c2_rows`):
+    per row ``c2 = (1 - phi)^2``, ``s1 = -expm1(-2a)``, ``s2 = exp(-a)``, ``t3 = a^3 / 6``; ``e[r]`` the
+    vectorised ``expm1(-m a)`` then ``expm1(-2 m a)``; per series index ``i`` (k = i + 3) and cluster
+    size ``j``: ``p1[i, j] = (m_j + 1)^k`` and ``p2[i, j] = (2 m_j + 1)^k`` (vectorised), ``q[i, j] =
+    (2 m_j + 1)^(k+1)`` (scalar pow), ``pow2[i] = 2^k``.
+
+    Where (2m+1) a < 1 the Taylor series f = sum_{k>=3} (-a)^k / k! c_k with
+    c_k = -m 2^k - 3 + 4 (m+1)^k - (2m+1)^k, stopped for all those m at once where the next term bound
+    a^(k+1)/(k+1)! (2 max m + 1)^(k+1) is below 1e-18 of the smallest |sum|; elsewhere
+    f = m (1 - phi^2) - phi (-4 expm1(-m a) + expm1(-2 m a))."""
+    nm = mf.shape[0]
+    small = np.empty(nm, dtype=np.bool_)
+    total = np.empty(nm)
+    for r in range(a.shape[0]):
+        ar = a[r]
+        ns = 0
+        jmax = -1
+        for j in range(nm):
+            small[j] = (2.0 * mf[j] + 1.0) * ar < 1.0
+            if small[j]:
+                ns += 1
+                if jmax < 0 or mf[j] > mf[jmax]:
+                    jmax = j
+                total[j] = 0.0
+        if ns > 0:
+            term = t3[r]
+            sign = -1.0
+            for i in range(p1.shape[0]):
+                k = i + 3
+                st = sign * term
+                for j in range(nm):
+                    if small[j]:
+                        ck = -mf[j] * pow2[i] - 3.0 + 4.0 * p1[i, j] - p2[i, j]
+                        total[j] = total[j] + st * ck
+                term = term * (ar / (k + 1))
+                sign = -sign
+                smallest = np.inf
+                for j in range(nm):
+                    if small[j]:
+                        v = abs(total[j])
+                        if v != v:
+                            smallest = v
+                            break
+                        if v < smallest:
+                            smallest = v
+                if term * q[i, jmax] < 1e-18 * smallest:
+                    break
+        for j in range(nm):
+            if small[j]:
+                out[r, j] = total[j] / c2[r]
+            else:
+                f = mf[j] * s1[r] - s2[r] * (-4.0 * e[r, j] + e[r, nm + j])
+                out[r, j] = f / c2[r]
+
+
 def _sogm_kernel_py(A, C, e, x, out):
     """x_k = A x_{k-1} + C e_k (C lower-triangular), out_k = first state; x updated in place."""
     a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
@@ -107,8 +171,10 @@ try:  # compiled when numba is available (it is a dependency); same arithmetic e
     _diff_kernel = njit(cache=True)(_diff_kernel_py)
     _walk_kernel = njit(cache=True)(_walk_kernel_py)
     _gm_shape_kernel = njit(cache=True)(_gm_shape_py)
+    _gm_rows_kernel = njit(cache=True)(_gm_rows_py)
 except ImportError:  # pragma: no cover
     _gm_shape_kernel = _gm_shape_py
+    _gm_rows_kernel = _gm_rows_py
     _diff_kernel = _diff_kernel_py
     _walk_kernel = _walk_kernel_py
     _sogm_kernel = _sogm_kernel_py

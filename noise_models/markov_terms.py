@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from avbench.noise_models._term_kernels import _ar1_kernel, _gm_shape_kernel, _sogm_kernel
+from avbench.noise_models._term_kernels import _ar1_kernel, _gm_rows_kernel, _gm_shape_kernel, _sogm_kernel
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
 from avbench.noise_models.exact_variances import gcov_from_autocovariance
 from avbench.noise_models.term_base import PLATEAU, NoiseTerm, TermStream, _check_dt, _omega_dt, _positive
@@ -55,11 +55,12 @@ class _AR1Stream(TermStream):
         return out
 
 
-def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:
+def _gm_f_over_c2_numpy(m: np.ndarray, a: float) -> np.ndarray:
     """f(m) / (1 - phi)^2 with phi = exp(-a), f = m(1-phi^2) - 3phi + 4phi^(m+1) - phi^(2m+1).
 
     Evaluated without catastrophic cancellation: a Taylor series in a (whose first three
-    coefficients vanish identically) where (2m+1) a < 1, the expm1 form elsewhere.
+    coefficients vanish identically) where (2m+1) a < 1, the expm1 form elsewhere. The NumPy
+    reference of :func:`_gm_f_over_c2` (which returns its values bit for bit, compiled).
     """
     m = m.astype(float)
     c = -math.expm1(-a)
@@ -85,6 +86,56 @@ def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:
         )
         out[big] = f / c**2
     return out
+
+#: the Taylor series of :func:`_gm_f_over_c2_numpy` runs over k = 3 .. 59
+_SERIES_K = np.arange(3, 60, dtype=float)
+#: cluster sizes (bytes) -> (-m then -2m, (m + 1)^k, (2m + 1)^k, (2m + 1)^(k+1), 2^k): the values of the
+#: series that depend on the cluster sizes only, kept for the few size vectors a fit evaluates
+_POWERS: dict = {}
+
+
+def _series_powers(mf: np.ndarray) -> tuple:
+    """The cluster-size factors of :func:`_gm_rows_kernel` for float cluster sizes ``mf``, computed as
+    :func:`_gm_f_over_c2_numpy` computes them (vectorised powers for the series' c_k, scalar ``pow`` for its
+    stopping bound), kept per ``mf``."""
+    key = mf.tobytes()
+    kept = _POWERS.get(key)
+    if kept is None:
+        k = _SERIES_K[:, None]
+        with np.errstate(over="ignore", invalid="ignore"):
+            p1 = (mf + 1.0) ** k
+            p2 = (2.0 * mf + 1.0) ** k
+            q = np.array([[float(np.float64(2 * v + 1) ** (int(kk) + 1)) for v in mf] for kk in _SERIES_K])
+        pow2 = np.array([2.0 ** int(kk) for kk in _SERIES_K])
+        kept = (np.concatenate((-mf, -2 * mf)), p1, p2, q, pow2)
+        if len(_POWERS) >= 64:
+            _POWERS.pop(next(iter(_POWERS)))
+        _POWERS[key] = kept
+    return kept
+
+
+def _gm_f_over_c2_rows(m: np.ndarray, a_values) -> np.ndarray:
+    """``[_gm_f_over_c2_numpy(m, a) for a in a_values]`` as one (len(a_values), len(m)) array, bit for bit
+    (compiled :func:`avbench.noise_models._term_kernels._gm_rows_py`; NumPy's vectorised expm1 once for all
+    rows, the series' powers kept per ``m``)."""
+    mf = m.astype(float)
+    neg_m12, p1, p2, q, pow2 = _series_powers(mf)
+    a = np.array(a_values, dtype=float)
+    c2 = np.array([(-math.expm1(-x)) ** 2 for x in a_values])
+    s1 = np.array([-math.expm1(-2 * x) for x in a_values])
+    s2 = np.array([math.exp(-x) for x in a_values])
+    t3 = np.array([x**3 / 6.0 for x in a_values])
+    e = np.expm1(np.multiply.outer(a, neg_m12))
+    out = np.empty((a.size, mf.size))
+    _gm_rows_kernel(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, out)
+    return out
+
+
+def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:
+    """f(m) / (1 - phi)^2 with phi = exp(-a), f = m(1-phi^2) - 3phi + 4phi^(m+1) - phi^(2m+1), without
+    catastrophic cancellation: :func:`_gm_f_over_c2_numpy`'s values, compiled (:func:`_gm_f_over_c2_rows`)."""
+    return _gm_f_over_c2_rows(m, (a,))[0]
+
 
 class GaussMarkov(NoiseTerm):
     """First-order Gauss-Markov rate noise (Miao et al. 2015, eq. 6), stationary std sigma.
