@@ -11,6 +11,7 @@ The Gauss-Markov AV with its derivative (:func:`_gm_shape_py`) is the analytic J
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 
@@ -150,6 +151,69 @@ def _gm_rows_py(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, out):
                 out[r, j] = f / c2[r]
 
 
+
+def _fma(a, b, c):
+    """a b + c rounded once (exact rational arithmetic here; the compiled kernels use the processor's fused
+    multiply-add, the same value)."""
+    if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c)):
+        return a * b + c
+    return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+
+def _cmul(xr, xi, yr, yi):
+    """x y for complex x = xr + i xi, y = yr + i yi as NumPy's AVX-512 loops multiply complex128 arrays:
+    each part one fused multiply-add, (fma(xr, yr, -(xi yi)), fma(xr, yi, xi yr))."""
+    return _fma(xr, yr, -(xi * yi)), _fma(xr, yi, xi * yr)
+
+
+def _cdiv(xr, xi, yr, yi):
+    """x / y as NumPy divides complex128 arrays (Smith's algorithm, unfused)."""
+    if abs(yr) >= abs(yi):
+        if yr == 0.0 and yi == 0.0:
+            return xr / abs(yr), xi / abs(yr)
+        rat = yi / yr
+        scl = 1.0 / (yr + yi * rat)
+        return (xr + xi * rat) * scl, (xi - xr * rat) * scl
+    rat = yr / yi
+    scl = 1.0 / (yi + yr * rat)
+    return (xr * rat + xi) * scl, (xi * rat - xr) * scl
+
+
+def _cexpm1(zr, zi):
+    """expm1(z) as NumPy computes it for complex128: (expm1(x) cos y - 2 sin^2(y/2), e^x sin y)."""
+    a = math.sin(zi / 2)
+    return math.expm1(zr) * math.cos(zi) - 2 * a * a, math.exp(zr) * math.sin(zi)
+
+
+def _resonance_rows_py(mi, absalpha, ar, ai, k1r, k1i, pr, pim, cgr, cgi, sr, si, sigma2, small, out):
+    """The resonance's exact AV (:meth:`avbench.noise_models.Resonance.avar`) at cluster sizes ``mi`` (int)
+    for each row's poles, in the closed form sigma^2 Re{(1 + i c) F_m(phi)} with
+    F_m = [m (-expm1(-2 alpha)) - e^-alpha (-4 expm1(-m alpha) + expm1(-2 m alpha))] / [m^2 (-expm1(-alpha))^2]:
+    NumPy's operations of ``_gm_form`` in their order (complex products fused as NumPy's vectorised
+    loops fuse them, :func:`_cmul`), so each value is bit for bit NumPy's. Per row: ``absalpha`` |alpha|,
+    ``ar``, ``ai`` alpha, ``k1`` -expm1(-2 alpha), ``p`` e^-alpha, ``cg`` -expm1(-alpha), ``s`` 1 + i c,
+    ``sigma2``. Where (2m + 1)|alpha| < 1 the closed form loses digits: ``small[r, j]`` is set and
+    ``out[r, j]`` left for the caller (the autocovariance route)."""
+    for r in range(ar.shape[0]):
+        for j in range(mi.shape[0]):
+            small[r, j] = (2 * mi[j] + 1) * absalpha[r] < 1.0
+            if small[r, j]:
+                continue
+            x = float(mi[j])
+            z1r, z1i = _cmul(-x, 0.0, ar[r], ai[r])
+            e1r, e1i = _cexpm1(z1r, z1i)
+            z2r, z2i = _cmul(-2.0 * x, 0.0, ar[r], ai[r])
+            e2r, e2i = _cexpm1(z2r, z2i)
+            qr, qi = _cmul(-4.0, 0.0, e1r, e1i)
+            vr, vi = _cmul(pr[r], pim[r], qr + e2r, qi + e2i)
+            tr, ti = _cmul(x, 0.0, k1r[r], k1i[r])
+            d0r, d0i = _cmul(x * x, 0.0, cgr[r], cgi[r])
+            dr, di = _cmul(d0r, d0i, cgr[r], cgi[r])
+            fr, fi = _cdiv(tr - vr, ti - vi, dr, di)
+            gr, _ = _cmul(sr[r], si[r], fr, fi)
+            out[r, j] = sigma2[r] * gr
+
+
 def _sogm_kernel_py(A, C, e, x, out):
     """x_k = A x_{k-1} + C e_k (C lower-triangular), out_k = first state; x updated in place."""
     a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
@@ -164,7 +228,28 @@ def _sogm_kernel_py(A, C, e, x, out):
 
 
 try:  # compiled when numba is available (it is a dependency); same arithmetic either way
-    from numba import njit
+    from llvmlite import ir as _ir
+    from numba import njit, types as _types
+    from numba.core import cgutils
+    from numba.extending import intrinsic, overload
+
+    @intrinsic
+    def _fma_llvm(typingctx, a, b, c):
+        """LLVM's fused multiply-add (one rounding; the processor's instruction where it has one)."""
+        def codegen(context, builder, signature, args):
+            d = _ir.DoubleType()
+            fn = cgutils.get_or_insert_function(builder.module, _ir.FunctionType(d, [d, d, d]), "llvm.fma.f64")
+            return builder.call(fn, args)
+
+        return _types.float64(_types.float64, _types.float64, _types.float64), codegen
+
+    @overload(_fma)
+    def _fma_compiled(a, b, c):
+        return lambda a, b, c: _fma_llvm(a, b, c)
+
+    _cmul = njit(cache=True)(_cmul)
+    _cdiv = njit(cache=True)(_cdiv)
+    _cexpm1 = njit(cache=True)(_cexpm1)
 
     _sogm_kernel = njit(cache=True)(_sogm_kernel_py)
     _ar1_kernel = njit(cache=True)(_ar1_kernel_py)
@@ -172,9 +257,11 @@ try:  # compiled when numba is available (it is a dependency); same arithmetic e
     _walk_kernel = njit(cache=True)(_walk_kernel_py)
     _gm_shape_kernel = njit(cache=True)(_gm_shape_py)
     _gm_rows_kernel = njit(cache=True)(_gm_rows_py)
+    _resonance_rows_kernel = njit(cache=True)(_resonance_rows_py)
 except ImportError:  # pragma: no cover
     _gm_shape_kernel = _gm_shape_py
     _gm_rows_kernel = _gm_rows_py
+    _resonance_rows_kernel = _resonance_rows_py
     _diff_kernel = _diff_kernel_py
     _walk_kernel = _walk_kernel_py
     _sogm_kernel = _sogm_kernel_py

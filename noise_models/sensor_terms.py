@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
+from avbench.noise_models._term_kernels import _resonance_rows_kernel
 from avbench.noise_models.markov_terms import GaussMarkov, _gm_f_over_c2_rows, _SOGMStream
 from avbench.noise_models.power_law_terms import _FIRStream
 from avbench.noise_models.term_base import NoiseTerm, TermStream, _check_dt, _omega_dt, _positive
@@ -489,6 +490,39 @@ class Resonance(NoiseTerm):
         if np.any(~small):
             out[~small] = self.sigma**2 * np.real((1 + 1j * c) * _gm_form(m[~small], alpha))
         return out
+
+    @staticmethod
+    def _avar_rows(rows, m, dt) -> np.ndarray:
+        """``[Resonance(*row).avar(m, dt) for row in rows]`` (rows of (sigma, frequency, tc)) as one array,
+        bit for bit: the closed form of every row in one compiled call
+        (:func:`avbench.noise_models._term_kernels._resonance_rows_py`), the autocovariance route where
+        (2m + 1)|alpha| < 1 as :meth:`avar` takes it."""
+        m = check_m(m)
+        terms = [Resonance(sigma=sg, frequency=f, tc=tc) for sg, f, tc in rows]
+        scal = np.empty((12, len(terms)))
+        for r, t in enumerate(terms):
+            rho, w, c = t._poles(dt)
+            alpha = complex(dt / t.tc, -w)
+            k1, p, cg, s = -np.expm1(-2 * alpha), np.exp(-alpha), -np.expm1(-alpha), 1 + 1j * c
+            scal[:, r] = (abs(alpha), alpha.real, alpha.imag, k1.real, k1.imag, p.real, p.imag, cg.real, cg.imag,
+                          s.real, s.imag, t.sigma**2)
+        out = np.empty((len(terms), m.size))
+        small = np.empty((len(terms), m.size), dtype=bool)
+        _resonance_rows_kernel(m, *scal, small, out)
+        for r in np.flatnonzero(small.any(axis=1)):
+            ms = m[small[r]]
+            out[r, small[r]] = avar_from_autocovariance(terms[r].autocovariance(int(2 * ms.max()), dt), ms)
+        return out
+
+    def avar_shape_gradient(self, m, dt):
+        """``(avar, [d avar / d ln f0, d avar / d ln tc])``: the base class's central differences in ln p
+        (relative step 1e-4), its five AVs in one call of :meth:`_avar_rows` (bit for bit)."""
+        h = 1e-4
+        up, down = math.exp(h), math.exp(-h)
+        sg, f, tc = self.sigma, self.frequency, self.tc
+        v = self._avar_rows([(sg, f, tc), (sg, f * up, tc), (sg, f * down, tc), (sg, f, tc * up),
+                             (sg, f, tc * down)], m, dt)
+        return v[0], [(v[1] - v[2]) / (2 * h), (v[3] - v[4]) / (2 * h)]
 
     def psd(self, f, dt):
         """One-sided: 2 dt [r(0) + 2 sum_{k>=1} r(k) cos(k theta)], summed in closed form."""
