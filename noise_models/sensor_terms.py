@@ -370,6 +370,31 @@ def _gm_form(m: np.ndarray, alpha: complex) -> np.ndarray:
     return f / (mf * mf * c * c)
 
 
+def _resonance_short_avar(terms, ms: np.ndarray, dt) -> np.ndarray:
+    """``[avar_from_autocovariance(t.autocovariance(int(2 * ms.max()), dt), ms) for t in terms]`` as one
+    (len(terms), len(ms)) array, bit for bit: the same element-wise operations (the extended-precision sums
+    of :func:`avbench.noise_models.exact_avar.avar_from_autocovariance` per row, in their order) on
+    arrays of all the terms at once."""
+    lmax = int(2 * ms.max())
+    k = np.abs(np.arange(lmax + 1))
+    poles = [t._poles(dt) for t in terms]
+    rho = np.array([p[0] for p in poles])[:, None]
+    w = np.array([p[1] for p in poles])[:, None]
+    c = np.array([p[2] for p in poles])[:, None]
+    sigma2 = np.array([t.sigma**2 for t in terms])[:, None]
+    rr = np.asarray(sigma2 * rho**k * (np.cos(w * k) - c * np.sin(w * k)), dtype=np.longdouble)
+    i = np.arange(lmax + 1, dtype=np.longdouble)
+    zeros = np.zeros((len(terms), 2))
+    c1 = np.concatenate((zeros, np.cumsum(rr[:, 1:lmax], axis=1)), axis=1)
+    c2 = np.concatenate((zeros, np.cumsum((i * rr)[:, 1:lmax], axis=1)), axis=1)
+
+    def var_sum(l):
+        return l * rr[:, :1] + 2 * (l * c1[:, l] - c2[:, l])
+
+    ml = ms.astype(np.longdouble)
+    return np.asarray((4 * var_sum(ms) - var_sum(2 * ms)) / (2 * ml * ml), dtype=np.float64)
+
+
 class Resonance(NoiseTerm):
     r"""Band-pass (oscillatory) Gauss-Markov rate noise: the noise of a lightly damped mode at f0.
 
@@ -499,19 +524,25 @@ class Resonance(NoiseTerm):
         (2m + 1)|alpha| < 1 as :meth:`avar` takes it."""
         m = check_m(m)
         terms = [Resonance(sigma=sg, frequency=f, tc=tc) for sg, f, tc in rows]
-        scal = np.empty((12, len(terms)))
-        for r, t in enumerate(terms):
+        alpha, s, sigma2 = [], [], []
+        for t in terms:
             rho, w, c = t._poles(dt)
-            alpha = complex(dt / t.tc, -w)
-            k1, p, cg, s = -np.expm1(-2 * alpha), np.exp(-alpha), -np.expm1(-alpha), 1 + 1j * c
-            scal[:, r] = (abs(alpha), alpha.real, alpha.imag, k1.real, k1.imag, p.real, p.imag, cg.real, cg.imag,
-                          s.real, s.imag, t.sigma**2)
+            alpha.append(complex(dt / t.tc, -w))
+            s.append(1 + 1j * c)
+            sigma2.append(t.sigma**2)
+        alpha = np.array(alpha)
+        k1, p, cg, s = -np.expm1(-2 * alpha), np.exp(-alpha), -np.expm1(-alpha), np.array(s)
         out = np.empty((len(terms), m.size))
         small = np.empty((len(terms), m.size), dtype=bool)
-        _resonance_rows_kernel(m, *scal, small, out)
-        for r in np.flatnonzero(small.any(axis=1)):
-            ms = m[small[r]]
-            out[r, small[r]] = avar_from_autocovariance(terms[r].autocovariance(int(2 * ms.max()), dt), ms)
+        _resonance_rows_kernel(m, np.abs(alpha), alpha.real.copy(), alpha.imag.copy(), k1.real.copy(), k1.imag.copy(),
+                               p.real.copy(), p.imag.copy(), cg.real.copy(), cg.imag.copy(), s.real.copy(),
+                               s.imag.copy(), np.array(sigma2), small, out)
+        left = [r for r in range(len(terms)) if small[r].any()]
+        while left:  # the rows sharing the first one's short clusters, in one NumPy pass
+            same = [r for r in left if np.array_equal(small[r], small[left[0]])]
+            mask = small[left[0]]
+            out[np.ix_(same, mask)] = _resonance_short_avar([terms[r] for r in same], m[mask], dt)
+            left = [r for r in left if r not in same]
         return out
 
     def avar_shape_gradient(self, m, dt):
