@@ -22,7 +22,8 @@ import numpy as np
 from avbench.noise_models._term_kernels import _ar1_kernel, _gm_rows_kernel, _gm_shape_kernel, _sogm_kernel
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
 from avbench.noise_models.exact_variances import gcov_from_autocovariance
-from avbench.noise_models.term_base import PLATEAU, NoiseTerm, TermStream, _check_dt, _omega_dt, _positive
+from avbench.noise_models.term_base import (PLATEAU, NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt,
+                                            _positive)
 from avbench.noise_models.units import as_si
 
 __all__ = ["GaussMarkov", "SecondOrderGaussMarkov", "GM_PEAK_TAU_OVER_TC", "GM_PEAK_ADEV_OVER_SIGMA",
@@ -235,9 +236,10 @@ class GaussMarkov(NoiseTerm):
         return gcov_from_autocovariance(self.autocovariance(np.arange(L + 1), dt), lags, dt)
 
     def psd(self, f, dt):
+        grid = f
         f, w = _omega_dt(f, dt)
         phi = self.phi(dt)
-        return 2 * dt * self.sigma**2 * (1 - phi**2) / (1 - 2 * phi * np.cos(w) + phi**2)
+        return 2 * dt * self.sigma**2 * (1 - phi**2) / (1 - 2 * phi * _grid_value(grid, dt, "cos(w)", w) + phi**2)
 
     def stream(self, dt, rng):
         return _AR1Stream(_check_dt(dt), rng, self.sigma, self.phi(dt))

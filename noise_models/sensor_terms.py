@@ -27,7 +27,7 @@ from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
 from avbench.noise_models._term_kernels import _resonance_rows_kernel
 from avbench.noise_models.markov_terms import GaussMarkov, _gm_f_over_c2_rows, _SOGMStream
 from avbench.noise_models.power_law_terms import _FIRStream
-from avbench.noise_models.term_base import NoiseTerm, TermStream, _check_dt, _omega_dt, _positive
+from avbench.noise_models.term_base import NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt, _positive
 from avbench.noise_models.units import as_si
 
 __all__ = ["Sinusoidal", "FilteredWhiteNoise", "Resonance", "RESONANCE_MAX_FREQUENCY"]
@@ -337,11 +337,12 @@ class FilteredWhiteNoise(NoiseTerm):
 
     def gain2(self, f, dt) -> np.ndarray:
         """|H(e^{i 2 pi f dt})|^2, the filter's power gain (1 at f = 0)."""
+        grid = f
         f, w = _omega_dt(f, dt)
         h = self.impulse_response()
         if h is None:
             a = math.exp(-dt / self.tc)
-            return (1 - a) ** 2 / (1 - 2 * a * np.cos(w) + a * a)
+            return (1 - a) ** 2 / (1 - 2 * a * _grid_value(grid, dt, "cos(w)", w) + a * a)
         H = np.exp(-1j * np.outer(w, np.arange(len(h)))) @ h
         return np.abs(H) ** 2
 
@@ -558,9 +559,10 @@ class Resonance(NoiseTerm):
     def psd(self, f, dt):
         """One-sided: 2 dt [r(0) + 2 sum_{k>=1} r(k) cos(k theta)], summed in closed form."""
         rho, w, c = self._poles(dt)
+        grid = f
         f, theta = _omega_dt(f, dt)
         phi = rho * np.exp(1j * w)
-        z1, z2 = phi * np.exp(1j * theta), phi * np.exp(-1j * theta)
+        z1, z2 = phi * _grid_value(grid, dt, "exp(iw)", theta), phi * _grid_value(grid, dt, "exp(-iw)", theta)
         s = np.real((1 + 1j * c) * (z1 / (1 - z1) + z2 / (1 - z2)))
         return 2 * dt * self.sigma**2 * (1 + s)
 
