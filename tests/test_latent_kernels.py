@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from avbench.estimators.allan import covariance
-from avbench.noise_models import FilteredWhiteNoise, Resonance
+from avbench.noise_models import FilteredWhiteNoise, Resonance, Sinusoidal
 from avbench.noise_models.latents import build_gyro
 from avbench.noise_models.markov_terms import _gm_f_over_c2_numpy, _gm_f_over_c2_rows
 from avbench.noise_models.term_base import FrequencyGrid, NoiseTerm
@@ -83,3 +83,15 @@ def test_covariance_on_the_kept_grid_is_the_one_computed_afresh(monkeypatch):
     kept, again = covariance._direct(gyro, m, n_grid), covariance._direct(gyro, m, n_grid)
     monkeypatch.setattr(covariance, "GAIN_CACHE_BYTES", 0)  # nothing kept: gains and frequencies afresh
     assert _same(kept, covariance._direct(gyro, m, n_grid)) and _same(again, kept)
+
+
+def test_sinusoid_gradient_is_the_base_class_central_difference_bit_for_bit():
+    rng = np.random.default_rng(13)
+    for trial in range(300):
+        dt = 10 ** rng.uniform(-3.5, -1)
+        nyquist = 0.5 / dt
+        f0 = nyquist * (1 - 1e-9 if trial % 10 == 0 else 10 ** rng.uniform(-5, -1e-4))
+        sn = Sinusoidal(amplitude=10 ** rng.uniform(-4, 0), frequency=f0)
+        m = _sizes(rng)
+        (v1, d1), (v0, d0) = sn.avar_shape_derivative(m, dt), NoiseTerm.avar_shape_derivative(sn, m, dt)
+        assert _same(v1, v0) and _same(d1, d0)
