@@ -152,6 +152,20 @@ def _gm_rows_py(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, out):
 
 
 
+def _gm_central_py(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, var, step, value, deriv):
+    """A Gauss-Markov AV and its central difference: with ``g`` the three rows of :func:`_gm_rows_py` (at
+    ``a[0]`` and the two steps ``a[1]``, ``a[2]``) and ``var`` the three variances,
+    ``value = var[0] g[0] / m^2`` and ``deriv = (var[1] g[1] / m^2 - var[2] g[2] / m^2) / step``, each
+    operation as NumPy's element-wise one (the first-order filter's shape derivative,
+    :meth:`avbench.noise_models.FilteredWhiteNoise.avar_shape_derivative`)."""
+    g = np.empty((3, mf.shape[0]))
+    _gm_rows_kernel(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, g)
+    for j in range(mf.shape[0]):
+        mf2 = mf[j] * mf[j]
+        value[j] = var[0] * g[0, j] / mf2
+        deriv[j] = (var[1] * g[1, j] / mf2 - var[2] * g[2, j] / mf2) / step
+
+
 def _fma(a, b, c):
     """a b + c rounded once (exact rational arithmetic here; the compiled kernels use the processor's fused
     multiply-add, the same value)."""
@@ -257,10 +271,12 @@ try:  # compiled when numba is available (it is a dependency); same arithmetic e
     _walk_kernel = njit(cache=True)(_walk_kernel_py)
     _gm_shape_kernel = njit(cache=True)(_gm_shape_py)
     _gm_rows_kernel = njit(cache=True)(_gm_rows_py)
+    _gm_central_kernel = njit(cache=True)(_gm_central_py)
     _resonance_rows_kernel = njit(cache=True)(_resonance_rows_py)
 except ImportError:  # pragma: no cover
     _gm_shape_kernel = _gm_shape_py
     _gm_rows_kernel = _gm_rows_py
+    _gm_central_kernel = _gm_central_py
     _resonance_rows_kernel = _resonance_rows_py
     _diff_kernel = _diff_kernel_py
     _walk_kernel = _walk_kernel_py

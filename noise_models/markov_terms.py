@@ -19,7 +19,8 @@ import math
 
 import numpy as np
 
-from avbench.noise_models._term_kernels import _ar1_kernel, _gm_rows_kernel, _gm_shape_kernel, _sogm_kernel
+from avbench.noise_models._term_kernels import (_ar1_kernel, _gm_central_kernel, _gm_rows_kernel, _gm_shape_kernel,
+                                                _sogm_kernel)
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
 from avbench.noise_models.exact_variances import gcov_from_autocovariance
 from avbench.noise_models.term_base import (PLATEAU, NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt,
@@ -115,21 +116,34 @@ def _series_powers(mf: np.ndarray) -> tuple:
     return kept
 
 
+def _gm_inputs(mf: np.ndarray, a_values) -> tuple:
+    """The arguments of :func:`avbench.noise_models._term_kernels._gm_rows_py` before ``out``: per row the
+    scalars as :func:`_gm_f_over_c2_numpy` computes them (Python's ``expm1``, ``exp``, ``**``), NumPy's
+    vectorised ``expm1(-m a)``, ``expm1(-2 m a)`` of all rows in one call, the powers kept per ``mf``."""
+    neg_m12, p1, p2, q, pow2 = _series_powers(mf)
+    a = np.array(a_values, dtype=float)
+    scal = np.array([((-math.expm1(-x)) ** 2, -math.expm1(-2 * x), math.exp(-x), x**3 / 6.0) for x in a_values]).T
+    return mf, a, scal[0], scal[1], scal[2], scal[3], np.expm1(np.multiply.outer(a, neg_m12)), p1, p2, q, pow2
+
+
 def _gm_f_over_c2_rows(m: np.ndarray, a_values) -> np.ndarray:
     """``[_gm_f_over_c2_numpy(m, a) for a in a_values]`` as one (len(a_values), len(m)) array, bit for bit
     (compiled :func:`avbench.noise_models._term_kernels._gm_rows_py`; NumPy's vectorised expm1 once for all
     rows, the series' powers kept per ``m``)."""
     mf = m.astype(float)
-    neg_m12, p1, p2, q, pow2 = _series_powers(mf)
-    a = np.array(a_values, dtype=float)
-    c2 = np.array([(-math.expm1(-x)) ** 2 for x in a_values])
-    s1 = np.array([-math.expm1(-2 * x) for x in a_values])
-    s2 = np.array([math.exp(-x) for x in a_values])
-    t3 = np.array([x**3 / 6.0 for x in a_values])
-    e = np.expm1(np.multiply.outer(a, neg_m12))
-    out = np.empty((a.size, mf.size))
-    _gm_rows_kernel(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, out)
+    out = np.empty((len(a_values), mf.size))
+    _gm_rows_kernel(*_gm_inputs(mf, a_values), out)
     return out
+
+
+def _gm_central(m: np.ndarray, a_values, variances, step) -> tuple[np.ndarray, np.ndarray]:
+    """``(v[0], (v[1] - v[2]) / step)`` with ``v[r] = variances[r] * _gm_f_over_c2_numpy(m, a_values[r]) / m^2``
+    (three rows: a Gauss-Markov AV and its central difference), bit for bit those NumPy expressions
+    (compiled :func:`avbench.noise_models._term_kernels._gm_central_py`)."""
+    mf = m.astype(float)
+    value, deriv = np.empty(mf.size), np.empty(mf.size)
+    _gm_central_kernel(*_gm_inputs(mf, a_values), np.array(variances, dtype=float), float(step), value, deriv)
+    return value, deriv
 
 
 def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:

@@ -25,7 +25,7 @@ import numpy as np
 
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
 from avbench.noise_models._term_kernels import _resonance_rows_kernel
-from avbench.noise_models.markov_terms import GaussMarkov, _gm_f_over_c2_rows, _SOGMStream
+from avbench.noise_models.markov_terms import GaussMarkov, _gm_central, _SOGMStream
 from avbench.noise_models.power_law_terms import _FIRStream
 from avbench.noise_models.term_base import NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt, _positive
 from avbench.noise_models.units import as_si
@@ -331,7 +331,7 @@ class FilteredWhiteNoise(NoiseTerm):
     def avar_shape_derivative(self, m, dt):
         """``(avar, d avar / d ln tc)`` of the first-order low-pass: the base class's central difference in
         ln tc (relative step 1e-4), with its three AVs (at tc, tc e^h, tc e^-h) in one compiled call
-        (:func:`avbench.noise_models.markov_terms._gm_f_over_c2_rows`), bit for bit the three
+        (:func:`avbench.noise_models.markov_terms._gm_central`), bit for bit the three
         :meth:`avar` calls it stands for. The FIR filters have no shape parameter: the base class's."""
         if self.tc is None:
             return super().avar_shape_derivative(m, dt)
@@ -346,10 +346,7 @@ class FilteredWhiteNoise(NoiseTerm):
             if not (sigma > 0 and math.isfinite(sigma) and math.isfinite(tc) and tc > 0):
                 return super().avar_shape_derivative(m, dt)  # a step outside the values a term accepts
             sigma2.append(sigma**2)
-        g = _gm_f_over_c2_rows(m, [dt / tc for tc in tcs])
-        mf2 = m.astype(float) ** 2
-        value, up, down = (s2 * row / mf2 for s2, row in zip(sigma2, g))
-        return value, (up - down) / (h - (-h))
+        return _gm_central(m, [dt / tc for tc in tcs], sigma2, h - (-h))
 
     def gain2(self, f, dt) -> np.ndarray:
         """|H(e^{i 2 pi f dt})|^2, the filter's power gain (1 at f = 0)."""
