@@ -1,6 +1,6 @@
-"""The compiled latent-model evaluations GMWM makes (the Gauss-Markov series, the filter's and the resonance's
-central-difference gradients) and the frequency grid the AV covariance keeps: each is bit for bit the NumPy
-computation it replaces, so that no fit moves."""
+"""The compiled latent-model evaluations GMWM makes (the Gauss-Markov series; the filter's, the resonance's
+and the sinusoid's central-difference gradients), the frequency grid the AV covariance keeps and the line
+test kept per record: each gives bit for bit what it replaces, so that no fit moves."""
 
 import math
 
@@ -95,3 +95,16 @@ def test_sinusoid_gradient_is_the_base_class_central_difference_bit_for_bit():
         m = _sizes(rng)
         (v1, d1), (v0, d0) = sn.avar_shape_derivative(m, dt), NoiseTerm.avar_shape_derivative(sn, m, dt)
         assert _same(v1, v0) and _same(d1, d0)
+
+
+def test_the_line_test_is_kept_per_record():
+    from avbench.estimators.selection import lines
+
+    x = np.random.default_rng(3).standard_normal(2**15)
+    first = lines.strongest_line(x, 0.01)
+    assert lines.strongest_line(x.copy(), 0.01) is first  # the same samples: the kept result
+    assert lines.strongest_line(x, 0.01, (1.0, 20.0)) != first  # another band: computed
+    y = x.copy()
+    y[100] += 1e-12
+    assert lines.strongest_line(y, 0.01) is not first
+    assert lines.strongest_line.__wrapped__(x, 0.01) == first  # the kept value is the one computed afresh
