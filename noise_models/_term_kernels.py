@@ -199,32 +199,35 @@ def _cexpm1(zr, zi):
     return math.expm1(zr) * math.cos(zi) - 2 * a * a, math.exp(zr) * math.sin(zi)
 
 
-def _resonance_rows_py(mi, absalpha, ar, ai, k1r, k1i, pr, pim, cgr, cgi, sr, si, sigma2, small, out):
+def _resonance_rows_py(mi, absalpha, alpha, k1, p, cg, s, sigma2, small, out):
     """The resonance's exact AV (:meth:`avbench.noise_models.Resonance.avar`) at cluster sizes ``mi`` (int)
     for each row's poles, in the closed form sigma^2 Re{(1 + i c) F_m(phi)} with
     F_m = [m (-expm1(-2 alpha)) - e^-alpha (-4 expm1(-m alpha) + expm1(-2 m alpha))] / [m^2 (-expm1(-alpha))^2]:
     NumPy's operations of ``_gm_form`` in their order (complex products fused as NumPy's vectorised
-    loops fuse them, :func:`_cmul`), so each value is bit for bit NumPy's. Per row: ``absalpha`` |alpha|,
-    ``ar``, ``ai`` alpha, ``k1`` -expm1(-2 alpha), ``p`` e^-alpha, ``cg`` -expm1(-alpha), ``s`` 1 + i c,
-    ``sigma2``. Where (2m + 1)|alpha| < 1 the closed form loses digits: ``small[r, j]`` is set and
+    loops fuse them, :func:`_cmul`), so each value is bit for bit NumPy's. Per row (complex arrays but
+    ``absalpha`` and ``sigma2``): ``absalpha`` |alpha|, ``alpha``, ``k1`` -expm1(-2 alpha), ``p`` e^-alpha,
+    ``cg`` -expm1(-alpha), ``s`` 1 + i c, ``sigma2``. Where (2m + 1)|alpha| < 1 the closed form loses digits: ``small[r, j]`` is set and
     ``out[r, j]`` left for the caller (the autocovariance route)."""
-    for r in range(ar.shape[0]):
+    for r in range(alpha.shape[0]):
+        ar, ai = alpha[r].real, alpha[r].imag
+        pr, pim = p[r].real, p[r].imag
+        cgr, cgi = cg[r].real, cg[r].imag
         for j in range(mi.shape[0]):
             small[r, j] = (2 * mi[j] + 1) * absalpha[r] < 1.0
             if small[r, j]:
                 continue
             x = float(mi[j])
-            z1r, z1i = _cmul(-x, 0.0, ar[r], ai[r])
+            z1r, z1i = _cmul(-x, 0.0, ar, ai)
             e1r, e1i = _cexpm1(z1r, z1i)
-            z2r, z2i = _cmul(-2.0 * x, 0.0, ar[r], ai[r])
+            z2r, z2i = _cmul(-2.0 * x, 0.0, ar, ai)
             e2r, e2i = _cexpm1(z2r, z2i)
             qr, qi = _cmul(-4.0, 0.0, e1r, e1i)
-            vr, vi = _cmul(pr[r], pim[r], qr + e2r, qi + e2i)
-            tr, ti = _cmul(x, 0.0, k1r[r], k1i[r])
-            d0r, d0i = _cmul(x * x, 0.0, cgr[r], cgi[r])
-            dr, di = _cmul(d0r, d0i, cgr[r], cgi[r])
+            vr, vi = _cmul(pr, pim, qr + e2r, qi + e2i)
+            tr, ti = _cmul(x, 0.0, k1[r].real, k1[r].imag)
+            d0r, d0i = _cmul(x * x, 0.0, cgr, cgi)
+            dr, di = _cmul(d0r, d0i, cgr, cgi)
             fr, fi = _cdiv(tr - vr, ti - vi, dr, di)
-            gr, _ = _cmul(sr[r], si[r], fr, fi)
+            gr, _ = _cmul(s[r].real, s[r].imag, fr, fi)
             out[r, j] = sigma2[r] * gr
 
 

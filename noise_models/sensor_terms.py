@@ -384,6 +384,18 @@ def _gm_form(m: np.ndarray, alpha: complex) -> np.ndarray:
     return f / (mf * mf * c * c)
 
 
+def _resonance_poles(frequency: float, tc: float, dt: float) -> tuple[float, float, float]:
+    """(rho, omega, c) of a resonance at ``frequency`` with damping time ``tc`` sampled every ``dt``
+    (:class:`Resonance`); a ValueError at or above the Nyquist frequency."""
+    if frequency >= 0.5 / dt * (1 - 1e-12):
+        raise ValueError(
+            f"frequency: {frequency} Hz is not below the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
+            "of this sampling; expected a frequency the samples resolve"
+        )
+    rho, w = math.exp(-dt / tc), 2 * math.pi * frequency * dt
+    return rho, w, -math.expm1(-2 * dt / tc) / (2 * rho * math.sin(w))
+
+
 def _resonance_short_avar(terms, ms: np.ndarray, dt) -> np.ndarray:
     """``[avar_from_autocovariance(t.autocovariance(int(2 * ms.max()), dt), ms) for t in terms]`` as one
     (len(terms), len(ms)) array, bit for bit: the same element-wise operations (the extended-precision sums
@@ -503,14 +515,7 @@ class Resonance(NoiseTerm):
 
     def _poles(self, dt):
         """(rho, omega, c) of the sampling ``dt``; a ValueError at or above the Nyquist frequency."""
-        dt = _check_dt(dt)
-        if self.frequency >= 0.5 / dt * (1 - 1e-12):
-            raise ValueError(
-                f"frequency: {self.frequency} Hz is not below the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
-                "of this sampling; expected a frequency the samples resolve"
-            )
-        rho, w = math.exp(-dt / self.tc), 2 * math.pi * self.frequency * dt
-        return rho, w, -math.expm1(-2 * dt / self.tc) / (2 * rho * math.sin(w))
+        return _resonance_poles(self.frequency, self.tc, _check_dt(dt))
 
     def autocovariance(self, lags, dt) -> np.ndarray:
         """r at the given lags (or at 0..lags for an integer, as the FIR terms), exact."""
@@ -537,25 +542,26 @@ class Resonance(NoiseTerm):
         (:func:`avbench.noise_models._term_kernels._resonance_rows_py`), the autocovariance route where
         (2m + 1)|alpha| < 1 as :meth:`avar` takes it."""
         m = check_m(m)
-        terms = [Resonance(sigma=sg, frequency=f, tc=tc) for sg, f, tc in rows]
+        dt_checked = _check_dt(dt)
         alpha, s, sigma2 = [], [], []
-        for t in terms:
-            rho, w, c = t._poles(dt)
-            alpha.append(complex(dt / t.tc, -w))
+        for sg, f, tc in rows:  # the values Resonance(sg, f, tc) holds and its avar computes from them
+            sg, f, tc = as_si("B", sg), _positive("frequency", f), _positive("tc", tc)
+            if sg == 0:
+                raise ValueError("sigma: expected a positive standard deviation, got 0")
+            rho, w, c = _resonance_poles(f, tc, dt_checked)
+            alpha.append(complex(dt / tc, -w))
             s.append(1 + 1j * c)
-            sigma2.append(t.sigma**2)
+            sigma2.append(sg**2)
         alpha = np.array(alpha)
-        k1, p, cg, s = -np.expm1(-2 * alpha), np.exp(-alpha), -np.expm1(-alpha), np.array(s)
-        out = np.empty((len(terms), m.size))
-        small = np.empty((len(terms), m.size), dtype=bool)
-        _resonance_rows_kernel(m, np.abs(alpha), alpha.real.copy(), alpha.imag.copy(), k1.real.copy(), k1.imag.copy(),
-                               p.real.copy(), p.imag.copy(), cg.real.copy(), cg.imag.copy(), s.real.copy(),
-                               s.imag.copy(), np.array(sigma2), small, out)
-        left = [r for r in range(len(terms)) if small[r].any()]
+        out = np.empty((len(rows), m.size))
+        small = np.empty((len(rows), m.size), dtype=bool)
+        _resonance_rows_kernel(m, np.abs(alpha), alpha, -np.expm1(-2 * alpha), np.exp(-alpha), -np.expm1(-alpha),
+                               np.array(s), np.array(sigma2), small, out)
+        left = [r for r in range(len(rows)) if small[r].any()]
         while left:  # the rows sharing the first one's short clusters, in one NumPy pass
             same = [r for r in left if np.array_equal(small[r], small[left[0]])]
             mask = small[left[0]]
-            out[np.ix_(same, mask)] = _resonance_short_avar([terms[r] for r in same], m[mask], dt)
+            out[np.ix_(same, mask)] = _resonance_short_avar([Resonance(*rows[r]) for r in same], m[mask], dt)
             left = [r for r in left if r not in same]
         return out
 
