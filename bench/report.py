@@ -41,11 +41,11 @@ LIMITS = {
                      "and PNG rendering (matplotlib: ~2 CPU-s for 6 axes) and the imports (~1 s). A wall-time target "
                      "holds only on a quiet machine: the measurement reports CPU seconds beside it. See the breakdown.",
     "estimate_real_motion": "The number of model evaluations, not their cost: on the record in motion the model choices "
-                            "(selection.scales, selection.resonance) refit the latent model at every cut-off and its "
-                            "solves run long (the curve's steps and ramps are no static term's shape), ~10x the "
-                            "evaluations of the static record of the same length (the breakdown's LatentAV calls); per "
-                            "evaluation the two cost the same. Fewer evaluations need the choices to stop refitting "
-                            "where their outcome is decided, which changes the fits they list in their reports.",
+                            "(selection.scales, selection.resonance) refit the latent model at more cut-offs, with more "
+                            "evaluations per solve, than on the static record of the same length: about ten times its "
+                            "evaluations (the breakdown's LatentAV calls), each costing the same. Fewer evaluations need "
+                            "the choices to stop refitting where their outcome is decided, which changes the fits they "
+                            "list in their reports (the JSON's tried cut-offs).",
     "estimate_e2e": "The fits and the outputs. Within the fits (the default methods on six axes) every fit's check "
                     "builds the AV covariance under the fitted model (allan/covariance.av_covariance: _haar_gain, "
                     "_pair_integrals), the largest profiled share; GMWM's solves evaluate the latent model's exact AV "
