@@ -110,8 +110,11 @@ def _series_powers(mf: np.ndarray) -> tuple:
             q = np.array([[float(np.float64(2 * v + 1) ** (int(kk) + 1)) for v in mf] for kk in _SERIES_K])
         pow2 = np.array([2.0 ** int(kk) for kk in _SERIES_K])
         kept = (np.concatenate((-mf, -2 * mf)), p1, p2, q, pow2)
-        if len(_POWERS) >= 64:
-            _POWERS.pop(next(iter(_POWERS)))
+        while len(_POWERS) >= 64:
+            try:
+                _POWERS.pop(next(iter(_POWERS)))
+            except (KeyError, RuntimeError, StopIteration):  # emptied meanwhile by another thread
+                break
         _POWERS[key] = kept
     return kept
 

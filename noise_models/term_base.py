@@ -269,13 +269,17 @@ class FrequencyGrid(np.ndarray):
 
 
 def _kept(f, key, compute):
-    """``compute()``, kept on ``f`` under ``key`` when ``f`` is a :class:`FrequencyGrid`."""
+    """``compute()``, kept on ``f`` under ``key`` when ``f`` is a :class:`FrequencyGrid` (its arrays read-only:
+    a spectrum that wrote into one would change every later spectrum on the grid)."""
     kept = getattr(f, "_kept", None) if isinstance(f, FrequencyGrid) else None
     if kept is None:
         return compute()
     value = kept.get(key)
     if value is None:
-        value = kept[key] = compute()
+        value = compute()
+        for a in value if isinstance(value, tuple) else (value,):
+            a.flags.writeable = False
+        kept[key] = value
     return value
 
 

@@ -72,6 +72,8 @@ def test_spectra_on_a_kept_grid_equal_those_on_the_plain_array(latents, values):
         plain, first, again = term.psd(f, dt), term.psd(grid, dt), term.psd(grid, dt)
         assert type(first) is np.ndarray and _same(first, plain) and _same(again, plain)
     assert type(grid * 2.0) is np.ndarray and grid[:10]._kept is None
+    kept = [a for v in grid._kept.values() for a in (v if isinstance(v, tuple) else (v,))]
+    assert kept and not any(a.flags.writeable for a in kept)  # no spectrum can write into the grid's values
 
 
 def test_covariance_on_the_kept_grid_is_the_one_computed_afresh(monkeypatch):
