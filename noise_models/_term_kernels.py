@@ -174,10 +174,33 @@ def _fma(a, b, c):
     return float(Fraction(a) * Fraction(b) + Fraction(c))
 
 
-def _cmul(xr, xi, yr, yi):
-    """x y for complex x = xr + i xi, y = yr + i yi as NumPy's AVX-512 loops multiply complex128 arrays:
-    each part one fused multiply-add, (fma(xr, yr, -(xi yi)), fma(xr, yi, xi yr))."""
-    return _fma(xr, yr, -(xi * yi)), _fma(xr, yi, xi * yr)
+def _cmul(xr, xi, yr, yi, fused):
+    """x y for complex x = xr + i xi, y = yr + i yi as NumPy multiplies complex128 arrays: with ``fused`` (its
+    vectorised loops on a processor with fused multiply-add, e.g. AVX-512) each part one fma,
+    (fma(xr, yr, -(xi yi)), fma(xr, yi, xi yr)); else the plain products (xr yr - xi yi, xr yi + xi yr).
+    Which one NumPy does here: :func:`numpy_complex_product`."""
+    if fused:
+        return _fma(xr, yr, -(xi * yi)), _fma(xr, yi, xi * yr)
+    return xr * yr - xi * yi, xr * yi + xi * yr
+
+
+def numpy_complex_product():
+    """``True`` when NumPy's complex128 products (array by array, array by scalar, scalar by array) are the
+    fused form of :func:`_cmul`, ``False`` when they are the plain one, None when neither (then no kernel
+    reproduces them): probed on pairs whose two forms differ."""
+    rng = np.random.default_rng(12345)
+    x = rng.standard_normal(64) + 1j * rng.standard_normal(64)
+    y = rng.standard_normal(64) + 1j * rng.standard_normal(64)
+    got = [x * y, x * y[0], x[0] * y]
+    pairs = [(x, y), (x, np.full(64, y[0])), (np.full(64, x[0]), y)]
+    for fused in (True, False):
+        if all(complex(*_cmul_py(a.real, a.imag, b.real, b.imag, fused)) == g
+               for prod, (xs, ys) in zip(got, pairs) for a, b, g in zip(xs, ys, prod)):
+            return fused
+    return None
+
+
+_cmul_py = _cmul
 
 
 def _cdiv(xr, xi, yr, yi):
@@ -199,12 +222,12 @@ def _cexpm1(zr, zi):
     return math.expm1(zr) * math.cos(zi) - 2 * a * a, math.exp(zr) * math.sin(zi)
 
 
-def _resonance_rows_py(mi, absalpha, alpha, k1, p, cg, s, sigma2, small, out):
+def _resonance_rows_py(mi, absalpha, alpha, k1, p, cg, s, sigma2, fused, small, out):
     """The resonance's exact AV (:meth:`avbench.noise_models.Resonance.avar`) at cluster sizes ``mi`` (int)
     for each row's poles, in the closed form sigma^2 Re{(1 + i c) F_m(phi)} with
     F_m = [m (-expm1(-2 alpha)) - e^-alpha (-4 expm1(-m alpha) + expm1(-2 m alpha))] / [m^2 (-expm1(-alpha))^2]:
     NumPy's operations of ``_gm_form`` in their order (complex products fused as NumPy's vectorised
-    loops fuse them, :func:`_cmul`), so each value is bit for bit NumPy's. Per row (complex arrays but
+    loops fuse them where ``fused``, :func:`_cmul`), so each value is bit for bit NumPy's. Per row (complex arrays but
     ``absalpha`` and ``sigma2``): ``absalpha`` |alpha|, ``alpha``, ``k1`` -expm1(-2 alpha), ``p`` e^-alpha,
     ``cg`` -expm1(-alpha), ``s`` 1 + i c, ``sigma2``. Where (2m + 1)|alpha| < 1 the closed form loses digits: ``small[r, j]`` is set and
     ``out[r, j]`` left for the caller (the autocovariance route)."""
@@ -217,17 +240,17 @@ def _resonance_rows_py(mi, absalpha, alpha, k1, p, cg, s, sigma2, small, out):
             if small[r, j]:
                 continue
             x = float(mi[j])
-            z1r, z1i = _cmul(-x, 0.0, ar, ai)
+            z1r, z1i = _cmul(-x, 0.0, ar, ai, fused)
             e1r, e1i = _cexpm1(z1r, z1i)
-            z2r, z2i = _cmul(-2.0 * x, 0.0, ar, ai)
+            z2r, z2i = _cmul(-2.0 * x, 0.0, ar, ai, fused)
             e2r, e2i = _cexpm1(z2r, z2i)
-            qr, qi = _cmul(-4.0, 0.0, e1r, e1i)
-            vr, vi = _cmul(pr, pim, qr + e2r, qi + e2i)
-            tr, ti = _cmul(x, 0.0, k1[r].real, k1[r].imag)
-            d0r, d0i = _cmul(x * x, 0.0, cgr, cgi)
-            dr, di = _cmul(d0r, d0i, cgr, cgi)
+            qr, qi = _cmul(-4.0, 0.0, e1r, e1i, fused)
+            vr, vi = _cmul(pr, pim, qr + e2r, qi + e2i, fused)
+            tr, ti = _cmul(x, 0.0, k1[r].real, k1[r].imag, fused)
+            d0r, d0i = _cmul(x * x, 0.0, cgr, cgi, fused)
+            dr, di = _cmul(d0r, d0i, cgr, cgi, fused)
             fr, fi = _cdiv(tr - vr, ti - vi, dr, di)
-            gr, _ = _cmul(s[r].real, s[r].imag, fr, fi)
+            gr, _ = _cmul(s[r].real, s[r].imag, fr, fi, fused)
             out[r, j] = sigma2[r] * gr
 
 

@@ -19,12 +19,13 @@ Resonance(sigma, f0,   band-pass Gauss-Markov: ARMA(2,1), poles     Re[(1 + i c)
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
-from avbench.noise_models._term_kernels import _resonance_rows_kernel
+from avbench.noise_models._term_kernels import _resonance_rows_kernel, numpy_complex_product
 from avbench.noise_models.markov_terms import GaussMarkov, _gm_central, _SOGMStream
 from avbench.noise_models.power_law_terms import _FIRStream
 from avbench.noise_models.term_base import NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt, _positive
@@ -384,6 +385,10 @@ def _gm_form(m: np.ndarray, alpha: complex) -> np.ndarray:
     return f / (mf * mf * c * c)
 
 
+#: how NumPy multiplies complex arrays on this machine (:func:`numpy_complex_product`), probed on first use
+_numpy_complex_product = functools.cache(numpy_complex_product)
+
+
 def _resonance_poles(frequency: float, tc: float, dt: float) -> tuple[float, float, float]:
     """(rho, omega, c) of a resonance at ``frequency`` with damping time ``tc`` sampled every ``dt``
     (:class:`Resonance`); a ValueError at or above the Nyquist frequency."""
@@ -542,6 +547,9 @@ class Resonance(NoiseTerm):
         (:func:`avbench.noise_models._term_kernels._resonance_rows_py`), the autocovariance route where
         (2m + 1)|alpha| < 1 as :meth:`avar` takes it."""
         m = check_m(m)
+        fused = _numpy_complex_product()
+        if fused is None:  # NumPy's complex products are neither form the kernel knows: NumPy's own route
+            return np.array([Resonance(*row).avar(m, dt) for row in rows])
         dt_checked = _check_dt(dt)
         alpha, s, sigma2 = [], [], []
         for sg, f, tc in rows:  # the values Resonance(sg, f, tc) holds and its avar computes from them
@@ -556,7 +564,7 @@ class Resonance(NoiseTerm):
         out = np.empty((len(rows), m.size))
         small = np.empty((len(rows), m.size), dtype=bool)
         _resonance_rows_kernel(m, np.abs(alpha), alpha, -np.expm1(-2 * alpha), np.exp(-alpha), -np.expm1(-alpha),
-                               np.array(s), np.array(sigma2), small, out)
+                               np.array(s), np.array(sigma2), fused, small, out)
         left = [r for r in range(len(rows)) if small[r].any()]
         while left:  # the rows sharing the first one's short clusters, in one NumPy pass
             same = [r for r in left if np.array_equal(small[r], small[left[0]])]
