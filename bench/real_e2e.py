@@ -22,8 +22,9 @@ the calls (inclusive seconds; nested calls counted in each enclosing part): GMWM
 evidence (``GMWM._bias_evidence``), the line test (``selection.lines.choose_line``), the fit check
 (``allan.fit_check.assess_fit``, its covariance included), and across them the latent model's AV and
 Jacobian evaluations (``LatentAV``) and the AV covariance (``allan.covariance.av_covariance``: GMWM's
-weights and the fit check's). What is left of the wall time is the outputs (figures, tables, writing) and
-the interpreter's start. The timers cost ~1 us per call (~0.1 s per 10^5 model evaluations).
+weights and the fit check's); outside the fits, the figures (``recordings.figure.figure``, their layout) and
+their PNG rendering (``recordings.estimate._png``). What is left of the wall time is the outputs (figures,
+tables, writing) and the interpreter's start. The timers cost ~1 us per call (~0.1 s per 10^5 model evaluations).
 
 ``python -m avbench.bench.real_e2e CASE`` runs one measurement and prints it as JSON;
 ``python -m avbench.bench.real_e2e --timed OUT.json -- ARGS`` is the timed process itself
@@ -41,7 +42,7 @@ import tempfile
 import time
 from pathlib import Path
 
-__all__ = ["CASES", "measure", "available", "EstimateRealRecords"]
+__all__ = ["CASES", "OUTPUT_PARTS", "measure", "available", "EstimateRealRecords"]
 
 #: case -> its record (``kind``: "adis" with ``n`` samples of ``runs``, or "consumer" of ``hours``, with
 #: ``motion``), the rate given to the command (``fs``), the target wall seconds (``target_s``) and, for a
@@ -69,7 +70,11 @@ _TIMED = [
     ("latent model AV + Jacobian (likelihood LatentAV)", "avbench.estimators.likelihood._gmwm_model", "LatentAV",
      ("__call__", "jacobian")),
     ("AV covariance (allan.covariance.av_covariance)", "avbench.estimators.allan.covariance", "av_covariance", None),
+    ("figures (recordings.figure.figure)", "avbench.recordings.figure", "figure", None),
+    ("PNG rendering (recordings.estimate._png)", "avbench.recordings.estimate", "_png", None),
 ]
+#: the parts of :data:`_TIMED` outside the fits (the outputs, in the rest of the wall time)
+OUTPUT_PARTS = ("figures (recordings.figure.figure)", "PNG rendering (recordings.estimate._png)")
 
 
 def available(case: str) -> bool:

@@ -29,15 +29,23 @@ def loglog_slope(n, t) -> float:
 
 #: what limits each target, today (the report states each once, under the targets table)
 LIMITS = {
-    "estimate_real": "GMWM's fits, not reading or the Allan variances: the model choices of gmwm_filtered and "
-                     "gmwm_despiked (the scale choice, the resonance and the bias-model evidence) fit the latent "
-                     "model tens of times per axis, each fit several trust-region solves, and each solve evaluates "
-                     "the latent model's exact AV and Jacobian hundreds of times; a filtered-white-noise (FW), "
-                     "resonance (RS) or sinusoid latent is evaluated in NumPy on ~15 taus, its shape derivative by "
-                     "central differences of new term objects (FW's through the Gauss-Markov Taylor series in Python "
-                     "where the filter's time constant is long: the record in motion), ~0.1-0.3 ms per evaluation. "
-                     "The AV covariance (GMWM's second-step weights and the fit check) keeps the Haar gains per grid "
-                     "and the covariances it has computed, bit for bit those computed afresh. See the breakdown.",
+    "estimate_real": "GMWM's fits, then the outputs. The fits: the model choices of gmwm_filtered and gmwm_despiked "
+                     "(the scale choice, the resonance and the bias-model evidence) fit the latent model tens of times "
+                     "per axis, each fit several trust-region solves of tens to hundreds of evaluations. An evaluation "
+                     "runs compiled where the arithmetic is (the Gauss-Markov series, the filter's, resonance's and "
+                     "sinusoid's central-difference gradients, bit for bit the NumPy expressions), so what is left is "
+                     "Python around ~15-element arrays: ~20-60 us per evaluation with its Jacobian, and the solver's own "
+                     "iteration (an SVD, the trust-region step) of about as much. The AV covariance (second-step "
+                     "weights, fit checks) keeps the grid's Haar gains and trigonometric values: a call is the model's "
+                     "spectral arithmetic on the grid and one rank-k product. Outside the fits, the two figures' layout "
+                     "and PNG rendering (matplotlib: ~2 CPU-s for 6 axes) and the imports (~1 s). A wall-time target "
+                     "holds only on a quiet machine: the measurement reports CPU seconds beside it. See the breakdown.",
+    "estimate_real_motion": "The number of model evaluations, not their cost: on the record in motion the model choices "
+                            "(selection.scales, selection.resonance) refit the latent model at more cut-offs, with more "
+                            "evaluations per solve, than on the static record of the same length: about ten times its "
+                            "evaluations (the breakdown's LatentAV calls), each costing the same. Fewer evaluations need "
+                            "the choices to stop refitting where their outcome is decided, which changes the fits they "
+                            "list in their reports (the JSON's tried cut-offs).",
     "estimate_e2e": "The fits and the outputs. Within the fits (the default methods on six axes) every fit's check "
                     "builds the AV covariance under the fitted model (allan/covariance.av_covariance: _haar_gain, "
                     "_pair_integrals), the largest profiled share; GMWM's solves evaluate the latent model's exact AV "
@@ -266,13 +274,16 @@ def _real_breakdown(r) -> str:
     parts = dict(r.get("parts_s") or {})
     calls = dict(r.get("calls") or {})
     per = ", ".join(f"{m} {v:.1f} s" for m, v in (r.get("fits_per_method_s") or {}).items())
+    outputs = ("figures (recordings.figure.figure)", "PNG rendering (recordings.estimate._png)")
     inner = ", ".join(f"{k} {v:.1f} s ({calls.get(k, 0)} calls)" for k, v in parts.items()
-                      if k not in ("reading (read, timing, SI)", "static check", "fits"))
+                      if k not in ("reading (read, timing, SI)", "static check", "fits", *outputs))
+    shown = [f"{k} {parts[k]:.1f} s" for k in outputs if k in parts]
+    rest = f" (of it: {', '.join(shown)})" if shown else ""
     return (f"{r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} CPU-s (load {r['loadavg_before'][0]:.1f} before, "
             f"{r['loadavg_after'][0]:.1f} after; n = {int(r['n']):.3g}): imports {r['imports_s']:.1f} s, reading "
             f"{parts.get('reading (read, timing, SI)', math.nan):.2f} s, static check "
             f"{parts.get('static check', math.nan):.2f} s, fits {parts.get('fits', math.nan):.1f} s ({per}), the rest "
-            f"(interpreter, six AVs, figures, tables, writing) {r['rest_s']:.1f} s; within the fits (inclusive, "
+            f"(interpreter, six AVs, figures, tables, writing) {r['rest_s']:.1f} s{rest}; within the fits (inclusive, "
             f"nested parts counted in each): {inner}")
 
 
@@ -296,7 +307,7 @@ def _real_estimate_targets(df: pd.DataFrame) -> list[dict]:
                                    f"({label} against {REAL_CASE_LABELS.get(r['static_case'], r['static_case'])})",
                          "measured": f"{ratio:.2f}x the static record's CPU seconds ({wall_ratio:.2f}x its wall "
                                      f"time); {_real_breakdown(r)}",
-                         "met": bool(ratio <= 1.0), "limit": LIMITS["estimate_real"]})
+                         "met": bool(ratio <= 1.0), "limit": LIMITS["estimate_real_motion"]})
     return rows
 
 

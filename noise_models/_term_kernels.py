@@ -11,6 +11,9 @@ The Gauss-Markov AV with its derivative (:func:`_gm_shape_py`) is the analytic J
 from __future__ import annotations
 
 import math
+from fractions import Fraction
+
+import numpy as np
 
 __all__: list[str] = []
 
@@ -86,6 +89,171 @@ def _gm_shape_py(m, a, g, dg):
         g[i] = f / (c * c)
         dg[i] = df / (c * c) - 2.0 * f * phi / (c * c * c)
 
+
+def _gm_rows_py(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, out):
+    """g(m, a) = f(m) / (1 - phi)^2 (phi = exp(-a)) for each row's ``a[r]``, written into ``out[r]``: the
+    arithmetic of :func:`avbench.noise_models.markov_terms._gm_f_over_c2_numpy` in its order, one row at a
+    time, so each row is bit for bit that function's result at ``a[r]``.
+
+    The values that function takes from NumPy's vectorised math or from scalar ``pow`` / ``expm1`` /
+    ``exp`` come in precomputed by the caller (:func:`avbench.noise_models.markov_terms._gm_f_over_c2_rows`):
+    per row ``c2 = (1 - phi)^2``, ``s1 = -expm1(-2a)``, ``s2 = exp(-a)``, ``t3 = a^3 / 6``; ``e[r]`` the
+    vectorised ``expm1(-m a)`` then ``expm1(-2 m a)``; per series index ``i`` (k = i + 3) and cluster
+    size ``j``: ``p1[i, j] = (m_j + 1)^k`` and ``p2[i, j] = (2 m_j + 1)^k`` (vectorised), ``q[i, j] =
+    (2 m_j + 1)^(k+1)`` (scalar pow), ``pow2[i] = 2^k``.
+
+    Where (2m+1) a < 1 the Taylor series f = sum_{k>=3} (-a)^k / k! c_k with
+    c_k = -m 2^k - 3 + 4 (m+1)^k - (2m+1)^k, stopped for all those m at once where the next term bound
+    a^(k+1)/(k+1)! (2 max m + 1)^(k+1) is below 1e-18 of the smallest |sum|; elsewhere
+    f = m (1 - phi^2) - phi (-4 expm1(-m a) + expm1(-2 m a))."""
+    nm = mf.shape[0]
+    small = np.empty(nm, dtype=np.bool_)
+    total = np.empty(nm)
+    for r in range(a.shape[0]):
+        ar = a[r]
+        ns = 0
+        jmax = -1
+        for j in range(nm):
+            small[j] = (2.0 * mf[j] + 1.0) * ar < 1.0
+            if small[j]:
+                ns += 1
+                if jmax < 0 or mf[j] > mf[jmax]:
+                    jmax = j
+                total[j] = 0.0
+        if ns > 0:
+            term = t3[r]
+            sign = -1.0
+            for i in range(p1.shape[0]):
+                k = i + 3
+                st = sign * term
+                for j in range(nm):
+                    if small[j]:
+                        ck = -mf[j] * pow2[i] - 3.0 + 4.0 * p1[i, j] - p2[i, j]
+                        total[j] = total[j] + st * ck
+                term = term * (ar / (k + 1))
+                sign = -sign
+                smallest = np.inf
+                for j in range(nm):
+                    if small[j]:
+                        v = abs(total[j])
+                        if v != v:
+                            smallest = v
+                            break
+                        if v < smallest:
+                            smallest = v
+                if term * q[i, jmax] < 1e-18 * smallest:
+                    break
+        for j in range(nm):
+            if small[j]:
+                out[r, j] = total[j] / c2[r]
+            else:
+                f = mf[j] * s1[r] - s2[r] * (-4.0 * e[r, j] + e[r, nm + j])
+                out[r, j] = f / c2[r]
+
+
+
+def _gm_central_py(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, var, step, value, deriv):
+    """A Gauss-Markov AV and its central difference: with ``g`` the three rows of :func:`_gm_rows_py` (at
+    ``a[0]`` and the two steps ``a[1]``, ``a[2]``) and ``var`` the three variances,
+    ``value = var[0] g[0] / m^2`` and ``deriv = (var[1] g[1] / m^2 - var[2] g[2] / m^2) / step``, each
+    operation as NumPy's element-wise one (the first-order filter's shape derivative,
+    :meth:`avbench.noise_models.FilteredWhiteNoise.avar_shape_derivative`)."""
+    g = np.empty((3, mf.shape[0]))
+    _gm_rows_kernel(mf, a, c2, s1, s2, t3, e, p1, p2, q, pow2, g)
+    for j in range(mf.shape[0]):
+        mf2 = mf[j] * mf[j]
+        value[j] = var[0] * g[0, j] / mf2
+        deriv[j] = (var[1] * g[1, j] / mf2 - var[2] * g[2, j] / mf2) / step
+
+
+def _fma(a, b, c):
+    """a b + c rounded once (exact rational arithmetic here; the compiled kernels use the processor's fused
+    multiply-add, the same value)."""
+    if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c)):
+        return a * b + c
+    return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+
+def _cmul(xr, xi, yr, yi, fused):
+    """x y for complex x = xr + i xi, y = yr + i yi as NumPy multiplies complex128 arrays: with ``fused`` (its
+    vectorised loops on a processor with fused multiply-add, e.g. AVX-512) each part one fma,
+    (fma(xr, yr, -(xi yi)), fma(xr, yi, xi yr)); else the plain products (xr yr - xi yi, xr yi + xi yr).
+    Which one NumPy does here: :func:`numpy_complex_product`."""
+    if fused:
+        return _fma(xr, yr, -(xi * yi)), _fma(xr, yi, xi * yr)
+    return xr * yr - xi * yi, xr * yi + xi * yr
+
+
+def numpy_complex_product():
+    """``True`` when NumPy's complex128 products (array by array, array by scalar, scalar by array) are the
+    fused form of :func:`_cmul`, ``False`` when they are the plain one, None when neither (then no kernel
+    reproduces them): probed on pairs whose two forms differ."""
+    rng = np.random.default_rng(12345)
+    x = rng.standard_normal(64) + 1j * rng.standard_normal(64)
+    y = rng.standard_normal(64) + 1j * rng.standard_normal(64)
+    got = [x * y, x * y[0], x[0] * y]
+    pairs = [(x, y), (x, np.full(64, y[0])), (np.full(64, x[0]), y)]
+    for fused in (True, False):
+        if all(complex(*_cmul_py(a.real, a.imag, b.real, b.imag, fused)) == g
+               for prod, (xs, ys) in zip(got, pairs) for a, b, g in zip(xs, ys, prod)):
+            return fused
+    return None
+
+
+_cmul_py = _cmul
+
+
+def _cdiv(xr, xi, yr, yi):
+    """x / y as NumPy divides complex128 arrays (Smith's algorithm, unfused)."""
+    if abs(yr) >= abs(yi):
+        if yr == 0.0 and yi == 0.0:
+            return xr / abs(yr), xi / abs(yr)
+        rat = yi / yr
+        scl = 1.0 / (yr + yi * rat)
+        return (xr + xi * rat) * scl, (xi - xr * rat) * scl
+    rat = yr / yi
+    scl = 1.0 / (yi + yr * rat)
+    return (xr * rat + xi) * scl, (xi * rat - xr) * scl
+
+
+def _cexpm1(zr, zi):
+    """expm1(z) as NumPy computes it for complex128: (expm1(x) cos y - 2 sin^2(y/2), e^x sin y)."""
+    a = math.sin(zi / 2)
+    return math.expm1(zr) * math.cos(zi) - 2 * a * a, math.exp(zr) * math.sin(zi)
+
+
+def _resonance_rows_py(mi, absalpha, alpha, k1, p, cg, s, sigma2, fused, small, out):
+    """The resonance's exact AV (:meth:`avbench.noise_models.Resonance.avar`) at cluster sizes ``mi`` (int)
+    for each row's poles, in the closed form sigma^2 Re{(1 + i c) F_m(phi)} with
+    F_m = [m (-expm1(-2 alpha)) - e^-alpha (-4 expm1(-m alpha) + expm1(-2 m alpha))] / [m^2 (-expm1(-alpha))^2]:
+    NumPy's operations of ``_gm_form`` in their order (complex products fused as NumPy's vectorised
+    loops fuse them where ``fused``, :func:`_cmul`), so each value is bit for bit NumPy's. Per row (complex arrays but
+    ``absalpha`` and ``sigma2``): ``absalpha`` |alpha|, ``alpha``, ``k1`` -expm1(-2 alpha), ``p`` e^-alpha,
+    ``cg`` -expm1(-alpha), ``s`` 1 + i c, ``sigma2``. Where (2m + 1)|alpha| < 1 the closed form loses digits: ``small[r, j]`` is set and
+    ``out[r, j]`` left for the caller (the autocovariance route)."""
+    for r in range(alpha.shape[0]):
+        ar, ai = alpha[r].real, alpha[r].imag
+        pr, pim = p[r].real, p[r].imag
+        cgr, cgi = cg[r].real, cg[r].imag
+        for j in range(mi.shape[0]):
+            small[r, j] = (2 * mi[j] + 1) * absalpha[r] < 1.0
+            if small[r, j]:
+                continue
+            x = float(mi[j])
+            z1r, z1i = _cmul(-x, 0.0, ar, ai, fused)
+            e1r, e1i = _cexpm1(z1r, z1i)
+            z2r, z2i = _cmul(-2.0 * x, 0.0, ar, ai, fused)
+            e2r, e2i = _cexpm1(z2r, z2i)
+            qr, qi = _cmul(-4.0, 0.0, e1r, e1i, fused)
+            vr, vi = _cmul(pr, pim, qr + e2r, qi + e2i, fused)
+            tr, ti = _cmul(x, 0.0, k1[r].real, k1[r].imag, fused)
+            d0r, d0i = _cmul(x * x, 0.0, cgr, cgi, fused)
+            dr, di = _cmul(d0r, d0i, cgr, cgi, fused)
+            fr, fi = _cdiv(tr - vr, ti - vi, dr, di)
+            gr, _ = _cmul(s[r].real, s[r].imag, fr, fi, fused)
+            out[r, j] = sigma2[r] * gr
+
+
 def _sogm_kernel_py(A, C, e, x, out):
     """x_k = A x_{k-1} + C e_k (C lower-triangular), out_k = first state; x updated in place."""
     a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
@@ -100,15 +268,42 @@ def _sogm_kernel_py(A, C, e, x, out):
 
 
 try:  # compiled when numba is available (it is a dependency); same arithmetic either way
-    from numba import njit
+    from llvmlite import ir as _ir
+    from numba import njit, types as _types
+    from numba.core import cgutils
+    from numba.extending import intrinsic, overload
+
+    @intrinsic
+    def _fma_llvm(typingctx, a, b, c):
+        """LLVM's fused multiply-add (one rounding; the processor's instruction where it has one)."""
+        def codegen(context, builder, signature, args):
+            d = _ir.DoubleType()
+            fn = cgutils.get_or_insert_function(builder.module, _ir.FunctionType(d, [d, d, d]), "llvm.fma.f64")
+            return builder.call(fn, args)
+
+        return _types.float64(_types.float64, _types.float64, _types.float64), codegen
+
+    @overload(_fma)
+    def _fma_compiled(a, b, c):
+        return lambda a, b, c: _fma_llvm(a, b, c)
+
+    _cmul = njit(cache=True)(_cmul)
+    _cdiv = njit(cache=True)(_cdiv)
+    _cexpm1 = njit(cache=True)(_cexpm1)
 
     _sogm_kernel = njit(cache=True)(_sogm_kernel_py)
     _ar1_kernel = njit(cache=True)(_ar1_kernel_py)
     _diff_kernel = njit(cache=True)(_diff_kernel_py)
     _walk_kernel = njit(cache=True)(_walk_kernel_py)
     _gm_shape_kernel = njit(cache=True)(_gm_shape_py)
+    _gm_rows_kernel = njit(cache=True)(_gm_rows_py)
+    _gm_central_kernel = njit(cache=True)(_gm_central_py)
+    _resonance_rows_kernel = njit(cache=True)(_resonance_rows_py)
 except ImportError:  # pragma: no cover
     _gm_shape_kernel = _gm_shape_py
+    _gm_rows_kernel = _gm_rows_py
+    _gm_central_kernel = _gm_central_py
+    _resonance_rows_kernel = _resonance_rows_py
     _diff_kernel = _diff_kernel_py
     _walk_kernel = _walk_kernel_py
     _sogm_kernel = _sogm_kernel_py

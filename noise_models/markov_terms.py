@@ -19,10 +19,12 @@ import math
 
 import numpy as np
 
-from avbench.noise_models._term_kernels import _ar1_kernel, _gm_shape_kernel, _sogm_kernel
+from avbench.noise_models._term_kernels import (_ar1_kernel, _gm_central_kernel, _gm_rows_kernel, _gm_shape_kernel,
+                                                _sogm_kernel)
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
 from avbench.noise_models.exact_variances import gcov_from_autocovariance
-from avbench.noise_models.term_base import PLATEAU, NoiseTerm, TermStream, _check_dt, _omega_dt, _positive
+from avbench.noise_models.term_base import (PLATEAU, NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt,
+                                            _positive)
 from avbench.noise_models.units import as_si
 
 __all__ = ["GaussMarkov", "SecondOrderGaussMarkov", "GM_PEAK_TAU_OVER_TC", "GM_PEAK_ADEV_OVER_SIGMA",
@@ -55,11 +57,12 @@ class _AR1Stream(TermStream):
         return out
 
 
-def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:
+def _gm_f_over_c2_numpy(m: np.ndarray, a: float) -> np.ndarray:
     """f(m) / (1 - phi)^2 with phi = exp(-a), f = m(1-phi^2) - 3phi + 4phi^(m+1) - phi^(2m+1).
 
     Evaluated without catastrophic cancellation: a Taylor series in a (whose first three
-    coefficients vanish identically) where (2m+1) a < 1, the expm1 form elsewhere.
+    coefficients vanish identically) where (2m+1) a < 1, the expm1 form elsewhere. The NumPy
+    reference of :func:`_gm_f_over_c2` (which returns its values bit for bit, compiled).
     """
     m = m.astype(float)
     c = -math.expm1(-a)
@@ -85,6 +88,72 @@ def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:
         )
         out[big] = f / c**2
     return out
+
+#: the Taylor series of :func:`_gm_f_over_c2_numpy` runs over k = 3 .. 59
+_SERIES_K = np.arange(3, 60, dtype=float)
+#: cluster sizes (bytes) -> (-m then -2m, (m + 1)^k, (2m + 1)^k, (2m + 1)^(k+1), 2^k): the values of the
+#: series that depend on the cluster sizes only, kept for the few size vectors a fit evaluates
+_POWERS: dict = {}
+
+
+def _series_powers(mf: np.ndarray) -> tuple:
+    """The cluster-size factors of :func:`_gm_rows_kernel` for float cluster sizes ``mf``, computed as
+    :func:`_gm_f_over_c2_numpy` computes them (vectorised powers for the series' c_k, scalar ``pow`` for its
+    stopping bound), kept per ``mf``."""
+    key = mf.tobytes()
+    kept = _POWERS.get(key)
+    if kept is None:
+        k = _SERIES_K[:, None]
+        with np.errstate(over="ignore", invalid="ignore"):
+            p1 = (mf + 1.0) ** k
+            p2 = (2.0 * mf + 1.0) ** k
+            q = np.array([[float(np.float64(2 * v + 1) ** (int(kk) + 1)) for v in mf] for kk in _SERIES_K])
+        pow2 = np.array([2.0 ** int(kk) for kk in _SERIES_K])
+        kept = (np.concatenate((-mf, -2 * mf)), p1, p2, q, pow2)
+        while len(_POWERS) >= 64:
+            try:
+                _POWERS.pop(next(iter(_POWERS)))
+            except (KeyError, RuntimeError, StopIteration):  # emptied meanwhile by another thread
+                break
+        _POWERS[key] = kept
+    return kept
+
+
+def _gm_inputs(mf: np.ndarray, a_values) -> tuple:
+    """The arguments of :func:`avbench.noise_models._term_kernels._gm_rows_py` before ``out``: per row the
+    scalars as :func:`_gm_f_over_c2_numpy` computes them (Python's ``expm1``, ``exp``, ``**``), NumPy's
+    vectorised ``expm1(-m a)``, ``expm1(-2 m a)`` of all rows in one call, the powers kept per ``mf``."""
+    neg_m12, p1, p2, q, pow2 = _series_powers(mf)
+    a = np.array(a_values, dtype=float)
+    scal = np.array([((-math.expm1(-x)) ** 2, -math.expm1(-2 * x), math.exp(-x), x**3 / 6.0) for x in a_values]).T
+    return mf, a, scal[0], scal[1], scal[2], scal[3], np.expm1(np.multiply.outer(a, neg_m12)), p1, p2, q, pow2
+
+
+def _gm_f_over_c2_rows(m: np.ndarray, a_values) -> np.ndarray:
+    """``[_gm_f_over_c2_numpy(m, a) for a in a_values]`` as one (len(a_values), len(m)) array, bit for bit
+    (compiled :func:`avbench.noise_models._term_kernels._gm_rows_py`; NumPy's vectorised expm1 once for all
+    rows, the series' powers kept per ``m``)."""
+    mf = m.astype(float)
+    out = np.empty((len(a_values), mf.size))
+    _gm_rows_kernel(*_gm_inputs(mf, a_values), out)
+    return out
+
+
+def _gm_central(m: np.ndarray, a_values, variances, step) -> tuple[np.ndarray, np.ndarray]:
+    """``(v[0], (v[1] - v[2]) / step)`` with ``v[r] = variances[r] * _gm_f_over_c2_numpy(m, a_values[r]) / m^2``
+    (three rows: a Gauss-Markov AV and its central difference), bit for bit those NumPy expressions
+    (compiled :func:`avbench.noise_models._term_kernels._gm_central_py`)."""
+    mf = m.astype(float)
+    value, deriv = np.empty(mf.size), np.empty(mf.size)
+    _gm_central_kernel(*_gm_inputs(mf, a_values), np.array(variances, dtype=float), float(step), value, deriv)
+    return value, deriv
+
+
+def _gm_f_over_c2(m: np.ndarray, a: float) -> np.ndarray:
+    """f(m) / (1 - phi)^2 with phi = exp(-a), f = m(1-phi^2) - 3phi + 4phi^(m+1) - phi^(2m+1), without
+    catastrophic cancellation: :func:`_gm_f_over_c2_numpy`'s values, compiled (:func:`_gm_f_over_c2_rows`)."""
+    return _gm_f_over_c2_rows(m, (a,))[0]
+
 
 class GaussMarkov(NoiseTerm):
     """First-order Gauss-Markov rate noise (Miao et al. 2015, eq. 6), stationary std sigma.
@@ -184,9 +253,10 @@ class GaussMarkov(NoiseTerm):
         return gcov_from_autocovariance(self.autocovariance(np.arange(L + 1), dt), lags, dt)
 
     def psd(self, f, dt):
+        grid = f
         f, w = _omega_dt(f, dt)
         phi = self.phi(dt)
-        return 2 * dt * self.sigma**2 * (1 - phi**2) / (1 - 2 * phi * np.cos(w) + phi**2)
+        return 2 * dt * self.sigma**2 * (1 - phi**2) / (1 - 2 * phi * _grid_value(grid, dt, "cos(w)", w) + phi**2)
 
     def stream(self, dt, rng):
         return _AR1Stream(_check_dt(dt), rng, self.sigma, self.phi(dt))

@@ -25,7 +25,8 @@ import numpy as np
 
 from avbench.noise_models._term_kernels import _diff_kernel, _walk_kernel
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
-from avbench.noise_models.term_base import PLATEAU, NoiseTerm, TermStream, _check_dt, _omega_dt, _positive
+from avbench.noise_models.term_base import (PLATEAU, NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt,
+                                            _positive)
 from avbench.noise_models.units import as_si
 
 __all__ = ["Quantization", "AngleRandomWalk", "BiasInstability", "RateRandomWalk", "RateRamp"]
@@ -165,8 +166,9 @@ class Quantization(NoiseTerm):
         return 3 * self.Q**2 / tau**2
 
     def psd(self, f, dt):
+        grid = f
         f, w = _omega_dt(f, dt)
-        return 2 * self.Q**2 * 4 * np.sin(w / 2) ** 2 / dt
+        return 2 * self.Q**2 * 4 * _grid_value(grid, dt, "sin(w/2)", w) ** 2 / dt
 
     def stream(self, dt, rng):
         return _QuantStream(_check_dt(dt), rng, self.Q)
@@ -235,8 +237,9 @@ class RateRandomWalk(NoiseTerm):
         return (2.0 * m * m + 1.0) * self.K**2 * dt / (6.0 * m)
 
     def psd(self, f, dt):
+        grid = f
         f, w = _omega_dt(f, dt)
-        return 2 * self.K**2 * dt**2 / (4 * np.sin(w / 2) ** 2)
+        return 2 * self.K**2 * dt**2 / (4 * _grid_value(grid, dt, "sin(w/2)", w) ** 2)
 
     def stream(self, dt, rng):
         return _RRWStream(_check_dt(dt), rng, self.K)
@@ -506,8 +509,9 @@ class BiasInstability(NoiseTerm):
 
         Exact for the truncated generator only well above f = 1/tau_max.
         """
+        grid = f
         f, w = _omega_dt(f, dt)
-        return 2 * self.B**2 * dt / np.abs(2 * np.sin(w / 2))
+        return 2 * self.B**2 * dt / np.abs(2 * _grid_value(grid, dt, "sin(w/2)", w))
 
     def stream(self, dt, rng):
         dt = _check_dt(dt)

@@ -19,14 +19,16 @@ Resonance(sigma, f0,   band-pass Gauss-Markov: ARMA(2,1), poles     Re[(1 + i c)
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
-from avbench.noise_models.markov_terms import GaussMarkov, _SOGMStream
+from avbench.noise_models._term_kernels import _resonance_rows_kernel, numpy_complex_product
+from avbench.noise_models.markov_terms import GaussMarkov, _gm_central, _SOGMStream
 from avbench.noise_models.power_law_terms import _FIRStream
-from avbench.noise_models.term_base import NoiseTerm, TermStream, _check_dt, _omega_dt, _positive
+from avbench.noise_models.term_base import NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt, _positive
 from avbench.noise_models.units import as_si
 
 __all__ = ["Sinusoidal", "FilteredWhiteNoise", "Resonance", "RESONANCE_MAX_FREQUENCY"]
@@ -152,6 +154,22 @@ class Sinusoidal(NoiseTerm):
         m = check_m(m).astype(float)
         w = self._omega(dt)
         return self.amplitude**2 * np.sin(m * w / 2) ** 4 / (m**2 * math.sin(w / 2) ** 2)
+
+    def avar_shape_derivative(self, m, dt):
+        """``(avar, d avar / d ln f0)``: the base class's central difference in ln f0 (relative step 1e-4),
+        its three AVs as the rows of one array computation (the same element-wise operations as
+        :meth:`avar`: bit for bit). Where a step passes the Nyquist frequency, the base class's one-sided
+        difference."""
+        h = 1e-4
+        freqs = (self.frequency, self.frequency * math.exp(h), self.frequency * math.exp(-h))
+        dt = _check_dt(dt)
+        if any(f > 0.5 / dt * (1 + 1e-12) for f in freqs):
+            return super().avar_shape_derivative(m, dt)
+        mf = check_m(m).astype(float)
+        w = np.array([2 * math.pi * f * dt for f in freqs])
+        s2 = np.array([math.sin(x / 2) ** 2 for x in w])
+        value, up, down = self.amplitude**2 * np.sin(mf * w[:, None] / 2) ** 4 / (mf**2 * s2[:, None])
+        return value, (up - down) / (h - (-h))
 
     def spectral_lines(self, dt) -> list[tuple[float, float]]:
         """[(f0, power)]: the line's frequency (Hz) and the variance it carries, A^2 / 2."""
@@ -311,13 +329,34 @@ class FilteredWhiteNoise(NoiseTerm):
             out[~small] = self.N**2 / (mb * dt) - 3 * c2 / mb**2
         return out
 
+    def avar_shape_derivative(self, m, dt):
+        """``(avar, d avar / d ln tc)`` of the first-order low-pass: the base class's central difference in
+        ln tc (relative step 1e-4), with its three AVs (at tc, tc e^h, tc e^-h) in one compiled call
+        (:func:`avbench.noise_models.markov_terms._gm_central`), bit for bit the three
+        :meth:`avar` calls it stands for. The FIR filters have no shape parameter: the base class's."""
+        if self.tc is None:
+            return super().avar_shape_derivative(m, dt)
+        m = check_m(m)
+        dt = _check_dt(dt)
+        h = 1e-4
+        tcs = (self.tc, self.tc * math.exp(h), self.tc * math.exp(-h))
+        sigma2 = []
+        for tc in tcs:  # _gauss_markov(dt) at each tc: the GaussMarkov sequence's variance
+            a = math.exp(-dt / tc)
+            sigma = math.sqrt(self.N**2 / dt * (1 - a) / (1 + a))
+            if not (sigma > 0 and math.isfinite(sigma) and math.isfinite(tc) and tc > 0):
+                return super().avar_shape_derivative(m, dt)  # a step outside the values a term accepts
+            sigma2.append(sigma**2)
+        return _gm_central(m, [dt / tc for tc in tcs], sigma2, h - (-h))
+
     def gain2(self, f, dt) -> np.ndarray:
         """|H(e^{i 2 pi f dt})|^2, the filter's power gain (1 at f = 0)."""
+        grid = f
         f, w = _omega_dt(f, dt)
         h = self.impulse_response()
         if h is None:
             a = math.exp(-dt / self.tc)
-            return (1 - a) ** 2 / (1 - 2 * a * np.cos(w) + a * a)
+            return (1 - a) ** 2 / (1 - 2 * a * _grid_value(grid, dt, "cos(w)", w) + a * a)
         H = np.exp(-1j * np.outer(w, np.arange(len(h)))) @ h
         return np.abs(H) ** 2
 
@@ -344,6 +383,47 @@ def _gm_form(m: np.ndarray, alpha: complex) -> np.ndarray:
     c = -np.expm1(-alpha)
     f = mf * (-np.expm1(-2 * alpha)) - np.exp(-alpha) * (-4 * np.expm1(-mf * alpha) + np.expm1(-2 * mf * alpha))
     return f / (mf * mf * c * c)
+
+
+#: how NumPy multiplies complex arrays on this machine (:func:`numpy_complex_product`), probed on first use
+_numpy_complex_product = functools.cache(numpy_complex_product)
+
+
+def _resonance_poles(frequency: float, tc: float, dt: float) -> tuple[float, float, float]:
+    """(rho, omega, c) of a resonance at ``frequency`` with damping time ``tc`` sampled every ``dt``
+    (:class:`Resonance`); a ValueError at or above the Nyquist frequency."""
+    if frequency >= 0.5 / dt * (1 - 1e-12):
+        raise ValueError(
+            f"frequency: {frequency} Hz is not below the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
+            "of this sampling; expected a frequency the samples resolve"
+        )
+    rho, w = math.exp(-dt / tc), 2 * math.pi * frequency * dt
+    return rho, w, -math.expm1(-2 * dt / tc) / (2 * rho * math.sin(w))
+
+
+def _resonance_short_avar(terms, ms: np.ndarray, dt) -> np.ndarray:
+    """``[avar_from_autocovariance(t.autocovariance(int(2 * ms.max()), dt), ms) for t in terms]`` as one
+    (len(terms), len(ms)) array, bit for bit: the same element-wise operations (the extended-precision sums
+    of :func:`avbench.noise_models.exact_avar.avar_from_autocovariance` per row, in their order) on
+    arrays of all the terms at once."""
+    lmax = int(2 * ms.max())
+    k = np.abs(np.arange(lmax + 1))
+    poles = [t._poles(dt) for t in terms]
+    rho = np.array([p[0] for p in poles])[:, None]
+    w = np.array([p[1] for p in poles])[:, None]
+    c = np.array([p[2] for p in poles])[:, None]
+    sigma2 = np.array([t.sigma**2 for t in terms])[:, None]
+    rr = np.asarray(sigma2 * rho**k * (np.cos(w * k) - c * np.sin(w * k)), dtype=np.longdouble)
+    i = np.arange(lmax + 1, dtype=np.longdouble)
+    zeros = np.zeros((len(terms), 2))
+    c1 = np.concatenate((zeros, np.cumsum(rr[:, 1:lmax], axis=1)), axis=1)
+    c2 = np.concatenate((zeros, np.cumsum((i * rr)[:, 1:lmax], axis=1)), axis=1)
+
+    def var_sum(l):
+        return l * rr[:, :1] + 2 * (l * c1[:, l] - c2[:, l])
+
+    ml = ms.astype(np.longdouble)
+    return np.asarray((4 * var_sum(ms) - var_sum(2 * ms)) / (2 * ml * ml), dtype=np.float64)
 
 
 class Resonance(NoiseTerm):
@@ -440,14 +520,7 @@ class Resonance(NoiseTerm):
 
     def _poles(self, dt):
         """(rho, omega, c) of the sampling ``dt``; a ValueError at or above the Nyquist frequency."""
-        dt = _check_dt(dt)
-        if self.frequency >= 0.5 / dt * (1 - 1e-12):
-            raise ValueError(
-                f"frequency: {self.frequency} Hz is not below the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
-                "of this sampling; expected a frequency the samples resolve"
-            )
-        rho, w = math.exp(-dt / self.tc), 2 * math.pi * self.frequency * dt
-        return rho, w, -math.expm1(-2 * dt / self.tc) / (2 * rho * math.sin(w))
+        return _resonance_poles(self.frequency, self.tc, _check_dt(dt))
 
     def autocovariance(self, lags, dt) -> np.ndarray:
         """r at the given lags (or at 0..lags for an integer, as the FIR terms), exact."""
@@ -467,12 +540,56 @@ class Resonance(NoiseTerm):
             out[~small] = self.sigma**2 * np.real((1 + 1j * c) * _gm_form(m[~small], alpha))
         return out
 
+    @staticmethod
+    def _avar_rows(rows, m, dt) -> np.ndarray:
+        """``[Resonance(*row).avar(m, dt) for row in rows]`` (rows of (sigma, frequency, tc)) as one array,
+        bit for bit: the closed form of every row in one compiled call
+        (:func:`avbench.noise_models._term_kernels._resonance_rows_py`), the autocovariance route where
+        (2m + 1)|alpha| < 1 as :meth:`avar` takes it."""
+        m = check_m(m)
+        fused = _numpy_complex_product()
+        if fused is None:  # NumPy's complex products are neither form the kernel knows: NumPy's own route
+            return np.array([Resonance(*row).avar(m, dt) for row in rows])
+        dt_checked = _check_dt(dt)
+        alpha, s, sigma2 = [], [], []
+        for sg, f, tc in rows:  # the values Resonance(sg, f, tc) holds and its avar computes from them
+            sg, f, tc = as_si("B", sg), _positive("frequency", f), _positive("tc", tc)
+            if sg == 0:
+                raise ValueError("sigma: expected a positive standard deviation, got 0")
+            rho, w, c = _resonance_poles(f, tc, dt_checked)
+            alpha.append(complex(dt / tc, -w))
+            s.append(1 + 1j * c)
+            sigma2.append(sg**2)
+        alpha = np.array(alpha)
+        out = np.empty((len(rows), m.size))
+        small = np.empty((len(rows), m.size), dtype=bool)
+        _resonance_rows_kernel(m, np.abs(alpha), alpha, -np.expm1(-2 * alpha), np.exp(-alpha), -np.expm1(-alpha),
+                               np.array(s), np.array(sigma2), fused, small, out)
+        left = [r for r in range(len(rows)) if small[r].any()]
+        while left:  # the rows sharing the first one's short clusters, in one NumPy pass
+            same = [r for r in left if np.array_equal(small[r], small[left[0]])]
+            mask = small[left[0]]
+            out[np.ix_(same, mask)] = _resonance_short_avar([Resonance(*rows[r]) for r in same], m[mask], dt)
+            left = [r for r in left if r not in same]
+        return out
+
+    def avar_shape_gradient(self, m, dt):
+        """``(avar, [d avar / d ln f0, d avar / d ln tc])``: the base class's central differences in ln p
+        (relative step 1e-4), its five AVs in one call of :meth:`_avar_rows` (bit for bit)."""
+        h = 1e-4
+        up, down = math.exp(h), math.exp(-h)
+        sg, f, tc = self.sigma, self.frequency, self.tc
+        v = self._avar_rows([(sg, f, tc), (sg, f * up, tc), (sg, f * down, tc), (sg, f, tc * up),
+                             (sg, f, tc * down)], m, dt)
+        return v[0], [(v[1] - v[2]) / (2 * h), (v[3] - v[4]) / (2 * h)]
+
     def psd(self, f, dt):
         """One-sided: 2 dt [r(0) + 2 sum_{k>=1} r(k) cos(k theta)], summed in closed form."""
         rho, w, c = self._poles(dt)
+        grid = f
         f, theta = _omega_dt(f, dt)
         phi = rho * np.exp(1j * w)
-        z1, z2 = phi * np.exp(1j * theta), phi * np.exp(-1j * theta)
+        z1, z2 = phi * _grid_value(grid, dt, "exp(iw)", theta), phi * _grid_value(grid, dt, "exp(-iw)", theta)
         s = np.real((1 + 1j * c) * (z1 / (1 - z1) + z2 / (1 - z2)))
         return 2 * dt * self.sigma**2 * (1 + s)
 

@@ -247,8 +247,64 @@ class FitHint(NamedTuple):
     starts: tuple = ()
 
 
+class FrequencyGrid(np.ndarray):
+    """Frequencies (Hz) at which spectra are asked for again and again (the AV covariance's midpoint grid:
+    every fit's weights and fit check): an array that keeps, per sample interval, what the terms' spectra
+    compute from the frequencies alone -- 2 pi f dt (:func:`_omega_dt`) and its sine, cosine and complex
+    exponentials (:func:`_grid_value`) -- computed once by the same expressions, so a spectrum on the grid
+    is bit for bit the spectrum on the plain array. Arithmetic on it, and a slice of it, give arrays that
+    keep nothing."""
+
+    def __new__(cls, f):
+        obj = np.asarray(f, dtype=float).view(cls)
+        obj._kept = {}
+        return obj
+
+    def __array_finalize__(self, obj):
+        self._kept = None
+
+    def __array_wrap__(self, arr, context=None, return_scalar=False):
+        arr = arr.view(np.ndarray)
+        return arr[()] if return_scalar else arr
+
+
+def _kept(f, key, compute):
+    """``compute()``, kept on ``f`` under ``key`` when ``f`` is a :class:`FrequencyGrid` (its arrays read-only:
+    a spectrum that wrote into one would change every later spectrum on the grid)."""
+    kept = getattr(f, "_kept", None) if isinstance(f, FrequencyGrid) else None
+    if kept is None:
+        return compute()
+    value = kept.get(key)
+    if value is None:
+        value = compute()
+        for a in value if isinstance(value, tuple) else (value,):
+            a.flags.writeable = False
+        kept[key] = value
+    return value
+
+
 def _omega_dt(f, dt):
-    f = np.asarray(f, dtype=float)
-    if np.any(f <= 0) or np.any(f > 0.5 / dt * (1 + 1e-12)):
-        raise ValueError(f"f: expected frequencies in (0, 1/(2 dt)] = (0, {0.5 / dt}] Hz")
-    return f, 2 * np.pi * f * dt
+    """``(f, 2 pi f dt)`` as plain arrays, after checking that 0 < f <= 1/(2 dt) (kept on a
+    :class:`FrequencyGrid`)."""
+    def compute(f=f):
+        f = np.asarray(f, dtype=float).view(np.ndarray)
+        if np.any(f <= 0) or np.any(f > 0.5 / dt * (1 + 1e-12)):
+            raise ValueError(f"f: expected frequencies in (0, 1/(2 dt)] = (0, {0.5 / dt}] Hz")
+        return f, 2 * np.pi * f * dt
+
+    return _kept(f, ("w", dt), compute)
+
+
+#: the functions of w = 2 pi f dt the terms' spectra use, by name (:func:`_grid_value`)
+_GRID_FUNCTIONS = {
+    "sin(w/2)": lambda w: np.sin(w / 2),
+    "cos(w)": np.cos,
+    "exp(iw)": lambda w: np.exp(1j * w),
+    "exp(-iw)": lambda w: np.exp(-1j * w),
+}
+
+
+def _grid_value(f, dt, name, w):
+    """``_GRID_FUNCTIONS[name](w)`` for ``w`` = :func:`_omega_dt` (f, dt), kept on a :class:`FrequencyGrid`
+    ``f``."""
+    return _kept(f, (name, dt), lambda: _GRID_FUNCTIONS[name](w))

@@ -198,7 +198,8 @@ def test_real_record_rows_state_the_targets_and_the_motion_ratio():
                 "n": 360_000, "wall_s": wall, "cpu_s": cpu, "target_s": target, "static_case": static,
                 "loadavg_before": [1.0, 1, 1], "loadavg_after": [1.5, 1, 1], "imports_s": 1.0, "rest_s": 2.0,
                 "parts_s": {"reading (read, timing, SI)": 0.1, "static check": 0.05, "fits": wall - 3.2,
-                            "AV covariance (allan.covariance.av_covariance)": 0.5},
+                            "AV covariance (allan.covariance.av_covariance)": 0.5,
+                            "figures (recordings.figure.figure)": 0.8},
                 "calls": {"AV covariance (allan.covariance.av_covariance)": 40},
                 "fits_per_method_s": {"gmwm_filtered": 3.0, "gmwm_despiked": 2.0}}
 
@@ -209,3 +210,7 @@ def test_real_record_rows_state_the_targets_and_the_motion_ratio():
     assert static["met"] is True and "AV covariance (allan.covariance.av_covariance) 0.5 s (40 calls)" in static["measured"]
     motion = next(r for t, r in rows.items() if t.startswith("a non-static record"))
     assert motion["met"] is False and motion["measured"].startswith("1.50x the static record's CPU seconds")
+    # the outputs' parts are said as part of the rest, not of the fits; the ratio has its own limit
+    assert "2.0 s (of it: figures (recordings.figure.figure) 0.8 s)" in static["measured"]
+    assert "figures" not in static["measured"].split("within the fits")[1]
+    assert motion["limit"] == report.LIMITS["estimate_real_motion"] != static["limit"]

@@ -36,6 +36,8 @@ from collections import OrderedDict
 
 import numpy as np
 
+from avbench.noise_models.term_base import FrequencyGrid
+
 __all__ = ["av_covariance", "CACHE_SIZE"]
 
 #: number of per-pair integral matrices kept between calls
@@ -51,6 +53,10 @@ _GAINS: OrderedDict = OrderedDict()
 #: number of covariances kept between calls (per model, cluster sizes, record length and grid)
 RESULT_CACHE_SIZE = 64
 _RESULTS: OrderedDict = OrderedDict()
+#: number of grids (size, dt) whose frequencies are kept with the values the spectra compute from them
+#: (:func:`_frequencies`; a 2^21-point grid holds ~130 MB of them)
+GRIDS_KEPT = 2
+_GRIDS: OrderedDict = OrderedDict()
 
 
 def _haar_gain(m, w, s):
@@ -130,8 +136,9 @@ def _pair_integrals(shapes, pairs, m, dt, n_grid) -> dict:
     """``{(a, b): P_ab}`` for index pairs into ``shapes`` (unit-amplitude terms), one pass over the grid."""
     out = {p: np.zeros((m.size, m.size)) for p in pairs}
     used = sorted({i for p in pairs for i in p})
+    keep = m.size * n_grid * 8 <= GAIN_CACHE_BYTES
     for w, G in _gains(m, n_grid):
-        f = w / (2 * np.pi * dt)
+        f = _frequencies(w, dt, n_grid, keep)
         S = {i: shapes[i].psd(f, dt) / (2 * dt) for i in used}
         for i, j in pairs:
             out[(i, j)] += (G * (S[i] * S[j])) @ G.T
@@ -267,12 +274,44 @@ def _line_cross(gyro, m) -> np.ndarray:
     return out
 
 
+def _frequencies(w, dt, n_grid, keep):
+    """The frequencies ``w / (2 pi dt)`` of a block of the grid; with ``keep``, as the block's
+    :class:`~avbench.noise_models.term_base.FrequencyGrid` kept between calls (:data:`GRIDS_KEPT` grids), on
+    which the terms' spectra keep what they compute from the frequencies alone (their sines, cosines and
+    complex exponentials: a model's total spectrum on a kept grid costs its arithmetic only). The same
+    values either way."""
+    f = w / (2 * np.pi * dt)
+    if not keep:
+        return f
+    key = (n_grid, float(dt))
+    blocks = _GRIDS.get(key)
+    if blocks is None:
+        blocks = _GRIDS[key] = {}
+        while len(_GRIDS) > GRIDS_KEPT:
+            try:
+                _GRIDS.popitem(last=False)
+            except KeyError:
+                break
+    else:
+        try:
+            _GRIDS.move_to_end(key)
+        except KeyError:  # dropped meanwhile by another thread: ``blocks`` holds it
+            pass
+    block = (float(w[0]), w.size)
+    grid = blocks.get(block)
+    if grid is None:
+        grid = blocks[block] = FrequencyGrid(f)
+    return grid
+
+
 def _direct(gyro, m, n_grid) -> np.ndarray:
     """(1/pi) * integral of |H_j|^2 |H_k|^2 S^2 by one midpoint sum of the total spectrum, in blocks
-    (as Y Y^T with Y = |H|^2 S: a symmetric rank-k product)."""
+    (as Y Y^T with Y = |H|^2 S: a symmetric rank-k product). The spectrum on the grid's kept frequencies
+    (:func:`_frequencies`) where its Haar gains are kept (:data:`GAIN_CACHE_BYTES`)."""
     out = np.zeros((m.size, m.size))
+    keep = m.size * n_grid * 8 <= GAIN_CACHE_BYTES
     for w, G in _gains(m, n_grid):
-        S = gyro.psd(w / (2 * np.pi * gyro.dt)) / (2 * gyro.dt)
+        S = gyro.psd(_frequencies(w, gyro.dt, n_grid, keep)) / (2 * gyro.dt)
         Y = G * S
         out += Y @ Y.T
     out *= 1.0 / n_grid  # (1/pi) * integral = mean over the grid

@@ -38,6 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from avbench.estimators.selection._kept import per_record
 from avbench.noise_models.latents import parse_model
 from avbench.noise_models.term_base import FitHint
 
@@ -71,6 +72,7 @@ class SpectralLine(NamedTuple):
     band: tuple[float, float]
 
 
+@per_record  # each method fitted to an axis asks for the same record's line
 def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     """The strongest line of record ``x`` (sample interval ``dt``) in ``band`` (Hz; default: every
     frequency the test can search, module docstring), or None when no frequency can be searched
