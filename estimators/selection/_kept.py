@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import threading
 from collections import OrderedDict
 
 import numpy as np
@@ -19,12 +20,15 @@ __all__ = ["per_record", "KEPT"]
 
 #: results kept per function
 KEPT = 16
+#: marks a key not kept (a kept result may be None)
+_MISSING = object()
 
 
 def per_record(f):
     """``f(x, *args, **kwargs)`` kept per (the bytes of ``x`` as float64, ``args``, ``kwargs``); computed
     afresh when an argument cannot be hashed."""
     kept: OrderedDict = OrderedDict()
+    lock = threading.Lock()  # axes may be fitted in threads
 
     @functools.wraps(f)
     def wrapper(x, *args, **kwargs):
@@ -32,15 +36,18 @@ def per_record(f):
         key = (hashlib.blake2b(a.view(np.uint8), digest_size=16).digest(), a.shape, args,
                tuple(sorted(kwargs.items())))
         try:
-            out = kept.get(key)
+            with lock:
+                out = kept.get(key, _MISSING)
+                if out is not _MISSING:
+                    kept.move_to_end(key)
+                    return out
         except TypeError:  # an option that cannot be hashed
             return f(x, *args, **kwargs)
-        if out is None:
-            out = kept[key] = f(x, *args, **kwargs)
+        out = f(x, *args, **kwargs)
+        with lock:
+            kept[key] = out
             while len(kept) > KEPT:
                 kept.popitem(last=False)
-        else:
-            kept.move_to_end(key)
         return out
 
     wrapper.kept = kept
