@@ -314,5 +314,6 @@ def _explain_text_error(path, skip, sep, decimal, err):
         bad = vals.isna() & col.notna() & (col.astype(str).str.strip().str.lower() != "nan")
         if bad.any():
             i = int(np.flatnonzero(bad.to_numpy())[0])
-            return ValueError(f"{path}: column {j} is not numeric (row {i}: {col.iloc[i]!r}); expected samples")
+            return ValueError(f"{path}: line {skip + i + 1}: column {j} is not numeric ({col.iloc[i]!r}); expected "
+                              "samples, as many fields on every line as on the first")
     return ValueError(f"{path}: cannot parse as a text table ({str(err).splitlines()[0][:200]})")

@@ -53,7 +53,7 @@ CASES = [
     ("empty file", "r.csv", _text(""), [], "the file is empty"),
     ("blank lines only", "r.csv", _text("\n \n\n"), [], "empty"),
     ("header only", "r.csv", _text("rate_x\n"), [], "a header but no samples"),
-    ("text among numbers", "r.csv", _text(_replace_row(12, "abc")), [], "is not numeric (row 12: 'abc')"),
+    ("text among numbers", "r.csv", _text(_replace_row(12, "abc")), [], "line 13: column 0 is not numeric ('abc')"),
     ("text column", "r.csv", _text("\n".join(f"{v},word" for v in X)), ["--column", "1"], "is not numeric"),
     ("strings in npy", "r.npy", _npy(np.array(["1.0"] * 100)), [], "not numeric (dtype <U3)"),
     ("complex npy", "r.npy", _npy(X.astype(complex)), [], "not numeric (dtype complex128)"),

@@ -274,6 +274,15 @@ def test_a_line_with_other_fields_is_refused_naming_it(tmp_path_factory, table, 
     assert f"line {line}" in str(e.value) or (bad == 0 and "the header names" in str(e.value)), str(e.value)
 
 
+def test_a_short_first_line_is_refused_naming_the_next(tmp_path):
+    """A first data line with fewer fields than the header reads as the table's shape (one column, its
+    numbers not split): the first line that differs from it is named."""
+    path = tmp_path / "rec.csv"
+    path.write_text("AA,AB\n0.0\n0.0,0.0\n0.0,0.0\n")
+    with pytest.raises(ValueError, match="line 3: column 0 is not numeric"):
+        read_recording(path, gyro="AA,AB", time_column="none")
+
+
 # -- units --------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("spelling, kind, unit", [
