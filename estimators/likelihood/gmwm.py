@@ -70,7 +70,10 @@ record has a spectral line (``lines="auto"``, :mod:`~avbench.estimators.selectio
 where a band stands out of the spectrum (``resonance="auto"``,
 :mod:`~avbench.estimators.selection.resonance`), the evidence between a Gauss-Markov and a flicker
 bias instability (``bias_evidence``, :mod:`~avbench.estimators.selection.bias_model`), and the bounds
-of coefficients the fit does not resolve (:mod:`~avbench.estimators.selection.bounds`).
+of coefficients the fit does not resolve (:mod:`~avbench.estimators.selection.bounds`). The shortest scale
+is never beyond the record's white region (:func:`~avbench.estimators.selection.scales.white_reach`); where that
+region is short (an accelerometer's, between its filter and the set-up's 0.5 Hz line) the intervals hold each
+cut-off within it the record accepts (``diagnostics_["scale_alternatives"]``, :meth:`GMWM.conf_int`).
 
 Solver
 ------
@@ -105,7 +108,8 @@ from avbench.estimators.likelihood._trf import lower_triangular_solver, trf_boun
 from avbench.estimators.selection import bias_model, bounds
 from avbench.estimators.selection.lines import choose_line, frequency_at_bound, sinusoid_hint
 from avbench.estimators.selection.resonance import band_seen, choose_resonance, resonance_hint
-from avbench.estimators.selection.scales import ScaleChoice, choose_scales, cutoffs, shorter_adequate
+from avbench.estimators.selection.scales import (ScaleChoice, choose_scales, cutoffs, reach_binds, shorter_adequate,
+                                                 white_reach)
 from avbench.estimators.settings import Boolean, Check, Interval, NoneValue, Options
 from avbench.estimators.threads import one_blas_thread
 from avbench.noise_models.latents import (  # noqa: F401  (LATENTS, build_gyro: importable from here)
@@ -175,6 +179,11 @@ class WaveletVariance(NamedTuple):
     diagnostics: dict | None = None
 
 
+def _alternative_units(min_m) -> dict:
+    """How an entry of ``diagnostics_["scale_alternatives"]`` scales with the record's unit."""
+    return {"coefficients": 1, "std_err": 1}
+
+
 #: ``model``'s grammar, as a declared setting reads it
 _MODEL = (f"a latent model: names from {', '.join(LATENT_TERMS)} joined by '+' (e.g. 'WN+GM+RW') or a list of "
           "them, without repeats, at most one term per coefficient")
@@ -212,7 +221,11 @@ class GMWM(Estimator):
         the first octaves over more than one scale; on a record the model describes the all-scale fit
         passes with probability 1 - 0.001 and the choice, and the poor-fit check's false-alarm rate, are
         those of all scales. The scales it drops are the sensor's front end as far as this model can tell
-        and are reported (``min_m``, ``scale_choice``), not explained.
+        and are reported (``min_m``, ``scale_choice``), not explained. Both rules keep the record's white
+        noise in the fit: no cut-off beyond the first stretch of octaves where the AV falls nearly as 1/tau
+        (:func:`~avbench.estimators.selection.scales.white_reach`; beyond it N would be read off the bias
+        region, where the filter term trades with the other terms); where that stops ``"adequate"`` short and
+        no cut-off within it is adequate, the one Hansen's J rejects least is taken.
     weighting : {"model", "diagonal"}
         "model" (default): two-step efficient GMM with the parametric covariance
         :func:`av_covariance`; "diagonal": stop after the first step (edf weights).
@@ -295,7 +308,8 @@ class GMWM(Estimator):
 
     #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
     diagnostic_units = {"line_test": {"amplitude": 1}, "resonance_test": {"sigma": 1},
-                        "bias_evidence": {m: {"B": 1, "coefficients": 1, "std_err": 1} for m in ("GM", "FL")}}
+                        "bias_evidence": {m: {"B": 1, "coefficients": 1, "std_err": 1} for m in ("GM", "FL")},
+                        "scale_alternatives": _alternative_units}
 
     #: run the poor-fit check (:func:`avbench.estimators.allan.fit_check.assess_fit`); not a setting: an estimator
     #: that uses the GMWM fit only as its start sets it False on its instance
@@ -359,14 +373,23 @@ class GMWM(Estimator):
         band = functools.cache(lambda: band_seen(rate, dt, wv.tau[usable], line))  # one Welch pass
         resonance = band() if "RS" in latents else None
         best, tried, _ = self._scale_choice(latents, *args, resonance)
+        others = best.pop("alternatives", None)  # None: the white reach does not bind
         resonance_test = None
         if self.resonance == "auto" and "RS" not in latents:
             def refit(lats, found, below, accept, max_tau, seed):
                 return self._scale_choice(lats, *args, found, below=below, accept=accept, max_tau=max_tau, seed=seed)
 
             check = (lambda fit, lats: self._fit_check(fit, lats, rate, dt, wv, usable, n)[0]) if self._assess else None
+            plain, plain_latents = best, latents
             best, tried, latents, resonance_test = choose_resonance(latents, best, tried, wv.m, usable, band, refit,
                                                                     check)
+            if others is not None and best is not plain:  # the model without the resonance: adequate, and competing
+                others = [(int(plain["diag"]["m"][0]), plain)] + others
+                alternatives = self._alternatives(plain_latents, others, dt)
+            else:
+                alternatives = self._alternatives(latents, others or [], dt)
+        else:
+            alternatives = self._alternatives(latents, others or [], dt)
         evidence = None
         if self.bias_evidence and {"GM", "FL"} & set(latents):
             evidence = self._bias_evidence(latents, best, wv, usable, n, dt, line, band() if "RS" in latents else None)
@@ -382,6 +405,8 @@ class GMWM(Estimator):
             diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
         if evidence is not None:
             diag["bias_evidence"] = evidence
+        if alternatives:
+            diag["scale_alternatives"] = alternatives
         if self.resonance == "auto":
             diag["resonance_test"] = resonance_test or {"included": "RS" in latents, "reason": "in the model"}
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
@@ -405,20 +430,24 @@ class GMWM(Estimator):
         """The intervals of :meth:`Estimator.conf_int`, each widened to hold the same coefficient's interval
         (and value) under the other bias-instability model where the record cannot choose between them
         (``bias_evidence`` not decisive: the other model's Akaike weight is at least 1 -
-        :data:`~avbench.estimators.selection.bias_model.BIAS_EVIDENCE_WEIGHT`).
+        :data:`~avbench.estimators.selection.bias_model.BIAS_EVIDENCE_WEIGHT`), and under each longer cut-off
+        within the white reach that Hansen's J accepts (``scale_alternatives``: where the record's white region is
+        short, which octaves of the sensor's front end a fit keeps moves N, through the filter term, by more than
+        its standard error, and the record accepts several).
 
-        The reported value stays this model's; the interval is the union of the two models' intervals
+        The reported value stays this model's; the interval is the union of the models' intervals
         (model uncertainty kept in the interval, as model-averaged intervals do, Buckland, Burnham &
-        Augustin 1997, but conservative: it holds the coefficient under either model)."""
+        Augustin 1997, but conservative: it holds the coefficient under each model)."""
         import pandas as pd
 
         from avbench.estimators.uncertainty import interval
 
         ci = super().conf_int(level, conservative)
+        alts = list((self.diagnostics_.get("scale_alternatives") or {}).values())
         alt = bias_model.undecided_alternative(self.diagnostics_.get("bias_evidence"))
-        if alt is not None:
+        for alt in alts + ([alt] if alt is not None else []):
             coefs = pd.Series(alt["coefficients"], dtype=float)
-            other = interval(coefs, pd.Series(alt["std_err"], dtype=float), level, conservative)
+            other = interval(coefs, pd.Series(alt["std_err"], dtype=float).reindex(coefs.index), level, conservative)
             for c in coefs.index:
                 own = self.coefficients_.get(c, math.nan)
                 v = coefs[c]
@@ -428,6 +457,28 @@ class GMWM(Estimator):
                 hi = np.nanmax([ci.at[c, "upper"], other.at[c, "upper"], v])
                 ci.loc[c] = (lo, hi)
         return ci
+
+    @staticmethod
+    def _alternatives(latents, fits, dt) -> dict:
+        """``diagnostics_["scale_alternatives"]``: for each longer cut-off within the white reach that Hansen's J
+        accepts (:func:`~avbench.estimators.selection.scales.choose_scales`'s ``fit["alternatives"]``), its
+        ``coefficients`` and ``std_err`` (SI), keyed by its shortest cluster size. A fit whose Gauss-Markov term
+        peaks within three octaves of its shortest tau resolves no B (:mod:`~avbench.estimators.selection.bounds`):
+        it gives N only."""
+        from avbench.noise_models.markov_terms import GM_PEAK_TAU_OVER_TC
+
+        out = {}
+        for m0, fit in fits:
+            coefs = dict(fit["coefs"])
+            if "GM" in latents:
+                tc = fit["diag"]["values"][param_index(latents, "GM") + LATENT_TERMS["GM"].fit_parameters.index("tc")]
+                if GM_PEAK_TAU_OVER_TC * tc < bounds.GM_RESOLVED_PEAK_FACTOR * fit["diag"]["tau"][0]:
+                    coefs = {c: v for c, v in coefs.items() if c == "N"}
+            se = fit["diag"]["std_err"]
+            out[str(m0)] = {"coefficients": {c: float(v) for c, v in coefs.items()},
+                            "std_err": {c: float(se[c]) for c in coefs if c in se.index}, "J_stat": float(fit["J_stat"]),
+                            "n_scales": int(fit["k"])}
+        return out
 
     def _fit_check(self, best, latents, rate, dt, wv, usable, n):
         """(the poor-fit check of :func:`assess_fit` for fit ``best`` of ``latents``, the fitted latent gyro)."""
@@ -455,7 +506,8 @@ class GMWM(Estimator):
         the parameters of the other latents to start from (:meth:`_fit_scales`)."""
         m_all = wv.m
         n_par = self._n_free(latents)
-        lows = cutoffs(self.min_m, m_all, usable, n_par)
+        reach = white_reach(wv.tau, wv.avar, n, m_all, usable) if self.min_m in ("auto", "adequate") else None
+        lows = cutoffs(self.min_m, m_all, usable, n_par, reach)
 
         def fit_on(keep):
             return self._fit_scales(latents, wv.tau[keep], wv.avar[keep], m_all[keep], wv.edf[keep], n, dt,
@@ -471,7 +523,8 @@ class GMWM(Estimator):
                 f"m >= {self.min_m}), "
                 f"fewer than the {n_par + 1} needed for model {'+'.join(latents)}; use a longer record"
             )
-        return choose_scales(fit_on, lows, m_all, usable, n_par, self.min_m)
+        binds = reach_binds(reach, m_all, usable, n_par)
+        return choose_scales(fit_on, lows, m_all, usable, n_par, self.min_m, binds)
 
     def _bias_evidence(self, latents, best, wv, usable, n, dt, line, resonance) -> dict:
         """``diagnostics_["bias_evidence"]``: the same latents with GM and FL exchanged, fitted on the scales of

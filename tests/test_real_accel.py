@@ -1,0 +1,101 @@
+"""The default method's accelerometer numbers on the real ADIS16405 runs (optional data: skipped unless
+AVBENCH_REAL_DATA names the folder of the licensed recordings, read in place), and the real-data test of the
+intervals on both sensors: 30-minute slices from the middle of each run against the whole run
+(``avbench.studies.real_runs.slice_coverage``).
+
+White noise is the one term every record of more than a few minutes resolves: an accelerometer's N must be an
+estimate on 10 minutes as on 2.8 hours, read off the octaves where white noise makes the AV, and its interval must
+hold the whole run's value from a 30-minute slice as the gyros' do."""
+
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from avbench import estimators
+from conftest import REAL_DATA, real_recording
+from avbench.estimators.allan.variance import allan_variance
+from avbench.noise_models.units import from_si
+
+ADIS, _needs_adis = real_recording("adis16405-calgary/adis_16405_imu1.npz")
+DT = 0.01
+#: the share of axis-slices whose 95 % interval holds the whole run's value that the defaults must reach (for a
+#: calibrated interval of a stationary sensor ~0.97: the whole run contains the slice)
+COVERAGE_TARGET = 0.8
+
+
+def _accel_axes(path):
+    from avbench.recordings.readers import read_recording
+    from avbench.recordings.sensors import to_si
+
+    for s in to_si(read_recording(path), "deg/s", "g"):
+        if s.sensor == "accel":
+            yield from s.axes.items()
+
+
+def _fit(x):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return estimators.get("gmwm_filtered").fit(np.asarray(x), DT)
+
+
+@pytest.mark.slow
+@_needs_adis
+def test_accelerometer_noise_density_is_resolved_and_steady_with_record_length():
+    """ADIS run 1, whose accelerometer N was read off the bias region before the scale choice kept the white
+    region (full run, fitted from 0.32-2.56 s: x 0.317, y 0.278 [0, 3.08], z 0.311 m/s/sqrt(h), 1.16-1.31 times
+    the white level below): on the full run, its first 10 and 30 minutes and a 30-minute slice from its middle,
+    every accelerometer axis's N is an estimate with an interval above 0, the full run's within 15 % of the white
+    level the AV shows at 0.08 s (sqrt(tau AV): the sensor's filter lowers it there by ~1.5 tf / tau, up to 10 %
+    with tf ~ 5-10 ms, the other terms raise it by a few per cent; measured 1.05-1.09), and each slice's N within
+    25 % of the full run's (the yaml's tolerance; measured within 5 %)."""
+    for axis, x in _accel_axes(ADIS):
+        full = _fit(x)
+        n_full = full.result().coefficients["N"]
+        assert n_full.status == "ok" and n_full.interval[0] > 0, (axis, n_full)
+        av = allan_variance(np.asarray(x), DT, taus=[0.08], overlapping=True)
+        white = math.sqrt(av.avar[0] * 0.08)
+        assert abs(n_full.value / white - 1) < 0.15, (axis, n_full.value, white)
+        for lo, minutes in ((0, 10), (0, 30), (50, 30)):
+            n = _fit(x[lo * 6000:(lo + minutes) * 6000]).result().coefficients["N"]
+            assert n.status == "ok" and n.interval[0] > 0, (axis, lo, minutes, n)
+            assert abs(n.value / n_full.value - 1) < 0.25, (axis, lo, minutes,
+                                                           from_si("N", n.value, "m/s/sqrt(h)", "accel"))
+
+
+@pytest.fixture(scope="module")
+def coverage():
+    """The slice-coverage study of ``gmwm_filtered`` (the first default, the yaml's method) on gyros and
+    accelerometers, with the whole runs fitted here (~30 CPU-min)."""
+    from avbench.studies import real_runs
+
+    data = Path(REAL_DATA or "/nonexistent")
+    if not (data / "adis16405-calgary").exists():
+        pytest.skip("the ADIS16405 runs are not under AVBENCH_REAL_DATA (optional, licensed data)")
+    whole = real_runs.fit_all(data, ["gmwm_filtered"])
+    sc = real_runs.slice_coverage(data, ["gmwm_filtered"], whole)
+    return real_runs.slice_coverage_summary(sc).set_index(["sensor", "coefficient"])
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(7200)
+@pytest.mark.parametrize("sensor,coefficient", [("gyro", "N"), ("gyro", "B"), ("gyro", "K"), ("accel", "N")])
+def test_slice_intervals_hold_the_whole_runs_value(coverage, sensor, coefficient):
+    """On 30-minute slices from minute 20 on (four per run), the interval the screen shows holds the whole run's
+    value on at least 80 % of the axis-slices (measured: gyro N 64/72, B 70/72, K 60/68; accelerometer N 63/72,
+    with the union over the cut-offs within the white reach the record accepts; 31/72 before)."""
+    row = coverage.loc[(sensor, coefficient)]
+    assert row["share"] >= COVERAGE_TARGET, row.to_dict()
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(7200)
+@pytest.mark.xfail(strict=True, reason="accelerometer B and K: 55/72 and 54/72 (0.76, 0.75). The bias region moves "
+                                       "between half-hours (AV spread 3-9 times the model's at 10-80 s) and needs "
+                                       "two bias terms where the latent grammar has one")
+@pytest.mark.parametrize("coefficient", ["B", "K"])
+def test_accelerometer_bias_terms_slice_intervals_fall_short(coverage, coefficient):
+    row = coverage.loc[("accel", coefficient)]
+    assert row["share"] >= COVERAGE_TARGET, row.to_dict()
