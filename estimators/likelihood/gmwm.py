@@ -258,6 +258,19 @@ class GMWM(Estimator):
         the same model with GM and FL exchanged, on the same scales, GMM-AIC weights); the reported B is
         the model's own, and where the evidence is not decisive :meth:`conf_int` widens each interval to
         hold the other model's.
+    fit_covariance : {"model", "record"}
+        The covariance the final poor-fit check and the standard errors take for the AV values. "model" (default
+        here): the stationary model's (:func:`av_covariance`). "record": each value's variance from the record's
+        batches where they show it larger than the model allows
+        (:func:`~avbench.estimators.allan.fit_check.record_variance_factor`: a sensor whose noise moves during the
+        record), with the model's correlation between scales; the check's reference is then the weighted chi^2 of
+        a fit weighted by the model covariance, and the standard errors are the GMM sandwich
+        :math:`H^{-1}G^T\\Omega^{-1}\\Omega_r\\Omega^{-1}GH^{-1}`, :math:`H = G^T\\Omega^{-1}G` (Hansen 1982; with
+        the record's long-run covariance as GMWM's asymptotic theory has it, Guerrier et al. 2013), each
+        coefficient's standard error (and the alternatives' that :meth:`conf_int` unions) multiplied by the ratio
+        of its sandwich to its model standard error where that exceeds 1 (``diagnostics_["record_se_factor"]``).
+        The fit itself (weights, Hansen's J of the scale choice, the resonance's acceptance) keeps the model
+        covariance. Where the record shows no excess the two are the same.
     filter_tf : float or None
         None (default): the filter latent ``FW``'s time constant is fitted. A number (s): the sensor's
         front-end filter is known (a datasheet: a first-order low-pass of -3 dB bandwidth f has
@@ -304,6 +317,7 @@ class GMWM(Estimator):
         "resonance": [Options("model", "auto")],
         "bias_evidence": [Boolean()],
         "filter_tf": [NoneValue(), Interval(float, 0, None, closed="neither")],
+        "fit_covariance": [Options("model", "record")],
     }
 
     #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
@@ -316,7 +330,7 @@ class GMWM(Estimator):
     _assess = True
 
     def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6,
-                 lines="model", resonance="model", bias_evidence=False, filter_tf=None):
+                 lines="model", resonance="model", bias_evidence=False, filter_tf=None, fit_covariance="model"):
         self.model = model
         self.min_clusters = min_clusters
         self.min_m = min_m
@@ -326,6 +340,7 @@ class GMWM(Estimator):
         self.resonance = resonance
         self.bias_evidence = bias_evidence
         self.filter_tf = filter_tf
+        self.fit_covariance = fit_covariance
 
     # -- settings --------------------------------------------------------------------------------
     def check_settings(self):
@@ -410,6 +425,7 @@ class GMWM(Estimator):
         if self.resonance == "auto":
             diag["resonance_test"] = resonance_test or {"included": "RS" in latents, "reason": "in the model"}
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
+            diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
             return best["coefs"], {}, diag
         tau_ok, upper_av = bounds.av_upper_limits(wv.tau, wv.avar, wv.edf, usable)
         unresolved = {}
@@ -420,8 +436,11 @@ class GMWM(Estimator):
                                                known=unresolved))
         if unresolved:
             diag["unresolved"] = unresolved
-        check, gyro = self._fit_check(best, latents, rate, dt, wv, usable, n)
+        check, gyro = self._fit_check(best, latents, rate, dt, wv, usable, n, self.fit_covariance == "record")
         diag.update(check)
+        if self.fit_covariance == "record":
+            self._record_std_err(diag, latents, gyro, check["fit_check"].get("record_factor"), n, wv.cov_scale)
+        diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
         diag.update(wv.diagnostics or {})
         diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
         return best["coefs"], {}, diag
@@ -480,8 +499,9 @@ class GMWM(Estimator):
                             "n_scales": int(fit["k"])}
         return out
 
-    def _fit_check(self, best, latents, rate, dt, wv, usable, n):
-        """(the poor-fit check of :func:`assess_fit` for fit ``best`` of ``latents``, the fitted latent gyro)."""
+    def _fit_check(self, best, latents, rate, dt, wv, usable, n, record=False):
+        """(the poor-fit check of :func:`assess_fit` for fit ``best`` of ``latents``, the fitted latent gyro);
+        ``record``: with the record's own variances (``fit_covariance="record"``)."""
         diag = best["diag"]
         gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
         model_avar = gyro.avar
@@ -495,8 +515,52 @@ class GMWM(Estimator):
 
         reference = None if wv.reference_is_classical else (wv.tau, wv.avar, wv.m, n)
         n_par = self._n_free(latents)
+        jac = (diag["tau"], diag["fit_jacobian"]) if record and "fit_jacobian" in diag else None
         return assess_fit(rate, dt, model_avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
-                          reference=reference, cov_scale=wv.cov_scale), gyro
+                          reference=reference, cov_scale=wv.cov_scale, record_covariance=record, jacobian=jac), gyro
+
+    @staticmethod
+    def _record_std_err(diag, latents, gyro, factor, n, cov_scale):
+        """Standard errors under the record's own variances (``fit_covariance="record"``): the GMM sandwich over the
+        model-weighted fit's, per coefficient, where it is larger; the same ratio widens the alternatives
+        :meth:`conf_int` unions. Needs the check's scales to be the fit's (else nothing changes)."""
+        if factor is None or not np.any(np.asarray(factor) > 1.0) or "fit_jacobian" not in diag:
+            return
+        G, tau = np.asarray(diag["fit_jacobian"], float), np.asarray(diag["tau"], float)
+        factor = np.asarray(factor, float)
+        if factor.size != tau.size or G.shape[1] == 0:
+            return
+        free = diag["fit_free"]
+        omega = av_covariance(gyro, np.asarray(diag["m"], dtype=np.int64), n) * cov_scale
+        try:
+            WG = np.linalg.solve(omega, G)
+            Hinv = np.linalg.inv(G.T @ WG)
+            s = np.sqrt(factor)
+            meat = WG.T @ (omega * np.outer(s, s)) @ WG
+            V = Hinv @ meat @ Hinv
+        except np.linalg.LinAlgError:
+            return
+        ratio = np.sqrt(np.clip(np.diag(V), 0, None) / np.diag(Hinv))
+        se_factor = {}
+        for lat in latents:
+            coef = LATENT_TERMS[lat].coefficient
+            i = param_index(latents, lat)
+            if coef is None or not free[i]:
+                continue
+            r = float(ratio[int(np.count_nonzero(free[:i]))])
+            if np.isfinite(r) and r > 1.0:
+                se_factor[coef] = r
+        if not se_factor:
+            return
+        diag["record_se_factor"] = se_factor
+        std = diag["std_err"].copy()
+        for c, r in se_factor.items():
+            std[c] = std[c] * r
+        diag["std_err"] = std
+        entries = list((diag.get("scale_alternatives") or {}).values())
+        entries += [v for k, v in (diag.get("bias_evidence") or {}).items() if k in ("GM", "FL")]
+        for entry in entries:
+            entry["std_err"] = {c: v * se_factor.get(c, 1.0) for c, v in entry["std_err"].items()}
 
     def _scale_choice(self, latents, wv, usable, n, dt, line, resonance=None, below=None, accept=None, max_tau=np.inf,
                       seed=None) -> ScaleChoice:
@@ -599,6 +663,9 @@ class GMWM(Estimator):
             "weighting": self.weighting,
             "n_evaluations": int(sum(s.nfev for s in steps)),
         }
+        free = (u > lo + 1e-6) & (u < hi - 1e-6)
+        diag["fit_free"] = free  # the fitted curve's derivative in the free log-parameters (fit_covariance="record")
+        diag["fit_jacobian"] = model_av.jacobian(u)[:, free]
         diag["stop_reason"] = best.stop_reason
         if not best.converged:
             diag["failure"] = f"least_squares: {best.message}"
@@ -702,15 +769,18 @@ class GMWMFiltered(GMWM):
     ``SN`` when the record's strongest spectral line passes the line test), ``min_m="adequate"`` (the
     shortest cut-off the model fits by Hansen's J; it differs from ``"auto"`` only where the all-scale fit
     is rejected), ``resonance="auto"`` (a band-pass Gauss-Markov term ``RS`` where a band stands out of
-    the spectrum and lets the model keep shorter scales) and ``bias_evidence=True`` (the record's weights
+    the spectrum and lets the model keep shorter scales), ``bias_evidence=True`` (the record's weights
     for a Gauss-Markov against a flicker B; where they are not decisive, :meth:`GMWM.conf_int` widens each
-    interval to hold the flicker fit's too).
+    interval to hold the flicker fit's too) and ``fit_covariance="record"`` (the poor-fit check and the standard
+    errors take each AV value's variance from the record where it is larger than the stationary model's: a real
+    sensor's noise level may move during the record).
     """
 
     #: the settings of :class:`GMWM`, with the same constraints
     parameter_constraints = {**GMWM.parameter_constraints}
 
     def __init__(self, *, model=REAL_SENSOR_MODEL, min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
-                 lines="auto", resonance="auto", bias_evidence=True, filter_tf=None):
+                 lines="auto", resonance="auto", bias_evidence=True, filter_tf=None, fit_covariance="record"):
         super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting, n_starts=n_starts,
-                         lines=lines, resonance=resonance, bias_evidence=bias_evidence, filter_tf=filter_tf)
+                         lines=lines, resonance=resonance, bias_evidence=bias_evidence, filter_tf=filter_tf,
+                         fit_covariance=fit_covariance)
