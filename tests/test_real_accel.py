@@ -65,37 +65,60 @@ def test_accelerometer_noise_density_is_resolved_and_steady_with_record_length()
                                                            from_si("N", n.value, "m/s/sqrt(h)", "accel"))
 
 
-@pytest.fixture(scope="module")
-def coverage():
-    """The slice-coverage study of ``gmwm_filtered`` (the first default, the yaml's method) on gyros and
-    accelerometers, with the whole runs fitted here (~30 CPU-min)."""
-    from avbench.studies import real_runs
-
+def _data():
     data = Path(REAL_DATA or "/nonexistent")
     if not (data / "adis16405-calgary").exists():
         pytest.skip("the ADIS16405 runs are not under AVBENCH_REAL_DATA (optional, licensed data)")
-    whole = real_runs.fit_all(data, ["gmwm_filtered"])
-    sc = real_runs.slice_coverage(data, ["gmwm_filtered"], whole)
+    return data
+
+
+@pytest.fixture(scope="module")
+def whole_runs():
+    """Both default methods on every axis of the six full runs (``real_runs.fit_all``, ~5 CPU-min)."""
+    from avbench.studies import real_runs
+
+    return real_runs.fit_all(_data(), ["gmwm_filtered", "gmwm_despiked"])
+
+
+@pytest.fixture(scope="module")
+def coverage(whole_runs):
+    """The slice-coverage study of ``gmwm_filtered`` (the first default, the yaml's method) on gyros and
+    accelerometers, against the whole runs (~30 CPU-min)."""
+    from avbench.studies import real_runs
+
+    sc = real_runs.slice_coverage(_data(), ["gmwm_filtered"], whole_runs)
     return real_runs.slice_coverage_summary(sc).set_index(["sensor", "coefficient"])
 
 
+#: full-run axes (of 18 per sensor) on which each default method must pass the fit check
+FIT_CHECK_TARGET = 15
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(3600)
+@pytest.mark.parametrize("sensor", ["accel", "gyro"])
+@pytest.mark.parametrize("method", ["gmwm_filtered", "gmwm_despiked"])
+def test_default_fits_of_the_full_runs_pass_the_fit_check(whole_runs, sensor, method):
+    """The fit check with the record's own AV variances (``fit_covariance="record"``): the accelerometers' AV moves
+    between half-hours 3-110 times more than a stationary model allows, and is judged against that; at least 15 of
+    the 18 full-run axes of each sensor pass (at the 1 % level a fitting model fails one in a hundred; measured:
+    accelerometer 17/18, gyro 16/18 with both methods; 3/18 and 15/18 with the stationary model's covariance)."""
+    d = whole_runs[whole_runs["record"].str.startswith("adis") & (whole_runs["sensor"] == sensor)
+                   & (whole_runs["method"] == method) & (whole_runs["coefficient"] == "N")]
+    assert len(d) == 18
+    passed = int((~d["poor_fit"].astype(bool)).sum())
+    assert passed >= FIT_CHECK_TARGET, d[["record", "axis", "fit_pvalue"]].to_string()
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(7200)
-@pytest.mark.parametrize("sensor,coefficient", [("gyro", "N"), ("gyro", "B"), ("gyro", "K"), ("accel", "N")])
+@pytest.mark.parametrize("sensor", ["gyro", "accel"])
+@pytest.mark.parametrize("coefficient", ["N", "B", "K"])
 def test_slice_intervals_hold_the_whole_runs_value(coverage, sensor, coefficient):
     """On 30-minute slices from minute 20 on (four per run), the interval the screen shows holds the whole run's
-    value on at least 80 % of the axis-slices (measured: gyro N 64/72, B 70/72, K 60/68; accelerometer N 63/72,
-    with the union over the cut-offs within the white reach the record accepts; 31/72 before)."""
+    value on at least 80 % of the axis-slices. Measured: gyro N 64/72, B 70/72, K 60/68; accelerometer N 67/72,
+    B 61/72, K 59/72 (N with the union over the cut-offs within the white reach the record accepts, 31/72 before
+    it; B and K with the standard errors of the record's own AV variances, 55/72 and 54/72 with the stationary
+    model's)."""
     row = coverage.loc[(sensor, coefficient)]
-    assert row["share"] >= COVERAGE_TARGET, row.to_dict()
-
-
-@pytest.mark.slow
-@pytest.mark.timeout(7200)
-@pytest.mark.xfail(strict=True, reason="accelerometer B and K: 55/72 and 54/72 (0.76, 0.75). The bias region moves "
-                                       "between half-hours (AV spread 3-9 times the model's at 10-80 s) and needs "
-                                       "two bias terms where the latent grammar has one")
-@pytest.mark.parametrize("coefficient", ["B", "K"])
-def test_accelerometer_bias_terms_slice_intervals_fall_short(coverage, coefficient):
-    row = coverage.loc[("accel", coefficient)]
     assert row["share"] >= COVERAGE_TARGET, row.to_dict()
