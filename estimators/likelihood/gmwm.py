@@ -70,8 +70,8 @@ record has a spectral line (``lines="auto"``, :mod:`~avbench.estimators.selectio
 where a band stands out of the spectrum (``resonance="auto"``,
 :mod:`~avbench.estimators.selection.resonance`), the evidence between a Gauss-Markov and a flicker
 bias instability (``bias_evidence``, :mod:`~avbench.estimators.selection.bias_model`), and the bounds
-of coefficients the fit does not resolve (:mod:`~avbench.estimators.selection.bounds`). The shortest scale
-is never beyond the record's white region (:func:`~avbench.estimators.selection.scales.white_reach`); where that
+of coefficients the fit does not resolve (:mod:`~avbench.estimators.selection.bounds`). With ``min_m="adequate"`` the
+shortest scale is never beyond the record's white region (:func:`~avbench.estimators.selection.scales.white_reach`); where that
 region is short (an accelerometer's, between its filter and the set-up's 0.5 Hz line) the intervals hold each
 cut-off within it the record accepts (``diagnostics_["scale_alternatives"]``, :meth:`GMWM.conf_int`).
 
@@ -221,11 +221,13 @@ class GMWM(Estimator):
         the first octaves over more than one scale; on a record the model describes the all-scale fit
         passes with probability 1 - 0.001 and the choice, and the poor-fit check's false-alarm rate, are
         those of all scales. The scales it drops are the sensor's front end as far as this model can tell
-        and are reported (``min_m``, ``scale_choice``), not explained. Both rules keep the record's white
+        and are reported (``min_m``, ``scale_choice``), not explained. ``"adequate"`` keeps the record's white
         noise in the fit: no cut-off beyond the first stretch of octaves where the AV falls nearly as 1/tau
         (:func:`~avbench.estimators.selection.scales.white_reach`; beyond it N would be read off the bias
-        region, where the filter term trades with the other terms); where that stops ``"adequate"`` short and
-        no cut-off within it is adequate, the one Hansen's J rejects least is taken.
+        region, where the filter term trades with the other terms); where that stops it short and no cut-off
+        within it is adequate, the one Hansen's J rejects least is taken. ``"auto"`` has no such limit: it is
+        the choice of the simulated studies' GMWM, whose committed results it reproduces (with the limit, the
+        GMWM rows of two flicker gyros of ``grand_comparison`` move: N closer to the truth, K further).
     weighting : {"model", "diagonal"}
         "model" (default): two-step efficient GMM with the parametric covariance
         :func:`av_covariance`; "diagonal": stop after the first step (edf weights).
@@ -570,7 +572,7 @@ class GMWM(Estimator):
         the parameters of the other latents to start from (:meth:`_fit_scales`)."""
         m_all = wv.m
         n_par = self._n_free(latents)
-        reach = white_reach(wv.tau, wv.avar, n, m_all, usable) if self.min_m in ("auto", "adequate") else None
+        reach = white_reach(wv.tau, wv.avar, n, m_all, usable) if self.min_m == "adequate" else None
         lows = cutoffs(self.min_m, m_all, usable, n_par, reach)
 
         def fit_on(keep):

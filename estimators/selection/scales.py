@@ -23,12 +23,12 @@ of freedom where the model holds.
 an integer
     That cluster size, fixed.
 
-Both automatic rules keep the record's white noise in the fit (:func:`white_reach`): a cut-off is tried only up
-to the last octave of the first stretch of octaves where the record's AV falls nearly as 1/tau (local slope within
-1/4 of -1: white noise makes at least three quarters of the AV). Beyond it the fit does not see the white level: N
-is then read off the bias-instability region (a 1/f rise, a sinusoid's skirt), where a filter term with a time
-constant of a second or a Gauss-Markov term trades with it, and it moves with the record's length (an
-accelerometer's N by 40 % between 30 minutes and 2.8 h). Where the model misses the curve elsewhere, no cut-off
+A caller may keep the record's white noise in the fit (:func:`white_reach`; GMWM does for ``"adequate"``): a cut-off
+is tried only up to the last octave of the first stretch of octaves where the record's AV falls nearly as 1/tau
+(local slope within 1/4 of -1: white noise makes at least three quarters of the AV). Beyond it the fit does not see
+the white level: N is then read off the bias-instability region (a 1/f rise, a sinusoid's skirt), where a filter
+term with a time constant of a second or a Gauss-Markov term trades with it, and it moves with the record's length
+(an accelerometer's N by 40 % between 30 minutes and 2.8 h). Where the model misses the curve elsewhere, no cut-off
 within the reach is adequate, the one Hansen's J rejects least is taken (:func:`choose_scales`), and the poor-fit
 check says the fit misses the curve.
 
