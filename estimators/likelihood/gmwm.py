@@ -291,7 +291,8 @@ class GMWM(Estimator):
         ``unresolved`` (coefficients the fit does not resolve, with their bounds:
         :mod:`avbench.estimators.selection.bounds`) and the poor-fit check of
         :mod:`avbench.estimators.allan.fit_check` (``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``,
-        ``fit_check``).
+        ``fit_check``; with ``fit_covariance="record"`` also ``fit_check["record_factor"]``, each scale's variance
+        factor, and ``record_se_factor``, the coefficients' standard-error factors where above 1).
 
     Examples
     --------
