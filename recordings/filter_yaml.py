@@ -32,9 +32,15 @@ and anything the model omits; with few recordings the interval is wide (t with k
 **A yaml from a short record** (:func:`filter_choices`). A filter needs a positive random walk even
 when the record cannot resolve one. Where an axis's value is not a resolved estimate -- the estimator
 flags it "not resolved", its evidence says the term is not present, it is zero, its interval reaches
-zero, or the fit is poor -- the yaml takes the upper end of its interval (the method's 95 % interval,
-or its evidence bound) and says so in a comment. Where the fit is poor the model misses the curve and
-its interval is not trusted alone: the larger of it and the AV's own bound (below) is taken. Where the method gives no interval at all, the
+zero, or (for a random walk) the fit is poor -- the yaml takes the upper end of its interval (the method's
+95 % interval, or its evidence bound) and says so in a comment. Where the fit of a random walk is poor the
+model misses the curve and its interval is not trusted alone: the larger of it and the AV's own bound
+(below) is taken. A noise density N that is resolved (its interval above zero) is the estimate also where
+the fit check flags the fit: N is read at the shortest scales, where hours of samples pin the AV to a
+fraction of a per cent and the white noise dominates it, and its interval already holds the cut-offs of
+the sensor's front end the record accepts; the random walk is read at the longest scales, where a
+misfit moves it (on the six ADIS16405 runs the upper end of N's interval was 0.3-2 % above N on every
+flagged fit). Where the method gives no interval at all, the
 bound comes from the Allan variance itself: every term adds to the AV, so ``K^2 tau / 3 <= AV(tau)``
 and ``N^2 / tau <= AV(tau)`` at every tau; the bound is the smallest over the octave taus of the
 AV's one-sided 95 % chi^2 upper limit turned into the coefficient. For a random walk the comment
@@ -144,10 +150,10 @@ def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) 
                 raise ValueError(f"{option}: method {method!r} was not fitted; expected one of --method")
             e = md["coefficients"][coef]
             av = (avs or {}).get(sensor, {}).get(axis)
-            v, why = axis_value(e, md)
+            v, why = axis_value(e, md, coef)
             if why is not None and v is None and av is not None:
                 v, why = av_bound(coef, *av), why + " and the method gives no interval: the bound the AV allows"
-            elif md.get("poor_fit") and v is not None and av is not None:  # the model misses the curve: its
+            elif md.get("poor_fit") and coef != "N" and v is not None and av is not None:  # the model misses the curve: its
                 b = av_bound(coef, *av)                                    # interval is not to be trusted alone
                 if b is not None and b > v:
                     v, why = b, (why or "the fit is poor") + "; the bound the AV allows is larger: taken"
@@ -170,9 +176,10 @@ _BOUND_NOTES = {"record": "not resolved by this record: the upper end of its int
                 "zero": "zero (no random walk seen)"}
 
 
-def axis_value(e, md):
+def axis_value(e, md, coefficient=None):
     """(SI value, None) for a resolved estimate; (upper bound or None, reason) otherwise (``e``: a
-    coefficient of the JSON payload, ``md``: its method)."""
+    coefficient of the JSON payload, ``md``: its method). A poor fit makes a bound of every coefficient but
+    the noise density (``coefficient`` "N": module docstring)."""
     from avbench.estimators.results import REASONS
 
     iv = e.get("interval_si")
@@ -186,7 +193,7 @@ def axis_value(e, md):
         return None, e["flag"]
     if iv is not None and iv[0] is not None and iv[0] <= 0:
         return hi, "its interval reaches zero: the upper end of the interval"
-    if md.get("poor_fit"):
+    if md.get("poor_fit") and coefficient != "N":
         return hi, "the fit is poor: the upper end of its interval"
     return e["si"], None
 

@@ -36,7 +36,9 @@ methods of ``avbench estimate`` on the first 30- and 60-minute slices (``--per-r
 ``slices.md`` (per method and length: share of slices with N in 1.9-3.0 deg/sqrt(h) and B in
 15-80 deg/h, and values outside with no flag). ``--lines`` writes ``lines.csv`` / ``lines.md``: the
 strongest spectral line of each axis in 0.3-3 Hz (frequency, amplitude, prominence): the
-accelerometers' AV bump. ``--within-run`` writes ``within_run.csv`` / ``.md``: per ADIS gyro axis, whether the
+accelerometers' AV bump. ``--slice-coverage`` writes ``slice_coverage.csv`` / ``.md``: do the intervals of
+30-minute slices of every ADIS gyro and accelerometer axis hold the whole run's value (:func:`slice_coverage`)?
+``--within-run`` writes ``within_run.csv`` / ``.md``: per ADIS gyro axis, whether the
 white-noise level is the same in every 30-minute window of the run (:func:`within_run`).
 """
 
@@ -129,15 +131,16 @@ SLICE_MINUTES = (30, 60)
 SLICE_N_RANGE, SLICE_B_RANGE = (1.9, 3.0), (15.0, 80.0)
 
 
-def _gyro_slices(data: Path, minutes, first_minute: float, per_run: int, methods, settings=None):
-    """(record, axis, minutes, k, samples, {method: MethodFit}) for the methods fitted (as ``avbench estimate`` fits,
-    :func:`avbench.recordings.fit.fit_axis`) on slice k of every ADIS gyro axis: for each length in
-    ``minutes``, ``per_run`` non-overlapping slices of it, the first starting ``first_minute`` minutes in
-    (as many as the run holds)."""
+def _adis_slices(data: Path, minutes, first_minute: float, per_run: int, methods, settings=None,
+                 sensors=("gyro",)):
+    """(record, sensor, axis, minutes, k, samples, {method: MethodFit}) for the methods fitted (as ``avbench
+    estimate`` fits, :func:`avbench.recordings.fit.fit_axis`) on slice k of every ADIS axis of the ``sensors``:
+    for each length in ``minutes``, ``per_run`` non-overlapping slices of it, the first starting ``first_minute``
+    minutes in (as many as the run holds)."""
     from avbench.recordings.fit import fit_axis
 
     for rec, sensor, axis, x, timing in _records(data):
-        if _GROUP[rec] != "adis16405" or sensor != "gyro":
+        if _GROUP[rec] != "adis16405" or sensor not in sensors:
             continue
         first = int(round(first_minute * 60 / timing.dt))
         for mins in minutes:
@@ -147,7 +150,14 @@ def _gyro_slices(data: Path, minutes, first_minute: float, per_run: int, methods
                 if lo + n > x.size:
                     break
                 starts = timing.starts[(timing.starts > lo) & (timing.starts < lo + n)] - lo
-                yield rec, axis, mins, k, n, fit_axis(np.asarray(x[lo:lo + n]), timing.dt, starts, methods, settings)
+                yield (rec, sensor, axis, mins, k, n,
+                       fit_axis(np.asarray(x[lo:lo + n]), timing.dt, starts, methods, settings))
+
+
+def _gyro_slices(data: Path, minutes, first_minute: float, per_run: int, methods, settings=None):
+    """:func:`_adis_slices` of the gyro axes, without the sensor: (record, axis, minutes, k, samples, fits)."""
+    for rec, _, axis, mins, k, n, fits in _adis_slices(data, minutes, first_minute, per_run, methods, settings):
+        yield rec, axis, mins, k, n, fits
 
 
 def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, settings=None) -> pd.DataFrame:
@@ -191,19 +201,24 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
 COVERAGE_SLICE = {"minutes": 30, "first_minute": 20, "per_run": 4}
 #: the coefficients whose slice intervals are held against the whole run's value
 COVERAGE_COEFFICIENTS = ("N", "B", "K")
+#: the sensors whose slices the coverage study fits
+COVERAGE_SENSORS = ("gyro", "accel")
 
 
 def slice_coverage(data: Path, methods, whole: pd.DataFrame, minutes=COVERAGE_SLICE["minutes"],
-                   first_minute=COVERAGE_SLICE["first_minute"], per_run=COVERAGE_SLICE["per_run"]) -> pd.DataFrame:
+                   first_minute=COVERAGE_SLICE["first_minute"], per_run=COVERAGE_SLICE["per_run"],
+                   sensors=COVERAGE_SENSORS) -> pd.DataFrame:
     """Does a short record's interval hold the whole run's value? (the plainest real-data test of an interval)
 
-    Each method on ``per_run`` non-overlapping ``minutes``-long slices of every ADIS gyro axis, the first
-    starting ``first_minute`` minutes in; for N, B, K the interval ``avbench estimate`` shows
+    Each method on ``per_run`` non-overlapping ``minutes``-long slices of every ADIS axis of the ``sensors``
+    (gyros and accelerometers), the first starting ``first_minute`` minutes in; for N, B, K the interval
+    ``avbench estimate`` shows
     (:func:`avbench.recordings.report.shown_interval`: the 95 % interval, or [0, upper] where the record
     does not resolve the coefficient) against
     the same method's value on the whole run (``whole``: ``coefficients.csv``, where that value is "ok").
-    One row per record x axis x slice x method x coefficient: ``value``, ``lower``, ``upper``, ``whole``
-    (display units), ``flag``, ``holds`` (None where either side has no number) and the fit's ``poor_fit``.
+    One row per record x sensor x axis x slice x method x coefficient: ``value``, ``lower``, ``upper``, ``whole``
+    (display units of the sensor), ``flag``, ``holds`` (None where either side has no number), the fit's
+    ``poor_fit`` and ``sensor`` (the last column: the gyro rows keep the columns they had).
 
     For a calibrated interval of a stationary sensor the expected share is a little above ``level``: the
     whole run contains the slice, so the difference of the two estimates varies less than the slice's
@@ -214,41 +229,45 @@ def slice_coverage(data: Path, methods, whole: pd.DataFrame, minutes=COVERAGE_SL
 
     ref = whole.set_index(["record", "sensor", "axis", "method", "coefficient"])
     rows = []
-    for rec, axis, mins, k, n, fits in _gyro_slices(data, (minutes,), first_minute, per_run, methods):
+    for rec, sensor, axis, mins, k, n, fits in _adis_slices(data, (minutes,), first_minute, per_run, methods,
+                                                            sensors=sensors):
         for name, fit in fits.items():
             c = fit.coefficients()
-            entry = method_entry(fit, "gyro", n)["coefficients"]
+            entry = method_entry(fit, sensor, n)["coefficients"]
             for coef in COVERAGE_COEFFICIENTS:
-                unit = DISPLAY_UNITS["gyro"][coef]
-                lower, upper = shown_interval(entry[coef], coef, "gyro") or (math.nan, math.nan)
-                key = (rec, "gyro", axis, name, coef)
+                unit = DISPLAY_UNITS[sensor][coef]
+                lower, upper = shown_interval(entry[coef], coef, sensor) or (math.nan, math.nan)
+                key = (rec, sensor, axis, name, coef)
                 w = float(ref.loc[key, "value"]) if key in ref.index and ref.loc[key, "flag"] == "ok" else math.nan
                 holds = bool(lower <= w <= upper) if np.isfinite([lower, upper, w]).all() else None
                 rows.append({"record": rec, "axis": axis, "start_min": first_minute + k * minutes,
                              "method": name, "coefficient": coef, "unit": unit,
-                             "value": _round(from_si(coef, c[coef], unit)), "lower": _round(lower),
+                             "value": _round(from_si(coef, c[coef], unit, sensor)), "lower": _round(lower),
                              "upper": _round(upper), "whole": _round(w), "flag": entry[coef]["flag"], "holds": holds,
-                             "poor_fit": bool(fit.result.fit_check.poor_fit) or fit.error is not None})
-            print(f"{rec} {axis} {first_minute + k * minutes} min {name}: "
+                             "poor_fit": bool(fit.result.fit_check.poor_fit) or fit.error is not None,
+                             "sensor": sensor})
+            print(f"{rec} {sensor} {axis} {first_minute + k * minutes} min {name}: "
                   + " ".join(f"{r['coefficient']}={r['value']} [{r['lower']}, {r['upper']}] whole {r['whole']}"
                              for r in rows[-len(COVERAGE_COEFFICIENTS):]), flush=True)
     return pd.DataFrame(rows)
 
 
 def slice_coverage_summary(df: pd.DataFrame) -> pd.DataFrame:
-    """Per method and coefficient: axis-slices with both numbers, how many intervals hold the whole run's value
-    (share, Clopper-Pearson 95 % interval), the median interval's half-width and the median distance of the
-    slice's value from the whole run's, both relative to the whole run's value."""
+    """Per method, sensor and coefficient: axis-slices with both numbers, how many intervals hold the whole run's
+    value (share, Clopper-Pearson 95 % interval), the median interval's half-width and the median distance of the
+    slice's value from the whole run's, both relative to the whole run's value (rows without a ``sensor`` are
+    gyro rows)."""
     from avbench.studies.scoring import _clopper_pearson
 
+    df = df.assign(sensor=df["sensor"].fillna("gyro")) if "sensor" in df else df.assign(sensor="gyro")
     out = []
-    for (m, c), g in df.groupby(["method", "coefficient"], sort=False):
+    for (m, sensor, c), g in df.groupby(["method", "sensor", "coefficient"], sort=False):
         g = g[g["holds"].notna()]
         n, k = len(g), int(g["holds"].astype(bool).sum())
         lo, hi = _clopper_pearson(k, n)
         half = ((g["upper"] - g["lower"]) / 2 / g["whole"]).median() if n else math.nan
         dist = ((g["value"] - g["whole"]).abs() / g["whole"]).median() if n else math.nan
-        out.append({"method": m, "coefficient": c, "axis_slices": n, "hold": k,
+        out.append({"method": m, "sensor": sensor, "coefficient": c, "axis_slices": n, "hold": k,
                     "share": _round(k / n if n else math.nan, 3), "share_lo": _round(lo, 3), "share_hi": _round(hi, 3),
                     "not_resolved": int((g["flag"] == "not resolved").sum()),
                     "median_half_width_pct": _round(100 * half, 3), "median_distance_pct": _round(100 * dist, 3)})
@@ -453,8 +472,10 @@ def main(argv=None) -> int:
     ap.add_argument("--per-run", type=int, default=1, help="with --slices: slices of each length per run (default 1)")
     ap.add_argument("--slice-coverage", action="store_true",
                     help="instead: do the default methods' (or --methods) intervals from 30-minute slices of the ADIS "
-                         "gyro axes hold the whole run's value (from OUT/coefficients.csv)? writes "
+                         "gyro and accelerometer axes hold the whole run's value (from OUT/coefficients.csv)? writes "
                          "OUT/slice_coverage.csv and OUT/slice_coverage.md")
+    ap.add_argument("--sensors", default=",".join(COVERAGE_SENSORS),
+                    help="with --slice-coverage: the sensors whose slices are fitted (default: gyro,accel)")
     ap.add_argument("--within-run", action="store_true",
                     help="instead: is the white-noise level the same all through each ADIS gyro run? (30-minute "
                          "windows, analysis of variance; OUT/within_run.csv and OUT/within_run.md)")
@@ -491,7 +512,8 @@ def main(argv=None) -> int:
         from avbench.estimators.base import DEFAULT_METHODS
 
         chosen = methods if args.methods != ",".join(METHODS) else list(DEFAULT_METHODS)
-        sc = slice_coverage(data, chosen, pd.read_csv(out / "coefficients.csv"))
+        sensors = tuple(v for v in args.sensors.split(",") if v)
+        sc = slice_coverage(data, chosen, pd.read_csv(out / "coefficients.csv"), sensors=sensors)
         sc.to_csv(out / "slice_coverage.csv", index=False)
         (out / "slice_coverage.md").write_text(_markdown(slice_coverage_summary(sc)))
         return 0

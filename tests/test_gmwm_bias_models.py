@@ -82,12 +82,14 @@ def pd_interval(model):
 
 
 def test_decisive_record_keeps_the_fitted_models_intervals():
-    """A record with a clear Gauss-Markov hump: decisive evidence, intervals exactly the fitted model's; and the
-    plain ``gmwm`` (no bias evidence) is untouched."""
+    """A record with a clear Gauss-Markov hump: decisive evidence, intervals exactly the fitted model's (the hump
+    ends the white region early, so the cut-offs within it the record accepts widen them too: without those, the
+    fitted model's alone); and the plain ``gmwm`` (no bias evidence) is untouched."""
     g = Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=1e-3, tc=5.0)])
     x = g.simulate(100_000, np.random.default_rng(4))
     est = _fit(x)
     assert est.diagnostics_["bias_evidence"]["decisive"]
+    est.diagnostics_.pop("scale_alternatives", None)
     assert est.conf_int().equals(Estimator.conf_int(est))
     plain = get("gmwm").fit(x, DT)
     assert "bias_evidence" not in plain.diagnostics_ and plain.conf_int().equals(Estimator.conf_int(plain))

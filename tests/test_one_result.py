@@ -104,13 +104,14 @@ def _expected_cell(e: Coefficient, c, sensor) -> str:
 
 def _expected_yaml(fits, sensor, c):
     """The filter yaml's value for one sensor's coefficient, from the FitResults alone: per axis the
-    resolved value, or the upper end of the interval where it is not resolved, reaches zero or the
-    fit is poor; the largest over the axes."""
+    resolved value, or the upper end of the interval where it is not resolved, reaches zero or (but for
+    the noise density N) the fit is poor; the largest over the axes."""
     best = None
     for per_method in fits[sensor].values():
         (fit,) = per_method.values()
         e = fit.result.coefficients[c]
-        if e.status == "ok" and not (e.interval is not None and e.interval[0] <= 0) and not fit.result.fit_check.poor_fit:
+        poor = fit.result.fit_check.poor_fit and c != "N"
+        if e.status == "ok" and not (e.interval is not None and e.interval[0] <= 0) and not poor:
             v = e.value
         elif e.status in ("ok", "not resolved"):
             v = e.upper

@@ -143,24 +143,33 @@ def test_slices_and_spectral_lines(layout, tmp_path):
 
 
 def test_slice_coverage_holds_the_whole_runs_value_against_its_interval(layout):
-    """--slice-coverage: each slice's interval against the whole run's value. White-noise gyros of known N: the
-    truth as the "whole run" value is held by N's 95 % intervals in most of the 12 axis-slices (binomial: 9 or
-    more of 12 at 0.95 has probability 0.998), a value twice the truth by none; a coefficient with no whole-run
-    value gives no verdict."""
+    """--slice-coverage: each slice's interval against the whole run's value, on the gyro and the accelerometer
+    axes. White noise of known N: the truth as the "whole run" value is held by N's 95 % intervals in most of
+    the 12 axis-slices of each sensor (binomial: 9 or more of 12 at 0.95 has probability 0.998), a value twice
+    the truth by none; a coefficient with no whole-run value gives no verdict."""
     root, _ = layout
-    rows = [{"record": f"adis_16405_imu{i}", "sensor": "gyro", "axis": a, "method": "whittle_debiased", "coefficient": "N",
-             "value": n, "flag": "ok"} for i in (1, 2) for a, n in zip("xyz", GYRO_N)]
+    rows = [{"record": f"adis_16405_imu{i}", "sensor": sensor, "axis": a, "method": "whittle_debiased",
+             "coefficient": "N", "value": n, "flag": "ok"}
+            for sensor, truth in (("gyro", GYRO_N), ("accel", ACC_N)) for i in (1, 2) for a, n in zip("xyz", truth)]
     whole = pd.DataFrame(rows)
     sc = real_runs.slice_coverage(root, ["whittle_debiased"], whole, minutes=1, first_minute=0.5, per_run=2)
-    n_rows = sc[sc.coefficient == "N"]
-    assert len(n_rows) == 2 * 3 * 2 and n_rows["holds"].notna().all()
-    assert n_rows["holds"].astype(bool).sum() >= 9
+    assert list(sc.columns[:-1]) == ["record", "axis", "start_min", "method", "coefficient", "unit", "value", "lower",
+                                     "upper", "whole", "flag", "holds", "poor_fit"] and sc.columns[-1] == "sensor"
+    for sensor, unit in (("gyro", "deg/sqrt(h)"), ("accel", "m/s/sqrt(h)")):
+        n_rows = sc[(sc.coefficient == "N") & (sc.sensor == sensor)]
+        assert len(n_rows) == 2 * 3 * 2 and n_rows["holds"].notna().all() and set(n_rows["unit"]) == {unit}
+        assert n_rows["holds"].astype(bool).sum() >= 9, sensor
     assert sc[sc.coefficient != "N"]["holds"].isna().all()  # no whole-run value: no verdict
-    summary = real_runs.slice_coverage_summary(sc).set_index("coefficient")
-    assert summary.loc["N", "axis_slices"] == 12 and summary.loc["N", "share_lo"] <= summary.loc["N", "share"]
+    summary = real_runs.slice_coverage_summary(sc).set_index(["sensor", "coefficient"])
+    for sensor in ("gyro", "accel"):
+        row = summary.loc[(sensor, "N")]
+        assert row["axis_slices"] == 12 and row["share_lo"] <= row["share"]
     doubled = whole.assign(value=whole["value"] * 2)
     wrong = real_runs.slice_coverage(root, ["whittle_debiased"], doubled, minutes=1, first_minute=0.5, per_run=2)
     assert not wrong[wrong.coefficient == "N"]["holds"].astype(bool).any()
+    gyro_only = real_runs.slice_coverage(root, ["whittle_debiased"], whole, minutes=1, first_minute=0.5, per_run=2,
+                                         sensors=("gyro",))
+    assert set(gyro_only["sensor"]) == {"gyro"} and len(gyro_only) == len(sc) // 2
 
 
 def test_within_run_finds_a_level_that_moves_and_not_one_that_stays(tmp_path):

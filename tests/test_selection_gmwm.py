@@ -132,6 +132,40 @@ def test_auto_on_a_record_with_a_flat_first_octave():
     assert int(white.fit["diag"]["m"][0]) == 1 and [t[0] for t in white.tried] == [1, 2]
 
 
+def test_white_reach_is_the_end_of_the_first_white_stretch():
+    """The longest cut-off that keeps the white noise in the fit: the last octave of the first stretch of at
+    least two octaves whose AV slope lies within 1/4 of -1; a lone white octave (a resonance's flank) is
+    passed over; none on a curve without white noise."""
+    tau = DT * M
+    white = 1e-4 / tau
+    # a filter (AV below the white line at the first two octaves), four white octaves, then a flat plateau
+    curve = np.r_[0.4 * white[:1], 0.8 * white[1:2], white[2:6], np.full(4, 3 * white[5])]
+    assert scales.white_reach(tau, curve, 10**7, M, ALL) == 16
+    assert scales.white_reach(tau, curve, 10**7, M, M <= 8) == 8  # only usable octaves count
+    # a hump at the second octave (one falling octave), then a long white stretch
+    hump = np.r_[white[0], 3 * white[1], white[2:]]
+    assert scales.white_reach(tau, hump, 10**7, M, ALL) == 512
+    assert scales.white_reach(tau, np.full(10, 1e-3), 10**7, M, ALL) is None  # flat: no white noise
+    # octaves with fewer than 16 clusters do not count
+    assert scales.white_reach(tau, white, 64 * 16, M, ALL) == 64
+    assert scales.cutoffs("adequate", M, ALL, 3, reach=8) == [1, 2, 4, 8]
+    assert scales.cutoffs(32, M, ALL, 3, reach=8) == [32]  # a fixed cut-off is the user's
+
+
+def test_adequate_within_the_white_reach_takes_the_least_rejected_fit():
+    """Cut off at the white reach with no adequate cut-off: the fit with the largest p-value of Hansen's J, not the
+    sequential test's choice (which stops where J did not fall, here at m0 = 1, the worst fit); without the reach
+    the rule is as before."""
+    fit_on, _ = _stub({1: 1658.0, 2: 1684.0, 4: 408.0, 8: 42.5})
+    c = scales.choose_scales(fit_on, [1, 2, 4, 8], M, ALL, 3, "adequate", reached=True)
+    assert c.fit["m0"] == 8 and "rejects least" in c.reason
+    fit_on, _ = _stub({1: 1658.0, 2: 1684.0, 4: 408.0, 8: 42.5})
+    assert scales.choose_scales(fit_on, [1, 2, 4, 8], M, ALL, 3, "adequate").fit["m0"] == 1
+    fit_on, _ = _stub({1: 1658.0, 2: 5.0})  # an adequate cut-off within the reach is taken as always
+    c = scales.choose_scales(fit_on, [1, 2, 4, 8], M, ALL, 3, "adequate", reached=True)
+    assert c.fit["m0"] == 2 and c.reason.startswith("the shortest cut-off")
+
+
 # -- lines -----------------------------------------------------------------------------------------------------
 
 def test_line_test_finds_a_sinusoid_of_known_frequency():
@@ -159,6 +193,22 @@ def test_line_test_finds_none_in_white_noise():
     assert choice.latents == ("WN",) and not choice.line["significant"]
     assert lines.sinusoid_hint(choice.line) is None
     assert lines.choose_line(("WN",), np.zeros(100), DT, DT * M, auto=True).line is None  # too short to search
+
+
+def test_line_test_background_spans_the_same_band_on_short_records():
+    """A block of the background spans BLOCK_HZ (32 bins of 10,000 s, fewer on shorter records, at least 2), so a
+    0.5 Hz line is searched and found on 10- and 30-minute records as on hours (with fewer bins in its background
+    the evidence is weaker: on 10 minutes a prominence of ~150 gives p ~ 3e-3, so the line here is one of 400
+    times the background); on white noise of those lengths nothing passes the level."""
+    assert lines.block_bins(1_000_000, DT) == 32 and lines.block_bins(2_000_000, DT) == 32
+    assert lines.block_bins(180_000, DT) == 5 and lines.block_bins(60_000, DT) == 2 and lines.block_bins(1000, DT) == 2
+    for n in (60_000, 180_000):
+        t = np.arange(n) * DT
+        x = np.random.default_rng(n).standard_normal(n) + 0.2 * np.sin(2 * np.pi * 0.5 * t + 0.3)
+        found = lines.strongest_line(x, DT)
+        assert found.band[0] < 0.3 and abs(found.f0 - 0.5) <= 2.0 / (n * DT) and found.p_value < 1e-6
+        p = [lines.strongest_line(np.random.default_rng(n + i).standard_normal(n), DT).p_value for i in range(10)]
+        assert min(p) >= lines.LINE_TEST_LEVEL
 
 
 # -- resonance -------------------------------------------------------------------------------------------------

@@ -122,6 +122,33 @@ precise short-tau values too little. On hours of 100 Hz data the short-tau AV va
 to a fraction of a percent, so even small systematic misfits are flagged: read the per-tau ``z``
 to see where.
 
+The record's own covariance (``record_covariance=True``)
+-------------------------------------------------------
+:math:`\\Omega` above is the covariance of a *stationary* process with the fitted spectrum. A sensor whose
+noise level moves during the record (an accelerometer that senses the lab's vibration; on the six
+ADIS16405 runs the AV of 30-minute slices varies between the slices 15-110 times more than the
+stationary model allows at 0.01-0.16 s and 3-9 times at 10-80 s, the gyros about 1 time) is then judged
+against a variability it does not have, and every fit is flagged. With ``record_covariance=True`` the
+variance of each AV value is taken from the record where the record shows it larger: the record is cut
+into :data:`RECORD_BATCHES` equal batches of L samples, the overlapping AV of each batch is computed at
+each check scale m whose batches hold at least :data:`MIN_CLUSTERS` clusters, and their sample variance
+:math:`s_m^2` (B - 1 degrees of freedom) is set against the model's variance of a batch's AV,
+:math:`\\Omega_{mm}\\,(n - 2m + 1)/(L - 2m + 1)` (the 1/M scaling of the covariance formula). The ratio
+:math:`\\rho_m` replaces 1 as a variance factor where it exceeds the one-sided :data:`RECORD_LEVEL` point of
+:math:`\\chi^2_{B-1}/(B-1)` (a stationary record that the model describes rarely does: per scale 1 %);
+scales too long for the batches take the factor of the longest scale they resolve. The covariance
+becomes :math:`S\\Omega S`, :math:`S = \\mathrm{diag}(\\sqrt{f_m})`: the model's correlation between scales,
+the record's variances (batch means, the nonparametric long-run variance of the squared wavelet
+coefficients that GMWM's asymptotic theory uses, Guerrier et al. 2013; Guerrier, Molinari & Stebler 2016
+for its robust form). Where no factor exceeds 1 the check is the one above. Where one does and the
+fit's Jacobian is given (``jacobian``: d model AV / d free log-parameter at the check's scales, the fit
+weighted by :math:`\\Omega^{-1}`), the reference is the weighted chi^2 of the fit's residual
+:math:`r = (I - G(G^T\\Omega^{-1}G)^{-1}G^T\\Omega^{-1})e`, :math:`e \\sim N(0, S\\Omega S)`
+(:func:`record_reference_weights`; ``fit_reference`` "weighted chi2 (record)"). What it does not do: it
+does not make a wrong model pass; its residuals are judged against the record's own variability (the
+tests: a missing term is still flagged on simulated records), and a scale whose batches vary more than
+the model says counts less. The factors are in ``fit_check["record_factor"]``.
+
 Five-term fits (Lv et al. 2015 model, :mod:`avbench.estimators.allan.model`) are checked with their
 continuous model curve; the covariance uses the spectra of the same terms (white angle noise for
 Q, white rate for N, 1/f flicker for B, random walk for K; the ramp R is deterministic and adds
@@ -138,13 +165,18 @@ import numpy as np
 
 from avbench.noise_models.gyro import Gyro
 
-__all__ = ["ALPHA", "MIN_CLUSTERS", "assess_fit", "assess_five_term", "fit_statistic",
+__all__ = ["ALPHA", "MIN_CLUSTERS", "RECORD_BATCHES", "RECORD_LEVEL", "record_variance_factor",
+           "record_reference_weights", "assess_fit", "assess_five_term", "fit_statistic",
            "union_covariance", "refit_weights", "weighted_chi2_sf", "chernoff_bound", "bootstrap_fit_check"]
 
 #: significance level of the poor-fit flag
 ALPHA = 0.01
 #: octave cluster sizes with fewer clusters floor(n/m) are not used by the check
 MIN_CLUSTERS = 8
+#: batches of the record whose AVs' variance gives the check's own variances (``record_covariance``)
+RECORD_BATCHES = 8
+#: one-sided level at which the batches' variance of an AV value counts as larger than the model's
+RECORD_LEVEL = 0.01
 #: below this the Imhof integral is at the level of its error: the two-moment tail is used
 IMHOF_FLOOR = 1e-12
 #: finite-difference step of :func:`refit_weights`, in standard deviations of each AV value
@@ -242,7 +274,7 @@ def chernoff_bound(x, weights) -> float:
     .. math:: P \le \min_{0 < s < 1/(2 w_{max})} e^{-s x} \prod_i (1 - 2 s w_i)^{-1/2},
 
     the moment generating function of the weighted chi^2 at its minimising s, found by bisection on
-    the increasing derivative :math:`-x + \sum_i w_i/(1 - 2 s w_i)`. 1 when x <= sum w (the mean)."""
+    the increasing derivative :math:`-x + \\sum_i w_i/(1 - 2 s w_i)`. 1 when x <= sum w (the mean)."""
     w = np.asarray(weights, dtype=float)
     if not x > float(w.sum()):
         return 1.0
@@ -257,6 +289,65 @@ def chernoff_bound(x, weights) -> float:
             break
     s = lo
     return float(math.exp(min(0.0, -s * x - 0.5 * float(np.sum(np.log1p(-2.0 * s * w))))))
+
+
+def _overlapping_avar(x, m) -> np.ndarray:
+    """The fully overlapping AV of ``x`` (any unit) at cluster sizes ``m``, as :func:`allan_variance` computes it."""
+    c = np.concatenate(([0.0], np.cumsum(np.asarray(x, float) - float(np.mean(x)))))
+    out = np.empty(len(m))
+    for i, mi in enumerate(np.asarray(m, dtype=np.int64)):
+        d = c[2 * mi:] - 2.0 * c[mi:-mi] + c[:-2 * mi]
+        out[i] = float(np.mean(d * d)) / (2.0 * mi * mi)
+    return out
+
+
+def record_variance_factor(rate, m, model_var, n_samples, batches=RECORD_BATCHES, level=RECORD_LEVEL):
+    """Per cluster size ``m``, the factor (>= 1) by which the record's own variance of its AV value exceeds the
+    model's ``model_var`` (the diagonal of the model covariance of the whole record's AV), from the AVs of
+    ``batches`` equal batches (module docstring, "The record's own covariance"): the ratio
+    :math:`\\rho_m = s^2_m / (\\Omega_{mm}(n - 2m + 1)/(L - 2m + 1))` where it exceeds the one-sided ``level``
+    point of chi^2_{B-1}/(B-1), else 1; scales whose batches hold fewer than :data:`MIN_CLUSTERS` clusters take
+    the factor of the longest scale that holds them (1 if none does). The batches are contiguous stretches of the
+    samples given (a record's gaps are not looked for here)."""
+    from scipy.special import chdtri  # chi^2 upper quantile: chdtri(dof, p) is scipy.stats.chi2.isf(p, dof)
+
+    m = np.asarray(m, dtype=np.int64)
+    x = np.asarray(rate, float)
+    L = int(n_samples) // int(batches)
+    factor = np.ones(m.size)
+    seen = (L // np.maximum(m, 1) >= MIN_CLUSTERS) & (np.asarray(model_var, float) > 0)
+    if batches < 2 or not seen.any():
+        return factor
+    ms = m[seen]
+    av = np.array([_overlapping_avar(x[b * L:(b + 1) * L], ms) for b in range(batches)])
+    s2 = np.var(av, axis=0, ddof=1)
+    batch_var = np.asarray(model_var, float)[seen] * (n_samples - 2 * ms + 1) / (L - 2 * ms + 1)
+    rho = s2 / batch_var
+    crit = float(chdtri(batches - 1, level)) / (batches - 1)
+    factor[seen] = np.where(rho > crit, rho, 1.0)
+    last = np.flatnonzero(seen)[-1]
+    factor[last + 1:] = factor[last]
+    return factor
+
+
+def record_reference_weights(omega, factor, jacobian) -> np.ndarray:
+    """Weights of the null distribution of T when the AV values' covariance is ``S omega S``
+    (S = diag(sqrt(factor))) but the fit weighted them by ``omega``: the eigenvalues of
+    :math:`L^{-1}P S\\Omega S P^TL^{-T}`, :math:`LL^T = S\\Omega S`,
+    :math:`P = I - G(G^T\\Omega^{-1}G)^{-1}G^T\\Omega^{-1}` (G = ``jacobian``, the fitted curve's derivative in
+    the free parameters at the check's scales). With all factors 1 they are k - p ones and p zeros (chi^2_{k-p})."""
+    from scipy.linalg import cho_factor, cho_solve, cholesky, solve_triangular
+
+    G = np.asarray(jacobian, float)
+    s = np.sqrt(np.asarray(factor, float))
+    rec = omega * np.outer(s, s)
+    cf = cho_factor(omega, lower=True)
+    WG = cho_solve(cf, G)
+    P = np.eye(omega.shape[0]) - G @ np.linalg.solve(G.T @ WG, WG.T)
+    L = cholesky(rec, lower=True)
+    A = solve_triangular(L, P @ rec @ P.T, lower=True)
+    A = solve_triangular(L, A.T, lower=True)
+    return np.clip(np.linalg.eigvalsh(0.5 * (A + A.T)), 0.0, None)
 
 
 def union_covariance(m_fit, m_check, cov_gyro, n_samples, cov_scale=1.0):
@@ -325,7 +416,7 @@ def refit_weights(refit, m_check, cov_gyro, n_samples, cov_scale=1.0, rel_step=R
 
 
 def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alpha=ALPHA, reference=None,
-               cov_scale=1.0, refit=None) -> dict:
+               cov_scale=1.0, refit=None, record_covariance=False, jacobian=None) -> dict:
     """The poor-fit diagnostics of one fitted model on one record (module docstring).
 
     Parameters
@@ -354,6 +445,12 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
         ``tau``; ``model_jacobian(tau)``, optional, its derivative at ``avar_fit``
         (:func:`refit_weights`). The p-value then comes from the weighted chi^2 of :func:`refit_weights` (the
         estimator's own inefficiency taken into account) instead of chi^2 with k - p dof.
+    record_covariance : bool
+        Take each AV value's variance from the record's batches where they show it larger than the model
+        (module docstring, "The record's own covariance"; :func:`record_variance_factor`).
+    jacobian : (taus, array) or None
+        With ``record_covariance``: the fitted curve's derivative in the fit's free parameters at ``taus``
+        (a fit weighted by the model covariance); the reference is then :func:`record_reference_weights`'s.
 
     Returns
     -------
@@ -388,9 +485,29 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
         cov = union[1][np.ix_(i_c, i_c)]
     else:
         cov = av_covariance(cov_gyro, m, n) * cov_scale
+    factor = None
+    if record_covariance and refit is None and np.any(cov):
+        factor = record_variance_factor(rate, m, np.diag(cov), n)
+        out["fit_check"]["record_factor"] = factor
+        if np.any(factor > 1.0):
+            cov = cov * np.sqrt(np.outer(factor, factor))
+        else:
+            factor = None
     T, dof, p, z = fit_statistic(avar, model, cov, n_params)
     out["fit_check"]["z"] = z
     reference_name = "chi2"
+    if factor is not None and jacobian is not None and np.isfinite(T):
+        jt, jac = np.asarray(jacobian[0], float), np.asarray(jacobian[1], float)
+        rows = np.searchsorted(jt, tau)
+        if jac.ndim == 2 and jac.shape[1] and np.all(rows < jt.size) and np.allclose(jt[np.minimum(rows, jt.size - 1)], tau):
+            try:
+                lam = record_reference_weights(cov / np.sqrt(np.outer(factor, factor)), factor, jac[rows])
+            except (np.linalg.LinAlgError, ValueError):
+                lam = None
+            if lam is not None and np.all(np.isfinite(lam)) and lam.sum() > 0:
+                p = weighted_chi2_sf(T, lam)
+                reference_name = "weighted chi2 (record)"
+                out["fit_check"]["weights"] = lam
     if union is not None and np.isfinite(T):
         try:
             lam, _ = refit_weights(refit, m, cov_gyro, n, cov_scale, union=union)

@@ -70,7 +70,10 @@ record has a spectral line (``lines="auto"``, :mod:`~avbench.estimators.selectio
 where a band stands out of the spectrum (``resonance="auto"``,
 :mod:`~avbench.estimators.selection.resonance`), the evidence between a Gauss-Markov and a flicker
 bias instability (``bias_evidence``, :mod:`~avbench.estimators.selection.bias_model`), and the bounds
-of coefficients the fit does not resolve (:mod:`~avbench.estimators.selection.bounds`).
+of coefficients the fit does not resolve (:mod:`~avbench.estimators.selection.bounds`). With ``min_m="adequate"`` the
+shortest scale is never beyond the record's white region (:func:`~avbench.estimators.selection.scales.white_reach`); where that
+region is short (an accelerometer's, between its filter and the set-up's 0.5 Hz line) the intervals hold each
+cut-off within it the record accepts (``diagnostics_["scale_alternatives"]``, :meth:`GMWM.conf_int`).
 
 Solver
 ------
@@ -105,7 +108,8 @@ from avbench.estimators.likelihood._trf import lower_triangular_solver, trf_boun
 from avbench.estimators.selection import bias_model, bounds
 from avbench.estimators.selection.lines import choose_line, frequency_at_bound, sinusoid_hint
 from avbench.estimators.selection.resonance import band_seen, choose_resonance, resonance_hint
-from avbench.estimators.selection.scales import ScaleChoice, choose_scales, cutoffs, shorter_adequate
+from avbench.estimators.selection.scales import (ScaleChoice, choose_scales, cutoffs, reach_binds, shorter_adequate,
+                                                 white_reach)
 from avbench.estimators.settings import Boolean, Check, Interval, NoneValue, Options
 from avbench.estimators.threads import one_blas_thread
 from avbench.noise_models.latents import (  # noqa: F401  (LATENTS, build_gyro: importable from here)
@@ -175,6 +179,11 @@ class WaveletVariance(NamedTuple):
     diagnostics: dict | None = None
 
 
+def _alternative_units(min_m) -> dict:
+    """How an entry of ``diagnostics_["scale_alternatives"]`` scales with the record's unit."""
+    return {"coefficients": 1, "std_err": 1}
+
+
 #: ``model``'s grammar, as a declared setting reads it
 _MODEL = (f"a latent model: names from {', '.join(LATENT_TERMS)} joined by '+' (e.g. 'WN+GM+RW') or a list of "
           "them, without repeats, at most one term per coefficient")
@@ -212,7 +221,13 @@ class GMWM(Estimator):
         the first octaves over more than one scale; on a record the model describes the all-scale fit
         passes with probability 1 - 0.001 and the choice, and the poor-fit check's false-alarm rate, are
         those of all scales. The scales it drops are the sensor's front end as far as this model can tell
-        and are reported (``min_m``, ``scale_choice``), not explained.
+        and are reported (``min_m``, ``scale_choice``), not explained. ``"adequate"`` keeps the record's white
+        noise in the fit: no cut-off beyond the first stretch of octaves where the AV falls nearly as 1/tau
+        (:func:`~avbench.estimators.selection.scales.white_reach`; beyond it N would be read off the bias
+        region, where the filter term trades with the other terms); where that stops it short and no cut-off
+        within it is adequate, the one Hansen's J rejects least is taken. ``"auto"`` has no such limit: it is
+        the choice of the simulated studies' GMWM, whose committed results it reproduces (with the limit, the
+        GMWM rows of two flicker gyros of ``grand_comparison`` move: N closer to the truth, K further).
     weighting : {"model", "diagonal"}
         "model" (default): two-step efficient GMM with the parametric covariance
         :func:`av_covariance`; "diagonal": stop after the first step (edf weights).
@@ -245,6 +260,19 @@ class GMWM(Estimator):
         the same model with GM and FL exchanged, on the same scales, GMM-AIC weights); the reported B is
         the model's own, and where the evidence is not decisive :meth:`conf_int` widens each interval to
         hold the other model's.
+    fit_covariance : {"model", "record"}
+        The covariance the final poor-fit check and the standard errors take for the AV values. "model" (default
+        here): the stationary model's (:func:`av_covariance`). "record": each value's variance from the record's
+        batches where they show it larger than the model allows
+        (:func:`~avbench.estimators.allan.fit_check.record_variance_factor`: a sensor whose noise moves during the
+        record), with the model's correlation between scales; the check's reference is then the weighted chi^2 of
+        a fit weighted by the model covariance, and the standard errors are the GMM sandwich
+        :math:`H^{-1}G^T\\Omega^{-1}\\Omega_r\\Omega^{-1}GH^{-1}`, :math:`H = G^T\\Omega^{-1}G` (Hansen 1982; with
+        the record's long-run covariance as GMWM's asymptotic theory has it, Guerrier et al. 2013), each
+        coefficient's standard error (and the alternatives' that :meth:`conf_int` unions) multiplied by the ratio
+        of its sandwich to its model standard error where that exceeds 1 (``diagnostics_["record_se_factor"]``).
+        The fit itself (weights, Hansen's J of the scale choice, the resonance's acceptance) keeps the model
+        covariance. Where the record shows no excess the two are the same.
     filter_tf : float or None
         None (default): the filter latent ``FW``'s time constant is fitted. A number (s): the sensor's
         front-end filter is known (a datasheet: a first-order low-pass of -3 dB bandwidth f has
@@ -263,7 +291,8 @@ class GMWM(Estimator):
         ``unresolved`` (coefficients the fit does not resolve, with their bounds:
         :mod:`avbench.estimators.selection.bounds`) and the poor-fit check of
         :mod:`avbench.estimators.allan.fit_check` (``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``,
-        ``fit_check``).
+        ``fit_check``; with ``fit_covariance="record"`` also ``fit_check["record_factor"]``, each scale's variance
+        factor, and ``record_se_factor``, the coefficients' standard-error factors where above 1).
 
     Examples
     --------
@@ -291,18 +320,20 @@ class GMWM(Estimator):
         "resonance": [Options("model", "auto")],
         "bias_evidence": [Boolean()],
         "filter_tf": [NoneValue(), Interval(float, 0, None, closed="neither")],
+        "fit_covariance": [Options("model", "record")],
     }
 
     #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
     diagnostic_units = {"line_test": {"amplitude": 1}, "resonance_test": {"sigma": 1},
-                        "bias_evidence": {m: {"B": 1, "coefficients": 1, "std_err": 1} for m in ("GM", "FL")}}
+                        "bias_evidence": {m: {"B": 1, "coefficients": 1, "std_err": 1} for m in ("GM", "FL")},
+                        "scale_alternatives": _alternative_units}
 
     #: run the poor-fit check (:func:`avbench.estimators.allan.fit_check.assess_fit`); not a setting: an estimator
     #: that uses the GMWM fit only as its start sets it False on its instance
     _assess = True
 
     def __init__(self, *, model="WN+GM+RW", min_clusters=8, min_m="auto", weighting="model", n_starts=6,
-                 lines="model", resonance="model", bias_evidence=False, filter_tf=None):
+                 lines="model", resonance="model", bias_evidence=False, filter_tf=None, fit_covariance="model"):
         self.model = model
         self.min_clusters = min_clusters
         self.min_m = min_m
@@ -312,6 +343,7 @@ class GMWM(Estimator):
         self.resonance = resonance
         self.bias_evidence = bias_evidence
         self.filter_tf = filter_tf
+        self.fit_covariance = fit_covariance
 
     # -- settings --------------------------------------------------------------------------------
     def check_settings(self):
@@ -359,14 +391,23 @@ class GMWM(Estimator):
         band = functools.cache(lambda: band_seen(rate, dt, wv.tau[usable], line))  # one Welch pass
         resonance = band() if "RS" in latents else None
         best, tried, _ = self._scale_choice(latents, *args, resonance)
+        others = best.pop("alternatives", None)  # None: the white reach does not bind
         resonance_test = None
         if self.resonance == "auto" and "RS" not in latents:
             def refit(lats, found, below, accept, max_tau, seed):
                 return self._scale_choice(lats, *args, found, below=below, accept=accept, max_tau=max_tau, seed=seed)
 
             check = (lambda fit, lats: self._fit_check(fit, lats, rate, dt, wv, usable, n)[0]) if self._assess else None
+            plain, plain_latents = best, latents
             best, tried, latents, resonance_test = choose_resonance(latents, best, tried, wv.m, usable, band, refit,
                                                                     check)
+            if others is not None and best is not plain:  # the model without the resonance: adequate, and competing
+                others = [(int(plain["diag"]["m"][0]), plain)] + others
+                alternatives = self._alternatives(plain_latents, others, dt)
+            else:
+                alternatives = self._alternatives(latents, others or [], dt)
+        else:
+            alternatives = self._alternatives(latents, others or [], dt)
         evidence = None
         if self.bias_evidence and {"GM", "FL"} & set(latents):
             evidence = self._bias_evidence(latents, best, wv, usable, n, dt, line, band() if "RS" in latents else None)
@@ -382,9 +423,12 @@ class GMWM(Estimator):
             diag["scale_choice"] = [{"min_m": a, "J_stat": b, "n_scales": c} for a, b, c in tried]
         if evidence is not None:
             diag["bias_evidence"] = evidence
+        if alternatives:
+            diag["scale_alternatives"] = alternatives
         if self.resonance == "auto":
             diag["resonance_test"] = resonance_test or {"included": "RS" in latents, "reason": "in the model"}
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
+            diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
             return best["coefs"], {}, diag
         tau_ok, upper_av = bounds.av_upper_limits(wv.tau, wv.avar, wv.edf, usable)
         unresolved = {}
@@ -395,8 +439,11 @@ class GMWM(Estimator):
                                                known=unresolved))
         if unresolved:
             diag["unresolved"] = unresolved
-        check, gyro = self._fit_check(best, latents, rate, dt, wv, usable, n)
+        check, gyro = self._fit_check(best, latents, rate, dt, wv, usable, n, self.fit_covariance == "record")
         diag.update(check)
+        if self.fit_covariance == "record":
+            self._record_std_err(diag, latents, gyro, check["fit_check"].get("record_factor"), n, wv.cov_scale)
+        diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
         diag.update(wv.diagnostics or {})
         diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
         return best["coefs"], {}, diag
@@ -405,20 +452,24 @@ class GMWM(Estimator):
         """The intervals of :meth:`Estimator.conf_int`, each widened to hold the same coefficient's interval
         (and value) under the other bias-instability model where the record cannot choose between them
         (``bias_evidence`` not decisive: the other model's Akaike weight is at least 1 -
-        :data:`~avbench.estimators.selection.bias_model.BIAS_EVIDENCE_WEIGHT`).
+        :data:`~avbench.estimators.selection.bias_model.BIAS_EVIDENCE_WEIGHT`), and under each longer cut-off
+        within the white reach that Hansen's J accepts (``scale_alternatives``: where the record's white region is
+        short, which octaves of the sensor's front end a fit keeps moves N, through the filter term, by more than
+        its standard error, and the record accepts several).
 
-        The reported value stays this model's; the interval is the union of the two models' intervals
+        The reported value stays this model's; the interval is the union of the models' intervals
         (model uncertainty kept in the interval, as model-averaged intervals do, Buckland, Burnham &
-        Augustin 1997, but conservative: it holds the coefficient under either model)."""
+        Augustin 1997, but conservative: it holds the coefficient under each model)."""
         import pandas as pd
 
         from avbench.estimators.uncertainty import interval
 
         ci = super().conf_int(level, conservative)
+        alts = list((self.diagnostics_.get("scale_alternatives") or {}).values())
         alt = bias_model.undecided_alternative(self.diagnostics_.get("bias_evidence"))
-        if alt is not None:
+        for alt in alts + ([alt] if alt is not None else []):
             coefs = pd.Series(alt["coefficients"], dtype=float)
-            other = interval(coefs, pd.Series(alt["std_err"], dtype=float), level, conservative)
+            other = interval(coefs, pd.Series(alt["std_err"], dtype=float).reindex(coefs.index), level, conservative)
             for c in coefs.index:
                 own = self.coefficients_.get(c, math.nan)
                 v = coefs[c]
@@ -429,8 +480,31 @@ class GMWM(Estimator):
                 ci.loc[c] = (lo, hi)
         return ci
 
-    def _fit_check(self, best, latents, rate, dt, wv, usable, n):
-        """(the poor-fit check of :func:`assess_fit` for fit ``best`` of ``latents``, the fitted latent gyro)."""
+    @staticmethod
+    def _alternatives(latents, fits, dt) -> dict:
+        """``diagnostics_["scale_alternatives"]``: for each longer cut-off within the white reach that Hansen's J
+        accepts (:func:`~avbench.estimators.selection.scales.choose_scales`'s ``fit["alternatives"]``), its
+        ``coefficients`` and ``std_err`` (SI), keyed by its shortest cluster size. A fit whose Gauss-Markov term
+        peaks within three octaves of its shortest tau resolves no B (:mod:`~avbench.estimators.selection.bounds`):
+        it gives N only."""
+        from avbench.noise_models.markov_terms import GM_PEAK_TAU_OVER_TC
+
+        out = {}
+        for m0, fit in fits:
+            coefs = dict(fit["coefs"])
+            if "GM" in latents:
+                tc = fit["diag"]["values"][param_index(latents, "GM") + LATENT_TERMS["GM"].fit_parameters.index("tc")]
+                if GM_PEAK_TAU_OVER_TC * tc < bounds.GM_RESOLVED_PEAK_FACTOR * fit["diag"]["tau"][0]:
+                    coefs = {c: v for c, v in coefs.items() if c == "N"}
+            se = fit["diag"]["std_err"]
+            out[str(m0)] = {"coefficients": {c: float(v) for c, v in coefs.items()},
+                            "std_err": {c: float(se[c]) for c in coefs if c in se.index}, "J_stat": float(fit["J_stat"]),
+                            "n_scales": int(fit["k"])}
+        return out
+
+    def _fit_check(self, best, latents, rate, dt, wv, usable, n, record=False):
+        """(the poor-fit check of :func:`assess_fit` for fit ``best`` of ``latents``, the fitted latent gyro);
+        ``record``: with the record's own variances (``fit_covariance="record"``)."""
         diag = best["diag"]
         gyro = build_gyro(latents, diag["values"], dt, 2.0 * n * dt)  # FL: tau_max as in _fit_scales
         model_avar = gyro.avar
@@ -444,8 +518,52 @@ class GMWM(Estimator):
 
         reference = None if wv.reference_is_classical else (wv.tau, wv.avar, wv.m, n)
         n_par = self._n_free(latents)
+        jac = (diag["tau"], diag["fit_jacobian"]) if record and "fit_jacobian" in diag else None
         return assess_fit(rate, dt, model_avar, gyro, n_par, (diag["tau"][0], diag["tau"][-1]),
-                          reference=reference, cov_scale=wv.cov_scale), gyro
+                          reference=reference, cov_scale=wv.cov_scale, record_covariance=record, jacobian=jac), gyro
+
+    @staticmethod
+    def _record_std_err(diag, latents, gyro, factor, n, cov_scale):
+        """Standard errors under the record's own variances (``fit_covariance="record"``): the GMM sandwich over the
+        model-weighted fit's, per coefficient, where it is larger; the same ratio widens the alternatives
+        :meth:`conf_int` unions. Needs the check's scales to be the fit's (else nothing changes)."""
+        if factor is None or not np.any(np.asarray(factor) > 1.0) or "fit_jacobian" not in diag:
+            return
+        G, tau = np.asarray(diag["fit_jacobian"], float), np.asarray(diag["tau"], float)
+        factor = np.asarray(factor, float)
+        if factor.size != tau.size or G.shape[1] == 0:
+            return
+        free = diag["fit_free"]
+        omega = av_covariance(gyro, np.asarray(diag["m"], dtype=np.int64), n) * cov_scale
+        try:
+            WG = np.linalg.solve(omega, G)
+            Hinv = np.linalg.inv(G.T @ WG)
+            s = np.sqrt(factor)
+            meat = WG.T @ (omega * np.outer(s, s)) @ WG
+            V = Hinv @ meat @ Hinv
+        except np.linalg.LinAlgError:
+            return
+        ratio = np.sqrt(np.clip(np.diag(V), 0, None) / np.diag(Hinv))
+        se_factor = {}
+        for lat in latents:
+            coef = LATENT_TERMS[lat].coefficient
+            i = param_index(latents, lat)
+            if coef is None or not free[i]:
+                continue
+            r = float(ratio[int(np.count_nonzero(free[:i]))])
+            if np.isfinite(r) and r > 1.0:
+                se_factor[coef] = r
+        if not se_factor:
+            return
+        diag["record_se_factor"] = se_factor
+        std = diag["std_err"].copy()
+        for c, r in se_factor.items():
+            std[c] = std[c] * r
+        diag["std_err"] = std
+        entries = list((diag.get("scale_alternatives") or {}).values())
+        entries += [v for k, v in (diag.get("bias_evidence") or {}).items() if k in ("GM", "FL")]
+        for entry in entries:
+            entry["std_err"] = {c: v * se_factor.get(c, 1.0) for c, v in entry["std_err"].items()}
 
     def _scale_choice(self, latents, wv, usable, n, dt, line, resonance=None, below=None, accept=None, max_tau=np.inf,
                       seed=None) -> ScaleChoice:
@@ -455,7 +573,8 @@ class GMWM(Estimator):
         the parameters of the other latents to start from (:meth:`_fit_scales`)."""
         m_all = wv.m
         n_par = self._n_free(latents)
-        lows = cutoffs(self.min_m, m_all, usable, n_par)
+        reach = white_reach(wv.tau, wv.avar, n, m_all, usable) if self.min_m == "adequate" else None
+        lows = cutoffs(self.min_m, m_all, usable, n_par, reach)
 
         def fit_on(keep):
             return self._fit_scales(latents, wv.tau[keep], wv.avar[keep], m_all[keep], wv.edf[keep], n, dt,
@@ -471,7 +590,8 @@ class GMWM(Estimator):
                 f"m >= {self.min_m}), "
                 f"fewer than the {n_par + 1} needed for model {'+'.join(latents)}; use a longer record"
             )
-        return choose_scales(fit_on, lows, m_all, usable, n_par, self.min_m)
+        binds = reach_binds(reach, m_all, usable, n_par)
+        return choose_scales(fit_on, lows, m_all, usable, n_par, self.min_m, binds)
 
     def _bias_evidence(self, latents, best, wv, usable, n, dt, line, resonance) -> dict:
         """``diagnostics_["bias_evidence"]``: the same latents with GM and FL exchanged, fitted on the scales of
@@ -546,6 +666,9 @@ class GMWM(Estimator):
             "weighting": self.weighting,
             "n_evaluations": int(sum(s.nfev for s in steps)),
         }
+        free = (u > lo + 1e-6) & (u < hi - 1e-6)
+        diag["fit_free"] = free  # the fitted curve's derivative in the free log-parameters (fit_covariance="record")
+        diag["fit_jacobian"] = model_av.jacobian(u)[:, free]
         diag["stop_reason"] = best.stop_reason
         if not best.converged:
             diag["failure"] = f"least_squares: {best.message}"
@@ -649,15 +772,18 @@ class GMWMFiltered(GMWM):
     ``SN`` when the record's strongest spectral line passes the line test), ``min_m="adequate"`` (the
     shortest cut-off the model fits by Hansen's J; it differs from ``"auto"`` only where the all-scale fit
     is rejected), ``resonance="auto"`` (a band-pass Gauss-Markov term ``RS`` where a band stands out of
-    the spectrum and lets the model keep shorter scales) and ``bias_evidence=True`` (the record's weights
+    the spectrum and lets the model keep shorter scales), ``bias_evidence=True`` (the record's weights
     for a Gauss-Markov against a flicker B; where they are not decisive, :meth:`GMWM.conf_int` widens each
-    interval to hold the flicker fit's too).
+    interval to hold the flicker fit's too) and ``fit_covariance="record"`` (the poor-fit check and the standard
+    errors take each AV value's variance from the record where it is larger than the stationary model's: a real
+    sensor's noise level may move during the record).
     """
 
     #: the settings of :class:`GMWM`, with the same constraints
     parameter_constraints = {**GMWM.parameter_constraints}
 
     def __init__(self, *, model=REAL_SENSOR_MODEL, min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
-                 lines="auto", resonance="auto", bias_evidence=True, filter_tf=None):
+                 lines="auto", resonance="auto", bias_evidence=True, filter_tf=None, fit_covariance="record"):
         super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting, n_starts=n_starts,
-                         lines=lines, resonance=resonance, bias_evidence=bias_evidence, filter_tf=filter_tf)
+                         lines=lines, resonance=resonance, bias_evidence=bias_evidence, filter_tf=filter_tf,
+                         fit_covariance=fit_covariance)

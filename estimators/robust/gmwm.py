@@ -408,7 +408,8 @@ class GMWMDespiked(GMWM):
     """GMWM on the record with its spikes left out (beyond Guerrier et al.; module docstring).
 
     Its model and choices are :class:`~avbench.estimators.likelihood.gmwm.GMWMFiltered`'s:
-    ``FW+GM+RW`` (the sensor's filter modelled), ``lines="auto"``, ``min_m="adequate"``; with no
+    ``FW+GM+RW`` (the sensor's filter modelled), ``lines="auto"``, ``min_m="adequate"``,
+    ``fit_covariance="record"`` (the record's batches are of the samples as recorded, spikes included); with no
     spike found the fit is ``gmwm_filtered``'s. With the plain ``WN+GM+RW`` and ``min_m="auto"`` the
     Gauss-Markov term takes the filter's shape on short records: on the first 30/60-minute slices of
     the 18 ADIS16405 gyro axes N and B are in 1.9-3.0 deg/sqrt(h) and 15-80 deg/h on 44 % / 72 % with
@@ -470,10 +471,10 @@ class GMWMDespiked(GMWM):
 
     def __init__(self, *, model=REAL_SENSOR_MODEL, min_clusters=8, min_m="adequate", weighting="model", n_starts=6,
                  lines="auto", resonance="auto", bias_evidence=True, filter_tf=None, half_window=5, threshold=5.0,
-                 gap_tol=5e-3):
+                 gap_tol=5e-3, fit_covariance="record"):
         super().__init__(model=model, min_clusters=min_clusters, min_m=min_m, weighting=weighting,
                          n_starts=n_starts, lines=lines, resonance=resonance, bias_evidence=bias_evidence,
-                         filter_tf=filter_tf)
+                         filter_tf=filter_tf, fit_covariance=fit_covariance)
         self.half_window = half_window
         self.threshold = threshold
         self.gap_tol = gap_tol

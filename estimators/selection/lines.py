@@ -18,15 +18,19 @@ the effective number is smaller and p is conservative).
 Choices (not from a paper): periodogram of the whole record with a Hann window after removing the
 mean. A real line is not one bin wide (a sensor's line wanders in frequency over a long record), so
 the background of bin k is taken beside it, not on it: the periodogram is cut into blocks
-of :data:`BLOCK` bins, and the background is the median of the bins of the blocks 2 to
-:data:`FAR_BLOCKS` away on each side (N = 2 (FAR_BLOCKS - 1) BLOCK bins). Its sampling error enters the
+of b bins, and the background is the median of the bins of the blocks 2 to
+:data:`FAR_BLOCKS` away on each side (N = 2 (FAR_BLOCKS - 1) b bins). A block spans a fixed band of
+frequencies, :data:`BLOCK_HZ` (a line wanders in hertz, not in bins): b = floor(BLOCK_HZ T) bins of a
+record of T seconds, at most :data:`BLOCK` and at least :data:`MIN_BLOCK` (b = 32 on a 10,000 s record
+and longer ones, 5 on 30 minutes, 2 on 10 minutes). Its sampling error enters the
 p-value: the median of N' independent exponentials (N' = N / 2 for the Hann window's correlated
 neighbours): the ratio of an exponential E to the median M of N' others, scaled by ln 2 as above, exceeds
 r with probability :math:`E[e^{-r' M}] = \prod_i j_i / (j_i + r')` over the order statistics that make
 the median (M is a sum of independent exponentials over N', N' - 1, ..., r' = r M_0, M_0 = the median's
 mean, ~ln 2); p is K times that (Bonferroni), capped at 1. The frequencies searched start where the background's span is at most a
-fifth of the frequency (f >= 10 FAR_BLOCKS BLOCK df, df = 1/T; 0.26 Hz on 2.8 h records, 1.4 Hz on
-30 minutes) and stop FAR_BLOCKS blocks below the Nyquist frequency. The line's variance is the
+fifth of the frequency (f >= 10 FAR_BLOCKS b df, df = 1/T: 0.256 Hz on records of 10,000 s, 0.22 Hz on
+30 minutes, 0.27 Hz on 10 minutes, where a record of 10 minutes to hours sees the same lines) and stop
+FAR_BLOCKS blocks below the Nyquist frequency. The line's variance is the
 periodogram's excess over the background summed over the bins within max(0.02 Hz, 3 df) of the peak,
 its amplitude :math:`A = \sqrt{2\,\mathrm{variance}}`.
 """
@@ -42,11 +46,17 @@ from avbench.estimators.selection._kept import per_record
 from avbench.noise_models.latents import parse_model
 from avbench.noise_models.term_base import FitHint
 
-__all__ = ["SpectralLine", "strongest_line", "line_evidence", "BLOCK", "FAR_BLOCKS", "LINE_TEST_LEVEL",
+__all__ = ["SpectralLine", "strongest_line", "line_evidence", "BLOCK", "BLOCK_HZ", "MIN_BLOCK", "block_bins",
+           "FAR_BLOCKS", "LINE_TEST_LEVEL",
            "LINE_FREQUENCY_FACTOR", "LineChoice", "choose_line", "sinusoid_hint", "frequency_at_bound"]
 
-#: bins per block of the background (module docstring)
+#: the most bins in a block of the background (module docstring)
 BLOCK = 32
+#: the band a block of the background spans (Hz): 32 bins of a 10,000 s record; on a shorter record a
+#: block holds fewer bins, and the search starts at the same frequency
+BLOCK_HZ = 0.0032
+#: the fewest bins in a block of the background (the p-value counts the background's bins)
+MIN_BLOCK = 2
 #: the background of a bin: the blocks 2 .. FAR_BLOCKS away on each side
 FAR_BLOCKS = 8
 
@@ -72,6 +82,16 @@ class SpectralLine(NamedTuple):
     band: tuple[float, float]
 
 
+def block_bins(n, dt) -> int:
+    """The bins of a block of the background on a record of ``n`` samples every ``dt`` s (module docstring):
+    floor(:data:`BLOCK_HZ` n dt) within [:data:`MIN_BLOCK`, :data:`BLOCK`].
+
+    >>> block_bins(1_000_000, 0.01), block_bins(180_000, 0.01), block_bins(60_000, 0.01)
+    (32, 5, 2)
+    """
+    return int(min(BLOCK, max(MIN_BLOCK, math.floor(BLOCK_HZ * n * dt + 1e-9))))
+
+
 @per_record  # each method fitted to an axis asks for the same record's line
 def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     """The strongest line of record ``x`` (sample interval ``dt``) in ``band`` (Hz; default: every
@@ -80,8 +100,11 @@ def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     frequency where the background's span is a fifth of the frequency (a table of a fixed band on
     short records; the p-value is then less safe on a steep spectrum)."""
     x = np.asarray(x, dtype=float)
-    span = FAR_BLOCKS * BLOCK
-    if x.ndim != 1 or x.size < 8 * span:
+    if x.ndim != 1:
+        return None
+    block = block_bins(x.size, dt)
+    span = FAR_BLOCKS * block
+    if x.size < 8 * span:
         return None
     x = x - x.mean()
     w = np.hanning(x.size)
@@ -94,9 +117,9 @@ def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     idx = np.flatnonzero((f >= lo) & (f <= hi))
     if idx.size == 0:
         return None
-    n_blocks = P.size // BLOCK
-    blocks = P[: n_blocks * BLOCK].reshape(n_blocks, BLOCK)
-    bl = np.minimum(idx // BLOCK, n_blocks - 1)
+    n_blocks = P.size // block
+    blocks = P[: n_blocks * block].reshape(n_blocks, block)
+    bl = np.minimum(idx // block, n_blocks - 1)
     offsets = np.r_[-FAR_BLOCKS:-1, 2:FAR_BLOCKS + 1]
     # the median over the neighbouring blocks' bins, for the block of each searched bin (one per block)
     ub, inv = np.unique(bl, return_inverse=True)
@@ -108,7 +131,7 @@ def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     k, r = int(idx[j]), float(ratio[j])
     line = np.abs(f - f[k]) < max(0.02, 3 * df)
     var = max(0.0, float((P[line] - bg[j]).sum())) * 2.0 / (x.size * float(np.sum(w * w)))
-    n_eff = offsets.size * BLOCK // 2
+    n_eff = offsets.size * block // 2
     j_up = np.arange(n_eff - (n_eff + 1) // 2 + 1, n_eff + 1, dtype=float)
     log_single = float(np.sum(np.log(j_up / (j_up + r * math.log(2.0) * n_eff / (n_eff + 0.5)))))
     p = min(1.0, idx.size * math.exp(log_single))

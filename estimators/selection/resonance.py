@@ -9,9 +9,9 @@ the model without it drops scales, such a band stands out (prominence at least
 :data:`RESONANCE_MIN_PROMINENCE`, significant at :data:`RESONANCE_TEST_LEVEL`), and the model with it
 keeps a shorter cut-off that (a) Hansen's J does not reject at
 :data:`~avbench.estimators.selection.scales.SCALE_TEST_LEVEL` keeping the longer half of the scales
-(``min_m="adequate"``'s rule), (b) sees the band (shortest tau at most :data:`RESONANCE_SEEN` / f0)
-and (c) passes the poor-fit check. The centre frequency stays within
-:data:`RESONANCE_FREQUENCY_FACTOR` of the band found (:func:`resonance_hint`).
+(``min_m="adequate"``'s rule), (b) sees the band (shortest tau at most :data:`RESONANCE_SEEN` / f0),
+(c) is a resonance (quality factor at least :data:`RESONANCE_MIN_Q`) and (d) passes the poor-fit check. The
+centre frequency stays within :data:`RESONANCE_FREQUENCY_FACTOR` of the band found (:func:`resonance_hint`).
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from avbench.noise_models.sensor_terms import RESONANCE_MAX_FREQUENCY
 from avbench.noise_models.term_base import FitHint
 
 __all__ = ["RESONANCE_MAX_FREQUENCY", "RESONANCE_SEEN", "RESONANCE_FREQUENCY_FACTOR", "RESONANCE_MIN_PROMINENCE",
-           "RESONANCE_TEST_LEVEL", "ResonanceBand", "ResonanceChoice", "find_band", "band_seen", "resonance_hint",
-           "choose_resonance"]
+           "RESONANCE_MIN_Q", "RESONANCE_TEST_LEVEL", "ResonanceBand", "ResonanceChoice", "find_band", "band_seen",
+           "resonance_hint", "choose_resonance"]
 
 #: a resonance is kept only where the shortest tau fitted is at most this over its centre frequency (twice its
 #: AV's peak tau, 0.371 / f0): beyond, only its 1/tau^2 tail is fitted, a shape with no resonance in it
@@ -38,6 +38,11 @@ RESONANCE_SEEN = 0.75
 #: search keeps this factor away from a line the model holds): wide enough for the band's skew between its
 #: peak bin and the fitted f0, narrow enough that the term cannot wander off to shape another part of the curve
 RESONANCE_FREQUENCY_FACTOR = 1.5
+
+#: a fitted resonance is kept only with at least this quality factor pi f0 tc (the lower end of the term's own
+#: range, :meth:`avbench.noise_models.Resonance.fit_shape_bounds`, whose box is set by the band's upper frequency):
+#: broader, it is a low-pass shape that trades with the white noise (an accelerometer's N interval reaching 0)
+RESONANCE_MIN_Q = 1.0
 
 #: a band is a resonance candidate only if its spectrum stands this many times above its surroundings
 #: (a lightly damped mode, not the slope of a filter)
@@ -179,9 +184,13 @@ def choose_resonance(latents, best, tried, m, usable, band: Callable[[], Resonan
 
     def passes(fit):
         # the band is seen (the shortest tau fitted within RESONANCE_SEEN / f0: beyond, the term is only its
-        # 1/tau^2 tail, a shape with no resonance in it) and the poor-fit check passes (a resonance must not
-        # make a flagged fit)
-        if fit["diag"]["tau"][0] * fit["diag"]["params"]["RS.f0"] > RESONANCE_SEEN:
+        # 1/tau^2 tail, a shape with no resonance in it), it is a resonance (quality factor pi f0 tc at least
+        # RESONANCE_MIN_Q: a broader band is a filter's or a Gauss-Markov shape, and trades with the white noise)
+        # and the poor-fit check passes (a resonance must not make a flagged fit)
+        params = fit["diag"]["params"]
+        if fit["diag"]["tau"][0] * params["RS.f0"] > RESONANCE_SEEN:
+            return False
+        if math.pi * params["RS.f0"] * params["RS.tc"] < RESONANCE_MIN_Q:
             return False
         if check is None:
             return True

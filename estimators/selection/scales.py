@@ -23,6 +23,15 @@ of freedom where the model holds.
 an integer
     That cluster size, fixed.
 
+A caller may keep the record's white noise in the fit (:func:`white_reach`; GMWM does for ``"adequate"``): a cut-off
+is tried only up to the last octave of the first stretch of octaves where the record's AV falls nearly as 1/tau
+(local slope within 1/4 of -1: white noise makes at least three quarters of the AV). Beyond it the fit does not see
+the white level: N is then read off the bias-instability region (a 1/f rise, a sinusoid's skirt), where a filter
+term with a time constant of a second or a Gauss-Markov term trades with it, and it moves with the record's length
+(an accelerometer's N by 40 % between 30 minutes and 2.8 h). Where the model misses the curve elsewhere, no cut-off
+within the reach is adequate, the one Hansen's J rejects least is taken (:func:`choose_scales`), and the poor-fit
+check says the fit misses the curve.
+
 :func:`shorter_adequate` is the ``"adequate"`` rule below a given cut-off, with a further test of
 each fit (a resonance added to a model, :mod:`avbench.estimators.selection.resonance`).
 
@@ -36,7 +45,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["SCALE_TEST_LEVEL", "ScaleChoice", "cutoffs", "adequate", "choose_scales", "shorter_adequate"]
+__all__ = ["SCALE_TEST_LEVEL", "WHITE_SLOPE_TOLERANCE", "ScaleChoice", "white_reach", "reach_binds", "cutoffs",
+           "adequate", "choose_scales", "shorter_adequate"]
 
 #: level of the difference-in-J test that drops a shortest scale (``"auto"``) and of Hansen's J test of one
 #: cut-off's fit (``"adequate"``)
@@ -53,11 +63,67 @@ class ScaleChoice(NamedTuple):
     reason: str
 
 
-def cutoffs(rule, m, usable, n_free) -> list[int]:
+#: an octave is in the white-noise region when its local AV slope lies within this of -1 (white rate noise):
+#: against a flat term (bias instability) the slope is minus the white noise's share of the AV, so 1/4 keeps the
+#: octaves where white noise makes at least three quarters of it
+WHITE_SLOPE_TOLERANCE = 0.25
+
+
+def white_reach(tau, avar, n, m, usable) -> int | None:
+    """The longest cut-off that keeps the record's white noise in a fit: the cluster size of the last octave of
+    the first stretch of at least two usable octaves (``usable``: a mask over the octave cluster sizes ``m``, taus
+    ``tau``, AV ``avar`` of a record of ``n`` samples; a lone octave only where no stretch has two: the flank of
+    a resonance's hump is no white region) whose local log-log slope of the AV lies within
+    :data:`WHITE_SLOPE_TOLERANCE` of -1 (slopes as the engine reads them, ``numpy.gradient`` of the
+    logarithms, where an octave has at least 16 clusters); None where no octave qualifies.
+
+    >>> tau = 0.01 * 2.0 ** np.arange(10)
+    >>> avar = np.r_[0.5, 0.8, 1.0 / tau[2:6] * 0.01, np.full(4, 0.3)]  # a filter, white, then a plateau
+    >>> white_reach(tau, avar, 10**6, 2 ** np.arange(10), np.ones(10, bool))
+    16
+    """
+    m = np.asarray(m)
+    ok = np.flatnonzero(usable & (n // m >= 16) & (np.asarray(avar) > 0))
+    if ok.size < 2:
+        return None
+    slope = np.gradient(np.log(np.asarray(avar, float)[ok]), np.log(np.asarray(tau, float)[ok]))
+    white = np.abs(slope + 1.0) <= WHITE_SLOPE_TOLERANCE
+    stretches, start = [], None  # (first, last) index of each run of white octaves
+    for i, w in enumerate(np.r_[white, False]):
+        if w and start is None:
+            start = i
+        elif not w and start is not None:
+            stretches.append((start, i - 1))
+            start = None
+    if not stretches:
+        return None
+    _, last = next((st for st in stretches if st[1] > st[0]), stretches[0])
+    return int(m[ok][last])
+
+
+def reach_binds(reach, m, usable, n_free) -> bool:
+    """Whether the white reach (:func:`white_reach`; None: none) stops the automatic rules short of a cut-off they
+    would try otherwise: one that leaves at least ``n_free + 1`` usable scales and the longer half of them.
+
+    >>> m = 2 ** np.arange(12)
+    >>> every = np.ones(12, bool)
+    >>> reach_binds(16, m, every, 3), reach_binds(64, m, every, 3), reach_binds(None, m, every, 3)
+    (True, False, False)
+    """
+    if reach is None:
+        return False
+    k_all = np.count_nonzero(usable)
+    return any(v > reach and 2 * np.count_nonzero(usable & (m >= v)) >= k_all
+               for v in cutoffs("auto", m, usable, n_free))
+
+
+def cutoffs(rule, m, usable, n_free, reach=None) -> list[int]:
     """The cut-offs a rule tries: for ``"auto"`` and ``"adequate"`` every cluster size of ``m`` that leaves at
-    least ``n_free + 1`` usable scales (``usable``: a mask over ``m``), shortest first; for an integer, itself."""
+    least ``n_free + 1`` usable scales (``usable``: a mask over ``m``) and is at most ``reach`` (None: any;
+    :func:`white_reach`), shortest first; for an integer, itself."""
     if rule in ("auto", "adequate"):
-        return [int(v) for v in m if np.count_nonzero(usable & (m >= v)) >= n_free + 1]
+        return [int(v) for v in m if np.count_nonzero(usable & (m >= v)) >= n_free + 1
+                and (reach is None or v <= reach)]
     return [int(rule)]
 
 
@@ -69,9 +135,17 @@ def adequate(J, k, n_free) -> bool:
     return chi2.sf(J, max(k - n_free, 1)) >= SCALE_TEST_LEVEL
 
 
-def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free, rule) -> ScaleChoice:
+def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free, rule,
+                  reached=False) -> ScaleChoice:
     """The scale rule ``rule`` (``"auto"``, ``"adequate"`` or an integer, module docstring) over the cut-offs
     ``lows`` (:func:`cutoffs`); ``fit_on(keep)`` fits the scales of the mask ``keep`` (``usable & (m >= m0)``).
+    ``reached``: ``lows`` stop at the white reach (:func:`white_reach`) short of the cut-offs the rule would try
+    otherwise; where then no cut-off is adequate, ``"adequate"`` takes the one whose fit Hansen's J rejects
+    least (the largest p-value: the model misses the curve beyond the white region, and the sequential test
+    is no guide there -- dropping a scale can raise J by moving the fit to another optimum); where one is, the
+    longer cut-offs within the reach are fitted too, and those Hansen's J accepts are returned with the chosen
+    fit as ``fit["alternatives"]`` (``[(min_m, fit), ...]``): on a short white region, which octaves of the
+    sensor's front end a fit keeps moves N through the filter term, and the record accepts several.
 
     >>> J = {1: 400.0, 2: 9.0, 4: 8.5, 8: 8.2}  # the first octave bent: J falls 391 when it is dropped
     >>> m, usable = np.array([1, 2, 4, 8, 16, 32, 64, 128, 256, 512]), np.ones(10, bool)
@@ -82,7 +156,7 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
     """
     from scipy.stats import chi2
 
-    best, tried, chosen, why = None, [], False, None
+    best, tried, chosen, why, fits = None, [], False, None, []
     for m0 in lows:
         keep = usable & (m >= m0)
         fit = fit_on(keep)
@@ -91,9 +165,13 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
         fit["k"] = k
         if best is None:
             k_all = k
+        if 2 * k >= k_all:
+            fits.append((m0, fit))
         if rule == "adequate" and 2 * k >= k_all and adequate(fit["J_stat"], k, n_free):
             best = fit  # the shortest cut-off whose own J is not rejected
             why = "the shortest cut-off whose own fit Hansen's J does not reject"
+            if reached:
+                best["alternatives"] = _adequate_beyond(fit_on, lows, m0, m, usable, n_free, k_all, tried)
             break
         if chosen:
             if 2 * k < k_all:
@@ -106,6 +184,10 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
             chosen = True
             continue
         best = fit
+    if rule == "adequate" and reached and fits and (why is None or not why.startswith("the shortest cut-off")):
+        m0, best = max(fits, key=lambda mf: chi2.sf(mf[1]["J_stat"], max(mf[1]["k"] - n_free, 1)))
+        return ScaleChoice(best, tried, "no cut-off within the white reach is adequate by Hansen's J: the one it "
+                                        f"rejects least (min_m={m0})")
     if rule not in ("auto", "adequate"):
         reason = f"fixed by the setting (min_m={rule!r})"
     elif why is None:
@@ -115,6 +197,23 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
     else:
         reason = why
     return ScaleChoice(best, tried, reason)
+
+
+def _adequate_beyond(fit_on, lows, m0, m, usable, n_free, k_all, tried) -> list:
+    """``[(min_m, fit), ...]`` for the cut-offs of ``lows`` longer than ``m0`` that keep the longer half of the
+    ``k_all`` scales and whose fits Hansen's J accepts (each fitted; ``tried`` extended)."""
+    out = []
+    for m1 in [v for v in lows if v > m0]:
+        keep = usable & (m >= m1)
+        k = int(np.count_nonzero(keep))
+        if 2 * k < k_all:
+            break
+        fit = fit_on(keep)
+        fit["k"] = k
+        tried.append((m1, fit["J_stat"], k))
+        if adequate(fit["J_stat"], k, n_free):
+            out.append((int(m1), fit))
+    return out
 
 
 def shorter_adequate(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free, below, max_tau, dt,

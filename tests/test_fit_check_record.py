@@ -1,0 +1,86 @@
+"""The poor-fit check with the record's own variances (fit_check.record_variance_factor, GMWM's
+``fit_covariance="record"``): the same check where the record shows no excess, still flagging a wrong
+model, and tolerant only of the variability the record itself shows."""
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from avbench import estimators
+from avbench.estimators.allan.covariance import av_covariance
+from avbench.estimators.allan.fit_check import (MIN_CLUSTERS, RECORD_BATCHES, RECORD_LEVEL, record_reference_weights,
+                                                record_variance_factor)
+from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
+
+G = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=50.0), RateRandomWalk(K=1e-6)])
+
+
+def test_reference_weights_without_excess_are_the_chi2_of_gmm():
+    # all factors 1: the model-weighted fit is efficient, T is chi^2_{k-p}: k - p ones and p zeros
+    rng = np.random.default_rng(1)
+    k, p = 9, 3
+    a = rng.standard_normal((k, k))
+    omega = a @ a.T + k * np.eye(k)
+    lam = np.sort(record_reference_weights(omega, np.ones(k), rng.standard_normal((k, p))))
+    assert np.allclose(lam, np.r_[np.zeros(p), np.ones(k - p)], atol=1e-9)
+    # a factor above 1 on one scale: the statistic with the record's covariance is no longer chi^2_{k-p}
+    f = np.ones(k)
+    f[2] = 20.0
+    lam2 = record_reference_weights(omega, f, rng.standard_normal((k, p)))
+    assert not np.allclose(np.sort(lam2), np.r_[np.zeros(p), np.ones(k - p)], atol=1e-3)
+
+
+def test_a_stationary_record_shows_no_excess_at_the_nominal_rate():
+    # 40 stationary records of the model itself: a scale's factor exceeds 1 with probability RECORD_LEVEL;
+    # the count over the scales the batches resolve is at most its binomial 99.9 % point
+    n = 200_000
+    m = 2 ** np.arange(15)
+    m = m[n // m >= MIN_CLUSTERS]
+    var = np.diag(av_covariance(G, m, n))
+    seen = (n // RECORD_BATCHES) // m >= MIN_CLUSTERS
+    hits = 0
+    R = 40
+    for s in range(R):
+        f = record_variance_factor(G.simulate(n, np.random.default_rng(500 + s)), m, var, n)
+        assert np.all(f >= 1.0)
+        hits += int(np.count_nonzero(f[seen] > 1.0))
+    assert hits <= stats.binom.ppf(0.999, R * int(seen.sum()), RECORD_LEVEL), hits
+
+
+def test_a_record_whose_noise_moves_shows_it():
+    # white noise whose level moves by +-40 % between the record's eighths: the short scales' AVs vary
+    # between batches far beyond the stationary model's variance, and the factor says so
+    n, dt = 200_000, 0.1
+    rng = np.random.default_rng(7)
+    level = np.repeat(1.0 + 0.4 * np.array([1, -1, 1, -1, -1, 1, -1, 1]), n // 8)
+    x = 1e-3 / np.sqrt(dt) * level * rng.standard_normal(n)
+    m = 2 ** np.arange(8)
+    white = Gyro(dt=dt, terms=[AngleRandomWalk(N=1e-3 * float(np.sqrt(np.mean(level**2))))])
+    f = record_variance_factor(x, m, np.diag(av_covariance(white, m, n)), n)
+    assert np.all(f[:4] > 10.0), f
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_the_record_check_still_flags_a_missing_term(seed):
+    # a Gauss-Markov bump fitted without a bias term: flagged with the record's variances as with the model's
+    x = G.simulate(200_000, np.random.default_rng(seed))
+    wrong = estimators.get("gmwm", model="WN+RW", min_m=1, fit_covariance="record").fit(x, 0.1).diagnostics_
+    assert wrong["poor_fit"] and wrong["fit_pvalue"] < 1e-6, wrong["fit_pvalue"]
+
+
+def test_the_record_check_on_a_correct_model_is_the_model_check_where_nothing_moves():
+    # stationary records of the model: same flags as the model check on most records (the two differ only
+    # where a scale's batches show an excess, ~1 % per scale), and at most the binomial 99.9 % count of flags
+    R, flags, same = 12, 0, 0
+    for s in range(R):
+        x = G.simulate(200_000, np.random.default_rng(900 + s))
+        rec = estimators.get("gmwm", model="WN+GM+RW", min_m=1, fit_covariance="record").fit(x, 0.1)
+        mod = estimators.get("gmwm", model="WN+GM+RW", min_m=1).fit(x, 0.1)
+        flags += bool(rec.diagnostics_["poor_fit"])
+        same += bool(np.isclose(rec.diagnostics_["fit_pvalue"], mod.diagnostics_["fit_pvalue"], rtol=1e-9))
+        if "record_se_factor" not in rec.diagnostics_:
+            assert np.allclose(rec.std_err_.fillna(0), mod.std_err_.fillna(0))
+        else:  # a factor above 1 only widens
+            assert np.all(rec.std_err_.fillna(0) >= mod.std_err_.fillna(0) * (1 - 1e-12))
+    assert flags <= stats.binom.ppf(0.999, R, 0.01), flags
+    assert same >= R // 2, same
