@@ -256,7 +256,7 @@ def _png(fig) -> bytes:
 
     buf = io.BytesIO()
     try:
-        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+        fig.savefig(buf, format="png", dpi=110)
     finally:
         plt.close(fig)
     return buf.getvalue()
