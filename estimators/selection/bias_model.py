@@ -21,6 +21,7 @@ import math
 from collections.abc import Callable
 from typing import NamedTuple
 
+from avbench.estimators.selection.averaging import criterion_weights
 from avbench.noise_models.latents import parse_model
 
 __all__ = ["BIAS_EVIDENCE_WEIGHT", "BiasEvidence", "exchanged", "weigh_bias_models", "undecided_alternative"]
@@ -70,10 +71,8 @@ def weigh_bias_models(latents, fit, other, other_fit, n_free: Callable[[tuple], 
                      "B": float(f["coefs"].get("B", math.nan)),
                      "coefficients": {c: float(v) for c, v in f["coefs"].items()},
                      "std_err": {c: float(se[c]) for c in f["coefs"] if c in se.index}}
-    low = min(v["aic"] for v in out.values())
-    total = sum(math.exp(-(v["aic"] - low) / 2) for v in out.values())
-    for v in out.values():
-        v["weight"] = math.exp(-(v["aic"] - low) / 2) / total
+    for name, w in criterion_weights({k: v["aic"] for k, v in out.items()}).items():
+        out[name]["weight"] = w
     preferred = max(out, key=lambda k: out[k]["weight"])
     decisive = bool(out[preferred]["weight"] >= BIAS_EVIDENCE_WEIGHT)
     out.update({"preferred": preferred, "weight": out[preferred]["weight"],
