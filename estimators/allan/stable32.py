@@ -158,13 +158,8 @@ class Stable32Result(AllanResult):
     alpha: np.ndarray | None = None
     bias: np.ndarray | None = None
 
-    @property
-    def ci_low(self) -> np.ndarray:
-        return stable32_interval(self.avar, self.edf, self.confidence)[0]
-
-    @property
-    def ci_high(self) -> np.ndarray:
-        return stable32_interval(self.avar, self.edf, self.confidence)[1]
+    def _bounds(self):
+        return stable32_interval(self.avar, self.edf, self.confidence)
 
 
 def alpha_of(noise) -> np.ndarray:
@@ -306,6 +301,16 @@ def _avar_table5(alpha: int, m: int, N: int) -> float:
     return (n - 2) / (k * (n - 3) ** 2) * ((n - 1) ** 2 - 3 * k * (n - 1) + 4 * k * k)
 
 
+def _by_case(size: int, cases) -> np.ndarray:
+    """The edfs of ``size`` rows from ``cases``, ``[(mask, edf), ...]`` with disjoint masks covering the rows:
+    ``edf(mask)`` gives the rows of each mask that holds any."""
+    out = np.empty(size)
+    for mask, edf in cases:
+        if mask.any():
+            out[mask] = edf(mask)
+    return out
+
+
 def _total_fallback(alpha, m, N: int) -> np.ndarray:
     """Stable32's edf of TOTVAR and HTOTVAR where their fits do not apply: the AV edf of SP1065 Table 5 plus 2
     (module docstring)."""
@@ -325,39 +330,35 @@ def stable32_edf(kind: str, m, N: int, alpha) -> np.ndarray:
     if kind in GREENHALL_FILTER:
         d, modified, overlapping = GREENHALL_FILTER[kind]
         return greenhall_edf(alpha, d, m, N, modified=modified, overlapping=overlapping)
-    out = np.empty(m.size)
+
+    def linear(coef):  # edf = b (N/m) - c, (b, c) from a table by alpha
+        def edf(i):
+            bc = _table(coef, alpha[i], kind)
+            return bc[:, 0] * ratio[i] - bc[:, 1]
+        return edf
+
+    def fallback(i):
+        return _total_fallback(alpha[i], m[i], N)
+
+    def other(name):
+        return lambda i: stable32_edf(name, m[i], N, alpha[i])
+
     if kind == "totvar":
-        fm = np.isin(alpha, list(_TOT))
-        if fm.any():
-            bc = _table(_TOT, alpha[fm], kind)
-            out[fm] = bc[:, 0] * ratio[fm] - bc[:, 1]
-        pm = alpha > 0
-        if pm.any():
-            out[pm] = _total_fallback(alpha[pm], m[pm], N)
-        rest = ~fm & ~pm
-        if rest.any():
-            out[rest] = stable32_edf("oavar", m[rest], N, alpha[rest])
-        return out
+        fm, pm = np.isin(alpha, list(_TOT)), alpha > 0
+        return _by_case(m.size, [(fm, linear(_TOT)), (pm, fallback), (~fm & ~pm, other("oavar"))])
     if kind in ("mtotvar", "ttotvar"):
         small = m <= 8
-        if small.any():
-            out[small] = stable32_edf("mvar", m[small], N, alpha[small])
-        if (~small).any():
-            bc = _table(_MTOT, alpha[~small], kind)
-            out[~small] = bc[:, 0] * ratio[~small] - bc[:, 1]
-        return out
+        return _by_case(m.size, [(small, other("mvar")), (~small, linear(_MTOT))])
     if kind == "htotvar":
         total = (m >= 16) & np.isin(alpha, list(_HTOT))
-        if total.any():
-            b = _table(_HTOT, alpha[total], kind)
-            out[total] = ratio[total] / (b[:, 0] + b[:, 1] / ratio[total])
         table5 = ~total & (alpha >= -2)
-        if table5.any():
-            out[table5] = _total_fallback(alpha[table5], m[table5], N)
-        rest = ~total & ~table5
-        if rest.any():
-            out[rest] = stable32_edf("ohvar", m[rest], N, alpha[rest])
-        return out
+
+        def htot(i):
+            b = _table(_HTOT, alpha[i], kind)
+            return ratio[i] / (b[:, 0] + b[:, 1] / ratio[i])
+
+        return _by_case(m.size, [(total, htot), (table5, fallback), (~total & ~table5, other("ohvar"))])
+    out = np.empty(m.size)
     if kind in ("theo1", "theobr"):
         r = 0.75 * m.astype(float)
         n = float(N)

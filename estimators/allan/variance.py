@@ -91,11 +91,15 @@ class AllanResult:
 
     @property
     def ci_low(self) -> np.ndarray:
-        return _interval(self.avar, self.edf, self.confidence)[0]
+        return self._bounds()[0]
 
     @property
     def ci_high(self) -> np.ndarray:
-        return _interval(self.avar, self.edf, self.confidence)[1]
+        return self._bounds()[1]
+
+    def _bounds(self):
+        """(low, high) of the chi^2 interval at ``confidence`` (a subclass states its own rule here)."""
+        return _interval(self.avar, self.edf, self.confidence)
 
     @property
     def variance(self) -> np.ndarray:
