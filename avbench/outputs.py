@@ -32,7 +32,7 @@ import uuid
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-__all__ = ["OutputError", "prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "tmp_name", "write_set",
+__all__ = ["OutputError", "prepare_out_dir", "probe_writable", "atomic_write_text", "atomic_write_bytes", "tmp_name", "write_set",
            "safe_name", "NAME_BYTES", "Interrupted"]
 
 
@@ -75,6 +75,15 @@ def _kind(st_mode: int) -> str:
 
 def _reason(e: OSError) -> str:
     return os.strerror(e.errno) if e.errno else str(e)
+
+
+def probe_writable(folder) -> None:
+    """Create and remove an empty file in ``folder``: the OSError of a folder that cannot be written (root
+    ignores permission bits, but not read-only mounts or pseudo file systems)."""
+    probe = Path(folder) / f".avbench-write-test-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    os.close(fd)
+    os.unlink(probe)
 
 
 def prepare_out_dir(path, option: str = "--out", outputs: Iterable[str] = ()) -> Path:
@@ -125,12 +134,9 @@ def prepare_out_dir(path, option: str = "--out", outputs: Iterable[str] = ()) ->
         p.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise OutputError(f"{where}: cannot create the folder: {_reason(e)}") from None
-    # writable? (root ignores permission bits, but not read-only mounts or pseudo file systems)
-    probe_file = p / f".avbench-write-test-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    # writable? (probe_writable)
     try:
-        fd = os.open(probe_file, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        os.close(fd)
-        os.unlink(probe_file)
+        probe_writable(p)
     except OSError as e:
         if e.errno in (errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOENT, errno.ENOTDIR, errno.EINVAL):
             raise OutputError(f"{where}: the folder is not writable: {_reason(e)}") from None

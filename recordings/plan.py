@@ -24,13 +24,12 @@ from __future__ import annotations
 
 import os
 import stat
-import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from avbench.outputs import NAME_BYTES, OutputError, prepare_out_dir, safe_name, write_set
+from avbench.outputs import NAME_BYTES, OutputError, prepare_out_dir, probe_writable, safe_name, write_set
 
 __all__ = ["PlannedOutput", "OutputPlan", "output_stem", "check_file_target", "STEM_BYTES"]
 
@@ -163,10 +162,7 @@ def check_file_target(path: Path, option: str) -> None:
         if not stat.S_ISDIR(pst.st_mode):
             raise OutputError(f"{where}: {str(parent)!r} is not a folder; expected a file path")
         break
-    probe = parent / f".avbench-write-test-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     try:
-        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        os.close(fd)
-        os.unlink(probe)
+        probe_writable(parent)
     except OSError as e:
         raise OutputError(f"{where}: cannot write in {str(parent)!r}: {e.strerror or e}") from None
