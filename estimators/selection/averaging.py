@@ -65,10 +65,10 @@ def akaike_weights(models: dict) -> dict:
     return criterion_weights({k: -2 * ll + PENALTY * p for k, (ll, p) in models.items()})
 
 
-def droppable(names: Sequence[str], z2: Sequence[float], keep: Callable[[str], bool] = lambda c: False) -> list[str]:
+def droppable(names: Sequence[str], z2: Sequence[float]) -> list[str]:
     """The terms of ``names`` worth averaging over: those whose Wald statistic ``z2`` (NaN: unknown)
-    is not above :data:`NEGLIGIBLE_Z2`, except those ``keep`` holds in every model."""
-    return [c for c, z in zip(names, z2) if not keep(c) and not (np.isfinite(z) and z > NEGLIGIBLE_Z2)]
+    is not above :data:`NEGLIGIBLE_Z2`."""
+    return [c for c, z in zip(names, z2) if not (np.isfinite(z) and z > NEGLIGIBLE_Z2)]
 
 
 def submodels(names: Sequence[str], candidates: Sequence[str],
