@@ -350,40 +350,66 @@ def test_a_label_on_its_threshold_may_differ_between_units_where_the_statistic_i
     assert problems and "K not resolved -> estimated" in problems[0], problems
 
 
-# -- GMWM's solve at its evaluation limit (issue 28) -------------------------------------------------
+# -- GMWM's solve where it creeps ----------------------------------------------------------------------
 
-def test_a_solve_stopped_by_its_evaluation_limit_settles_a_creeping_parameter_on_its_bound(monkeypatch):
-    """_solve: a parameter whose effect vanishes exponentially toward its bound (here e^u1 -> 0) creeps
-    there by ever smaller steps; at the evaluation limit it is put on the bound and the solve restarted,
-    which converges (recorded in ``stop_reason``). A solve that ends before the limit is least_squares'
-    own result; one that ends there without converging stays not converged (a real failure)."""
-    from scipy.optimize import least_squares
-
-    from avbench.estimators.likelihood import gmwm
-
+def _creeping_problem():
+    """A parameter whose effect vanishes exponentially toward its bound (e^u1 -> 0), beside one the data fix
+    (e^u0 = 2): residuals in standard deviations of a well-measured curve (the gradient far above gtol)."""
     lo, hi = np.array([-5.0, -40.0]), np.array([5.0, 5.0])
-    w = 1e6  # residuals in standard deviations of a well-measured curve: the gradient is far above gtol
+    w = 1e6
     fun = lambda u: w * np.array([np.exp(u[0]) - 2.0, 3.0 * np.exp(u[1]), np.exp(u[0] + u[1])])  # noqa: E731
     jac = lambda u: w * np.array([[np.exp(u[0]), 0.0], [0.0, 3.0 * np.exp(u[1])],  # noqa: E731
                                   [np.exp(u[0] + u[1]), np.exp(u[0] + u[1])]])
-    u0 = np.array([0.0, 2.0])
+    return fun, jac, np.array([0.0, 2.0]), lo, hi
+
+
+def test_a_solve_still_creeping_settles_the_parameter_on_its_bound(monkeypatch):
+    """solve.solve: a solve that converges within SETTLE_NFEV evaluations is least_squares' own result; one
+    still creeping there is settled: the pushed parameter held on its bound, the other solved (converged,
+    said in ``stop_reason``, no higher than the creeping end point, in far fewer evaluations than the crawl)."""
+    from scipy.optimize import least_squares
+
+    from avbench.estimators.likelihood import solve
+
+    fun, jac, u0, lo, hi = _creeping_problem()
     options = dict(jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    free = gmwm._solve(fun, u0, lo, hi, jac)
-    plain = least_squares(fun, u0, max_nfev=gmwm.MAX_NFEV, **options)
+    free = solve.solve(fun, u0, lo, hi, jac)
+    plain = least_squares(fun, u0, max_nfev=solve.MAX_NFEV, **options)
+    assert plain.nfev < solve.SETTLE_NFEV
     assert free.status != 0 and free.converged and np.array_equal(free.x, plain.x)
     assert free.stop_reason == f"least_squares: {plain.message}"
-    monkeypatch.setattr(gmwm, "MAX_NFEV", 15)
+    monkeypatch.setattr(solve, "SETTLE_NFEV", 15)
     short = least_squares(fun, u0, max_nfev=15, **options)
-    assert short.status == 0 and short.x[1] > lo[1] + 10  # still creeping at the limit
-    sol = gmwm._solve(fun, u0, lo, hi, jac)
+    assert short.status == 0 and short.x[1] > lo[1] + 10  # still creeping
+    sol = solve.solve(fun, u0, lo, hi, jac)
     assert sol.converged and sol.x[1] <= lo[1] + 1e-6 and sol.cost <= short.cost
     assert sol.x[0] == pytest.approx(math.log(2.0), abs=1e-9)
+    assert "settled on their bounds" in sol.stop_reason and sol.nfev < plain.nfev
+
+
+def test_a_solve_stopped_by_its_evaluation_limit_restarts_a_creeping_parameter_on_its_bound(monkeypatch):
+    """solve.solve where settling finds nothing: the solve runs on to MAX_NFEV; a parameter still pushed there
+    is put on its bound and the solve restarted, which converges (recorded in ``stop_reason``). One that ends
+    there without converging stays not converged (a real failure): Rosenbrock's valley, whose floor no bound
+    holds."""
+    from avbench.estimators.likelihood import solve
+
+    fun, jac, u0, lo, hi = _creeping_problem()
+    monkeypatch.setattr(solve, "SETTLE_NFEV", 15)
+    monkeypatch.setattr(solve, "MAX_NFEV", 15)
+    monkeypatch.setattr(solve, "settle", lambda *a: None)
+    sol = solve.solve(fun, u0, lo, hi, jac)
+    assert sol.converged and sol.x[1] <= lo[1] + 1e-6
+    assert sol.x[0] == pytest.approx(math.log(2.0), abs=1e-9)
     assert "restarted on their bounds" in sol.stop_reason and "Newton decrement" in sol.stop_reason
-    monkeypatch.setattr(gmwm, "MAX_NFEV", 5)  # Rosenbrock's valley: five evaluations do not find its floor
+    monkeypatch.undo()
+    monkeypatch.setattr(solve, "SETTLE_NFEV", 5)
+    monkeypatch.setattr(solve, "MAX_NFEV", 5)  # five evaluations do not find the valley's floor
     rosen = lambda u: np.array([10.0 * (u[1] - u[0] ** 2), 1.0 - u[0]])  # noqa: E731
     rjac = lambda u: np.array([[-20.0 * u[0], 10.0], [-1.0, 0.0]])  # noqa: E731
-    bad = gmwm._solve(rosen, np.array([-1.2, 1.0]), np.array([-5.0, -5.0]), np.array([5.0, 5.0]), rjac)
+    bad = solve.solve(rosen, np.array([-1.2, 1.0]), np.array([-5.0, -5.0]), np.array([5.0, 5.0]), rjac)
     assert bad.status == 0 and not bad.converged and "evaluations" in bad.stop_reason
+    assert "settled" not in bad.stop_reason  # held on a bound, the valley's criterion rises: not settled
 
 
 def test_a_failed_fit_labels_the_fit_not_the_terms_its_model_does_not_carry():

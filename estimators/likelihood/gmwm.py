@@ -104,7 +104,8 @@ from avbench.estimators.allan.fit_check import assess_fit
 from avbench.estimators.allan.variance import _noise_codes_from_slope, allan_variance
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.likelihood._gmwm_model import LatentAV, log_bounds, log_starts, report
-from avbench.estimators.likelihood._trf import lower_triangular_solver, trf_bounds
+from avbench.estimators.likelihood._trf import lower_triangular_solver
+from avbench.estimators.likelihood.solve import solve as _solve
 from avbench.estimators.selection import bias_model, bounds
 from avbench.estimators.selection.lines import choose_line, frequency_at_bound, sinusoid_hint
 from avbench.estimators.selection.resonance import band_seen, choose_resonance, resonance_hint
@@ -673,89 +674,6 @@ class GMWM(Estimator):
         if not best.converged:
             diag["failure"] = f"least_squares: {best.message}"
         return {"coefs": coefs, "J_stat": diag["J_stat"], "diag": diag}
-
-
-#: evaluations of one trust-region solve (:func:`_solve`)
-MAX_NFEV = 2000
-#: a parameter whose gradient component is more than this share of the sum of the magnitudes it is made of,
-#: sum_i |J_ij f_i|, at a solve's evaluation limit is still pushed by the data (at round-off the share is
-#: ~1e-12): :func:`_solve` tries it on the bound it is pushed to
-CREEP_SHARE = 1e-3
-#: a solve stopped by its evaluation limit is converged when the Gauss-Newton step left, over the parameters
-#: not held by a bound, is at most this many standard errors long (its Newton decrement, :func:`_newton_decrement`)
-CONVERGED_DECREMENT = 1e-8
-
-
-def _solve(fun, u0, lo, hi, jac):
-    """Minimise to the optimum, not to a tolerance (xtol, ftol, gtol 1e-15): looser stopping rules end
-    where the last bits of the record decide, so that the end point of a coefficient along a flat
-    direction of the criterion, and the criterion J, move between units of the same record by more than
-    round-off of the input moves them; at 1e-15 they agree as under round-off.
-
-    A solve that ends at :data:`MAX_NFEV` evaluations has usually been creeping along a direction whose
-    effect on the curve vanishes exponentially in the log-parameter: a term the data drive to zero (K of
-    a record without rate random walk) or a filter time constant far below dt (FW's ``tf`` on a 10 Hz
-    record, where the filtered white noise is white). Such a parameter's limit is its bound, which the
-    trust region approaches by ever smaller steps, so that where it stops depends on the last bits of the
-    record. Every parameter still pushed by the data there (gradient component above
-    :data:`CREEP_SHARE` of the magnitudes it sums) is put on the bound it is pushed to and the solve
-    restarted; the lower criterion of the two end points is kept.
-
-    The result carries ``converged`` and ``stop_reason`` (a sentence: the tolerance met, or the
-    evaluation limit with the restart and the end point's Newton decrement). ``converged`` is
-    least_squares' own (a tolerance met), or, at the evaluation limit, a Newton decrement at most
-    :data:`CONVERGED_DECREMENT` (the optimum lies within 1e-8 standard errors of the end point: nothing a
-    further step could change in a reported coefficient). A solve that ends before the limit is returned
-    as the solver gives it (scipy's ``least_squares`` step for step,
-    :func:`avbench.estimators.likelihood._trf.trf_bounds`).
-    """
-    clip = lambda u: np.clip(u, lo + 1e-9, hi - 1e-9)  # noqa: E731
-    run = lambda u: trf_bounds(fun, jac, clip(u), lo, hi,  # noqa: E731
-                               xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=MAX_NFEV)
-    sol = run(u0)
-    if sol.status != 0:
-        sol.converged, sol.stop_reason = bool(sol.success), f"least_squares: {sol.message}"
-        return sol
-    g = sol.jac.T @ sol.fun
-    size = np.abs(sol.jac).T @ np.abs(sol.fun)
-    creep = np.abs(g) > CREEP_SHARE * size
-    reason = f"least_squares stopped after {sol.nfev} evaluations"
-    # all of them on their bounds, else each alone (a parameter whose optimum moves with a creeping one's
-    # is pushed too): the first restart that lowers the criterion is kept
-    tries = [np.flatnonzero(creep)] if creep.any() else []
-    if creep.sum() > 1:
-        tries += [np.array([i]) for i in np.argsort(-np.abs(g) / np.where(size > 0, size, 1.0)) if creep[i]]
-    for idx in tries:
-        u = sol.x.copy()
-        u[idx] = np.where(g[idx] > 0, lo[idx], hi[idx])
-        again = run(u)
-        if again.cost <= sol.cost:
-            again.nfev += sol.nfev
-            sol = again
-            reason += (f"; parameter(s) {', '.join(str(int(i)) for i in idx)}, still pushed there, restarted on "
-                       f"their bounds: least_squares: {sol.message}")
-            break
-    else:
-        if tries:
-            reason += "; no parameter still pushed there gave a lower criterion restarted on its bound"
-    decrement = _newton_decrement(sol, lo, hi)
-    sol.converged = bool(sol.status > 0 or decrement <= CONVERGED_DECREMENT)
-    sol.stop_reason = f"{reason} (Newton decrement {decrement:.2g} standard errors)"
-    return sol
-
-
-def _newton_decrement(sol, lo, hi):
-    """The Gauss-Newton step left at a least-squares end point, in standard errors: sqrt(g' H^+ g) over
-    the parameters not held by a bound (H = J'J the criterion's Gauss-Newton curvature, the inverse
-    covariance of the estimate; g = J'f its gradient). A parameter within 1e-6 of a bound that its
-    gradient pushes it against is held there."""
-    g = sol.jac.T @ sol.fun
-    held = ((sol.x <= lo + 1e-6) & (g > 0)) | ((sol.x >= hi - 1e-6) & (g < 0))
-    free = ~held
-    if not free.any():
-        return 0.0
-    jf, gf = sol.jac[:, free], g[free]
-    return float(math.sqrt(max(float(gf @ np.linalg.pinv(jf.T @ jf, rcond=1e-13, hermitian=True) @ gf), 0.0)))
 
 
 @register("gmwm_filtered")

@@ -1,0 +1,155 @@
+"""GMWM's criterion minimised to its optimum: scipy's trust-region reflective least squares
+(:func:`avbench.estimators.likelihood._trf.trf_bounds`, step for step) at tolerances 1e-15, with the parameters
+whose effect vanishes toward a bound settled there (:func:`solve`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from avbench.estimators.likelihood._trf import trf_bounds
+
+__all__ = ["MAX_NFEV", "SETTLE_NFEV", "CREEP_SHARE", "CONVERGED_DECREMENT", "solve", "settle", "pushed",
+           "newton_decrement"]
+
+#: evaluations of one trust-region solve (:func:`solve`)
+MAX_NFEV = 2000
+#: evaluations after which a solve still running is settled where the criterion is flat (:func:`settle`)
+SETTLE_NFEV = 300
+#: a parameter whose gradient component is more than this share of the sum of the magnitudes it is made of,
+#: sum_i |J_ij f_i|, where a solve stops short is still pushed by the data (at round-off the share is
+#: ~1e-12): :func:`solve` tries it on the bound it is pushed to
+CREEP_SHARE = 1e-3
+#: a solve stopped by its evaluation limit is converged when the Gauss-Newton step left, over the parameters
+#: not held by a bound, is at most this many standard errors long (its Newton decrement, :func:`newton_decrement`)
+CONVERGED_DECREMENT = 1e-8
+
+
+def solve(fun, u0, lo, hi, jac):
+    """Minimise ``0.5 ||fun(u)||^2`` over ``lo <= u <= hi`` to the optimum, not to a tolerance (xtol, ftol,
+    gtol 1e-15): looser stopping rules end where the last bits of the record decide, so that the end point
+    of a coefficient along a flat direction of the criterion, and the criterion J, move between units of
+    the same record by more than round-off of the input moves them; at 1e-15 they agree as under round-off.
+
+    A solve still running after :data:`SETTLE_NFEV` evaluations is usually creeping along a direction
+    whose effect on the curve vanishes exponentially in the log-parameter: a term the data drive to zero
+    (K of a record without rate random walk), a filter time constant far below dt (FW's ``tf`` on a 10 Hz
+    record), a resonance's damping time beyond the record's scales. Such a parameter's limit is its bound,
+    which the trust region approaches by ever smaller steps (thousands of evaluations), so that where it
+    stops depends on the last bits of the record. :func:`settle` holds the parameters still pushed there on
+    their bounds and solves the rest (tens of evaluations); its end point is returned where it is a
+    Karush-Kuhn-Tucker point no higher than the running solve's. Otherwise the solve runs on, from its
+    start, to :data:`MAX_NFEV` evaluations; at that limit every parameter still pushed (:func:`pushed`) is
+    put on its bound and the solve restarted, the lower criterion of the two end points kept.
+
+    The result carries ``converged`` and ``stop_reason`` (a sentence: the tolerance met, the parameters
+    settled, or the evaluation limit with the restart and the end point's Newton decrement). ``converged``
+    is least_squares' own (a tolerance met), a settled Karush-Kuhn-Tucker point, or, at the evaluation
+    limit, a Newton decrement at most :data:`CONVERGED_DECREMENT` (the optimum lies within 1e-8 standard
+    errors of the end point: nothing a further step could change in a reported coefficient). A solve that
+    ends before :data:`SETTLE_NFEV` evaluations is returned as the solver gives it (scipy's
+    ``least_squares`` step for step, :func:`avbench.estimators.likelihood._trf.trf_bounds`).
+    """
+    clip = lambda u: np.clip(u, lo + 1e-9, hi - 1e-9)  # noqa: E731
+    run = lambda u: trf_bounds(fun, jac, clip(u), lo, hi,  # noqa: E731
+                               xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=MAX_NFEV)
+    first = trf_bounds(fun, jac, clip(u0), lo, hi, xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=SETTLE_NFEV)
+    if first.status != 0:  # the first SETTLE_NFEV evaluations of run(u0), step for step
+        first.converged, first.stop_reason = bool(first.success), f"least_squares: {first.message}"
+        return first
+    settled = settle(fun, jac, first, lo, hi)
+    if settled is not None:
+        return settled
+    sol = run(u0)
+    if sol.status != 0:
+        sol.converged, sol.stop_reason = bool(sol.success), f"least_squares: {sol.message}"
+        return sol
+    creep, g, size = pushed(sol)
+    reason = f"least_squares stopped after {sol.nfev} evaluations"
+    # all of them on their bounds, else each alone (a parameter whose optimum moves with a creeping one's
+    # is pushed too): the first restart that lowers the criterion is kept
+    tries = [np.flatnonzero(creep)] if creep.any() else []
+    if creep.sum() > 1:
+        tries += [np.array([i]) for i in np.argsort(-np.abs(g) / np.where(size > 0, size, 1.0)) if creep[i]]
+    for idx in tries:
+        u = sol.x.copy()
+        u[idx] = np.where(g[idx] > 0, lo[idx], hi[idx])
+        again = run(u)
+        if again.cost <= sol.cost:
+            again.nfev += sol.nfev
+            sol = again
+            reason += (f"; parameter(s) {', '.join(str(int(i)) for i in idx)}, still pushed there, restarted on "
+                       f"their bounds: least_squares: {sol.message}")
+            break
+    else:
+        if tries:
+            reason += "; no parameter still pushed there gave a lower criterion restarted on its bound"
+    decrement = newton_decrement(sol, lo, hi)
+    sol.converged = bool(sol.status > 0 or decrement <= CONVERGED_DECREMENT)
+    sol.stop_reason = f"{reason} (Newton decrement {decrement:.2g} standard errors)"
+    return sol
+
+
+def pushed(sol):
+    """The parameters a least-squares end point's gradient still pushes (a component above
+    :data:`CREEP_SHARE` of the magnitudes it sums), and the gradient."""
+    g = sol.jac.T @ sol.fun
+    size = np.abs(sol.jac).T @ np.abs(sol.fun)
+    return np.abs(g) > CREEP_SHARE * size, g, size
+
+
+def settle(fun, jac, sol, lo, hi):
+    """A solve still running after :data:`SETTLE_NFEV` evaluations, settled where the criterion is flat:
+    the parameters the gradient still pushes are held on the bounds they are pushed to (a box of width
+    2e-8: all of them, else each alone, the most pushed first) while the others are solved, each such solve
+    given :data:`SETTLE_NFEV` evaluations; the first held end point whose criterion is at most the running
+    solve's, and where every held parameter is still pushed outward (a Karush-Kuhn-Tucker point: the
+    parameter's optimum is its bound), is returned. None where there is none.
+
+    Why: along a direction whose effect on the curve vanishes as the parameter goes to its bound (a
+    resonance's damping time beyond the record's scales, a term the data drive to zero) the criterion's
+    profile falls monotonically to the bound, and the trust region approaches it by ever smaller steps
+    (thousands of evaluations); with the parameter held, the others converge in tens."""
+    push, g, size = pushed(sol)
+    if not push.any():
+        return None
+    order = [i for i in np.argsort(-np.abs(g) / np.where(size > 0, size, 1.0)) if push[i]]
+    tries = ([np.flatnonzero(push)] if len(order) > 1 else []) + [np.array([i]) for i in order]
+    nfev = sol.nfev
+    for idx in tries:
+        down = g[idx] > 0  # pushed to the lower bound
+        lo2, hi2 = lo.copy(), hi.copy()
+        hi2[idx] = np.where(down, lo[idx] + 2e-8, hi[idx])
+        lo2[idx] = np.where(down, lo[idx], hi[idx] - 2e-8)
+        u = sol.x.copy()
+        u[idx] = np.where(down, lo[idx], hi[idx])
+        held = trf_bounds(fun, jac, np.clip(u, lo2 + 1e-9, hi2 - 1e-9), lo2, hi2, xtol=1e-15, ftol=1e-15,
+                          gtol=1e-15, max_nfev=SETTLE_NFEV)
+        nfev += held.nfev
+        if held.status == 0 or held.cost > sol.cost:
+            continue
+        g_held = held.jac.T @ held.fun
+        if not np.all(np.where(down, g_held[idx] > 0, g_held[idx] < 0)):
+            continue  # a held parameter's optimum lies inside: not settled by its bound
+        held.nfev = nfev
+        held.converged = True
+        held.stop_reason = (f"least_squares still running after {sol.nfev} evaluations; parameter(s) "
+                            f"{', '.join(str(int(i)) for i in idx)}, pushed there, settled on their bounds: "
+                            f"least_squares: {held.message}")
+        return held
+    return None
+
+
+def newton_decrement(sol, lo, hi):
+    """The Gauss-Newton step left at a least-squares end point, in standard errors: sqrt(g' H^+ g) over
+    the parameters not held by a bound (H = J'J the criterion's Gauss-Newton curvature, the inverse
+    covariance of the estimate; g = J'f its gradient). A parameter within 1e-6 of a bound that its
+    gradient pushes it against is held there."""
+    g = sol.jac.T @ sol.fun
+    held = ((sol.x <= lo + 1e-6) & (g > 0)) | ((sol.x >= hi - 1e-6) & (g < 0))
+    free = ~held
+    if not free.any():
+        return 0.0
+    jf, gf = sol.jac[:, free], g[free]
+    return float(math.sqrt(max(float(gf @ np.linalg.pinv(jf.T @ jf, rcond=1e-13, hermitian=True) @ gf), 0.0)))
