@@ -20,8 +20,9 @@ system time) and the load average, and reads the breakdown the same process wrot
 the calls (inclusive seconds; nested calls counted in each enclosing part): GMWM's scale choices
 (``selection.scales``), the resonance choice (``selection.resonance``, its refits), the bias-model
 evidence (``GMWM._bias_evidence``), the line test (``selection.lines.choose_line``), the fit check
-(``allan.fit_check.assess_fit``, its covariance included), and across them the latent model's AV and
-Jacobian evaluations (``LatentAV``) and the AV covariance (``allan.covariance.av_covariance``: GMWM's
+(``allan.fit_check.assess_fit``, its covariance included), and across them the trust-region solves
+(``likelihood.solve.solve``; those still running after ``SETTLE_NFEV`` evaluations: ``settle``), the latent model's
+AV and Jacobian evaluations (``LatentAV``) and the AV covariance (``allan.covariance.av_covariance``: GMWM's
 weights and the fit check's); outside the fits, the figures (``recordings.figure.figure``, their layout) and
 their PNG rendering (``recordings.estimate._png``). What is left of the wall time is the outputs (figures,
 tables, writing) and the interpreter's start. The timers cost ~1 us per call (~0.1 s per 10^5 model evaluations).
@@ -70,6 +71,9 @@ _TIMED = [
     ("latent model AV + Jacobian (likelihood LatentAV)", "avbench.estimators.likelihood._gmwm_model", "LatentAV",
      ("__call__", "jacobian")),
     ("AV covariance (allan.covariance.av_covariance)", "avbench.estimators.allan.covariance", "av_covariance", None),
+    ("trust-region solves (likelihood.solve.solve)", "avbench.estimators.likelihood.solve", "solve", None),
+    ("solves past SETTLE_NFEV evaluations (likelihood.solve.settle)",
+     "avbench.estimators.likelihood.solve", "settle", None),
     ("figures (recordings.figure.figure)", "avbench.recordings.figure", "figure", None),
     ("PNG rendering (recordings.estimate._png)", "avbench.recordings.estimate", "_png", None),
 ]
