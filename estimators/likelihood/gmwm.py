@@ -82,12 +82,13 @@ squares of scipy's ``least_squares`` (method "trf"), iterated step for step with
 machinery (:func:`avbench.estimators.likelihood._trf.trf_bounds`), from several automatic starts,
 with the analytic Jacobian of the model's exact AV
 (:class:`avbench.estimators.likelihood._gmwm_model.LatentAV`), and solved to the optimum
-(:func:`_solve`, tolerances 1e-15): a coefficient the data cannot resolve lies along a flat direction
-of the criterion, where looser stopping rules end at a point set by the record's last bits rather
-than by the criterion. A solve that ends at its evaluation limit has been creeping toward a bound
-along a direction whose effect vanishes (a term the data drive to 0, a filter time constant far
-below dt): :func:`_solve` restarts it on that bound and reports the fit converged when it then is
-(``diagnostics_["stop_reason"]``; ``failure`` only when not).
+(:func:`avbench.estimators.likelihood.solve.solve`, tolerances 1e-15): a coefficient the data cannot resolve
+lies along a flat direction of the criterion, where looser stopping rules end at a point set by the record's
+last bits rather than by the criterion. A solve still running after a few hundred evaluations is usually
+creeping toward a bound along a direction whose effect vanishes (a term the data drive to 0, a filter time
+constant far below dt, a resonance's damping time beyond the record's scales): the parameter is settled on
+that bound, or the solve restarted there at its evaluation limit, and the fit is reported converged when it
+then is (``diagnostics_["stop_reason"]``; ``failure`` only when not).
 """
 
 from __future__ import annotations

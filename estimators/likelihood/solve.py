@@ -52,9 +52,9 @@ def solve(fun, u0, lo, hi, jac):
     ``least_squares`` step for step, :func:`avbench.estimators.likelihood._trf.trf_bounds`).
     """
     clip = lambda u: np.clip(u, lo + 1e-9, hi - 1e-9)  # noqa: E731
-    run = lambda u: trf_bounds(fun, jac, clip(u), lo, hi,  # noqa: E731
-                               xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=MAX_NFEV)
-    first = trf_bounds(fun, jac, clip(u0), lo, hi, xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=SETTLE_NFEV)
+    run = lambda u, limit=MAX_NFEV: trf_bounds(fun, jac, clip(u), lo, hi,  # noqa: E731
+                                               xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=limit)
+    first = run(u0, SETTLE_NFEV)
     if first.status != 0:  # the first SETTLE_NFEV evaluations of run(u0), step for step
         first.converged, first.stop_reason = bool(first.success), f"least_squares: {first.message}"
         return first
