@@ -31,7 +31,9 @@ def loglog_slope(n, t) -> float:
 LIMITS = {
     "estimate_real": "GMWM's fits, then the outputs. The fits: the model choices of gmwm_filtered and gmwm_despiked "
                      "(the scale choice, the resonance and the bias-model evidence) fit the latent model tens of times "
-                     "per axis, each fit several trust-region solves of tens to hundreds of evaluations. An evaluation "
+                     "per axis, each fit several trust-region solves of tens to hundreds of evaluations (a solve still "
+                     "running after 300 evaluations creeps toward a bound, where likelihood.solve.settle holds the "
+                     "parameter and solves the rest in tens more). An evaluation "
                      "runs compiled where the arithmetic is (the Gauss-Markov series, the filter's, resonance's and "
                      "sinusoid's central-difference gradients, bit for bit the NumPy expressions), so what is left is "
                      "Python around ~15-element arrays: ~20-60 us per evaluation with its Jacobian, and the solver's own "
@@ -40,12 +42,15 @@ LIMITS = {
                      "spectral arithmetic on the grid and one rank-k product. Outside the fits, the two figures' layout "
                      "and PNG rendering (matplotlib: ~2 CPU-s for 6 axes) and the imports (~1 s). A wall-time target "
                      "holds only on a quiet machine: the measurement reports CPU seconds beside it. See the breakdown.",
-    "estimate_real_motion": "The number of model evaluations, not their cost: on the record in motion the model choices "
-                            "(selection.scales, selection.resonance) refit the latent model at more cut-offs, with more "
-                            "evaluations per solve, than on the static record of the same length: about ten times its "
-                            "evaluations (the breakdown's LatentAV calls), each costing the same. Fewer evaluations need "
-                            "the choices to stop refitting where their outcome is decided, which changes the fits they "
-                            "list in their reports (the JSON's tried cut-offs).",
+    "estimate_real_motion": "The number of solves, not their cost: on the record in motion no cut-off is adequate, so "
+                            "the scale choice (selection.scales) fits every cut-off, and the resonance choice "
+                            "(selection.resonance) refits with three starts at each cut-off below the one kept: about "
+                            "six times the static record's trust-region solves, more of them creeping toward a bound "
+                            "(settled: likelihood.solve.settle; or run on to their evaluation limit), about twelve "
+                            "times its latent-model evaluations, each costing the same (see the breakdown). Fewer "
+                            "solves need the choices to stop refitting where their outcome is decided, which changes "
+                            "the fits they list in their reports (the JSON's tried cut-offs) and, where no cut-off is "
+                            "adequate, which one they keep.",
     "estimate_e2e": "The fits and the outputs. Within the fits (the default methods on six axes) every fit's check "
                     "builds the AV covariance under the fitted model (allan/covariance.av_covariance: _haar_gain, "
                     "_pair_integrals), the largest profiled share; GMWM's solves evaluate the latent model's exact AV "
