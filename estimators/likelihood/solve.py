@@ -65,14 +65,9 @@ def solve(fun, u0, lo, hi, jac):
     if sol.status != 0:
         sol.converged, sol.stop_reason = bool(sol.success), f"least_squares: {sol.message}"
         return sol
-    creep, g, size = pushed(sol)
+    tries, g = pushed(sol)
     reason = f"least_squares stopped after {sol.nfev} evaluations"
-    # all of them on their bounds, else each alone (a parameter whose optimum moves with a creeping one's
-    # is pushed too): the first restart that lowers the criterion is kept
-    tries = [np.flatnonzero(creep)] if creep.any() else []
-    if creep.sum() > 1:
-        tries += [np.array([i]) for i in np.argsort(-np.abs(g) / np.where(size > 0, size, 1.0)) if creep[i]]
-    for idx in tries:
+    for idx in tries:  # the first restart that lowers the criterion is kept
         u = sol.x.copy()
         u[idx] = np.where(g[idx] > 0, lo[idx], hi[idx])
         again = run(u)
@@ -93,16 +88,20 @@ def solve(fun, u0, lo, hi, jac):
 
 def pushed(sol):
     """The parameters a least-squares end point's gradient still pushes (a component above
-    :data:`CREEP_SHARE` of the magnitudes it sums), and the gradient."""
+    :data:`CREEP_SHARE` of the magnitudes it sums) as the sets to try on their bounds -- all of them, then
+    each alone, the most pushed first (a parameter whose optimum moves with a creeping one's is pushed
+    too) --, and the gradient."""
     g = sol.jac.T @ sol.fun
     size = np.abs(sol.jac).T @ np.abs(sol.fun)
-    return np.abs(g) > CREEP_SHARE * size, g, size
+    push = np.abs(g) > CREEP_SHARE * size
+    alone = [np.array([i]) for i in np.argsort(-np.abs(g) / np.where(size > 0, size, 1.0)) if push[i]]
+    return ([np.flatnonzero(push)] if len(alone) > 1 else []) + alone, g
 
 
 def settle(fun, jac, sol, lo, hi):
     """A solve still running after :data:`SETTLE_NFEV` evaluations, settled where the criterion is flat:
-    the parameters the gradient still pushes are held on the bounds they are pushed to (a box of width
-    2e-8: all of them, else each alone, the most pushed first) while the others are solved, each such solve
+    the parameters the gradient still pushes (:func:`pushed`) are held on the bounds they are pushed to (a
+    box of width 2e-8) while the others are solved, each such solve
     given :data:`SETTLE_NFEV` evaluations; the first held end point whose criterion is at most the running
     solve's, and where every held parameter is still pushed outward (a Karush-Kuhn-Tucker point: the
     parameter's optimum is its bound), is returned. None where there is none.
@@ -111,11 +110,7 @@ def settle(fun, jac, sol, lo, hi):
     resonance's damping time beyond the record's scales, a term the data drive to zero) the criterion's
     profile falls monotonically to the bound, and the trust region approaches it by ever smaller steps
     (thousands of evaluations); with the parameter held, the others converge in tens."""
-    push, g, size = pushed(sol)
-    if not push.any():
-        return None
-    order = [i for i in np.argsort(-np.abs(g) / np.where(size > 0, size, 1.0)) if push[i]]
-    tries = ([np.flatnonzero(push)] if len(order) > 1 else []) + [np.array([i]) for i in order]
+    tries, g = pushed(sol)
     nfev = sol.nfev
     for idx in tries:
         down = g[idx] > 0  # pushed to the lower bound
