@@ -58,10 +58,11 @@ def solve(fun, u0, lo, hi, jac):
     if first.status != 0:  # the first SETTLE_NFEV evaluations of run(u0), step for step
         first.converged, first.stop_reason = bool(first.success), f"least_squares: {first.message}"
         return first
-    settled = settle(fun, jac, first, lo, hi)
+    settled, spent = settle(fun, jac, first, lo, hi)
     if settled is not None:
         return settled
     sol = run(u0)
+    sol.nfev += spent  # the evaluations of the first SETTLE_NFEV and of the held solves counted too
     if sol.status != 0:
         sol.converged, sol.stop_reason = bool(sol.success), f"least_squares: {sol.message}"
         return sol
@@ -102,9 +103,10 @@ def settle(fun, jac, sol, lo, hi):
     """A solve still running after :data:`SETTLE_NFEV` evaluations, settled where the criterion is flat:
     the parameters the gradient still pushes (:func:`pushed`) are held on the bounds they are pushed to (a
     box of width 2e-8) while the others are solved, each such solve
-    given :data:`SETTLE_NFEV` evaluations; the first held end point whose criterion is at most the running
-    solve's, and where every held parameter is still pushed outward (a Karush-Kuhn-Tucker point: the
-    parameter's optimum is its bound), is returned. None where there is none.
+    given :data:`SETTLE_NFEV` evaluations; ``(end point, evaluations)``: the first held end point whose
+    criterion is at most the running solve's, and where every held parameter is still pushed outward (a
+    Karush-Kuhn-Tucker point: the parameter's optimum is its bound), None where there is none; the
+    evaluations spent, the running solve's included.
 
     Why: along a direction whose effect on the curve vanishes as the parameter goes to its bound (a
     resonance's damping time beyond the record's scales, a term the data drive to zero) the criterion's
@@ -132,8 +134,8 @@ def settle(fun, jac, sol, lo, hi):
         held.stop_reason = (f"least_squares still running after {sol.nfev} evaluations; parameter(s) "
                             f"{', '.join(str(int(i)) for i in idx)}, pushed there, settled on their bounds: "
                             f"least_squares: {held.message}")
-        return held
-    return None
+        return held, nfev
+    return None, nfev
 
 
 def newton_decrement(sol, lo, hi):
