@@ -135,6 +135,16 @@ def adequate(J, k, n_free) -> bool:
     return chi2.sf(J, max(k - n_free, 1)) >= SCALE_TEST_LEVEL
 
 
+def _fit_at(fit_on, m0, m, usable, tried) -> dict:
+    """The fit on the usable scales from cut-off ``m0`` on, its number of scales as ``fit["k"]``, recorded in
+    ``tried`` as ``(min_m, J, n_scales)``."""
+    keep = usable & (m >= m0)
+    fit = fit_on(keep)
+    fit["k"] = int(np.count_nonzero(keep))
+    tried.append((m0, fit["J_stat"], fit["k"]))
+    return fit
+
+
 def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free, rule,
                   reached=False) -> ScaleChoice:
     """The scale rule ``rule`` (``"auto"``, ``"adequate"`` or an integer, module docstring) over the cut-offs
@@ -156,19 +166,16 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
     """
     from scipy.stats import chi2
 
-    best, tried, chosen, why, fits = None, [], False, None, []
+    best, tried, chosen, why, fits, found = None, [], False, None, [], False
     for m0 in lows:
-        keep = usable & (m >= m0)
-        fit = fit_on(keep)
-        k = int(np.count_nonzero(keep))
-        tried.append((m0, fit["J_stat"], k))
-        fit["k"] = k
+        fit = _fit_at(fit_on, m0, m, usable, tried)
+        k = fit["k"]
         if best is None:
             k_all = k
         if 2 * k >= k_all:
             fits.append((m0, fit))
         if rule == "adequate" and 2 * k >= k_all and adequate(fit["J_stat"], k, n_free):
-            best = fit  # the shortest cut-off whose own J is not rejected
+            best, found = fit, True  # the shortest cut-off whose own J is not rejected
             why = "the shortest cut-off whose own fit Hansen's J does not reject"
             if reached:
                 best["alternatives"] = _adequate_beyond(fit_on, lows, m0, m, usable, n_free, k_all, tried)
@@ -184,7 +191,7 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
             chosen = True
             continue
         best = fit
-    if rule == "adequate" and reached and fits and (why is None or not why.startswith("the shortest cut-off")):
+    if rule == "adequate" and reached and fits and not found:
         m0, best = max(fits, key=lambda mf: chi2.sf(mf[1]["J_stat"], max(mf[1]["k"] - n_free, 1)))
         return ScaleChoice(best, tried, "no cut-off within the white reach is adequate by Hansen's J: the one it "
                                         f"rejects least (min_m={m0})")
@@ -192,7 +199,7 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
         reason = f"fixed by the setting (min_m={rule!r})"
     elif why is None:
         reason = "the difference-in-J test rejected the shortest scale at every cut-off tried: the last one"
-    elif rule == "adequate" and not why.startswith("the shortest cut-off"):
+    elif rule == "adequate" and not found:
         reason = f"no cut-off is adequate by Hansen's J on the longer half of the scales; as 'auto': {why}"
     else:
         reason = why
@@ -204,14 +211,10 @@ def _adequate_beyond(fit_on, lows, m0, m, usable, n_free, k_all, tried) -> list:
     ``k_all`` scales and whose fits Hansen's J accepts (each fitted; ``tried`` extended)."""
     out = []
     for m1 in [v for v in lows if v > m0]:
-        keep = usable & (m >= m1)
-        k = int(np.count_nonzero(keep))
-        if 2 * k < k_all:
+        if 2 * np.count_nonzero(usable & (m >= m1)) < k_all:
             break
-        fit = fit_on(keep)
-        fit["k"] = k
-        tried.append((m1, fit["J_stat"], k))
-        if adequate(fit["J_stat"], k, n_free):
+        fit = _fit_at(fit_on, m1, m, usable, tried)
+        if adequate(fit["J_stat"], fit["k"], n_free):
             out.append((int(m1), fit))
     return out
 
@@ -226,11 +229,7 @@ def shorter_adequate(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_fr
     lows = [v for v in lows if v < below and v * dt <= max_tau]
     tried = []
     for m0 in lows:
-        keep = usable & (m >= m0)
-        fit = fit_on(keep)
-        k = int(np.count_nonzero(keep))
-        fit["k"] = k
-        tried.append((m0, fit["J_stat"], k))
-        if 2 * k >= k_all and adequate(fit["J_stat"], k, n_free) and (accept is None or accept(fit)):
+        fit = _fit_at(fit_on, m0, m, usable, tried)
+        if 2 * fit["k"] >= k_all and adequate(fit["J_stat"], fit["k"], n_free) and (accept is None or accept(fit)):
             return ScaleChoice(fit, tried, f"the shortest adequate and accepted cut-off below {below} (min_m={m0})")
     return ScaleChoice(None, tried, f"no cut-off below {below} is adequate and accepted")
