@@ -291,16 +291,6 @@ def chernoff_bound(x, weights) -> float:
     return float(math.exp(min(0.0, -s * x - 0.5 * float(np.sum(np.log1p(-2.0 * s * w))))))
 
 
-def _overlapping_avar(x, m) -> np.ndarray:
-    """The fully overlapping AV of ``x`` (any unit) at cluster sizes ``m``, as :func:`allan_variance` computes it."""
-    c = np.concatenate(([0.0], np.cumsum(np.asarray(x, float) - float(np.mean(x)))))
-    out = np.empty(len(m))
-    for i, mi in enumerate(np.asarray(m, dtype=np.int64)):
-        d = c[2 * mi:] - 2.0 * c[mi:-mi] + c[:-2 * mi]
-        out[i] = float(np.mean(d * d)) / (2.0 * mi * mi)
-    return out
-
-
 def record_variance_factor(rate, m, model_var, n_samples, batches=RECORD_BATCHES, level=RECORD_LEVEL):
     """Per cluster size ``m``, the factor (>= 1) by which the record's own variance of its AV value exceeds the
     model's ``model_var`` (the diagonal of the model covariance of the whole record's AV), from the AVs of
@@ -311,6 +301,8 @@ def record_variance_factor(rate, m, model_var, n_samples, batches=RECORD_BATCHES
     samples given (a record's gaps are not looked for here)."""
     from scipy.special import chdtri  # chi^2 upper quantile: chdtri(dof, p) is scipy.stats.chi2.isf(p, dof)
 
+    from avbench.estimators.allan.variance import allan_variance
+
     m = np.asarray(m, dtype=np.int64)
     x = np.asarray(rate, float)
     L = int(n_samples) // int(batches)
@@ -319,7 +311,7 @@ def record_variance_factor(rate, m, model_var, n_samples, batches=RECORD_BATCHES
     if batches < 2 or not seen.any():
         return factor
     ms = m[seen]
-    av = np.array([_overlapping_avar(x[b * L:(b + 1) * L], ms) for b in range(batches)])
+    av = np.array([allan_variance(x[b * L:(b + 1) * L], 1.0, taus=ms.astype(float)).avar for b in range(batches)])
     s2 = np.var(av, axis=0, ddof=1)
     batch_var = np.asarray(model_var, float)[seen] * (n_samples - 2 * ms + 1) / (L - 2 * ms + 1)
     rho = s2 / batch_var
