@@ -154,12 +154,6 @@ def _adis_slices(data: Path, minutes, first_minute: float, per_run: int, methods
                        fit_axis(np.asarray(x[lo:lo + n]), timing.dt, starts, methods, settings))
 
 
-def _gyro_slices(data: Path, minutes, first_minute: float, per_run: int, methods, settings=None):
-    """:func:`_adis_slices` of the gyro axes, without the sensor: (record, axis, minutes, k, samples, fits)."""
-    for rec, _, axis, mins, k, n, fits in _adis_slices(data, minutes, first_minute, per_run, methods, settings):
-        yield rec, axis, mins, k, n, fits
-
-
 def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, settings=None) -> pd.DataFrame:
     """The given methods on the first ``per_run`` non-overlapping ``minutes``-long slices of every ADIS
     gyro axis (the first: a user's record starts when the sensor is switched on).
@@ -173,7 +167,7 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
     from avbench.recordings.report import coefficient_flags
 
     rows = []
-    for rec, axis, mins, k, _, fits in _gyro_slices(data, minutes, 0.0, per_run, methods, settings):
+    for rec, _, axis, mins, k, _, fits in _adis_slices(data, minutes, 0.0, per_run, methods, settings):
         for name, fit in fits.items():
             check = fit.result.fit_check
             c, flags = fit.coefficients(), coefficient_flags(fit)
