@@ -22,7 +22,6 @@ import numpy as np
 from avbench.noise_models._term_kernels import (_ar1_kernel, _gm_central_kernel, _gm_rows_kernel, _gm_shape_kernel,
                                                 _sogm_kernel)
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
-from avbench.noise_models.exact_variances import gcov_from_autocovariance
 from avbench.noise_models.term_base import (PLATEAU, NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt,
                                             _positive)
 from avbench.noise_models.units import as_si
@@ -245,12 +244,8 @@ class GaussMarkov(NoiseTerm):
         return scale * g, scale * (-a) * dg
 
     def autocovariance(self, lags, dt) -> np.ndarray:
-        return self.sigma**2 * self.phi(dt) ** np.asarray(lags, dtype=float)
-
-    def phase_gcov(self, lags, dt):
-        lags = np.abs(np.asarray(lags, dtype=np.int64))
-        L = int(lags.max()) if lags.size else 0
-        return gcov_from_autocovariance(self.autocovariance(np.arange(L + 1), dt), lags, dt)
+        """sigma^2 phi^|k|."""
+        return self.sigma**2 * self.phi(dt) ** np.abs(np.asarray(lags, dtype=float))
 
     def psd(self, f, dt):
         grid = f
@@ -346,18 +341,19 @@ class SecondOrderGaussMarkov(NoiseTerm):
         P = solve_continuous_lyapunov(F, -G @ G.T)
         return A, Qd, (P + P.T) / 2
 
-    def autocovariance(self, max_lag: int, dt) -> np.ndarray:
+    def autocovariance(self, lags, dt) -> np.ndarray:
+        """r(k) = e1^T A^|k| P e1 through the eigen-decomposition of the transition A."""
         A, _, P = self.discretise(dt)
         mu, V = np.linalg.eig(A)
         left = V[0, :]  # e1^T V
         right = np.linalg.solve(V, P[:, 0])  # V^-1 P e1
-        k = np.arange(max_lag + 1)
-        r = np.real((left * right)[None, :] * mu[None, :] ** k[:, None]).sum(axis=1)
-        return r
+        k = np.abs(np.asarray(lags, dtype=np.int64))
+        r = np.real((left * right) * mu ** k.reshape(-1)[:, None]).sum(axis=1)
+        return r.reshape(k.shape)
 
     def avar(self, m, dt):
         m = check_m(m)
-        return avar_from_autocovariance(self.autocovariance(int(2 * m.max()), dt), m)
+        return avar_from_autocovariance(self.autocovariance(np.arange(int(2 * m.max()) + 1), dt), m)
 
     def psd(self, f, dt):
         f, w = _omega_dt(f, dt)

@@ -101,6 +101,10 @@ class AngleRandomWalk(NoiseTerm):
     def stream(self, dt, rng):
         return _WhiteStream(_check_dt(dt), rng, self.N / math.sqrt(dt))
 
+    def autocovariance(self, lags, dt):
+        """N^2 / dt at lag 0, 0 elsewhere (white)."""
+        return np.where(np.asarray(lags) == 0, self.N**2 / _check_dt(dt), 0.0)
+
     def phase_gcov(self, lags, dt):
         return -(self.N**2) * _check_dt(dt) * np.abs(np.asarray(lags, dtype=float)) / 2
 
@@ -173,6 +177,12 @@ class Quantization(NoiseTerm):
     def stream(self, dt, rng):
         return _QuantStream(_check_dt(dt), rng, self.Q)
 
+    def autocovariance(self, lags, dt):
+        """The differenced white angle noise: 2 Q^2 / dt^2 at lag 0, -Q^2 / dt^2 at lags +-1, 0 beyond."""
+        d = np.abs(np.asarray(lags))
+        dt = _check_dt(dt)
+        return np.where(d == 0, 2 * self.Q**2 / dt**2, np.where(d == 1, -(self.Q**2) / dt**2, 0.0))
+
     def phase_gcov(self, lags, dt):
         return np.where(np.asarray(lags) == 0, self.Q**2, 0.0)
 
@@ -203,6 +213,7 @@ class RateRandomWalk(NoiseTerm):
     """
 
     coefficient = "K"
+    stationary = False
     latent = "RW"
     fit_parameters = ("K",)
 
@@ -243,6 +254,11 @@ class RateRandomWalk(NoiseTerm):
 
     def stream(self, dt, rng):
         return _RRWStream(_check_dt(dt), rng, self.K)
+
+    def autocovariance(self, lags, dt):
+        """None: the random walk is not stationary (a ValueError; :meth:`phase_gcov` holds its exact
+        statistics)."""
+        raise self._not_stationary()
 
     def phase_gcov(self, lags, dt):
         d = np.abs(np.asarray(lags, dtype=float))
@@ -309,6 +325,11 @@ class RateRamp(NoiseTerm):
 
     def stream(self, dt, rng):
         return _RampStream(_check_dt(dt), rng, self.R)
+
+    def autocovariance(self, lags, dt):
+        """Zero: the ramp is deterministic (a mean, :meth:`phase_mean`, and no covariance)."""
+        _check_dt(dt)
+        return np.zeros(np.shape(lags))
 
     def phase_gcov(self, lags, dt):
         return np.zeros(np.shape(lags))  # deterministic: no covariance, only a mean (phase_mean)
@@ -487,22 +508,25 @@ class BiasInstability(NoiseTerm):
     def impulse_response(self, dt) -> np.ndarray:
         return _kasdin_walter_h_cached(self.n_taps(dt))
 
-    def autocovariance(self, max_lag: int, dt) -> np.ndarray:
-        """r(0..max_lag) of the truncated-filter process (exact: direct sums or FFT)."""
+    def autocovariance(self, lags, dt) -> np.ndarray:
+        """r at ``lags`` of the truncated-filter process, B^2 sum_j h_j h_{j+|k|} (zero from the filter's
+        length on; exact: direct sums or FFT)."""
+        d = np.abs(np.asarray(lags, dtype=np.int64))
+        max_lag = int(d.max()) if d.size else 0
         h = self.impulse_response(dt)
         L = len(h)
-        K = min(L - 1, int(max_lag))
+        K = min(L - 1, max_lag)
         if (K + 1) * L <= 5e7:  # a few lags: direct dot products
             r = np.array([np.dot(h[: L - k], h[k:]) for k in range(K + 1)])
         else:
             r = _full_autocorrelation(h.tobytes(), L)[: K + 1]
-        out = np.zeros(int(max_lag) + 1)
+        out = np.zeros(max_lag + 1)
         out[: K + 1] = r
-        return self.B**2 * out
+        return (self.B**2 * out)[d]
 
     def avar(self, m, dt):
         m = check_m(m)
-        return avar_from_autocovariance(self.autocovariance(int(2 * m.max()), dt), m)
+        return avar_from_autocovariance(self.autocovariance(np.arange(int(2 * m.max()) + 1), dt), m)
 
     def psd(self, f, dt):
         """One-sided PSD of the ideal (untruncated) filter, 2 B^2 dt / |2 sin(pi f dt)|.

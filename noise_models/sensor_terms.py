@@ -148,6 +148,7 @@ class Sinusoidal(NoiseTerm):
         return 2 * math.pi * self.frequency * dt
 
     def autocovariance(self, lags, dt) -> np.ndarray:
+        """(A^2 / 2) cos(omega k)."""
         return 0.5 * self.amplitude**2 * np.cos(self._omega(dt) * np.asarray(lags, dtype=float))
 
     def avar(self, m, dt):
@@ -299,18 +300,19 @@ class FilteredWhiteNoise(NoiseTerm):
         a = math.exp(-_check_dt(dt) / self.tc)
         return GaussMarkov(sigma=math.sqrt(self.N**2 / dt * (1 - a) / (1 + a)), tc=self.tc)
 
-    def autocovariance(self, max_lag: int, dt) -> np.ndarray:
-        """r(0..max_lag) of the filtered sequence (exact)."""
+    def autocovariance(self, lags, dt) -> np.ndarray:
+        """r at ``lags`` of the filtered sequence (exact): (N^2 / dt) sum_j h_j h_{j+|k|} for a FIR, the
+        Gauss-Markov form for the first-order low-pass."""
         dt = _check_dt(dt)
-        lags = np.arange(int(max_lag) + 1)
         h = self.impulse_response()
         if h is None:
             return self._gauss_markov(dt).autocovariance(lags, dt)
+        d = np.abs(np.asarray(lags, dtype=np.int64))
         full = np.correlate(h, h, mode="full")[len(h) - 1 :]  # sum_j h_j h_{j+i}, i = 0..L-1
-        out = np.zeros(len(lags))
+        out = np.zeros((int(d.max()) if d.size else 0) + 1)
         k = min(len(full), len(out))
         out[:k] = full[:k]
-        return self.N**2 / dt * out
+        return (self.N**2 / dt * out)[d]
 
     def avar(self, m, dt):
         m = check_m(m)
@@ -318,7 +320,7 @@ class FilteredWhiteNoise(NoiseTerm):
         if self.impulse_response() is None:
             return self._gauss_markov(dt).avar(m, dt)
         h = self.impulse_response()
-        r = self.autocovariance(len(h), dt)
+        r = self.autocovariance(np.arange(len(h) + 1), dt)
         out = np.empty(len(m))
         small = m < len(h)
         if np.any(small):
@@ -402,7 +404,7 @@ def _resonance_poles(frequency: float, tc: float, dt: float) -> tuple[float, flo
 
 
 def _resonance_short_avar(terms, ms: np.ndarray, dt) -> np.ndarray:
-    """``[avar_from_autocovariance(t.autocovariance(int(2 * ms.max()), dt), ms) for t in terms]`` as one
+    """``[avar_from_autocovariance(t.autocovariance(np.arange(2 * ms.max() + 1), dt), ms) for t in terms]`` as one
     (len(terms), len(ms)) array, bit for bit: the same element-wise operations (the extended-precision sums
     of :func:`avbench.noise_models.exact_avar.avar_from_autocovariance` per row, in their order) on
     arrays of all the terms at once."""
@@ -523,9 +525,9 @@ class Resonance(NoiseTerm):
         return _resonance_poles(self.frequency, self.tc, _check_dt(dt))
 
     def autocovariance(self, lags, dt) -> np.ndarray:
-        """r at the given lags (or at 0..lags for an integer, as the FIR terms), exact."""
+        """r at ``lags``, exact: sigma^2 rho^|k| [cos(omega k) - c sin(omega |k|)]."""
         rho, w, c = self._poles(dt)
-        k = np.abs(np.arange(int(lags) + 1) if np.ndim(lags) == 0 else np.asarray(lags, dtype=float))
+        k = np.abs(np.asarray(lags, dtype=float))
         return self.sigma**2 * rho**k * (np.cos(w * k) - c * np.sin(w * k))
 
     def avar(self, m, dt):
@@ -535,7 +537,8 @@ class Resonance(NoiseTerm):
         out = np.empty(m.size)
         small = (2 * m + 1) * abs(alpha) < 1.0
         if np.any(small):
-            out[small] = avar_from_autocovariance(self.autocovariance(int(2 * m[small].max()), dt), m[small])
+            lags = np.arange(int(2 * m[small].max()) + 1)
+            out[small] = avar_from_autocovariance(self.autocovariance(lags, dt), m[small])
         if np.any(~small):
             out[~small] = self.sigma**2 * np.real((1 + 1j * c) * _gm_form(m[~small], alpha))
         return out

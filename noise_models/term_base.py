@@ -12,6 +12,12 @@ answers the same small questions:
 ``psd(f, dt)``
     the one-sided power spectral density (rad^2/s^2/Hz) of the discrete sequence at frequencies
     0 < f <= 1/(2 dt) (the pseudo-spectrum for the random walk; zero for the deterministic ramp);
+``autocovariance(lags, dt)``
+    the exact autocovariance (rad^2/s^2) of the discrete rate sequence at integer ``lags`` (an array of
+    any shape; a lag and its negative give the same value); the exact statistics of the deviation
+    family (:mod:`avbench.noise_models.exact_variances`) and the spectral likelihoods read it. A term
+    that is not stationary (the random walk) declares ``stationary = False`` and answers with a
+    ValueError; its exact statistics come from :meth:`NoiseTerm.phase_gcov`;
 ``stream(dt, rng)``
     a :class:`TermStream` whose ``next(n)`` returns the next ``n`` samples. The samples do not depend
     on how a record is cut into requests: ``next(a)`` then ``next(b)`` equals ``next(a + b)`` bit for
@@ -28,6 +34,7 @@ The fitter loops over the terms of its model and keeps no table of them.
 
 from __future__ import annotations
 
+import abc
 import math
 from typing import ClassVar, NamedTuple
 
@@ -78,8 +85,10 @@ class TermStream:
     def next(self, n: int) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
-class NoiseTerm:
-    """Base class of the noise terms."""
+class NoiseTerm(abc.ABC):
+    """Abstract base of the noise terms: every term declares its parameters (:meth:`_params`), its exact
+    AV (:meth:`avar`), spectrum (:meth:`psd`), autocovariance (:meth:`autocovariance`) and generator
+    (:meth:`stream`), each with the signature below (the module docstring)."""
 
     #: the IEEE coefficient the term reports (None if it reports none)
     coefficient: ClassVar[str | None] = None
@@ -87,15 +96,32 @@ class NoiseTerm:
     #: ``Gyro.avar`` is an error and study tables and figures say the truth curve is unavailable
     has_exact_avar: ClassVar[bool] = True
 
+    #: False for a term whose rate is not a stationary sequence (the random walk): it has no
+    #: :meth:`autocovariance`, and its spectrum (:meth:`psd`) is a pseudo-spectrum
+    stationary: ClassVar[bool] = True
+
     def coefficients(self) -> dict[str, float]:
         """The IEEE coefficient(s) the term stands for, in SI (none by default)."""
         return {}
 
+    @abc.abstractmethod
     def avar(self, m, dt) -> np.ndarray:
-        raise NotImplementedError
+        """The exact Allan variance (rad^2/s^2) of the discrete generator at cluster sizes ``m``."""
 
+    @abc.abstractmethod
     def psd(self, f, dt) -> np.ndarray:
-        raise NotImplementedError
+        """The one-sided power spectral density (rad^2/s^2/Hz) at frequencies 0 < f <= 1/(2 dt)."""
+
+    @abc.abstractmethod
+    def autocovariance(self, lags, dt) -> np.ndarray:
+        """The exact autocovariance r(k) = Cov(w_j, w_{j+k}) (rad^2/s^2) of the discrete rate sequence
+        at the integer ``lags`` (any shape; r(-k) = r(k)); a ValueError for a term that is not
+        :attr:`stationary`."""
+
+    def _not_stationary(self):
+        """The error :meth:`autocovariance` raises for a term that is not stationary."""
+        return ValueError(f"{type(self).__name__} is not stationary: it has no autocovariance (its exact "
+                          "statistics come from phase_gcov)")
 
     def psd_factor(self) -> tuple[float, "NoiseTerm"]:
         """``(c, unit)`` with ``self.psd(f, dt) == c * unit.psd(f, dt)`` for every f and dt: the
@@ -161,18 +187,19 @@ class NoiseTerm:
         """Spectral lines [(frequency Hz, variance)] beside :meth:`psd` (none but for sinusoids)."""
         return []
 
+    @abc.abstractmethod
     def stream(self, dt, rng: np.random.Generator) -> TermStream:
-        raise NotImplementedError
+        """The term's chunk-invariant sample source at interval ``dt`` (the module docstring)."""
 
     def phase_gcov(self, lags, dt) -> np.ndarray:
         """Generalized covariance G(d) of the phase at integer lags (see ``noise_models.exact_variances``).
 
-        Default: from ``autocovariance(max_lag, dt)`` for a stationary term, G = -D/2.
+        Default: from :meth:`autocovariance` at lags 0..max|lags| (a stationary term), G = -D/2; a term
+        that is not stationary overrides it.
         """
         lags = np.abs(np.asarray(lags, dtype=np.int64))
-        if not hasattr(self, "autocovariance"):
-            raise NotImplementedError(f"{type(self).__name__}: no phase_gcov and no autocovariance")
-        return gcov_from_autocovariance(self.autocovariance(int(lags.max()) if lags.size else 0, dt), lags, dt)
+        L = int(lags.max()) if lags.size else 0
+        return gcov_from_autocovariance(self.autocovariance(np.arange(L + 1), dt), lags, dt)
 
     def simulate(self, n: int, dt, rng: np.random.Generator) -> np.ndarray:
         """``n`` samples (rad/s) of this term alone."""
@@ -182,8 +209,9 @@ class NoiseTerm:
         args = ", ".join(f"{k}={v!r}" for k, v in self._params().items())
         return f"{type(self).__name__}({args})"
 
+    @abc.abstractmethod
     def _params(self) -> dict:
-        return {}
+        """The term's parameters by constructor keyword, SI: ``type(self)(**self._params()) == self``."""
 
     def __eq__(self, other) -> bool:
         return type(self) is type(other) and self._params() == other._params()

@@ -371,10 +371,19 @@ def all_terms():
         T.SecondOrderGaussMarkov(1e-4, 0.2),
         T.RateRandomWalk(3e-4),
         T.RateRamp(2e-5),
+        T.Sinusoidal(1e-3, 0.37),
+        T.FilteredWhiteNoise(1e-3, length=4),
+        T.FilteredWhiteNoise(1e-3, tc=0.3),
+        T.Resonance(1e-3, 0.8, 3.0),
     ]
 
 
-@pytest.mark.parametrize("term", all_terms(), ids=lambda t: type(t).__name__)
+def _term_id(t):
+    return repr(t).split("(")[0] + ("" if not isinstance(t, T.FilteredWhiteNoise) else
+                                    "_fir" if t.tc is None else "_lowpass")
+
+
+@pytest.mark.parametrize("term", all_terms(), ids=_term_id)
 def test_generalized_covariance_gives_back_each_terms_exact_av(term):
     m = np.array([1, 2, 3, 10, 64, 500])
     np.testing.assert_allclose(ev.oavar([term], m, 0.1), term.avar(m, 0.1), rtol=1e-10)
@@ -412,14 +421,14 @@ STATIONARY_OR_WALK = [t for t in all_terms() if not isinstance(t, T.RateRamp)]
 
 
 @pytest.mark.parametrize("kind", STATS)
-@pytest.mark.parametrize("term", STATIONARY_OR_WALK, ids=lambda t: type(t).__name__)
+@pytest.mark.parametrize("term", STATIONARY_OR_WALK, ids=_term_id)
 def test_ensemble_mean_equals_exact_value(term, kind):
     _check_mean(term, kind, 400, 40, 11, np.array([2, 8, 40]) if kind not in WINDOWED else np.array([1, 2, 8, 24]))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", STATS)
-@pytest.mark.parametrize("term", STATIONARY_OR_WALK, ids=lambda t: type(t).__name__)
+@pytest.mark.parametrize("term", STATIONARY_OR_WALK, ids=_term_id)
 def test_ensemble_mean_equals_exact_value_slow(term, kind):
     m = np.array([2, 16, 128, 1000]) if kind not in WINDOWED else np.array([1, 2, 16, 64])
     _check_mean(term, kind, 4000, 400, 12, m)

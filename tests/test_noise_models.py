@@ -197,3 +197,54 @@ def test_preset_avar_matches_monte_carlo_slow(name):
 def test_bad_input(make, msg):
     with pytest.raises(ValueError, match=msg):
         make()
+
+
+def _every_builtin_term():
+    from avbench.noise_models import FilteredWhiteNoise, Resonance, Sinusoidal
+
+    return [*TERMS.values(), RateRamp(R=1e-6), Sinusoidal(amplitude=1e-3, frequency=3.0),
+            FilteredWhiteNoise(N=1e-4, length=5), FilteredWhiteNoise(N=1e-4, taps=[1, 3, 1]),
+            FilteredWhiteNoise(N=1e-4, tc=0.03), Resonance(sigma=1e-3, frequency=7.0, tc=0.4)]
+
+
+def test_noise_term_is_an_abstract_base_every_term_fills():
+    """A term that leaves out a declaration of the interface (here the autocovariance) cannot be made;
+    every built-in term type is one of the terms checked below."""
+    from avbench.noise_models import TERM_TYPES, NoiseTerm
+
+    class NoAutocovariance(NoiseTerm):
+        def _params(self):
+            return {}
+
+        def avar(self, m, dt):
+            return np.zeros(len(m))
+
+        def psd(self, f, dt):
+            return np.zeros(len(f))
+
+        def stream(self, dt, rng):
+            raise AssertionError
+
+    with pytest.raises(TypeError, match="autocovariance"):
+        NoAutocovariance()
+    assert {type(t).__name__ for t in _every_builtin_term()} == set(TERM_TYPES)
+
+
+@pytest.mark.parametrize("term", _every_builtin_term(), ids=repr)
+def test_autocovariance_takes_an_array_of_lags_and_gives_back_the_exact_av(term):
+    """One signature: integer lags of any shape (r(-k) = r(k)) to the rate autocovariance there, whose AV
+    is the term's exact AV; a term that is not stationary says so."""
+    m = np.array([1, 2, 3, 7, 40])
+    lags = np.arange(2 * m.max() + 1)
+    if not term.stationary:
+        with pytest.raises(ValueError, match="not stationary"):
+            term.autocovariance(lags, DT)
+        return
+    r = term.autocovariance(lags, DT)
+    assert r.shape == lags.shape
+    grid = term.autocovariance(np.array([[3, -3], [0, 5]]), DT)
+    np.testing.assert_array_equal(grid, [[r[3], r[3]], [r[0], r[5]]])
+    scale = float(np.max(np.abs(term.avar(m, DT))))
+    # a deterministic term's AV is its mean's (phase_mean): its random part, the autocovariance, is 0
+    expected = np.zeros(m.size) if hasattr(term, "phase_mean") else term.avar(m, DT)
+    np.testing.assert_allclose(avar_from_autocovariance(r, m), expected, rtol=1e-9, atol=1e-12 * scale)

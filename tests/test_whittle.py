@@ -156,7 +156,7 @@ def _dense_covariance(comp, n, dt, tc=None):
     if comp == "GM":
         return toeplitz(np.exp(-lag * dt / tc))
     if comp == "B":  # a filter memory far beyond the record: the ideal 1/f up to ~1e-5
-        return toeplitz(BiasInstability(B=1.0, tau_max=1e6 * dt).autocovariance(n - 1, dt))
+        return toeplitz(BiasInstability(B=1.0, tau_max=1e6 * dt).autocovariance(np.arange(n), dt))
     if comp == "K":  # random walk of increments with variance dt
         s = np.minimum.outer(lag, lag) + 1.0
         return s * dt

@@ -48,12 +48,23 @@ class SineRate(NoiseTerm):
         d = np.sin(m * half) / (m * math.sin(half))
         return self.amplitude**2 * np.sin(m * half) ** 2 * d**2
 
+    def autocovariance(self, lags, dt):
+        """(A^2 / 2) cos(2 pi k dt / period): the random phase makes the sequence stationary."""
+        return 0.5 * self.amplitude**2 * np.cos(2.0 * math.pi * dt / self.period * np.asarray(lags, dtype=float))
+
+    def psd(self, f, dt):
+        """Zero: the power is a line at 1 / period (spectral_lines)."""
+        return np.zeros_like(np.asarray(f, dtype=float))
+
+    def spectral_lines(self, dt):
+        return [(1.0 / self.period, 0.5 * self.amplitude**2)]
+
     def stream(self, dt, rng):
         return _PeriodicStream(dt, rng, self)
 
 
 class SquareWaveRate(SineRate):
-    """A rate square wave of amplitude A (a thermostat cycling, say); no exact AV is derived here."""
+    """A rate square wave of amplitude A (a thermostat cycling, say); no exact statistics are derived here."""
 
     has_exact_avar = False
 
@@ -62,3 +73,12 @@ class SquareWaveRate(SineRate):
 
     def avar(self, m, dt):
         raise NotImplementedError("SquareWaveRate declares no exact Allan variance")
+
+    def autocovariance(self, lags, dt):
+        raise NotImplementedError("SquareWaveRate declares no exact autocovariance")
+
+    def psd(self, f, dt):
+        raise NotImplementedError("SquareWaveRate declares no spectrum")
+
+    def spectral_lines(self, dt):
+        raise NotImplementedError("SquareWaveRate declares no spectrum")
