@@ -62,11 +62,11 @@ def consumer_imu(dt: float, hours: float = 1.0) -> dict:
     for sensor, p in _CONSUMER.items():
         axes = []
         for f in (1.0, 1.07, 0.94):
-            terms = [FilteredWhiteNoise(N=p["N"] * f, tc=p["tf"])]
+            terms = [FilteredWhiteNoise(N=p["N"] * f, tf=p["tf"])]
             if p["line"][1] < 0.45 / dt:
-                terms.append(Sinusoidal(amplitude=p["line"][0] * f, frequency=p["line"][1]))
+                terms.append(Sinusoidal(A=p["line"][0] * f, f0=p["line"][1]))
             if p["res"][1] < 0.45 / dt:
-                terms.append(Resonance(sigma=p["res"][0] * f, frequency=p["res"][1], tc=p["res"][2]))
+                terms.append(Resonance(sigma=p["res"][0] * f, f0=p["res"][1], tc=p["res"][2]))
             terms += [BiasInstability(B=p["B"] * f, tau_max=2 * hours * 3600), RateRandomWalk(K=p["K"] * f),
                       Quantization(Q=p["lsb"] * dt / math.sqrt(12))]
             axes.append(Gyro(dt, terms, name=f"consumer {sensor}"))

@@ -8,7 +8,7 @@ code  term                                                        parameters    
 ====  ==========================================================  ===================  ============
 QN    :class:`~avbench.noise_models.Quantization`                 Q                    Q
 WN    :class:`~avbench.noise_models.AngleRandomWalk`              N                    N
-FW    :class:`~avbench.noise_models.FilteredWhiteNoise` (tc=tf)   N, tf                N
+FW    :class:`~avbench.noise_models.FilteredWhiteNoise` (tf=...)  N, tf                N
 GM    :class:`~avbench.noise_models.GaussMarkov`                  sigma, tc            B (B_equiv)
 FL    :class:`~avbench.noise_models.BiasInstability`              B                    B
 RW    :class:`~avbench.noise_models.RateRandomWalk`               K                    K

@@ -75,26 +75,26 @@ class Sinusoidal(NoiseTerm):
     peaks at tau = 0.371 / f0 and is zero at every whole number of periods.
 
     The term reports no IEEE coefficient (``coefficients()`` is empty); its parameters are
-    ``amplitude`` (rad/s) and ``frequency`` (Hz). Its spectrum is a line: :meth:`psd` is zero at
+    ``A`` (rad/s) and ``f0`` (Hz), named alike in the constructor and a fit (:attr:`fit_parameters`). Its spectrum is a line: :meth:`psd` is zero at
     every frequency but f0 and :meth:`spectral_lines` gives the line's power A^2 / 2.
 
     Parameters
     ----------
-    amplitude : float or (value, unit)
-        Amplitude A of the rate (rad/s, or e.g. ``(50, "deg/h")``).
-    frequency : float
-        Frequency f0 in Hz; at most the Nyquist frequency 1/(2 dt) of the sampling it is used at
+    A : float or (value, unit)
+        Amplitude of the rate (rad/s, or e.g. ``(50, "deg/h")``).
+    f0 : float
+        Frequency in Hz; at most the Nyquist frequency 1/(2 dt) of the sampling it is used at
         (a higher frequency would alias, and is refused).
     """
 
     coefficient = None
-    shape_parameter = "frequency"
+    shape_parameter = "f0"
     latent = "SN"
     fit_parameters = ("A", "f0")
 
     @classmethod
     def from_fit(cls, values, *, tau_max=None):
-        return cls(amplitude=values[0], frequency=values[1])
+        return cls(A=values[0], f0=values[1])
 
     @classmethod
     def fit_amplitude_top(cls, tau, avar):
@@ -129,32 +129,32 @@ class Sinusoidal(NoiseTerm):
         return [(min(max(amp, math.exp(lo[0]) * 1.01), math.exp(hi[0]) / 1.01),
                  min(max(f0, math.exp(lo[1]) * 1.01), math.exp(hi[1]) / 1.01)) for amp, f0 in sn]
 
-    def __init__(self, amplitude, frequency):
-        self.amplitude = as_si("B", amplitude)  # a rate, like B
-        if self.amplitude == 0:
-            raise ValueError("amplitude: expected a positive amplitude, got 0")
-        self.frequency = _positive("frequency", frequency)
+    def __init__(self, A, f0):
+        self.A = as_si("B", A)  # a rate, like B
+        if self.A == 0:
+            raise ValueError("A: expected a positive amplitude, got 0")
+        self.f0 = _positive("f0", f0)
 
     def _params(self):
-        return {"amplitude": self.amplitude, "frequency": self.frequency}
+        return {"A": self.A, "f0": self.f0}
 
     def _omega(self, dt) -> float:
         dt = _check_dt(dt)
-        if self.frequency > 0.5 / dt * (1 + 1e-12):
+        if self.f0 > 0.5 / dt * (1 + 1e-12):
             raise ValueError(
-                f"frequency: {self.frequency} Hz is above the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
+                f"f0: {self.f0} Hz is above the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
                 "of this sampling; expected a frequency the samples resolve"
             )
-        return 2 * math.pi * self.frequency * dt
+        return 2 * math.pi * self.f0 * dt
 
     def autocovariance(self, lags, dt) -> np.ndarray:
         """(A^2 / 2) cos(omega k)."""
-        return 0.5 * self.amplitude**2 * np.cos(self._omega(dt) * np.asarray(lags, dtype=float))
+        return 0.5 * self.A**2 * np.cos(self._omega(dt) * np.asarray(lags, dtype=float))
 
     def avar(self, m, dt):
         m = check_m(m).astype(float)
         w = self._omega(dt)
-        return self.amplitude**2 * np.sin(m * w / 2) ** 4 / (m**2 * math.sin(w / 2) ** 2)
+        return self.A**2 * np.sin(m * w / 2) ** 4 / (m**2 * math.sin(w / 2) ** 2)
 
     def avar_shape_derivative(self, m, dt):
         """``(avar, d avar / d ln f0)``: the base class's central difference in ln f0 (relative step 1e-4),
@@ -162,20 +162,20 @@ class Sinusoidal(NoiseTerm):
         :meth:`avar`: bit for bit). Where a step passes the Nyquist frequency, the base class's one-sided
         difference."""
         h = 1e-4
-        freqs = (self.frequency, self.frequency * math.exp(h), self.frequency * math.exp(-h))
+        freqs = (self.f0, self.f0 * math.exp(h), self.f0 * math.exp(-h))
         dt = _check_dt(dt)
         if any(f > 0.5 / dt * (1 + 1e-12) for f in freqs):
             return super().avar_shape_derivative(m, dt)
         mf = check_m(m).astype(float)
         w = np.array([2 * math.pi * f * dt for f in freqs])
         s2 = np.array([math.sin(x / 2) ** 2 for x in w])
-        value, up, down = self.amplitude**2 * np.sin(mf * w[:, None] / 2) ** 4 / (mf**2 * s2[:, None])
+        value, up, down = self.A**2 * np.sin(mf * w[:, None] / 2) ** 4 / (mf**2 * s2[:, None])
         return value, (up - down) / (h - (-h))
 
     def spectral_lines(self, dt) -> list[tuple[float, float]]:
         """[(f0, power)]: the line's frequency (Hz) and the variance it carries, A^2 / 2."""
         self._omega(dt)
-        return [(self.frequency, 0.5 * self.amplitude**2)]
+        return [(self.f0, 0.5 * self.A**2)]
 
     def psd(self, f, dt):
         """Zero: the spectrum is the line of :meth:`spectral_lines` (a Dirac delta at f0)."""
@@ -186,7 +186,7 @@ class Sinusoidal(NoiseTerm):
     def stream(self, dt, rng):
         dt = _check_dt(dt)
         self._omega(dt)
-        return _SineStream(dt, rng, self.amplitude, self.frequency)
+        return _SineStream(dt, rng, self.A, self.f0)
 
 
 # --- white noise through the sensor's front-end filter ----------------------------------------
@@ -209,7 +209,7 @@ class FilteredWhiteNoise(NoiseTerm):
         a moving average of L samples (h = 1/L, ..., 1/L);
     ``taps=h``
         any FIR (normalised here to unit DC gain);
-    ``tc=T``
+    ``tf=T``
         a first-order low-pass y_k = a y_{k-1} + (1 - a) e_k, a = exp(-dt / T).
 
     Exact discrete AV. For a FIR with autocovariance r(i) = (N^2 / dt) sum_j h_j h_{j+i} (zero for
@@ -233,21 +233,20 @@ class FilteredWhiteNoise(NoiseTerm):
     ----------
     N : float or (value, unit)
         Angle random walk coefficient (the white noise before the filter; SI rad/sqrt(s)).
-    length, taps, tc :
-        The filter (exactly one), see above.
+    length, taps, tf :
+        The filter (exactly one), see above; ``tf`` is named alike in a fit (:attr:`fit_parameters`).
     """
 
     coefficient = "N"
     #: the first-order filter's time constant (fitted by gmwm_filtered); None for the other filters
-    shape_parameter = "tc"
+    shape_parameter = "tf"
     latent = "FW"
-    #: the first-order filter's time constant is fitted as ``tf``
     fit_parameters = ("N", "tf")
 
     @classmethod
     def from_fit(cls, values, *, tau_max=None):
         """White noise ``values[0]`` through the first-order low-pass of time constant ``values[1]``."""
-        return cls(N=values[0], tc=values[1])
+        return cls(N=values[0], tf=values[1])
 
     @classmethod
     def fit_amplitude_top(cls, tau, avar):
@@ -263,14 +262,14 @@ class FilteredWhiteNoise(NoiseTerm):
         """N on the curve's highest white line, tf a quarter of the shortest tau."""
         return [(math.sqrt(np.max(avar * tau)), tau[0] / 4)]
 
-    def __init__(self, N, *, length=None, taps=None, tc=None):
+    def __init__(self, N, *, length=None, taps=None, tf=None):
         self.N = as_si("N", N)
-        given = [k for k, v in (("length", length), ("taps", taps), ("tc", tc)) if v is not None]
+        given = [k for k, v in (("length", length), ("taps", taps), ("tf", tf)) if v is not None]
         if len(given) != 1:
             raise ValueError(
-                f"FilteredWhiteNoise: expected exactly one filter (length=L, taps=[...] or tc=T), got {given or 'none'}"
+                f"FilteredWhiteNoise: expected exactly one filter (length=L, taps=[...] or tf=T), got {given or 'none'}"
             )
-        self.length = self.taps = self.tc = None
+        self.length = self.taps = self.tf = None
         if length is not None:
             if isinstance(length, bool) or not isinstance(length, int | np.integer) or length < 1:
                 raise ValueError(f"length: expected a positive integer number of samples, got {length!r}")
@@ -281,10 +280,10 @@ class FilteredWhiteNoise(NoiseTerm):
                 raise ValueError(f"taps: expected a finite 1-D FIR with non-zero sum (its DC gain), got {taps!r}")
             self.taps = tuple(float(v) for v in h / h.sum())
         else:
-            self.tc = _positive("tc", tc)
+            self.tf = _positive("tf", tf)
 
     def _params(self):
-        return {"N": self.N, "length": self.length, "taps": self.taps, "tc": self.tc}
+        return {"N": self.N, "length": self.length, "taps": self.taps, "tf": self.tf}
 
     def coefficients(self):
         return {"N": self.N}
@@ -297,8 +296,8 @@ class FilteredWhiteNoise(NoiseTerm):
 
     def _gauss_markov(self, dt) -> GaussMarkov:
         """The first-order low-pass of white noise as the Gauss-Markov sequence it is."""
-        a = math.exp(-_check_dt(dt) / self.tc)
-        return GaussMarkov(sigma=math.sqrt(self.N**2 / dt * (1 - a) / (1 + a)), tc=self.tc)
+        a = math.exp(-_check_dt(dt) / self.tf)
+        return GaussMarkov(sigma=math.sqrt(self.N**2 / dt * (1 - a) / (1 + a)), tc=self.tf)
 
     def autocovariance(self, lags, dt) -> np.ndarray:
         """r at ``lags`` of the filtered sequence (exact): (N^2 / dt) sum_j h_j h_{j+|k|} for a FIR, the
@@ -332,24 +331,24 @@ class FilteredWhiteNoise(NoiseTerm):
         return out
 
     def avar_shape_derivative(self, m, dt):
-        """``(avar, d avar / d ln tc)`` of the first-order low-pass: the base class's central difference in
-        ln tc (relative step 1e-4), with its three AVs (at tc, tc e^h, tc e^-h) in one compiled call
+        """``(avar, d avar / d ln tf)`` of the first-order low-pass: the base class's central difference in
+        ln tf (relative step 1e-4), with its three AVs (at tf, tf e^h, tf e^-h) in one compiled call
         (:func:`avbench.noise_models.markov_terms._gm_central`), bit for bit the three
         :meth:`avar` calls it stands for. The FIR filters have no shape parameter: the base class's."""
-        if self.tc is None:
+        if self.tf is None:
             return super().avar_shape_derivative(m, dt)
         m = check_m(m)
         dt = _check_dt(dt)
         h = 1e-4
-        tcs = (self.tc, self.tc * math.exp(h), self.tc * math.exp(-h))
+        tfs = (self.tf, self.tf * math.exp(h), self.tf * math.exp(-h))
         sigma2 = []
-        for tc in tcs:  # _gauss_markov(dt) at each tc: the GaussMarkov sequence's variance
-            a = math.exp(-dt / tc)
+        for tf in tfs:  # _gauss_markov(dt) at each tf: the GaussMarkov sequence's variance
+            a = math.exp(-dt / tf)
             sigma = math.sqrt(self.N**2 / dt * (1 - a) / (1 + a))
-            if not (sigma > 0 and math.isfinite(sigma) and math.isfinite(tc) and tc > 0):
+            if not (sigma > 0 and math.isfinite(sigma) and math.isfinite(tf) and tf > 0):
                 return super().avar_shape_derivative(m, dt)  # a step outside the values a term accepts
             sigma2.append(sigma**2)
-        return _gm_central(m, [dt / tc for tc in tcs], sigma2, h - (-h))
+        return _gm_central(m, [dt / tf for tf in tfs], sigma2, h - (-h))
 
     def gain2(self, f, dt) -> np.ndarray:
         """|H(e^{i 2 pi f dt})|^2, the filter's power gain (1 at f = 0)."""
@@ -357,7 +356,7 @@ class FilteredWhiteNoise(NoiseTerm):
         f, w = _omega_dt(f, dt)
         h = self.impulse_response()
         if h is None:
-            a = math.exp(-dt / self.tc)
+            a = math.exp(-dt / self.tf)
             return (1 - a) ** 2 / (1 - 2 * a * _grid_value(grid, dt, "cos(w)", w) + a * a)
         H = np.exp(-1j * np.outer(w, np.arange(len(h)))) @ h
         return np.abs(H) ** 2
@@ -391,15 +390,15 @@ def _gm_form(m: np.ndarray, alpha: complex) -> np.ndarray:
 _numpy_complex_product = functools.cache(numpy_complex_product)
 
 
-def _resonance_poles(frequency: float, tc: float, dt: float) -> tuple[float, float, float]:
-    """(rho, omega, c) of a resonance at ``frequency`` with damping time ``tc`` sampled every ``dt``
+def _resonance_poles(f0: float, tc: float, dt: float) -> tuple[float, float, float]:
+    """(rho, omega, c) of a resonance at ``f0`` with damping time ``tc`` sampled every ``dt``
     (:class:`Resonance`); a ValueError at or above the Nyquist frequency."""
-    if frequency >= 0.5 / dt * (1 - 1e-12):
+    if f0 >= 0.5 / dt * (1 - 1e-12):
         raise ValueError(
-            f"frequency: {frequency} Hz is not below the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
+            f"f0: {f0} Hz is not below the Nyquist frequency 1/(2 dt) = {0.5 / dt} Hz "
             "of this sampling; expected a frequency the samples resolve"
         )
-    rho, w = math.exp(-dt / tc), 2 * math.pi * frequency * dt
+    rho, w = math.exp(-dt / tc), 2 * math.pi * f0 * dt
     return rho, w, -math.expm1(-2 * dt / tc) / (2 * rho * math.sin(w))
 
 
@@ -456,15 +455,16 @@ class Resonance(NoiseTerm):
     (the extended-precision autocovariance route of ``exact_avar`` where (2m + 1)|ln phi| < 1, where the
     closed form would lose digits). It peaks near tau = 0.371 / f0 as a sinusoid's and falls as 1/tau^2
     beyond the band (no white-noise or bias share at long tau). Continuous limit (dt -> 0 at fixed f0,
-    tc): c -> 1 / (2 pi f0 tc), the velocity of a damped oscillator driven by white noise. ``frequency``
-    must lie below the Nyquist frequency (at it, sin omega = 0).
+    tc): c -> 1 / (2 pi f0 tc), the velocity of a damped oscillator driven by white noise. ``f0``
+    must lie below the Nyquist frequency (at it, sin omega = 0). The parameters are named alike in the
+    constructor and a fit (:attr:`fit_parameters`).
 
     Parameters
     ----------
     sigma : float or (value, unit)
         Stationary standard deviation of the rate (rad/s, or e.g. ``(300, "deg/h")``).
-    frequency : float
-        Centre frequency f0 in Hz, 0 < f0 < 1/(2 dt).
+    f0 : float
+        Centre frequency in Hz, 0 < f0 < 1/(2 dt).
     tc : float
         Damping time in seconds (the band's half width at half power ~ 1/(2 pi tc)).
     """
@@ -475,7 +475,7 @@ class Resonance(NoiseTerm):
 
     @classmethod
     def from_fit(cls, values, *, tau_max=None):
-        return cls(sigma=values[0], frequency=values[1], tc=values[2])
+        return cls(sigma=values[0], f0=values[1], tc=values[2])
 
     @classmethod
     def fit_amplitude_top(cls, tau, avar):
@@ -503,26 +503,26 @@ class Resonance(NoiseTerm):
         return [tuple(min(max(start[k], math.exp(lo[k]) * 1.01), math.exp(hi[k]) / 1.01) for k in range(3))
                 for start in starts]
 
-    def __init__(self, sigma, frequency, tc):
+    def __init__(self, sigma, f0, tc):
         self.sigma = as_si("B", sigma)  # a rate, like B
         if self.sigma == 0:
             raise ValueError("sigma: expected a positive standard deviation, got 0")
-        self.frequency = _positive("frequency", frequency)
+        self.f0 = _positive("f0", f0)
         self.tc = _positive("tc", tc)
 
     @classmethod
     def shape_parameters(cls):
-        return ("frequency", "tc")
+        return ("f0", "tc")
 
     def _params(self):
-        return {"sigma": self.sigma, "frequency": self.frequency, "tc": self.tc}
+        return {"sigma": self.sigma, "f0": self.f0, "tc": self.tc}
 
     def psd_factor(self):
-        return self.sigma**2, Resonance(sigma=1.0, frequency=self.frequency, tc=self.tc)
+        return self.sigma**2, Resonance(sigma=1.0, f0=self.f0, tc=self.tc)
 
     def _poles(self, dt):
         """(rho, omega, c) of the sampling ``dt``; a ValueError at or above the Nyquist frequency."""
-        return _resonance_poles(self.frequency, self.tc, _check_dt(dt))
+        return _resonance_poles(self.f0, self.tc, _check_dt(dt))
 
     def autocovariance(self, lags, dt) -> np.ndarray:
         """r at ``lags``, exact: sigma^2 rho^|k| [cos(omega k) - c sin(omega |k|)]."""
@@ -545,7 +545,7 @@ class Resonance(NoiseTerm):
 
     @staticmethod
     def _avar_rows(rows, m, dt) -> np.ndarray:
-        """``[Resonance(*row).avar(m, dt) for row in rows]`` (rows of (sigma, frequency, tc)) as one array,
+        """``[Resonance(*row).avar(m, dt) for row in rows]`` (rows of (sigma, f0, tc)) as one array,
         bit for bit: the closed form of every row in one compiled call
         (:func:`avbench.noise_models._term_kernels._resonance_rows_py`), the autocovariance route where
         (2m + 1)|alpha| < 1 as :meth:`avar` takes it."""
@@ -556,7 +556,7 @@ class Resonance(NoiseTerm):
         dt_checked = _check_dt(dt)
         alpha, s, sigma2 = [], [], []
         for sg, f, tc in rows:  # the values Resonance(sg, f, tc) holds and its avar computes from them
-            sg, f, tc = as_si("B", sg), _positive("frequency", f), _positive("tc", tc)
+            sg, f, tc = as_si("B", sg), _positive("f0", f), _positive("tc", tc)
             if sg == 0:
                 raise ValueError("sigma: expected a positive standard deviation, got 0")
             rho, w, c = _resonance_poles(f, tc, dt_checked)
@@ -581,7 +581,7 @@ class Resonance(NoiseTerm):
         (relative step 1e-4), its five AVs in one call of :meth:`_avar_rows` (bit for bit)."""
         h = 1e-4
         up, down = math.exp(h), math.exp(-h)
-        sg, f, tc = self.sigma, self.frequency, self.tc
+        sg, f, tc = self.sigma, self.f0, self.tc
         v = self._avar_rows([(sg, f, tc), (sg, f * up, tc), (sg, f * down, tc), (sg, f, tc * up),
                              (sg, f, tc * down)], m, dt)
         return v[0], [(v[1] - v[2]) / (2 * h), (v[3] - v[4]) / (2 * h)]

@@ -38,8 +38,8 @@ def _gyro(name):
         # 5 Hz line (on 65,536 samples at 100 Hz the line test searches from 3.9 Hz)
         from avbench.noise_models import BiasInstability, FilteredWhiteNoise, RateRandomWalk, Sinusoidal
 
-        return Gyro(dt=0.01, terms=[FilteredWhiteNoise(N=7e-4, tc=0.005), BiasInstability(B=1.8e-4),
-                                    RateRandomWalk(K=1.2e-5), Sinusoidal(amplitude=2e-3, frequency=5.0)])
+        return Gyro(dt=0.01, terms=[FilteredWhiteNoise(N=7e-4, tf=0.005), BiasInstability(B=1.8e-4),
+                                    RateRandomWalk(K=1.2e-5), Sinusoidal(A=2e-3, f0=5.0)])
     return presets.get(name)
 
 

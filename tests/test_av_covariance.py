@@ -237,7 +237,7 @@ def test_fitted_shapes_take_the_direct_sum(monkeypatch):
     real = covariance._pair_integrals
     monkeypatch.setattr(covariance, "_pair_integrals", lambda *a: calls.append(list(a[1])) or real(*a))
     covariance._RESULTS.clear()
-    fitted = Gyro(dt=0.01, terms=[FilteredWhiteNoise(N=1e-3, tc=0.02), GaussMarkov(sigma=1e-4, tc=17.0),
+    fitted = Gyro(dt=0.01, terms=[FilteredWhiteNoise(N=1e-3, tf=0.02), GaussMarkov(sigma=1e-4, tc=17.0),
                                   RateRandomWalk(K=1e-6)])
     assert close(av_covariance(fitted, M, 50_000), direct(fitted, M, 50_000)) and not calls
     five = gyro_of(1e-6, 1e-3, 1e-4, 1e-6, None, 0.01)

@@ -373,14 +373,14 @@ def all_terms():
         T.RateRamp(2e-5),
         T.Sinusoidal(1e-3, 0.37),
         T.FilteredWhiteNoise(1e-3, length=4),
-        T.FilteredWhiteNoise(1e-3, tc=0.3),
+        T.FilteredWhiteNoise(1e-3, tf=0.3),
         T.Resonance(1e-3, 0.8, 3.0),
     ]
 
 
 def _term_id(t):
     return repr(t).split("(")[0] + ("" if not isinstance(t, T.FilteredWhiteNoise) else
-                                    "_fir" if t.tc is None else "_lowpass")
+                                    "_fir" if t.tf is None else "_lowpass")
 
 
 @pytest.mark.parametrize("term", all_terms(), ids=_term_id)

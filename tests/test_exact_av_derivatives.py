@@ -52,7 +52,7 @@ def test_gauss_markov_kernel_equals_its_numpy_reference():
         np.testing.assert_allclose(d1, d2, rtol=1e-12, atol=1e-14 * np.abs(g2).max())
 
 
-@pytest.mark.parametrize("term", [FilteredWhiteNoise(N=1e-3, tc=0.07), Sinusoidal(amplitude=2e-4, frequency=0.8)])
+@pytest.mark.parametrize("term", [FilteredWhiteNoise(N=1e-3, tf=0.07), Sinusoidal(A=2e-4, f0=0.8)])
 def test_default_derivative_is_a_central_difference(term):
     m = np.arange(1, 40)
     av, dav = term.avar_shape_derivative(m, 0.01)
@@ -63,10 +63,10 @@ def test_default_derivative_is_a_central_difference(term):
 
 def test_default_derivative_is_one_sided_at_the_edge_of_the_values_a_term_accepts():
     """A sinusoid at the Nyquist frequency (GMWM's upper bound for f0): the backward difference."""
-    term = Sinusoidal(amplitude=1.0, frequency=50.0)
+    term = Sinusoidal(A=1.0, f0=50.0)
     m = np.arange(1, 9)
     av, dav = term.avar_shape_derivative(m, 0.01)
-    below = Sinusoidal(amplitude=1.0, frequency=50.0 * math.exp(-1e-4)).avar(m, 0.01)
+    below = Sinusoidal(A=1.0, f0=50.0 * math.exp(-1e-4)).avar(m, 0.01)
     np.testing.assert_array_equal(dav, (av - below) / 1e-4)
     assert np.all(np.isfinite(dav))
 

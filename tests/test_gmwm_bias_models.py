@@ -21,7 +21,7 @@ DT = 0.01
 D2R = math.pi / 180
 #: an ADIS16405-like gyro (results/real: N 2.45 deg/sqrt(h), B 38 deg/h, K 150 deg/h^1.5, its 5 ms filter) whose
 #: bias instability is flicker, with a memory of 2 h
-FLICKER = Gyro(dt=DT, terms=[FilteredWhiteNoise(N=2.45 * D2R / 60, tc=0.005),
+FLICKER = Gyro(dt=DT, terms=[FilteredWhiteNoise(N=2.45 * D2R / 60, tf=0.005),
                              BiasInstability(B=38 * D2R / 3600, tau_max=7200.0),
                              RateRandomWalk(K=150 * D2R / 216_000)])
 TRUTH = {"N": 2.45 * D2R / 60, "B": 38 * D2R / 3600, "K": 150 * D2R / 216_000}
@@ -103,7 +103,7 @@ def _gauss_markov_gyro():
     """The same gyro with a Gauss-Markov bias instability of the same B (tc 50 s): inside the reported model."""
     from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA
 
-    return Gyro(dt=DT, terms=[FilteredWhiteNoise(N=TRUTH["N"], tc=0.005),
+    return Gyro(dt=DT, terms=[FilteredWhiteNoise(N=TRUTH["N"], tf=0.005),
                               GaussMarkov(sigma=TRUTH["B"] / B_EQUIV_OVER_SIGMA, tc=50.0),
                               RateRandomWalk(K=TRUTH["K"])])
 

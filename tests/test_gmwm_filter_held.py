@@ -12,7 +12,7 @@ from avbench.noise_models import FilteredWhiteNoise, Gyro, RateRandomWalk
 
 DT = 0.01
 N, TF, K = 1e-3, 0.02, 3e-5
-GYRO = Gyro(dt=DT, terms=[FilteredWhiteNoise(N=N, tc=TF), RateRandomWalk(K=K)])
+GYRO = Gyro(dt=DT, terms=[FilteredWhiteNoise(N=N, tf=TF), RateRandomWalk(K=K)])
 
 
 def _fit(x, **settings):

@@ -22,7 +22,7 @@ DT = 0.01
 
 
 def _broadband():
-    return Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, tc=0.02), GaussMarkov(sigma=5e-4, tc=2.0),
+    return Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, tf=0.02), GaussMarkov(sigma=5e-4, tc=2.0),
                               RateRandomWalk(K=2e-6)])
 
 

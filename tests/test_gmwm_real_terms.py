@@ -20,7 +20,7 @@ A, F0 = 4e-3, 0.55
 
 
 def _filtered():
-    return Gyro(dt=DT, terms=[FilteredWhiteNoise(N=N, tc=TF), GaussMarkov(sigma=5e-4, tc=30.0), RateRandomWalk(K=K)])
+    return Gyro(dt=DT, terms=[FilteredWhiteNoise(N=N, tf=TF), GaussMarkov(sigma=5e-4, tc=30.0), RateRandomWalk(K=K)])
 
 
 def _sine():
@@ -143,8 +143,8 @@ def _resonant():
     random walk, and a resonance near 20 Hz holding half the white noise's variance."""
     from avbench.noise_models import Resonance
 
-    return Gyro(dt=DT, terms=[FilteredWhiteNoise(N=7e-4, tc=0.006), GaussMarkov(sigma=1.7e-4, tc=40.0),
-                              RateRandomWalk(K=1e-5), Resonance(sigma=5e-3, frequency=RS_F0, tc=RS_TC)])
+    return Gyro(dt=DT, terms=[FilteredWhiteNoise(N=7e-4, tf=0.006), GaussMarkov(sigma=1.7e-4, tc=40.0),
+                              RateRandomWalk(K=1e-5), Resonance(sigma=5e-3, f0=RS_F0, tc=RS_TC)])
 
 
 def test_resonance_is_added_on_evidence_and_keeps_the_short_scales():
@@ -228,7 +228,7 @@ def test_the_first_step_gives_a_flat_first_octave_one_degree_of_freedom():
     from avbench.estimators.allan.variance import allan_variance
     from avbench.estimators.likelihood.gmwm import first_step_edf
 
-    for terms, flat in (([FilteredWhiteNoise(N=1e-4, tc=0.02)], True), ([AngleRandomWalk(N=1e-4)], False)):
+    for terms, flat in (([FilteredWhiteNoise(N=1e-4, tf=0.02)], True), ([AngleRandomWalk(N=1e-4)], False)):
         g = Gyro(dt=0.01, terms=terms)
         r = allan_variance(g.simulate(1 << 15, np.random.default_rng(1)), g.dt, taus="octave", overlapping=True)
         assert r.edf[0] > 0.5 * r.n_samples

@@ -23,7 +23,7 @@ N_TRUE = 0.28 / 60
 
 def _accelerometer(n, seed):
     rng = np.random.default_rng(seed)
-    fast = Gyro(dt=DT, terms=[FilteredWhiteNoise(N=N_TRUE, tc=0.005), BiasInstability(B=3.0e-3, tau_max=2 * n * DT),
+    fast = Gyro(dt=DT, terms=[FilteredWhiteNoise(N=N_TRUE, tf=0.005), BiasInstability(B=3.0e-3, tau_max=2 * n * DT),
                               Sinusoidal(8.4e-3, 0.47)])
     slow = Gyro(dt=DT, terms=[GaussMarkov(sigma=4e-3, tc=150.0)])  # a second, slow bias term: no latent has both
     return fast.simulate(n, rng) + slow.simulate(n, rng)

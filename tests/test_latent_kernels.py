@@ -40,7 +40,7 @@ def test_filter_gradient_is_the_base_class_central_difference_bit_for_bit():
     rng = np.random.default_rng(7)
     for trial in range(300):
         dt = 10 ** rng.uniform(-3.5, -1)
-        fw = FilteredWhiteNoise(N=10 ** rng.uniform(-5, 0), tc=dt * 10 ** rng.uniform(-2, 4))
+        fw = FilteredWhiteNoise(N=10 ** rng.uniform(-5, 0), tf=dt * 10 ** rng.uniform(-2, 4))
         m = _sizes(rng)
         (v1, d1), (v0, d0) = fw.avar_shape_derivative(m, dt), NoiseTerm.avar_shape_derivative(fw, m, dt)
         assert _same(v1, v0) and _same(d1, d0)
@@ -51,7 +51,7 @@ def test_resonance_gradient_is_the_base_class_central_difference_bit_for_bit():
     for trial in range(300):
         dt = 10 ** rng.uniform(-3.5, -1)
         f0 = 0.45 / dt * 10 ** rng.uniform(-5, 0)
-        res = Resonance(sigma=10 ** rng.uniform(-4, 0), frequency=f0,
+        res = Resonance(sigma=10 ** rng.uniform(-4, 0), f0=f0,
                         tc=10 ** rng.uniform(math.log10(1 / (math.pi * f0)), 4))
         m = _sizes(rng)
         (v1, d1), (v0, d0) = res.avar_shape_gradient(m, dt), NoiseTerm.avar_shape_gradient(res, m, dt)
@@ -93,7 +93,7 @@ def test_sinusoid_gradient_is_the_base_class_central_difference_bit_for_bit():
         dt = 10 ** rng.uniform(-3.5, -1)
         nyquist = 0.5 / dt
         f0 = nyquist * (1 - 1e-9 if trial % 10 == 0 else 10 ** rng.uniform(-5, -1e-4))
-        sn = Sinusoidal(amplitude=10 ** rng.uniform(-4, 0), frequency=f0)
+        sn = Sinusoidal(A=10 ** rng.uniform(-4, 0), f0=f0)
         m = _sizes(rng)
         (v1, d1), (v0, d0) = sn.avar_shape_derivative(m, dt), NoiseTerm.avar_shape_derivative(sn, m, dt)
         assert _same(v1, v0) and _same(d1, d0)

@@ -202,9 +202,9 @@ def test_bad_input(make, msg):
 def _every_builtin_term():
     from avbench.noise_models import FilteredWhiteNoise, Resonance, Sinusoidal
 
-    return [*TERMS.values(), RateRamp(R=1e-6), Sinusoidal(amplitude=1e-3, frequency=3.0),
+    return [*TERMS.values(), RateRamp(R=1e-6), Sinusoidal(A=1e-3, f0=3.0),
             FilteredWhiteNoise(N=1e-4, length=5), FilteredWhiteNoise(N=1e-4, taps=[1, 3, 1]),
-            FilteredWhiteNoise(N=1e-4, tc=0.03), Resonance(sigma=1e-3, frequency=7.0, tc=0.4)]
+            FilteredWhiteNoise(N=1e-4, tf=0.03), Resonance(sigma=1e-3, f0=7.0, tc=0.4)]
 
 
 def test_noise_term_is_an_abstract_base_every_term_fills():

@@ -16,10 +16,10 @@ from avbench.noise_models import (AngleRandomWalk, BiasInstability, FilteredWhit
 
 
 def _filtered_gyro(line=True):
-    terms = [FilteredWhiteNoise(N=7e-4, tc=0.005), BiasInstability(B=1.8e-4), RateRandomWalk(K=1.2e-5)]
+    terms = [FilteredWhiteNoise(N=7e-4, tf=0.005), BiasInstability(B=1.8e-4), RateRandomWalk(K=1.2e-5)]
     if line:
         # 2 Hz: on 30 minutes the line test searches from 1.4 Hz (avbench.estimators.selection.lines)
-        terms.append(Sinusoidal(amplitude=2e-3, frequency=2.0))
+        terms.append(Sinusoidal(A=2e-3, f0=2.0))
     return Gyro(dt=0.01, terms=terms)
 
 
@@ -29,8 +29,8 @@ def test_design_columns_are_the_exact_discrete_avs():
     m = np.rint(tau / dt).astype(np.int64)
     X = shaped_design(tau, dt, "NBK", tf=0.004, f0=0.7)
     assert X.shape == (tau.size, 4)
-    assert np.allclose(X[:, 0], FilteredWhiteNoise(N=1.0, tc=0.004).avar(m, dt), rtol=1e-14, atol=0)
-    assert np.allclose(X[:, 3], Sinusoidal(amplitude=1.0, frequency=0.7).avar(m, dt), rtol=1e-14, atol=0)
+    assert np.allclose(X[:, 0], FilteredWhiteNoise(N=1.0, tf=0.004).avar(m, dt), rtol=1e-14, atol=0)
+    assert np.allclose(X[:, 3], Sinusoidal(A=1.0, f0=0.7).avar(m, dt), rtol=1e-14, atol=0)
     # a filter far faster than dt is white noise: N's five-term column N^2 / tau
     assert np.allclose(shaped_design(tau, dt, "N", tf=dt / 1000)[:, 0], 1 / tau, rtol=1e-9)
 

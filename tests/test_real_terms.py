@@ -25,13 +25,13 @@ from avbench.noise_models.exact_avar import avar_from_autocovariance
 DT = 0.01
 
 TERMS = {
-    "sine": Sinusoidal(amplitude=1e-3, frequency=1.7),
-    "sine_fast": Sinusoidal(amplitude=1e-3, frequency=31.0),  # omega not small: discrete form matters
+    "sine": Sinusoidal(A=1e-3, f0=1.7),
+    "sine_fast": Sinusoidal(A=1e-3, f0=31.0),  # omega not small: discrete form matters
     "moving_average": FilteredWhiteNoise(N=1e-4, length=4),
     "fir": FilteredWhiteNoise(N=1e-4, taps=[1, 2, 3, 2, 1]),  # Bartlett window
-    "lowpass": FilteredWhiteNoise(N=1e-4, tc=0.03),
-    "resonance": Resonance(sigma=1e-3, frequency=19.0, tc=0.3),  # the ADIS16405 gyro z's 17-21 Hz band
-    "resonance_slow": Resonance(sigma=1e-3, frequency=0.4, tc=5.0),  # (2m+1)|ln phi| < 1: the sum route
+    "lowpass": FilteredWhiteNoise(N=1e-4, tf=0.03),
+    "resonance": Resonance(sigma=1e-3, f0=19.0, tc=0.3),  # the ADIS16405 gyro z's 17-21 Hz band
+    "resonance_slow": Resonance(sigma=1e-3, f0=0.4, tc=5.0),  # (2m+1)|ln phi| < 1: the sum route
 }
 
 
@@ -83,7 +83,7 @@ def test_sinusoid_continuous_limit_is_ieee_952():
 
 
 def test_sinusoid_closed_form_agrees_with_autocovariance_route():
-    s = Sinusoidal(amplitude=3.0, frequency=7.3)
+    s = Sinusoidal(A=3.0, f0=7.3)
     m = np.unique(np.logspace(0, 3.5, 40).astype(int))
     generic = avar_from_autocovariance(s.autocovariance(np.arange(2 * m.max() + 1), DT), m)
     np.testing.assert_allclose(s.avar(m, DT), generic, rtol=1e-7, atol=1e-12 * 9)
@@ -131,7 +131,7 @@ def test_filter_closed_forms_and_continuous_limits():
     tau = np.array([0.01, 0.05, 0.2, 1.0, 10.0])
     x = tau / T
     cont = N**2 / tau * (1 - (3 - 4 * np.exp(-x) + np.exp(-2 * x)) / (2 * x))
-    got = FilteredWhiteNoise(N=N, tc=T).avar(np.rint(tau / 1e-5), 1e-5)
+    got = FilteredWhiteNoise(N=N, tf=T).avar(np.rint(tau / 1e-5), 1e-5)
     np.testing.assert_allclose(got, cont, rtol=2e-3)
     # the long-tau AV is the white line: the filter has unit DC gain
     for name in ("moving_average", "fir", "lowpass"):
@@ -161,13 +161,13 @@ def test_streaming_and_config_names():
     "make, msg",
     [
         (lambda: Sinusoidal(1.0, 60.0).avar([1], DT), "Nyquist"),
-        (lambda: Sinusoidal(0.0, 1.0), "amplitude"),
-        (lambda: Sinusoidal(1.0, -1.0), "frequency"),
+        (lambda: Sinusoidal(0.0, 1.0), "A: expected a positive amplitude"),
+        (lambda: Sinusoidal(1.0, -1.0), "f0"),
         (lambda: FilteredWhiteNoise(N=1e-4), "exactly one filter"),
         (lambda: Resonance(1.0, 50.0, 0.3).avar([1], DT), "Nyquist"),
         (lambda: Resonance(0.0, 5.0, 0.3), "sigma"),
         (lambda: Resonance(1.0, 5.0, -0.3), "tc"),
-        (lambda: FilteredWhiteNoise(N=1e-4, length=2, tc=0.1), "exactly one filter"),
+        (lambda: FilteredWhiteNoise(N=1e-4, length=2, tf=0.1), "exactly one filter"),
         (lambda: FilteredWhiteNoise(N=1e-4, length=0), "length"),
         (lambda: FilteredWhiteNoise(N=1e-4, taps=[1, -1]), "taps"),
         (lambda: Gyro(dt=DT, terms=[AngleRandomWalk(1e-4), FilteredWhiteNoise(N=1e-4, length=2)]), "coefficient N"),
@@ -186,7 +186,7 @@ def test_crlb_of_the_real_sensor_terms():
     n = 5000
     white = crlb(Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3)]), n)["N"]
     assert crlb(Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, length=4)]), n)["N"] == pytest.approx(white, rel=1e-9)
-    assert crlb(Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, tc=0.03)]), n)["N"] > white * 1.01
+    assert crlb(Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, tf=0.03)]), n)["N"] > white * 1.01
     with_sine = crlb(Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), Sinusoidal(1e-3, 0.5)]), n)
     assert with_sine["N"] == pytest.approx(white, rel=1e-12)
     # a resonance: its sigma, frequency and tc are nuisance parameters; N's bound can only grow

@@ -214,7 +214,7 @@ def test_line_test_background_spans_the_same_band_on_short_records():
 # -- resonance -------------------------------------------------------------------------------------------------
 
 def _resonant(n, seed):
-    g = Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), Resonance(sigma=5e-3, frequency=20.0, tc=0.3)])
+    g = Gyro(dt=DT, terms=[AngleRandomWalk(N=1e-3), Resonance(sigma=5e-3, f0=20.0, tc=0.3)])
     return g.simulate(n, np.random.default_rng(seed))
 
 
@@ -351,14 +351,14 @@ def test_the_latent_catalogue_is_read_from_the_terms():
     g = build_gyro(("FW", "GM", "SN", "RS"), [1e-3, 0.02, 2e-4, 5.0, 1e-3, 3.0, 4e-3, 20.0, 0.3], DT)
     fw, gm, sn, rs = g.terms
     assert (fw.N, fw.tc, gm.sigma, gm.tc) == (1e-3, 0.02, 2e-4, 5.0)
-    assert (sn.amplitude, sn.frequency, rs.sigma, rs.frequency, rs.tc) == (1e-3, 3.0, 4e-3, 20.0, 0.3)
+    assert (sn.A, sn.f0, rs.sigma, rs.f0, rs.tc) == (1e-3, 3.0, 4e-3, 20.0, 0.3)
     fl = build_gyro(("QN", "FL", "DR"), [1e-5, 1e-4, 1e-8], DT, flicker_tau_max=100.0).terms
     assert [type(t).__name__ for t in fl] == ["Quantization", "BiasInstability", "RateRamp"]
     assert (fl[1].B, fl[1].tau_max) == (1e-4, 100.0)
 
 
 def test_each_terms_starts_lie_in_its_box():
-    g = Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, tc=0.02), GaussMarkov(sigma=2e-4, tc=5.0),
+    g = Gyro(dt=DT, terms=[FilteredWhiteNoise(N=1e-3, tf=0.02), GaussMarkov(sigma=2e-4, tc=5.0),
                            RateRandomWalk(K=2e-6)])
     tau = DT * 2.0 ** np.arange(12)
     avar = g.avar(tau)

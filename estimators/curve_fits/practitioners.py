@@ -369,7 +369,7 @@ def shaped_design(tau, dt, terms, tf=None, f0=None) -> np.ndarray:
 
     The five-term columns of :func:`avbench.estimators.allan.model.design_matrix`, with, given a filter
     time constant ``tf``, N's column replaced by the exact discrete AV of unit white noise through the
-    first-order low-pass (:class:`avbench.noise_models.FilteredWhiteNoise` with ``tc=tf``; its element of
+    first-order low-pass (:class:`avbench.noise_models.FilteredWhiteNoise` with time constant ``tf``; its element of
     beta is still N^2: the long-tau AV is N^2 / tau), and, given a line frequency ``f0``, one more column:
     the exact discrete AV of a unit-amplitude sinusoid (:class:`avbench.noise_models.Sinusoidal`; its
     element of beta is A^2). Both AVs are linear in their variance given their shape parameter, so the
@@ -381,9 +381,9 @@ def shaped_design(tau, dt, terms, tf=None, f0=None) -> np.ndarray:
     X = design_matrix(tau, terms)
     m = np.rint(tau / dt).astype(np.int64)
     if tf is not None:
-        X[:, terms.index("N")] = FilteredWhiteNoise(N=1.0, tc=float(tf)).avar(m, dt)
+        X[:, terms.index("N")] = FilteredWhiteNoise(N=1.0, tf=float(tf)).avar(m, dt)
     if f0 is not None:
-        X = np.column_stack([X, Sinusoidal(amplitude=1.0, frequency=float(f0)).avar(m, dt)])
+        X = np.column_stack([X, Sinusoidal(A=1.0, f0=float(f0)).avar(m, dt)])
     return X
 
 
@@ -596,9 +596,9 @@ class NNLSRel(_AVBaseline):
         base = Gyro.from_coefficients({c: v for c, v in coefs.items() if not (tf is not None and c == "N")}, dt)
         extra = []
         if tf is not None and coefs.get("N", 0.0) > 0:
-            extra.append(FilteredWhiteNoise(N=coefs["N"], tc=tf))
+            extra.append(FilteredWhiteNoise(N=coefs["N"], tf=tf))
         if f0 is not None and params["SN.A"] > 0:
-            extra.append(Sinusoidal(amplitude=params["SN.A"], frequency=f0))
+            extra.append(Sinusoidal(A=params["SN.A"], f0=f0))
         gyro = Gyro(dt=dt, terms=(list(base.terms) if base is not None else []) + extra) if (base or extra) else None
         start = {"tf": tf, "f0": f0}
 
