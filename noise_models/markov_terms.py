@@ -244,8 +244,11 @@ class GaussMarkov(NoiseTerm):
         return scale * g, scale * (-a) * dg
 
     def autocovariance(self, lags, dt) -> np.ndarray:
-        """sigma^2 phi^|k|."""
-        return self.sigma**2 * self.phi(dt) ** np.abs(np.asarray(lags, dtype=float))
+        """sigma^2 phi^|k| = sigma^2 exp(-|k| dt / Tc) (the exponential of each lag: no error growing with
+        the lag, as a power of the rounded phi would have)."""
+        dt = _check_dt(dt)
+        k = np.abs(np.asarray(lags, dtype=float))
+        return self.sigma**2 * np.exp(-k * dt / self.tc)
 
     def psd(self, f, dt):
         grid = f
@@ -297,6 +300,7 @@ class SecondOrderGaussMarkov(NoiseTerm):
     """
 
     coefficient = "R"
+    shape_parameter = "w0"
 
     def __init__(self, R, w0):
         self.R = as_si("R", R)

@@ -287,6 +287,7 @@ class RateRamp(NoiseTerm):
     """
 
     coefficient = "R"
+    deterministic = True
     latent = "DR"
     fit_parameters = ("R",)
 
@@ -523,6 +524,15 @@ class BiasInstability(NoiseTerm):
         out = np.zeros(max_lag + 1)
         out[: K + 1] = r
         return (self.B**2 * out)[d]
+
+    def psd_autocovariance(self, lags, dt) -> np.ndarray:
+        """The autocovariance of the ideal 1/f spectrum :meth:`psd` up to a constant: minus its variogram,
+        -B^2 (psi(|k| + 1/2) - psi(1/2)) / pi (psi the digamma function; Kasdin & Walter 1992, alpha = 1)."""
+        from scipy.special import digamma
+
+        _check_dt(dt)
+        k = np.abs(np.asarray(lags, dtype=float))
+        return self.B**2 * (-(digamma(k + 0.5) - digamma(0.5)) / math.pi)
 
     def avar(self, m, dt):
         m = check_m(m)

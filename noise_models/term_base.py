@@ -99,6 +99,9 @@ class NoiseTerm(abc.ABC):
     #: False for a term whose rate is not a stationary sequence (the random walk): it has no
     #: :meth:`autocovariance`, and its spectrum (:meth:`psd`) is a pseudo-spectrum
     stationary: ClassVar[bool] = True
+    #: True for a term without a random part (the ramp: a mean, no covariance); a spectral likelihood
+    #: models it as a trend, not a spectrum
+    deterministic: ClassVar[bool] = False
 
     def coefficients(self) -> dict[str, float]:
         """The IEEE coefficient(s) the term stands for, in SI (none by default)."""
@@ -117,6 +120,14 @@ class NoiseTerm(abc.ABC):
         """The exact autocovariance r(k) = Cov(w_j, w_{j+k}) (rad^2/s^2) of the discrete rate sequence
         at the integer ``lags`` (any shape; r(-k) = r(k)); a ValueError for a term that is not
         :attr:`stationary`."""
+
+    def psd_autocovariance(self, lags, dt) -> np.ndarray:
+        """The autocovariance whose transform is :meth:`psd`, at integer ``lags``, up to an additive
+        constant: the generator's own (:meth:`autocovariance`) by default; a term whose :meth:`psd` is an
+        ideal spectrum beside its generator's (the flicker term's 1/f, whose variance is infinite)
+        overrides it. The spectral likelihoods' expected periodograms and time-domain covariances read
+        it (a constant changes no Fourier ordinate k >= 1 and no contrast whose weights sum to 0)."""
+        return self.autocovariance(lags, dt)
 
     def _not_stationary(self):
         """The error :meth:`autocovariance` raises for a term that is not stationary."""

@@ -350,7 +350,7 @@ def test_the_latent_catalogue_is_read_from_the_terms():
     assert param_index(("WN", "GM", "RW"), "RW") == 3 and white_latent(("FW", "GM")) == "FW"
     g = build_gyro(("FW", "GM", "SN", "RS"), [1e-3, 0.02, 2e-4, 5.0, 1e-3, 3.0, 4e-3, 20.0, 0.3], DT)
     fw, gm, sn, rs = g.terms
-    assert (fw.N, fw.tc, gm.sigma, gm.tc) == (1e-3, 0.02, 2e-4, 5.0)
+    assert (fw.N, fw.tf, gm.sigma, gm.tc) == (1e-3, 0.02, 2e-4, 5.0)
     assert (sn.A, sn.f0, rs.sigma, rs.f0, rs.tc) == (1e-3, 3.0, 4e-3, 20.0, 0.3)
     fl = build_gyro(("QN", "FL", "DR"), [1e-5, 1e-4, 1e-8], DT, flicker_tau_max=100.0).terms
     assert [type(t).__name__ for t in fl] == ["Quantization", "BiasInstability", "RateRamp"]

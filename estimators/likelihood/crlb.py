@@ -61,10 +61,6 @@ __all__ = ["crlb", "whittle_information", "spectral_density"]
 
 _CHUNK = 1 << 18
 
-#: shape parameters of a term, estimated jointly with its scale (nuisance for the bound)
-_SHAPE_PARAMS = ("tc", "w0")
-
-
 @dataclass
 class _Component:
     """One term with its free parameters: the scale (first) and the shape parameters."""
@@ -83,19 +79,20 @@ def _components(gyro) -> tuple[list[_Component], set[str]]:
     """The stochastic terms of a ``avbench.noise_models.Gyro`` with their free parameters."""
     comps, unbounded = [], set()
     for term in gyro.terms:
-        if type(term).__name__ == "RateRamp":
-            unbounded.add("R")  # deterministic: no spectrum (module docstring)
+        if term.deterministic:
+            unbounded.add(term.coefficient)  # the ramp: no spectrum (module docstring)
             continue
         if term.spectral_lines(gyro.dt):
             continue  # a sinusoid: a line, not a spectral density; the others bounded as if it were known
         params = term._params()
         coef = term.coefficient
-        scale_key = coef if coef in params else "sigma"
+        # the amplitude (a fitted term's first fit parameter, else its coefficient), then the shape parameters,
+        # estimated jointly with it (nuisance for the bound)
+        scale_key = term.fit_parameters[0] if term.fit_parameters else coef
         if scale_key not in params:
             raise ValueError(f"crlb: cannot find the scale parameter of {term!r}")
         free = {scale_key: params[scale_key]}
-        shape = dict.fromkeys((*_SHAPE_PARAMS, *term.shape_parameters()))  # e.g. a resonance's frequency too
-        free.update({k: params[k] for k in shape if params.get(k) is not None})
+        free.update({k: params[k] for k in term.shape_parameters() if params.get(k) is not None})
         value = term.coefficients().get(coef, math.nan) if coef else math.nan
         comps.append(_Component(term, free, coef, value / params[scale_key] if coef else 1.0))
     return comps, unbounded

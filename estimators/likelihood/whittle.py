@@ -149,6 +149,8 @@ import pandas as pd
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.likelihood.whittle_intervals import evidence_table, profile_evidence, zero_bounds
 from avbench.estimators.likelihood.whittle_likelihood import WhittleFit, spectral_fit_check, whittle_fit
+from avbench.estimators.likelihood.whittle_spectra import (component, component_of, components, is_shaped, trend,
+                                                           walk)
 from avbench.estimators.selection import averaging
 from avbench.estimators.selection.elimination import (PENALTY, SLOPE_PENALTY, backward_elimination,
                                                       choose_by_criterion, penalised, wald_drop_candidates)
@@ -159,12 +161,30 @@ from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = ["Whittle", "WhittleDebiased"]
 
-#: the stochastic terms (any but the ramp): a model needs at least one
-_STOCHASTIC = ("N", "Q", "K", "B", "GM")
+
+#: the default candidates: every coefficient ("QNBKR")
+_ALL_TERMS = "".join(COEFFICIENTS)
+#: the coefficient whose spectrum the setting ``bias`` chooses: flicker, or its shaped (Gauss-Markov) component
+_BIAS = "B"
+
+
+def _admissible(sub) -> bool:
+    """A model needs at least one spectral component (any term but the ramp)."""
+    return any(x in components() for x in sub)
+
+
+def _n_par(comps) -> int:
+    """The parameters of the components ``comps``: each term's fit parameters (a Gauss-Markov term two)."""
+    return sum(len(component(c).fit_parameters) for c in comps)
+
+
+def _label(c) -> str:
+    """The coefficient component ``c`` reports (a Gauss-Markov term reports B)."""
+    return component(c).coefficient
 
 
 def _check_whittle_terms(terms) -> None:
-    if not set(check_terms(terms)) - {"R"}:
+    if not set(check_terms(terms)) - {trend()}:
         raise ValueError("terms: expected at least one stochastic term (Q, N, B or K) besides R")
 
 
@@ -255,7 +275,7 @@ class Whittle(Estimator):
         "averaging": [Options("none", "akaike")],
     }
 
-    def __init__(self, *, terms="QNBKR", bias="flicker", select=True, criterion="bic", n_starts=4, reml=False,
+    def __init__(self, *, terms=_ALL_TERMS, bias="flicker", select=True, criterion="bic", n_starts=4, reml=False,
                  spectrum="plain", intervals="wald", domain="nonnegative", interval_domain="fit", averaging="none"):
         self.terms = terms
         self.bias = bias
@@ -283,20 +303,21 @@ class Whittle(Estimator):
         pen = PENALTY[self.criterion](n)
 
         def n_par(f):
-            return sum(2 if c == "GM" else 1 for c in f["comps"])
+            return _n_par(f["comps"])
 
         def bic(f):
             return penalised(f["loglik"], n_par(f), pen)
 
         # the bias-instability spectrum: as set, or (bias="select") the better penalised full model
+        bias = _BIAS
         shapes = [self.bias]
         if self.bias == "select":
-            shapes = ["flicker", "gauss_markov"] if "B" in terms else ["flicker"]
+            shapes = ["flicker", "gauss_markov"] if bias in terms else ["flicker"]
         fulls = {}
         for shape in shapes:
-            bname = "GM" if shape == "gauss_markov" else "B"
-            fulls[shape] = whittle_fit(wf, [bname if c == "B" else c for c in terms if c != "R"], self.n_starts,
-                                       signed=signed)
+            # the coefficients' components; B's with a shape parameter (Gauss-Markov) for bias="gauss_markov"
+            comps = [component_of(c, shaped=(shape == "gauss_markov" and c == bias)) for c in terms if c != trend()]
+            fulls[shape] = whittle_fit(wf, comps, self.n_starts, signed=signed)
         bias_choice = choose_by_criterion(fulls, bic)
         shape = bias_choice.chosen
         full = fulls[shape]
@@ -312,7 +333,7 @@ class Whittle(Estimator):
             elimination = backward_elimination(
                 full, terms=lambda f: f["comps"], criterion=bic,
                 candidates=lambda f: wald_drop_candidates(f["comps"], f["detail"]["info"], f["absent"], pen),
-                refit=refit, admissible=lambda sub: any(x in sub for x in _STOCHASTIC))
+                refit=refit, admissible=_admissible)
             fits, chosen = elimination.visited, elimination.chosen
         weights = None
         if self.averaging == "akaike" and not self.select:
@@ -320,7 +341,8 @@ class Whittle(Estimator):
         # terms at their floor are absent
         kept = [c for c in chosen["comps"] if c not in chosen["absent"]]
         full_kept = [c for c in full["comps"] if c not in full["absent"]]
-        k_full = math.sqrt(full["a"][full["comps"].index("K")]) * wf.scale if "K" in full_kept else 0.0
+        walker = walk(full_kept)
+        k_full = math.sqrt(full["a"][full["comps"].index(walker)]) * wf.scale if walker is not None else 0.0
         coefs, se, tr, ramp_z2 = self._report(wf, chosen, kept, terms, select=self.select, k_drift=k_full,
                                               pen=SLOPE_PENALTY[self.criterion](n))
         if chosen is full:
@@ -328,7 +350,7 @@ class Whittle(Estimator):
         else:
             full_coefs, full_se, _, _ = self._report(wf, full, full_kept, terms, select=False, k_drift=k_full)
         diag = {
-            "terms": "".join(("B" if c == "GM" else c) for c in kept) + ("R" if tr else ""),
+            "terms": "".join(_label(c) for c in kept) + (trend() if tr else ""),
             "loglik": float(chosen["loglik"]),
             "bic": float(bic(chosen)),
             "n_iter": int(chosen["n_iter"]),
@@ -348,10 +370,10 @@ class Whittle(Estimator):
             diag["term_weights"] = {"penalty": averaging.PENALTY, "models": weights}
         if bias_choice.weights is not None:  # bias="select": the full models' weights exp(-criterion/2), normalised
             diag["bias_weights"] = bias_choice.weights
-        n_params = sum(2 if c == "GM" else 1 for c in kept) + 1
+        n_params = _n_par(kept) + 1
         diag.update(spectral_fit_check(wf, chosen, n_params))
         if self.intervals == "profile":
-            diag.update(self._evidence(wf, full, coefs, se, ramp_z2, "R" in terms))
+            diag.update(self._evidence(wf, full, coefs, se, ramp_z2, trend() in terms))
         if not chosen["converged"]:
             diag["failure"] = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
         return coefs, {}, diag
@@ -374,7 +396,7 @@ class Whittle(Estimator):
         z2 = np.where([c in full["absent"] for c in comps], 0.0, z2)
         cands = averaging.droppable(comps, z2)
         models = {tuple(comps): full}
-        for sub in averaging.submodels(comps, cands, admissible=lambda sub: any(x in sub for x in _STOCHASTIC)):
+        for sub in averaging.submodels(comps, cands, admissible=_admissible):
             if tuple(sub) not in models:
                 warm = {x: a[comps.index(x)] for x in sub}
                 warm["tc"] = full["tc"]
@@ -384,7 +406,7 @@ class Whittle(Estimator):
         mean = averaging.average(params, w, comps)
         a_bar = np.array([mean[c] for c in comps])
         absent = [c for c in comps if c in full["absent"] or mean[c] <= 0]
-        named = {"".join("B" if c == "GM" else c for c in m): float(v) for m, v in w.items()}
+        named = {"".join(_label(c) for c in m): float(v) for m, v in w.items()}
         return dict(full, a=a_bar, absent=absent), named
 
     #: level of the profile-likelihood intervals computed by ``fit`` (``intervals="profile"``)
@@ -436,38 +458,34 @@ class Whittle(Estimator):
         The ramp test uses the random-walk drift of the *full* model (``k_drift``): a random walk
         too weak to be kept still drifts, and that drift must not be read as a ramp."""
         from avbench.estimators.likelihood.crlb import crlb
-        from avbench.noise_models import (AngleRandomWalk, BiasInstability, GaussMarkov, Gyro, Quantization,
-                                          RateRandomWalk)
-        from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA
+        from avbench.noise_models import Gyro
 
         s, dt, n = wf.scale, wf.dt, wf.n
         val = {c: math.sqrt(fit["a"][fit["comps"].index(c)]) * s for c in kept}
         coefs = {c: 0.0 for c in terms}
         built = []
-        for c, v in val.items():
-            if c == "GM":
-                coefs["B"] = B_EQUIV_OVER_SIGMA * v
-                built.append(GaussMarkov(sigma=v, tc=fit["tc"]))
-            else:
-                coefs[c] = v
-                built.append({"Q": Quantization, "N": AngleRandomWalk, "K": RateRandomWalk}[c](**{c: v})
-                             if c != "B" else BiasInstability(B=v, tau_max=max(10 * n * dt, 1.0)))
+        for c, v in val.items():  # each term at its fitted amplitude (and Tc); a flicker term's memory 10 T
+            cls = component(c)
+            coefs[cls.coefficient] = cls.coefficient_per_amplitude * v
+            built.append(cls.from_fit((v, fit["tc"]) if is_shaped(c) else (v,), tau_max=max(10 * n * dt, 1.0)))
         se = pd.Series(math.nan, index=list(COEFFICIENTS), dtype=float)
+        ramp = trend()
         if built:
             bound = crlb(Gyro(dt=dt, terms=built), n)
             for c in bound.index:
-                if c in coefs and c != "R" and np.isfinite(bound[c]):
+                if c in coefs and c != ramp and np.isfinite(bound[c]):
                     se[c] = bound[c]
         keep_r, z2 = False, math.nan
-        if "R" in terms:
+        if ramp in terms:
             d = fit["detail"]
-            a_walk = max(val.get("K", 0.0), k_drift) ** 2 / s**2
+            walker = walk(val)
+            a_walk = max(val[walker] if walker is not None else 0.0, k_drift) ** 2 / s**2
             var_r = wf.trend_variance(fit["comps"], fit["a"], fit["tc"], a_walk=a_walk) * s**2 / dt**2
             r_hat = abs(d["beta"]) * s / dt
             z2 = r_hat**2 / var_r
             keep_r = (not select) or z2 > (math.log(n) if pen is None else pen)
-            coefs["R"] = r_hat if keep_r else 0.0
-            se["R"] = math.sqrt(var_r)
+            coefs[ramp] = r_hat if keep_r else 0.0
+            se[ramp] = math.sqrt(var_r)
         return coefs, se, keep_r, z2
 
 
@@ -486,7 +504,7 @@ class WhittleDebiased(Whittle):
     from the non-negative domain; module docstring, "Interval domain"). Every setting of
     :class:`Whittle` applies; only the defaults differ."""
 
-    def __init__(self, *, terms="QNBKR", bias="flicker", select=False, criterion="bic", n_starts=4, reml=False,
+    def __init__(self, *, terms=_ALL_TERMS, bias="flicker", select=False, criterion="bic", n_starts=4, reml=False,
                  spectrum="debiased", intervals="profile", domain="spectrum", interval_domain="switch_steeper",
                  averaging="none"):
         super().__init__(terms=terms, bias=bias, select=select, criterion=criterion, n_starts=n_starts,

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.likelihood.whittle_likelihood import FLOOR, WhittleFit, whittle_fit
+from avbench.estimators.likelihood.whittle_spectra import component, component_of, components, is_shaped, trend, walk
 from avbench.estimators.selection.evidence import present, two_sided_pvalue
 from avbench.estimators.selection.profile import RunningMax, profile_interval, profile_start
 
@@ -60,7 +61,7 @@ def profile_evidence(wf: WhittleFit, full: dict, level: float = 0.95, tol: float
     q_level = float(stats.chi2.ppf(level, 1))
     comps = list(full["comps"])
     p = len(comps)
-    has_gm = "GM" in comps
+    has_gm = any(is_shaped(c) for c in comps)
     signed = bool(full.get("signed"))
     _, top = wf.start(comps, full["tc"])
     lo = np.log(FLOOR * top)
@@ -89,7 +90,7 @@ def profile_evidence(wf: WhittleFit, full: dict, level: float = 0.95, tol: float
         # the fit without c: the boundary point of the profile
         sub = [x for x in comps if x != c]
         sub_fit = None
-        if any(x in sub for x in ("N", "Q", "K", "B", "GM")):
+        if any(x in components() for x in sub):
             warm = {x: full["a"][comps.index(x)] for x in sub}
             warm["tc"] = full["tc"]
             sub_fit = whittle_fit(wf, sub, 1, warm=warm, hold_floor=True, signed=signed)
@@ -153,26 +154,26 @@ def evidence_table(wf: WhittleFit, full: dict, ev: dict, coefs: dict, se, ramp_z
     slope's exact standard error with the random walk at the upper end of its profile interval)."""
     from scipy import stats
 
-    from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA
-
     rows = {}
     for c, e in ev.items():
-        f = B_EQUIV_OVER_SIGMA if c == "GM" else 1.0
-        rows["B" if c == "GM" else c] = dict(
+        f = component(c).coefficient_per_amplitude  # a Gauss-Markov term's B per sigma
+        rows[component(c).coefficient] = dict(
             lr=e["lr"], p_value=e["p_value"], lower=f * math.sqrt(e["lower"]) * wf.scale,
             upper=f * math.sqrt(e["upper"]) * wf.scale)
     if has_r and np.isfinite(ramp_z2):
         z = float(stats.norm.ppf(0.5 + level / 2))
-        r, s = float(coefs.get("R", 0.0)), float(se["R"])
+        ramp = trend()
+        r, s = float(coefs.get(ramp, 0.0)), float(se[ramp])
         r = r if r > 0 else math.sqrt(ramp_z2) * s
-        if "K" in ev:
+        walker = walk(ev)
+        if walker is not None:
             # the ramp cannot be told from the random walk's drift: its interval and evidence
             # allow for every drift the data allow, K up to its profile upper bound
-            a_walk = max(float(full["a"][full["comps"].index("K")]), float(ev["K"]["upper"]))
+            a_walk = max(float(full["a"][full["comps"].index(walker)]), float(ev[walker]["upper"]))
             var = wf.trend_variance(full["comps"], full["a"], full["tc"], a_walk=a_walk)
             s = max(s, math.sqrt(var) * wf.scale / wf.dt)
         z2 = (r / s) ** 2
-        rows["R"] = dict(lr=z2, p_value=two_sided_pvalue(z2), lower=max(r - z * s, 0.0), upper=r + z * s)
+        rows[ramp] = dict(lr=z2, p_value=two_sided_pvalue(z2), lower=max(r - z * s, 0.0), upper=r + z * s)
     df = pd.DataFrame.from_dict(rows, orient="index", columns=["lr", "p_value", "lower", "upper"])
     df["present"] = present(df["p_value"])
     return df
@@ -189,15 +190,16 @@ def zero_bounds(wf: WhittleFit, fit: dict, kept, terms, coefs: dict, se) -> dict
     up, power = {}, {}
     a = {c: fit["a"][fit["comps"].index(c)] for c in kept}
     tc = fit["tc"]
+    ramp = trend()
     for c in terms:
         if coefs.get(c, 1.0) != 0.0:
             continue
-        if c == "R":
-            up[c], power[c] = float(se["R"]), 1.0
+        if c == ramp:
+            up[c], power[c] = float(se[ramp]), 1.0
             continue
-        if c == "B" and "GM" in fit["comps"]:
-            continue
-        comps = list(kept) + [c]
+        if any(is_shaped(x) and component(x).coefficient == c for x in fit["comps"]):
+            continue  # a Gauss-Markov term reported as c
+        comps = list(kept) + [component_of(c)]
         Bm = wf.basis_matrix(comps, tc)
         S = np.array([a[x] for x in kept]) @ Bm[:-1]
         W = wf.w / S**2

@@ -53,8 +53,8 @@ import math
 
 import numpy as np
 
-from avbench.estimators.likelihood.whittle_spectra import (autocovariance, expected_periodogram,
-                                                           low_dft_covariance, unit_spectrum)
+from avbench.estimators.likelihood.whittle_spectra import (autocovariance, components, expected_periodogram,
+                                                           is_shaped, low_dft_covariance, unit_spectrum, walk)
 
 __all__ = ["WhittleFit", "whittle_fit", "spectral_fit_check", "FLOOR", "SANDWICH_ORDINATES"]
 
@@ -96,7 +96,7 @@ class WhittleFit:
         self.X2 = np.ascontiguousarray(np.abs(X) ** 2)
         self._basis = {}
         self._cov = {}  # low ordinates' DFT covariance of each term (godambe_ratio)
-        self._variogram = None  # of unit ideal flicker at lags 1..n-1 (trend_variance)
+        self._acf = {}  # each unit stationary term's autocovariance at lags 0..n-1 (trend_variance)
 
     def basis(self, c, tc=None):
         """Ordinates k = 1..n//2 of term ``c`` with unit coefficient: its spectrum, or (``debiased``)
@@ -104,7 +104,7 @@ class WhittleFit:
         key = (c, tc)
         if key not in self._basis:
             if len(self._basis) > 12:  # Gauss-Markov bases of earlier Tc values
-                self._basis = {k: v for k, v in self._basis.items() if k[0] != "GM"}
+                self._basis = {k: v for k, v in self._basis.items() if not is_shaped(k[0])}
             self._basis[key] = (expected_periodogram(c, self.n, self.dt, tc) if self.debiased
                                 else unit_spectrum(c, self.f, self.dt, tc))
         return self._basis[key]
@@ -112,7 +112,7 @@ class WhittleFit:
     # -- likelihood ------------------------------------------------------------------------------
     def basis_matrix(self, comps, tc):
         """The bases of ``comps`` as rows: the model's ordinates are ``a @ basis_matrix(comps, tc)``."""
-        rows = [self.basis(c, tc if c == "GM" else None) for c in comps]
+        rows = [self.basis(c, tc if is_shaped(c) else None) for c in comps]
         return np.ascontiguousarray(np.vstack(rows))
 
     def evaluate(self, comps, a, tc=None, grad=False, Bm=None, linear=False):
@@ -123,10 +123,11 @@ class WhittleFit:
         Bm = self.basis_matrix(comps, tc) if Bm is None else Bm
         D = np.zeros(0)
         c_tc = 0.0
-        if "GM" in comps and grad:
+        shaped = _shaped(comps)
+        if shaped is not None and grad:
             h = 1e-4
-            D = (self.basis("GM", tc * math.exp(h)) - self.basis("GM", tc * math.exp(-h))) / (2 * h)
-            c_tc = float(a[list(comps).index("GM")])
+            D = (self.basis(shaped, tc * math.exp(h)) - self.basis(shaped, tc * math.exp(-h))) / (2 * h)
+            c_tc = float(a[list(comps).index(shaped)])
         a = np.asarray(a, dtype=float)
         out = whittle_pass(a, Bm, D, c_tc, self.X2, self.GX, self.G2, self.w, float(self.n), grad, linear)
         if not self.reml or not np.isfinite(out[0]):
@@ -164,7 +165,7 @@ class WhittleFit:
         undefined at 0). ``detail["info"]`` is then the information in the variances."""
         linear_scale = signed or (fixed is not None if hold_floor is None else bool(hold_floor))
         comps = list(comps)
-        has_gm = "GM" in comps
+        has_gm = _shaped(comps) is not None
         p = len(comps)
         lo = np.full(p + has_gm, -np.inf) if lo is None else np.asarray(lo, dtype=float)
         if linear_scale:
@@ -172,7 +173,7 @@ class WhittleFit:
             x = np.asarray(a0, dtype=float).copy()
             xlo = np.exp(lo[:p])
             if signed:
-                xlo[[c != "GM" for c in comps]] = -np.inf
+                xlo[[not is_shaped(c) for c in comps]] = -np.inf
             if has_gm:
                 x = np.append(x, math.log(tc0))
             xlo = np.append(xlo, lo[p:])
@@ -253,7 +254,7 @@ class WhittleFit:
         key = (c, tc, m)
         if key not in self._cov:
             if len(self._cov) > 12:  # Gauss-Markov terms of earlier Tc values
-                self._cov = {k: v for k, v in self._cov.items() if k[0] != "GM"}
+                self._cov = {k: v for k, v in self._cov.items() if not is_shaped(k[0])}
             acf = autocovariance(c, self.n, self.dt, tc)
             if acf is None:
                 self._cov[key] = None
@@ -310,7 +311,7 @@ class WhittleFit:
         Sc = np.zeros(n)  # Sigma c
         C = None
         for j, name in enumerate(comps):
-            low = self._low_cov(name, tc if name == "GM" else None, m)
+            low = self._low_cov(name, tc if is_shaped(name) else None, m)
             if low is None:  # the random walk, increments of variance a dt
                 s2 = a[j] * dt
                 z1 = 1.0 - np.exp(-2j * np.pi * np.arange(1, m + 1) / n)
@@ -341,6 +342,15 @@ class WhittleFit:
         return np.where(np.isfinite(ratio) & (ratio > 0), ratio, 1.0)
 
     # -- the trend slope -------------------------------------------------------------------------
+    def _unit_acf(self, c, tc):
+        """:func:`~.whittle_spectra.autocovariance` of unit term ``c`` at lags 0..n-1, cached per record."""
+        key = (c, tc)
+        if key not in self._acf:
+            if len(self._acf) > 12:  # Gauss-Markov terms of earlier Tc values
+                self._acf = {k: v for k, v in self._acf.items() if not is_shaped(k[0])}
+            self._acf[key] = autocovariance(c, self.n, self.dt, tc)
+        return self._acf[key]
+
     def trend_weights(self, comps, a, tc=None) -> np.ndarray:
         """Weights c with :math:`\\hat\\beta = \\sum_t c_t x_t / s` (s the normalising scale): the
         frequency-domain GLS slope at the spectrum ``a`` written in the time domain (one FFT).
@@ -381,29 +391,20 @@ class WhittleFit:
         # the covariance of the record under the reported model: a variance below 0 (a fit in the
         # domain of a positive spectrum, which the weights c keep) is the term's absence
         var = {x: max(float(v), 0.0) for x, v in zip(comps, a)}
-        if a_walk is not None:
-            var["K"] = float(a_walk)
+        walker = walk(comps)
+        if a_walk is not None and walker is not None:
+            var[walker] = float(a_walk)
         m = sfft.next_fast_len(2 * n, real=True)
         F = sfft.rfft(c, m)
         acf = sfft.irfft(F.real**2 + F.imag**2, m)[:n]  # sum_t c_t c_{t+tau}
         out = 0.0
-        if "N" in var:
-            out += var["N"] / dt * acf[0]
-        if "Q" in var:
-            out += var["Q"] / dt**2 * (2 * acf[0] - 2 * acf[1])
-        if "GM" in var:
-            phi = math.exp(-dt / tc)
-            lag = np.arange(n, dtype=float)
-            out += var["GM"] * (2 * np.sum(np.exp(lag * math.log(phi)) * acf) - acf[0])
-        if "B" in var:
-            if self._variogram is None:
-                from scipy.special import digamma
-
-                self._variogram = (digamma(np.arange(1, n) + 0.5) - digamma(0.5)) / math.pi
-            out += -2.0 * var["B"] * float(self._variogram @ acf[1:])
-        if "K" in var:
-            C = np.cumsum(c[::-1])
-            out += var["K"] * dt * float(C @ C)
+        for x, v in var.items():
+            if x == walker:  # increments of variance v dt: through the reverse cumulative sums of c
+                C = np.cumsum(c[::-1])
+                out += v * dt * float(C @ C)
+                continue
+            r = self._unit_acf(x, tc if is_shaped(x) else None)  # c^T Sigma c = r(0) acf(0) + 2 sum r(t) acf(t)
+            out += v * (r[0] * acf[0] + 2 * float(r[1:] @ acf[1:]))
         return max(out, 0.0)
 
     # -- starting values -------------------------------------------------------------------------
@@ -427,7 +428,7 @@ class WhittleFit:
         beta = float(np.sum(self.GX)) / float(np.sum(self.G2))
         I = (self.X2 - 2 * beta * self.GX + beta**2 * self.G2) / self.n
         Ib = np.add.reduceat(I, edges[:-1]) / counts
-        B = np.array([np.add.reduceat(self.basis(c, tc if c == "GM" else None), edges[:-1]) / counts
+        B = np.array([np.add.reduceat(self.basis(c, tc if is_shaped(c) else None), edges[:-1]) / counts
                       for c in comps]).T
         top = np.array([np.max(Ib / B[:, j]) for j in range(B.shape[1])])
         under = np.array([np.min(Ib / B[:, j]) for j in range(B.shape[1])])
@@ -448,6 +449,11 @@ def _newton_step(info, score, idx):
     return np.linalg.solve(sub + 1e-12 * np.trace(sub) * np.eye(idx.size), score[idx])
 
 
+def _shaped(comps) -> str | None:
+    """The component of ``comps`` a shape parameter shapes (a Gauss-Markov term; at most one), or None."""
+    return next((c for c in comps if is_shaped(c)), None)
+
+
 def _gm_starts(T, dt, n_starts):
     return np.geomspace(max(20 * dt, T / 2000), T / 4, n_starts)
 
@@ -465,18 +471,19 @@ def whittle_fit(wf: WhittleFit, comps, n_starts=4, warm=None, hold_floor=False, 
     model spectrum is positive (variances of Q, N, B, K may be negative), scored from the maximum
     over non-negative variances (which is found first, as without ``signed``); a term whose variance
     ends at or below 0 is ``absent``."""
-    comps = [c for c in ("Q", "N", "B", "GM", "K") if c in comps]
+    comps = [c for c in components() if c in comps]
+    shaped = _shaped(comps)
     T = wf.n * wf.dt
-    tcs = _gm_starts(T, wf.dt, n_starts) if "GM" in comps else [None]
+    tcs = _gm_starts(T, wf.dt, n_starts) if shaped is not None else [None]
     best = best_nn = None
     for tc in tcs:
         a0, top = wf.start(comps, tc)
         if warm is not None:
             a0 = np.array([max(warm.get(c, a0[i]), 1e-3 * top[i]) for i, c in enumerate(comps)])
-            if "GM" in comps and warm.get("tc"):
+            if shaped is not None and warm.get("tc"):
                 tc = warm["tc"]
         lo = np.log(FLOOR * top)
-        if "GM" in comps:
+        if shaped is not None:
             lo = np.append(lo, math.log(wf.dt))
         tc_start = tc
         a, tc_hat, ll, it, conv, d = wf.fit(comps, a0, tc, lo, hold_floor=hold_floor)
@@ -498,7 +505,7 @@ def whittle_fit(wf: WhittleFit, comps, n_starts=4, warm=None, hold_floor=False, 
                 it += it2
             else:  # no ascent into negative variances: the non-negative maximum, information in a
                 d = dict(d, info=wf.evaluate(comps, a, tc_hat, grad=True, linear=True)[4])
-            floor = np.where([c == "GM" for c in comps], floor, 0.0)
+            floor = np.where([is_shaped(c) for c in comps], floor, 0.0)
         if best is None or ll > best["loglik"]:
             best = _fit_result(comps, a, tc_hat, ll, it, conv, d, floor, bool(signed))
         if nonneg is not None and (best_nn is None or nonneg["loglik"] > best_nn["loglik"]):
