@@ -97,10 +97,11 @@ class BlockMeanSystem:
         if self.has_q:  # block mean of theta-differences telescopes: (theta_j - theta_{j-1}) / (m dt)
             Z[self.q0], Z[self.q0 + 1] = 1.0 / (m * dt), -1.0 / (m * dt)
         self.Z = Z
-        names = []
-        for lat in self.latents:
-            names += {"QN": ["log_Q"], "WN": ["log_N"], "GM": ["log_sigma", "log_tc"], "RW": ["log_K"]}.get(lat, [])
-        self.names = names
+        from avbench.noise_models.latents import LATENT_TERMS
+
+        # the log of each stochastic term's fit parameters, in the model's order (the drift is a state)
+        self.names = [f"log_{p}" for lat in self.latents if not LATENT_TERMS[lat].deterministic
+                      for p in LATENT_TERMS[lat].fit_parameters]
 
     def values(self, params) -> dict:
         return dict(zip(self.names, np.exp(np.asarray(params, dtype=float))))

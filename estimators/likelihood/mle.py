@@ -99,6 +99,8 @@ from avbench.estimators.settings import Check, Interval, Options
 from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.fit_check import assess_fit
 from avbench.estimators.likelihood.gmwm import GMWM, build_gyro, parse_model
+from avbench.noise_models.latents import LATENT_TERMS
+from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = ["MLE", "block_means"]
 
@@ -112,8 +114,16 @@ def _check_model(model) -> None:
     bad = [lat for lat in latents if lat not in _ALLOWED]
     if bad:
         raise ValueError(f"model: the MLE supports latents {', '.join(_ALLOWED)}; got {', '.join(bad)}")
-    if not any(lat in latents for lat in ("QN", "WN", "GM", "RW")):
-        raise ValueError("model: expected at least one stochastic latent (QN, WN, GM or RW)")
+    if all(LATENT_TERMS[lat].deterministic for lat in latents):
+        stochastic = [lat for lat in _ALLOWED if not LATENT_TERMS[lat].deterministic]
+        raise ValueError(f"model: expected at least one stochastic latent ({', '.join(stochastic[:-1])} or "
+                         f"{stochastic[-1]})")
+
+
+def _deterministic(latents) -> str | None:
+    """The latent of ``latents`` without a random part (the drift "DR": a state of the filter, not a
+    parameter), or None."""
+    return next((lat for lat in latents if LATENT_TERMS[lat].deterministic), None)
 
 
 def __getattr__(name):
@@ -223,21 +233,22 @@ class MLE(Estimator):
         # standard error: NaN, not 0
         var = np.diag(cov)
         se_log = dict(zip(system.names, np.sqrt(np.where(var > 0, var, np.nan))))
-        from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA
-
         coefs, std = {}, {}
-        for name, coef, cscale in (("log_Q", "Q", 1.0), ("log_N", "N", 1.0), ("log_sigma", "B", B_EQUIV_OVER_SIGMA), ("log_K", "K", 1.0)):
-            if name in vals:
-                coefs[coef] = cscale * vals[name]
-                std[coef] = coefs[coef] * se_log[name]
-        if "DR" in latents:
+        for cls in sorted((LATENT_TERMS[lat] for lat in latents if not LATENT_TERMS[lat].deterministic),
+                          key=lambda cls: COEFFICIENTS.index(cls.coefficient)):
+            name = "log_" + cls.fit_parameters[0]  # the amplitude: its coefficient per unit amplitude
+            coefs[cls.coefficient] = cls.coefficient_per_amplitude * vals[name]
+            std[cls.coefficient] = coefs[cls.coefficient] * se_log[name]
+        drift = _deterministic(latents)
+        if drift is not None:
             # the filter runs on scaled data: the slope state is in scaled units
             a, P = fit["final_state"], fit["final_cov"]
-            coefs["R"] = abs(float(a[-1]) / scale)
-            std["R"] = float(math.sqrt(max(P[-1, -1], 0.0))) / scale
+            ramp = LATENT_TERMS[drift].coefficient
+            coefs[ramp] = abs(float(a[-1]) / scale)
+            std[ramp] = float(math.sqrt(max(P[-1, -1], 0.0))) / scale
         llf = fit["loglike"]
         diag = {
-            "std_err": pd.Series(std, dtype=float).reindex(["Q", "N", "B", "K", "R"]),
+            "std_err": pd.Series(std, dtype=float).reindex(list(COEFFICIENTS)),
             "params": {k[4:]: v for k, v in vals.items()},
             "block": m,
             "loglike": llf + y.size * math.log(scale),
@@ -254,13 +265,14 @@ class MLE(Estimator):
                                "iterations after L-BFGS-B; the values are where they stopped)")
         if np.isfinite(llf):
             p = diag["params"]
-            names = {"QN": ("Q",), "WN": ("N",), "GM": ("sigma", "tc"), "RW": ("K",)}
+            # the likelihood's parameters: each stochastic term's fit parameters (the drift is a state)
+            names = {lat: LATENT_TERMS[lat].fit_parameters for lat in latents if lat != drift}
             # a term the polish set to zero is no term of the fitted model (its parameters still count)
             kept = [lat for lat in latents if lat not in names or p[names[lat][0]] > 0]
             values = [p[k] for lat in kept if lat in names for k in names[lat]]
-            if "DR" in latents:
-                values.append(coefs["R"])
-            n_par = sum(len(names.get(lat, ("R",))) for lat in latents)
+            if drift is not None:
+                values.append(coefs[LATENT_TERMS[drift].coefficient])
+            n_par = sum(len(LATENT_TERMS[lat].fit_parameters) for lat in latents)
             gyro = build_gyro(kept, values, dt)
             diag.update(assess_fit(rate, dt, gyro.avar, gyro, n_par, (m * dt, math.inf)))
             diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
