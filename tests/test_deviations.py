@@ -348,7 +348,9 @@ def test_theobr_is_its_definition_on_allantools_values():
     deviation(y[:89], 1.0, "theobr")  # N = 90: k = 0
 
 
-@pytest.mark.parametrize("term", [T.AngleRandomWalk(1e-3), T.RateRandomWalk(3e-4)], ids=lambda t: type(t).__name__)
+@pytest.mark.parametrize("term", [T.AngleRandomWalk(1e-3), T.RateRandomWalk(3e-4), T.Sinusoidal(1e-3, 0.37),
+                                  T.FilteredWhiteNoise(1e-3, tf=0.3), T.Resonance(1e-3, 0.8, 3.0)],
+                         ids=lambda t: type(t).__name__)
 def test_theobr_ensemble_mean_equals_its_first_order_value(term):
     """E[TheoBR] against the ratio of exact expectations; the O(1/edf) bias of the ratio (its k + 1 Theo1
     values at N = 1001 have edf in the hundreds) is far below the standard error of 60 replicates."""

@@ -40,7 +40,14 @@ def random_rates(seed, n=3000):
 
 def all_terms():
     return [T.Quantization(2e-4), T.AngleRandomWalk(1e-3), T.BiasInstability(1e-3, tau_max=100.0), T.GaussMarkov(1e-3, 3.0),
-            T.SecondOrderGaussMarkov(1e-4, 0.2), T.RateRandomWalk(3e-4), T.RateRamp(2e-5)]
+            T.SecondOrderGaussMarkov(1e-4, 0.2), T.RateRandomWalk(3e-4), T.RateRamp(2e-5), T.Sinusoidal(1e-3, 0.37),
+            T.FilteredWhiteNoise(1e-3, length=4), T.FilteredWhiteNoise(1e-3, tf=0.3), T.Resonance(1e-3, 0.8, 3.0)]
+
+
+def _term_id(t):
+    if isinstance(t, T.FilteredWhiteNoise):
+        return "FilteredWhiteNoise_" + ("fir" if t.tf is None else "lowpass")
+    return type(t).__name__
 
 
 # -- PDEV and TTOTDEV (their allantools agreement: tests/test_deviations.py::test_equals_allantools) ----------------
@@ -77,7 +84,7 @@ def test_pvar_exact_value_has_vernottes_white_fm_limit():
 
 
 @pytest.mark.parametrize("kind", ["pvar", "ttotvar"])
-@pytest.mark.parametrize("term", all_terms(), ids=lambda t: type(t).__name__)
+@pytest.mark.parametrize("term", all_terms(), ids=_term_id)
 def test_pvar_ttotvar_ensemble_mean_equals_exact_value(kind, term):
     n, reps, dt = 400, 40, 0.1
     m = np.array([1, 2, 8, 40]) if kind == "pvar" else np.array([1, 2, 8, 24])
@@ -140,7 +147,7 @@ def test_mtie_sparse_table_equals_windows_one_by_one(n):
     np.testing.assert_allclose(TK.tie_sums(x, ms), [TK.tie_sum_numpy(x, int(m)) for m in ms], rtol=1e-12)
 
 
-@pytest.mark.parametrize("term", all_terms(), ids=lambda t: type(t).__name__)
+@pytest.mark.parametrize("term", all_terms(), ids=_term_id)
 def test_tie_mean_square_equals_its_exact_value(term):
     """TIE^2's ensemble mean against ``exact_variances.tie_ms`` (the mean rate's removal included, exact in n)."""
     n, reps, dt = 300, 60, 0.1
