@@ -25,6 +25,8 @@ samples spaced ``dt``; angular frequency per sample :math:`\\omega_k = 2\\pi k/n
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from avbench.noise_models.latents import LATENT_TERMS
@@ -41,8 +43,14 @@ def components() -> dict:
     """The likelihood's components, name -> term class, in the canonical order of the latent terms
     (:data:`~avbench.noise_models.latents.LATENT_TERMS`): every latent term with a random part (the
     deterministic ramp is the likelihood's trend regression), named by its reported coefficient when
-    no shape parameter shapes its spectrum, by its latent code otherwise (module docstring)."""
-    return {_name(cls): cls for cls in LATENT_TERMS.values() if not cls.deterministic}
+    no shape parameter shapes its spectrum, by its latent code otherwise (module docstring). Read-only
+    (kept per set of latent terms: a term registered later is a component from then on)."""
+    return _components(tuple(LATENT_TERMS.values()))
+
+
+@functools.lru_cache(maxsize=8)
+def _components(classes) -> dict:
+    return {_name(cls): cls for cls in classes if not cls.deterministic}
 
 
 def component(name: str):
