@@ -115,8 +115,13 @@ def _catalogue_literals(path: Path):
     return found
 
 
-@pytest.mark.parametrize("name", ["whittle.py", "whittle_likelihood.py", "whittle_spectra.py", "whittle_intervals.py"])
-def test_the_whittle_modules_hold_no_list_of_term_names(name):
+_MLE_BLOCKS = ("the MLE's block-mean state space builds one block per latent code (_ALLOWED, _mle_kernels) and "
+               "reads its start from GMWM per latent (_start_values)")
+
+
+@pytest.mark.parametrize("name", ["whittle.py", "whittle_likelihood.py", "whittle_spectra.py", "whittle_intervals.py",
+                                  pytest.param("mle.py", marks=pytest.mark.xfail(strict=True, reason=_MLE_BLOCKS))])
+def test_the_likelihood_modules_hold_no_list_of_term_names(name):
     assert _catalogue_literals(LIKELIHOOD / name) == []
 
 
