@@ -60,7 +60,7 @@ def test_planned_length_meets_target_on_simulated_records(coef, target):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name,coef,target", [("FOG1", "B", 0.10), ("CRG20", "Q", 0.20), ("CRG20", "B", 0.10),
-                                              ("VG951", "B", 0.10), ("ADIS16405_X", "B", 0.20)])
+                                              ("VG951", "B", 0.10), ("ADIS16405_X", "N", 0.01)])
 def test_planned_length_meets_target_on_three_presets(name, coef, target):
     _meets(planner.plan(presets.get(name), target, [coef]), records=60)
 
