@@ -12,6 +12,7 @@ avbench check-estimator my_estimator.py:MyEstimator   # does it keep the estimat
 avbench table results/lv2015 --latex             # re-print a finished study's table
 avbench estimate rec.csv --fs 100 --units deg/s --method wls,gmwm   # your own recording
 avbench deviations rec.csv --fs 100 --units deg/s  # its ADEV, HDEV, MDEV, TOTDEV, Theo1, ... with intervals
+avbench plan --preset ADIS16405_X --target 10    # how long to record for ±10 % on N, B, K
 """
 
 from __future__ import annotations
@@ -590,6 +591,9 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
         sub.add_parser("estimate", help=ESTIMATE_HELP)
     _add_deviations_parser(sub)
     _add_hat_parser(sub)
+    from avbench.studies import plan_report  # numpy is imported only when the command runs
+
+    plan_report.add_parser(sub, parents=[reader_options_parser()])
     try:
         import avbench.bench.__main__ as bench_main
         bench_main.add_parser(sub)
