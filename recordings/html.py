@@ -1,8 +1,8 @@
 """Step 5d: the recording as a page a person opens -- one self-contained HTML file.
 
-:func:`recording_page` renders the JSON payload of ``avbench estimate``
-(:func:`avbench.recordings.report.payload`, schema ``avbench-estimate/2``) with the sensors' Allan
-deviation figures and the exported stack formats into one HTML document, ``<stem>_report.html``:
+:func:`recording_page` renders the fits of ``avbench estimate`` (their
+:class:`~avbench.estimators.results.FitResult` s, gathered in :class:`avbench.recordings.report.Estimate`)
+with the sensors' Allan deviation figures and the exported stack formats into one HTML document, ``<stem>_report.html``:
 
 * the record -- sources, format, samples, rate, jitter, gaps and the reader's notes;
 * the static check's verdict (``static_check``), its reasons and its statistics per channel;
@@ -299,86 +299,97 @@ def _static_section(data: dict) -> str:
     return "\n".join(out)
 
 
-def _coefficient_table(sensor: str, sd: dict, table, footnotes) -> str:
-    """The screen's table of one sensor as HTML: the same cells, each with the payload entry it shows
+def _coefficient_table(est, sensor: str, table, footnotes) -> str:
+    """The screen's table of one sensor as HTML: the same cells, each with the fit it shows
     (``data-sensor``, ``data-axis``, ``data-method``, ``data-coef``) and its status as a class."""
     cols = [c for c in table.columns if c != "notes"]
     rows, classes = [], []
     for (axis, method), r in table.iterrows():
-        md = sd["axes"][axis]["methods"][method]
+        result = est.fits[sensor][axis][method].result
         row = [axis, method]
         for col in cols:
             c = col.split(" ", 1)[0]
-            flag = md["coefficients"][c]["flag"]
+            flag = result.coefficients[c].status
             row.append((r[col], {"class": "num st-" + flag.replace(" ", "-"), "data-sensor": sensor, "data-axis": axis,
                                  "data-method": method, "data-coef": c}))
         row.append(r["notes"])
         rows.append(row)
-        classes.append("poor" if md.get("poor_fit") else None)
+        classes.append("poor" if result.fit_check.poor_fit else None)
     out = html_table(["axis", "method", *cols, "notes"], rows, classes)
     if footnotes:
         out += '<ol class="notes">' + "".join(f"<li>{esc(x)}</li>" for x in footnotes) + "</ol>"
     return out
 
 
-def _status_details(sensor: str, sd: dict) -> str:
+def _status_details(est, sensor: str) -> str:
     """A table of every coefficient the record does not resolve -- the rule that decided, the fit's
     own number -- and of every term whose evidence the method tests (a non-physical or failed value is
-    a footnote of the coefficient table already; a bound is in its cell)."""
-    from avbench.noise_models.units import from_si
+    a footnote of the coefficient table already; a bound is in its cell); the evidence column only
+    where a method tests a term."""
+    from avbench.estimators.results import REASONS
+    from avbench.recordings.report import in_unit
 
+    units = est.units(sensor)
     rows = []
-    for axis, ad in sd["axes"].items():
-        for method, md in ad["methods"].items():
-            for c, e in md["coefficients"].items():
-                ev = e.get("evidence")
-                if e["flag"] != "not resolved" and ev is None:
+    for axis, per_method in est.fits[sensor].items():
+        for method, fit in per_method.items():
+            for c, e in fit.result.coefficients.items():
+                ev = e.evidence
+                if e.status != "not resolved" and ev is None:
                     continue
                 own = "-"
-                if e["flag"] == "not resolved" and e.get("fitted_si") is not None:
-                    own = f"{from_si(c, e['fitted_si'], e['unit'], sensor):.3g} {e['unit']}"
+                fitted = in_unit(c, e.fitted, units[c], sensor) if e.status == "not resolved" else None
+                if fitted is not None:
+                    own = f"{fitted:.3g} {units[c]}"
                 evidence = "-"
                 if ev is not None:
-                    p = ev.get("p_value")
-                    ptext = "p = ?" if p is None else ("p < 1e-6" if p < 1e-6 else f"p = {p:.2g}")
-                    evidence = f"{'present' if ev.get('present') else 'not shown'}, {ptext}"
-                rows.append([axis, method, c, e["flag"], e.get("reason") or "-", (own, {"class": "num"}), evidence])
+                    p = ev.p_value
+                    ptext = "p = ?" if not math.isfinite(p) else ("p < 1e-6" if p < 1e-6 else f"p = {p:.2g}")
+                    evidence = f"{'present' if ev.present else 'not shown'}, {ptext}"
+                why = REASONS[e.reason] if e.status == "not resolved" and e.reason in REASONS else "-"
+                rows.append([axis, method, c, e.status, why, (own, {"class": "num"}), evidence])
     if not rows:
         return ""
-    return ("<h3>Not resolved, and the terms' evidence</h3>"
-            + html_table(["axis", "method", "coefficient", "status", "why", "the fit's own value",
-                          "evidence (likelihood ratio test)"], rows))
+    header = ["axis", "method", "coefficient", "status", "why", "the fit's own value", "evidence (likelihood ratio test)"]
+    if all(r[-1] == "-" for r in rows):  # no method tests a term's evidence: no empty column
+        header, rows = header[:-1], [r[:-1] for r in rows]
+    return "<h3>Not resolved, and the terms' evidence</h3>" + html_table(header, rows)
 
 
-def _fit_check_table(sd: dict) -> str:
+def _fit_check_table(est, sensor: str) -> str:
     """The fit check's verdict of every method on every axis, with its statistic and where it was fitted."""
+    from avbench.recordings.report import fitted_on
+
+    n = {a: int(x.size) for a, x in est.record(sensor).axes.items()}
     rows, classes = [], []
-    for axis, ad in sd["axes"].items():
-        for method, md in ad["methods"].items():
-            pf = md.get("poor_fit")
-            if md.get("failure"):
-                verdict = "failed"
-            else:
-                verdict = {True: "POOR FIT", False: "fits", None: "no check"}[pf]
-            stat = (f"{_g(md.get('fit_stat'))} on {md.get('fit_dof')} dof ({md.get('fit_reference')})"
-                    if md.get("fit_stat") is not None else "-")
-            p = md.get("fit_pvalue")
-            ptext = "-" if p is None else ("< 1e-6" if p < 1e-6 else f"{p:.3g}")
+    for axis, per_method in est.fits[sensor].items():
+        for method, fit in per_method.items():
+            r = fit.result
+            check = r.fit_check
+            pf = check.poor_fit
+            verdict = "failed" if r.failure else {True: "POOR FIT", False: "fits", None: "no check"}[pf]
+            stat = (f"{_g(check.stat)} on {check.dof} dof ({check.reference})"
+                    if pf is not None and math.isfinite(check.stat) else "-")
+            p = check.pvalue if pf is not None else math.nan
+            ptext = "-" if not math.isfinite(p) else ("< 1e-6" if p < 1e-6 else f"{p:.3g}")
             rows.append([axis, method, (verdict, {"class": "nowrap"}), stat, (ptext, {"class": "num"}),
-                         md.get("fitted_on", "?"), (f"{md.get('seconds', 0):.3g}", {"class": "num"}),
-                         md.get("failure") or ""])
-            classes.append("poor" if pf or md.get("failure") else None)
+                         fitted_on(fit, n[axis]), (f"{fit.seconds:.3g}", {"class": "num"}), r.failure or ""])
+            classes.append("poor" if pf or r.failure else None)
     return "<h3>Fit check</h3>" + html_table(["axis", "method", "verdict", "statistic", "p-value", "fitted on",
                                                 "time (s)", "failure"], rows, classes) + \
         '<p class="legend">POOR FIT: the model misses the Allan variance beyond its intervals (the chi-square type ' \
         'check of each method, p &lt; its level); "no check": the method makes none.</p>'
 
 
-def _sensor_section(sensor: str, sd: dict, table, footnotes, fig) -> str:
-    terms = ", ".join(f"{c} = {n}" for c, n in (sd.get("terms") or {}).items())
+def _sensor_section(est, sensor: str, table, footnotes, fig) -> str:
+    from avbench.noise_models.units import TERM_NAMES
+    from avbench.recordings.report import level_text
+
+    s = est.record(sensor)
+    terms = ", ".join(f"{c} = {n}" for c, n in TERM_NAMES[sensor].items())
+    level = level_text(est)
     out = [f'<section id="sensor-{esc(_anchor(sensor))}"><h2>{esc(sensor)}</h2>',
-           f'<p class="sub">samples in {esc(sd.get("units_in", "?"))} (SI: {esc(sd.get("si_unit", "?"))}); '
-           f"{esc(terms)}</p>"]
+           f'<p class="sub">samples in {esc(s.unit_in)} (SI: {esc(s.si_unit)}); {esc(terms)}</p>']
     if fig is not None:
         out.append(png_img(fig, f"Allan deviation of each {sensor} axis with each method's model curve, and the fit "
                                 "check's residuals under it",
@@ -386,12 +397,12 @@ def _sensor_section(sensor: str, sd: dict, table, footnotes, fig) -> str:
                            "(dashed) and the first method's terms (dotted); under each panel the fit check's "
                            "standardised residuals z per tau with the +-2 band."))
     out.append("<h3>Coefficients</h3>")
-    out.append('<p class="legend">value [95 % interval]; "&lt; x": not resolved by this record, x its upper 95 % bound; '
-               '"(+- s)": a standard error only; "-": not in the method\'s model; notes: the footnotes under the '
-               "table.</p>")
-    out.append(_coefficient_table(sensor, sd, table, footnotes))
-    out.append(_status_details(sensor, sd))
-    out.append(_fit_check_table(sd))
+    out.append(f'<p class="legend">value [{level} % interval]; "&lt; x": not resolved by this record, x its upper '
+               f'{level} % bound; "(+- s)": a standard error only; "-": not in the method\'s model; notes: the '
+               "footnotes under the table.</p>")
+    out.append(_coefficient_table(est, sensor, table, footnotes))
+    out.append(_status_details(est, sensor))
+    out.append(_fit_check_table(est, sensor))
     out.append("</section>")
     return "\n".join(out)
 
@@ -471,10 +482,10 @@ def _exports_section(exports: dict | None) -> str:
     return "\n".join(out)
 
 
-def recording_page(data: dict, figures: dict, exports: dict | None = None, title: str | None = None) -> str:
+def recording_page(est, figures: dict, exports: dict | None = None, title: str | None = None) -> str:
     """The self-contained HTML page of one recording (see the module docstring).
 
-    ``data``: the JSON payload of ``avbench estimate`` (:func:`avbench.recordings.report.payload`);
+    ``est``: the fits and the record's facts (:class:`avbench.recordings.report.Estimate`);
     ``figures``: ``{sensor: matplotlib Figure or PNG bytes}`` (a sensor without one has no figure);
     ``exports``: ``{name: (file name, text)}`` of the stack formats, each shown in a block with a copy
     button; ``title``: the page's heading (default: the sources). Returns the page as a string.
@@ -488,20 +499,23 @@ def recording_page(data: dict, figures: dict, exports: dict | None = None, title
     >>> x = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3)]).simulate(4096, np.random.default_rng(0))
     >>> s = SensorRecord("gyro", "rad/s", {"x": x}, {})
     >>> fits = {"gyro": {"x": fit_axis(x, 0.01, np.zeros(0, dtype=np.int64), ["wls"])}}
-    >>> data = report.payload(["sim <1>"], Timing(0.01, "--fs", 4096), [s], fits)
-    >>> page = recording_page(data, {}, {"kalibr": ("imu.yaml", "a: 1 # <b>")})
+    >>> est = report.Estimate(["sim <1>"], Timing(0.01, "--fs", 4096), [s], fits)
+    >>> page = recording_page(est, {}, {"kalibr": ("imu.yaml", "a: 1 # <b>")})
     >>> page.startswith("<!DOCTYPE html>"), "sim &lt;1&gt;" in page, "# &lt;b&gt;" in page
     (True, True, True)
     """
-    from avbench.recordings.report import screen_tables
+    from avbench.estimators.results import jsonable
+    from avbench.recordings.report import SCHEMA, screen_tables
 
     figures = figures or {}
-    tables = screen_tables(data)
+    tables = screen_tables(est)
+    data = {"sources": [str(x) for x in est.sources], "timing": jsonable(est.timing.to_dict()),
+            **jsonable(est.extra), "notes": est.notes}  # the record's facts
     nav = [("record", "record"), ("static", "static check")]
     body = [_record_section(data), _static_section(data)]
     for sensor, (table, footnotes) in tables.items():
         nav.append((f"sensor-{_anchor(sensor)}", sensor))
-        body.append(_sensor_section(sensor, data["sensors"][sensor], table, footnotes, figures.get(sensor)))
+        body.append(_sensor_section(est, sensor, table, footnotes, figures.get(sensor)))
     combine = _combine_section(data)
     if combine:
         nav.append(("runs", "several recordings"))
@@ -515,7 +529,7 @@ def recording_page(data: dict, figures: dict, exports: dict | None = None, title
     if ex:
         nav.append(("exports", "exports"))
         body.append(ex)
-    body.append(f'<footer>avbench {esc(avbench_version())} &middot; payload schema {esc(data.get("schema", "?"))} &middot; '
+    body.append(f'<footer>avbench {esc(avbench_version())} &middot; payload schema {esc(SCHEMA)} &middot; '
                 "a self-contained page: it loads nothing from the network.</footer>")
     sources = ", ".join(data.get("sources") or [])
     return document(title or f"avbench estimate: {sources}", "\n".join(body),

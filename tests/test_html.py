@@ -2,7 +2,7 @@
 (:mod:`avbench.studies.html`).
 
 Read as HTML (:mod:`html.parser`): every cell of a recording's coefficient table is the screen's cell
-of the payload entry it names, and its numbers are the JSON's; every table of a study's page is its
+of the fit it names, and its numbers are the fit's; every table of a study's page is its
 markdown file's and the numbers of ``table.md`` are those of ``table.csv``; every text from the data is
 escaped; nothing refers to the network.
 
@@ -168,16 +168,14 @@ def recording():
             fits = fit_sensors(sensors, timing, ["wls", "gmwm", "whittle_debiased"])
     extra = {"format": "text", "topic": None, "time_source": "column 't' (s)", "notes": ["a note <b>with markup</b>"],
              "static_check": static_check(sensors, dt, avs)}
-    data = report.payload([NASTY_FILE], timing, sensors, fits, extra)
-    data = json.loads(json.dumps(data))  # the payload as the JSON file holds it
+    est = report.Estimate([NASTY_FILE], timing, sensors, fits, extra)
     gyro = sensors[0]  # the gyro's figure only (drawing is the slow part); the accelerometer has none
-    flags = {ax: {m: data["sensors"]["gyro"]["axes"][ax]["methods"][m]["poor_fit"] for m in fits["gyro"][ax]}
-             for ax in gyro.axes}
+    flags = {ax: {m: f.result.fit_check.poor_fit for m, f in fits["gyro"][ax].items()} for ax in gyro.axes}
     fig = figure.figure(gyro, fits["gyro"], avs["gyro"], dt, NASTY_FILE, flags)
     figures = {"gyro": png_bytes(fig)}
     plt.close(fig)
     exports = {"kalibr": NASTY_EXPORT, "openvins": ("kalibr_imu_chain.yaml", "imu0:\n  update_rate: 100.0\n")}
-    return data, figures, exports
+    return est, figures, exports
 
 
 @pytest.fixture(scope="module")
@@ -207,49 +205,49 @@ def _first_numbers(text: str) -> list[float]:
     return [float(x) for x in re.findall(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?", text)]
 
 
-def test_every_coefficient_cell_is_the_jsons(recording, recording_html):
+def test_every_coefficient_cell_is_the_fits(recording, recording_html):
     from avbench.noise_models.units import from_si
-    from avbench.recordings.report import screen_tables, shown_interval, shown_value
+    from avbench.recordings.report import screen_tables, shown_value
 
-    data = recording[0]
+    est = recording[0]
     page = Page(recording_html)
     cells = dict(page.coef)
     assert len(cells) == len(page.coef)  # one cell per (sensor, axis, method, coefficient)
     expected = {}
-    for sensor, sd in data["sensors"].items():
-        modelled = [c for c in COEFFICIENTS if any(md["coefficients"][c]["flag"] != "not modelled"
-                                                   for ad in sd["axes"].values() for md in ad["methods"].values())]
-        for axis, ad in sd["axes"].items():
-            for method, md in ad["methods"].items():
+    for sensor, axes in est.fits.items():
+        modelled = [c for c in COEFFICIENTS if any(f.result.coefficients[c].status != "not modelled"
+                                                   for per in axes.values() for f in per.values())]
+        for axis, per in axes.items():
+            for method, fit in per.items():
                 for c in modelled:
-                    expected[(sensor, axis, method, c)] = md["coefficients"][c]
+                    expected[(sensor, axis, method, c)] = fit.result.coefficients[c]
     assert set(cells) == set(expected)
     n_values = 0
     for key, e in expected.items():
         sensor, _, _, c = key
-        assert cells[key] == shown_value(e, c, sensor), key
-        # and the numbers themselves, read back from the cell, are the JSON's at the digits shown
-        if e["flag"] == "ok":
+        unit = est.units(sensor)[c]
+        assert cells[key] == shown_value(e, unit, sensor), key
+        # and the numbers themselves, read back from the cell, are the fit's at the digits shown
+        if e.status == "ok":
             nums = _first_numbers(cells[key])
-            assert math.isclose(nums[0], float(f"{e['value']:.3g}"), rel_tol=1e-12), key
-            iv = shown_interval(e, c, sensor)
-            if iv is not None:
+            assert math.isclose(nums[0], float(f"{from_si(c, e.value, unit, sensor):.3g}"), rel_tol=1e-12), key
+            if e.interval is not None:
+                iv = [from_si(c, v, unit, sensor) for v in e.interval]
                 assert np.allclose(nums[1:3], [float(f"{v:.3g}") for v in iv], rtol=1e-12, atol=0), key
-                assert math.isclose(iv[1], from_si(c, e["interval_si"][1], e["unit"], sensor), rel_tol=1e-12)
             n_values += 1
-        elif e["flag"] == "not resolved" and e.get("interval_si"):
-            bound = from_si(c, e["interval_si"][1], e["unit"], sensor)
+        elif e.status == "not resolved" and e.interval is not None:
+            bound = from_si(c, e.interval[1], unit, sensor)
             assert math.isclose(_first_numbers(cells[key])[0], float(f"{bound:.3g}"), rel_tol=1e-12), key
     assert n_values > 10
     # the footnotes are the screen's, in its order
-    assert page.notes == [n for _, (_, notes) in screen_tables(data).items() for n in notes]
+    assert page.notes == [n for _, (_, notes) in screen_tables(est).items() for n in notes]
 
 
 def test_the_page_shows_the_record_the_static_check_and_the_figures(recording, recording_html):
-    data, figures, _ = recording
+    est, figures, _ = recording
     page = Page(recording_html)
     text = page.all_text
-    assert f"{data['timing']['n_samples']}" in text and "1 (0.5 s missing)" in text
+    assert f"{est.timing.n_samples}" in text and "1 (0.5 s missing)" in text
     assert "static" in text and "gyro x" in text and "accel magnitude" in text
     assert "Fit check" in text and ("POOR FIT" in text or "fits" in text)
     assert "a note <b>with markup</b>" in text  # the reader's notes, as text
@@ -291,10 +289,10 @@ def test_the_stack_exports_show_as_copy_blocks(recording):
     exports = pytest.importorskip("avbench.recordings.exports")
     from avbench.recordings.html import recording_page
 
-    data, figures, _ = recording
-    rendered = exports.render(data, "kalibr,vins", "gmwm", None)
+    est, figures, _ = recording
+    rendered = exports.render(est.results(), "kalibr,vins", "gmwm", est.timing.fs)
     files = {name: ("imu" + suffix, text) for name, (suffix, text) in rendered.items()}
-    page = Page(recording_page(data, figures, files))
+    page = Page(recording_page(est, figures, files))
     pres = {a["id"]: a for t, a in page.elements if t == "pre"}
     buttons = [a["data-target"] for t, a in page.elements if t == "button"]
     assert sorted(buttons) == sorted(pres) and len(buttons) == 2
@@ -307,16 +305,19 @@ def test_several_recordings_and_the_filter_yaml(recording):
     display units, the yaml's values and its text (shown once when an export holds the same text)."""
     from avbench.recordings.html import recording_page
 
-    data = dict(recording[0])
-    data["combine"] = {"gyro": {"x": {"p_value": 0.31, "agree": True, "n_taus": 6, "worst_tau_s": 2.0, "note": "chi^2"},
+    import dataclasses
+
+    extra = dict(recording[0].extra)
+    extra["combine"] = {"gyro": {"x": {"p_value": 0.31, "agree": True, "n_taus": 6, "worst_tau_s": 2.0, "note": "chi^2"},
                                 "y": {"p_value": None, "agree": None, "n_taus": 0, "worst_tau_s": None, "note": "few"}}}
     n_si = np.deg2rad(0.1) / 60  # 0.1 deg/sqrt(h) in rad/sqrt(s)
-    data["between_runs"] = {"method": "gmwm", "inflate": {"gyroscope_noise_density": 1.25}, "sensors": {"gyro": {"x": {
+    extra["between_runs"] = {"method": "gmwm", "inflate": {"gyroscope_noise_density": 1.25}, "sensors": {"gyro": {"x": {
         "N": {"k": 3, "mean": n_si, "mean_se": 0.01 * n_si, "tau": 0.05 * n_si, "tau_ci": [0.0, 0.2 * n_si],
               "cv": 0.05, "prediction": [0.8 * n_si, 1.2 * n_si]}}}}}
     yaml = "gyroscope_noise_density: 2.9e-05  # <unit>\n"
-    data["filter_yaml"] = {"method": "gmwm", "inflate": [1.0, 1.0], "values_si": {"gyroscope_noise_density": 2.9e-5},
+    extra["filter_yaml"] = {"method": "gmwm", "inflate": [1.0, 1.0], "values_si": {"gyroscope_noise_density": 2.9e-5},
                            "bounds": {}, "text": yaml}
+    data = dataclasses.replace(recording[0], extra=extra)
     page = Page(recording_page(data, {}))
     text = page.all_text
     assert "agree" in text and "not testable" in text and "gyroscope_noise_density x 1.25" in text
@@ -338,8 +339,8 @@ def test_a_minimal_payload_renders():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         fits = {"gyro": {"x": fit_axis(x, 0.01, np.zeros(0, dtype=np.int64), ["wls"])}}
-    data = report.payload(["sim"], Timing(0.01, "--fs", 4096), [SensorRecord("gyro", "rad/s", {"x": x}, {})], fits)
-    page = Page(recording_page(data, {}))
+    est = report.Estimate(["sim"], Timing(0.01, "--fs", 4096), [SensorRecord("gyro", "rad/s", {"x": x}, {})], fits)
+    page = Page(recording_page(est, {}))
     assert "not checked" in page.all_text and len(page.coef) >= 3
     assert not any(t == "img" for t, _ in page.elements)
 
@@ -506,11 +507,11 @@ def test_browser_recording_page(recording, recording_html, tmp_path, browser_tim
     assert len(p["images"]) == len(recording[1]) and all(w > 500 and h > 200 and shown > 300 for w, h, shown in p["images"])
     assert p["scripts"] == 2 and p["title"] == NASTY_TITLE  # the copy script and the probe; the title as text
     assert p["copy"] != "copy"  # the copy script answered the click
-    data = recording[0]
+    est = recording[0]
     assert len(p["coef"]) == len(Page(recording_html).coef) > 0
     for sensor, axis, method, c, text in p["coef"]:
-        e = data["sensors"][sensor]["axes"][axis]["methods"][method]["coefficients"][c]
-        assert text == shown_value(e, c, sensor)
+        e = est.fits[sensor][axis][method].result.coefficients[c]
+        assert text == shown_value(e, est.units(sensor)[c], sensor)
 
 
 @needs_browser

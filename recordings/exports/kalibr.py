@@ -53,13 +53,13 @@ _ORDER = ("accelerometer_noise_density", "accelerometer_random_walk", "gyroscope
 
 def kalibr(req: Request) -> str:
     """Kalibr's ``imu.yaml``: :func:`~avbench.recordings.filter_yaml.kalibr_yaml`'s text, at the record's rate."""
-    choices = filter_yaml.filter_choices(req.data, req.method, req.option, req.avs)
+    choices = filter_yaml.filter_choices(req.results, req.method, req.option, req.avs)
     return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate, "kalibr")
 
 
 def allan_variance_ros(req: Request) -> str:
     """allan_variance_ros's ``imu.yaml``: Kalibr's keys, its own comment line."""
-    choices = filter_yaml.filter_choices(req.data, req.method, req.option, req.avs)
+    choices = filter_yaml.filter_choices(req.results, req.method, req.option, req.avs)
     return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate,
                                    "allan_variance_ros")
 
