@@ -406,9 +406,19 @@ def run(args) -> int:
         from avbench.recordings.html import recording_page
 
         pages = {name: (f"{stem}{suffix}", text) for name, (suffix, text) in exported.items()}
+        panels = {s.sensor: {a: figure.figure(s, fits[s.sensor], all_avs[s.sensor], dt, title,
+                                              {a: {m: f.result.fit_check.poor_fit for m, f in fits[s.sensor][a].items()}},
+                                              deviations=devs.get(s.sensor), axes=[a]) for a in s.axes} for s in sensors}
         if args.kalibr is not None and "kalibr" not in pages:
             pages["kalibr"] = (Path(args.kalibr).name, yaml_text)
-        results["html"] = recording_page(est, pngs, pages, title=title)
+        try:
+            results["html"] = recording_page(est, panels, pages, title=title)
+        finally:
+            import matplotlib.pyplot as plt
+
+            for per_axis in panels.values():
+                for f in per_axis.values():
+                    plt.close(f)
     try:
         plan.write(results)
     except KeyboardInterrupt as e:  # SIGINT, or SIGTERM/SIGHUP (avbench.outputs.Interrupted), before the renames

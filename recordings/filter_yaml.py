@@ -55,12 +55,13 @@ import math
 
 import numpy as np
 
-__all__ = ["KEYS", "axis_value", "filter_values", "filter_choices", "check_sensors", "kalibr_yaml", "parse_inflate", "av_bound"]
+__all__ = ["KEYS", "UNITS", "axis_value", "filter_values", "filter_choices", "check_sensors", "kalibr_yaml", "parse_inflate", "av_bound"]
 
 #: (sensor, coefficient) -> Kalibr key
 KEYS = {("accel", "N"): "accelerometer_noise_density", ("accel", "K"): "accelerometer_random_walk",
         ("gyro", "N"): "gyroscope_noise_density", ("gyro", "K"): "gyroscope_random_walk"}
-_UNITS = {"accelerometer_noise_density": "m/s^2/sqrt(Hz)", "accelerometer_random_walk": "m/s^3/sqrt(Hz)",
+#: Kalibr key -> its unit
+UNITS = {"accelerometer_noise_density": "m/s^2/sqrt(Hz)", "accelerometer_random_walk": "m/s^3/sqrt(Hz)",
           "gyroscope_noise_density": "rad/s/sqrt(Hz)", "gyroscope_random_walk": "rad/s^2/sqrt(Hz)"}
 
 
@@ -220,7 +221,7 @@ def kalibr_yaml(values, update_rate: float, topic: str | None, method: str, sour
                      "conditions, not other temperatures, ageing or vibration")
     else:
         f_noise, f_walk = inflate
-        factors = {k: f_noise if k.endswith("noise_density") else f_walk for k in _UNITS}
+        factors = {k: f_noise if k.endswith("noise_density") else f_walk for k in UNITS}
         lines.append("# values as estimated (no inflation)" if (f_noise, f_walk) == (1.0, 1.0) else
                      f"# INFLATED by the user: noise densities x {f_noise:g}, random walks x {f_walk:g} (--inflate)")
     for key in ("accelerometer_noise_density", "accelerometer_random_walk",
@@ -231,7 +232,7 @@ def kalibr_yaml(values, update_rate: float, topic: str | None, method: str, sour
             lines.append(f"# {key}: a BOUND, not an estimate -- axis {axis} {why}")
         v *= factors[key]
         note = (f"; x {factors[key]:.3g}" if isinstance(inflate, dict) else "") + ("" if v > 0 else "; zero: no random walk seen in this record -- a filter needs a positive value")
-        lines.append(f"{key}: {v:.16e}  # {_UNITS[key]}, axis {axis}{note}")
+        lines.append(f"{key}: {v:.16e}  # {UNITS[key]}, axis {axis}{note}")
     lines.append(f"rostopic: {topic if topic else '/imu0'}" + ("" if topic else "  # not a bag: Kalibr's default topic"))
     lines.append(f"update_rate: {float(update_rate):.6f}  # Hz")
     return "\n".join(lines) + "\n"

@@ -39,9 +39,12 @@ __all__ = ["recording_page", "document", "html_table", "png_img", "copy_block", 
            "CSP", "COPY_SCRIPT"]
 
 #: the page's one script: a click on a ``button.copy`` copies the text of the ``<pre>`` it names
-#: (the clipboard API, or the selection and ``execCommand("copy")`` where that is refused)
+#: (the clipboard API, or the selection and ``execCommand("copy")`` where that is refused); a click on
+#: a ``figure.zoom`` shows it at the page's full width, a second click at its own
 COPY_SCRIPT = """
 document.addEventListener("click", function (ev) {
+  var f = ev.target.closest ? ev.target.closest("figure.zoom") : null;
+  if (f) { f.classList.toggle("zoomed"); return; }
   var b = ev.target.closest ? ev.target.closest("button.copy") : null;
   if (!b) { return; }
   var pre = document.getElementById(b.getAttribute("data-target"));
@@ -111,9 +114,12 @@ table.facts th { background: var(--band); text-align: left; white-space: nowrap;
 .badge.none { color: var(--muted); background: var(--band); }
 figure { margin: 10px 0 14px; }
 figure img { max-width: 100%; height: auto; border: 1px solid var(--line); }
+figure.zoom { cursor: zoom-in; }
+figure.zoomed { cursor: zoom-out; flex-basis: 100% !important; }
+figure.zoomed img { width: 100%; }
 figcaption { color: var(--muted); font-size: 0.9em; }
 .figs { display: flex; flex-wrap: wrap; gap: 12px; }
-.figs figure { flex: 1 1 560px; }
+.figs figure { flex: 0 1 auto; max-width: 100%; }
 ol.notes { font-size: 0.92em; padding-left: 28px; }
 .legend { color: var(--muted); font-size: 0.9em; }
 .block { margin: 12px 0 18px; border: 1px solid var(--line); border-radius: 6px; }
@@ -201,12 +207,36 @@ def png_bytes(fig_or_png, dpi: int = 110) -> bytes:
     return buf.getvalue()
 
 
-def png_img(fig_or_png, alt: str, caption: str | None = None) -> str:
+def _png_width(png: bytes) -> int:
+    """The width in pixels of a PNG (its IHDR chunk)."""
+    return int.from_bytes(png[16:20], "big")
+
+
+def _smallest_text_px(fig, dpi: int) -> float | None:
+    """The size in pixels, at ``dpi``, of the smallest visible text of a drawn matplotlib Figure."""
+    from matplotlib.text import Text
+
+    sizes = [t.get_fontsize() for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
+    return min(sizes) * dpi / 72 if sizes else None
+
+
+def png_img(fig_or_png, alt: str, caption: str | None = None, sharp: float = 1.0) -> str:
     """A ``<figure>`` holding the image inline (``data:image/png;base64``), with an escaped ``alt``
-    text and caption."""
-    data = base64.b64encode(png_bytes(fig_or_png)).decode("ascii")
+    text and caption. A matplotlib Figure is drawn at ``sharp`` x 110 dpi and shown at the size of
+    110 dpi (``width``), larger on a click (``figure.zoom``); its smallest text in pixels as shown is
+    ``data-text-px``."""
+    attrs, cls = "", ""
+    if isinstance(fig_or_png, (bytes, bytearray, memoryview)):
+        png = bytes(fig_or_png)
+    else:
+        png = png_bytes(fig_or_png, dpi=round(110 * sharp))
+        small = _smallest_text_px(fig_or_png, round(110 * sharp))
+        width = round(_png_width(png) / sharp)
+        attrs = f' width="{width}"' + (f' data-text-px="{small / sharp:.2f}"' if small is not None else "")
+        cls = ' class="zoom"'
+    data = base64.b64encode(png).decode("ascii")
     cap = f"<figcaption>{esc(caption)}</figcaption>" if caption else ""
-    return f'<figure><img src="data:image/png;base64,{data}" alt="{esc(alt)}">{cap}</figure>'
+    return f'<figure{cls}><img src="data:image/png;base64,{data}" alt="{esc(alt)}"{attrs}>{cap}</figure>'
 
 
 def copy_block(filename: str, text: str, ident: str, label: str | None = None) -> str:
@@ -390,12 +420,17 @@ def _sensor_section(est, sensor: str, table, footnotes, fig) -> str:
     level = level_text(est)
     out = [f'<section id="sensor-{esc(_anchor(sensor))}"><h2>{esc(sensor)}</h2>',
            f'<p class="sub">samples in {esc(s.unit_in)} (SI: {esc(s.si_unit)}); {esc(terms)}</p>']
-    if fig is not None:
+    caption = ("Allan deviation (points, 68 % chi-square bars) with each method's model (dashed, over the scales "
+               "it fitted) and the first method's terms (dotted); under it the fit check's standardised residuals "
+               "z per tau with the +-2 band. Click a figure to enlarge it.")
+    if isinstance(fig, dict):  # one figure per axis
+        out.append('<div class="figs">' + "".join(
+            png_img(f, f"Allan deviation of {sensor} {axis} with each method's model curve, and the fit check's "
+                       f"residuals under it", f"{sensor} {axis}", sharp=1.5) for axis, f in fig.items()) + "</div>")
+        out.append(f'<p class="legend">{esc(caption)}</p>')
+    elif fig is not None:
         out.append(png_img(fig, f"Allan deviation of each {sensor} axis with each method's model curve, and the fit "
-                                "check's residuals under it",
-                           "Allan deviation of each axis (points, 68 % chi-square bars) with each method's model "
-                           "(dashed) and the first method's terms (dotted); under each panel the fit check's "
-                           "standardised residuals z per tau with the +-2 band."))
+                                "check's residuals under it", caption))
     out.append("<h3>Coefficients</h3>")
     out.append(f'<p class="legend">value [{level} % interval]; "&lt; x": not resolved by this record, x its upper '
                f'{level} % bound; "(+- s)": a standard error only; "-": not in the method\'s model; notes: the '
@@ -450,21 +485,44 @@ def _combine_section(data: dict) -> str:
     return "\n".join(out)
 
 
-def _filter_section(data: dict, shown_texts: set) -> str:
+#: the formats whose file holds Kalibr's four keys (:data:`avbench.recordings.filter_yaml.KEYS`)
+KALIBR_KEY_FORMATS = ("kalibr", "allan_variance_ros", "openvins")
+
+
+def _filter_section(data: dict, exports: dict | None) -> str:
+    """Kalibr's keys as the files that hold them write them (each value with its unit, inflated as
+    written), where such a file was written; every other format's keys are its own, in its block
+    under Exports."""
+    from avbench.recordings.exports.base import factor
+    from avbench.recordings.filter_yaml import KEYS, UNITS
+
     fy = data.get("filter_yaml")
     if not fy:
         return ""
-    out = ['<section id="filter"><h2>Filter yaml</h2>']
     text = fy if isinstance(fy, str) else fy.get("text")
+    kalibr_files = [n for n in (exports or {}) if n in KALIBR_KEY_FORMATS]
+    if not text and not kalibr_files:
+        return ""
+    shown_texts = {t for _, t in (exports or {}).values()}
+    out = ['<section id="filter"><h2>Kalibr keys</h2>']
     if isinstance(fy, dict):
         inflate = fy.get("inflate")
-        out.append(f"<p>values from <code>{esc(fy.get('method', '?'))}</code>, largest over the axes"
-                   + (f"; inflated by {esc(inflate)}" if inflate and inflate != [1.0, 1.0] else "; not inflated") + "</p>")
+        pair = tuple(inflate) if isinstance(inflate, list) else inflate
+        where = ", ".join(kalibr_files) if kalibr_files else "imu.yaml"
+        out.append(f"<p>as written in {esc(where)}: values from <code>{esc(fy.get('method', '?'))}</code>, the "
+                   "largest over the axes" + ("; not inflated" if pair in (None, (1.0, 1.0)) else "; inflated as the "
+                                              "file says") + "</p>")
+        sensor_coef = {k: sc for sc, k in KEYS.items()}
         bounds = fy.get("bounds") or {}
-        rows = [[k, (f"{v:.6g}" if v is not None else "?", {"class": "num"}), bounds.get(k, "")]
-                for k, v in (fy.get("values_si") or {}).items()]
+        rows = []
+        for k, v in (fy.get("values_si") or {}).items():
+            f = factor(pair if pair is not None else (1.0, 1.0), *sensor_coef[k])
+            rows.append([k, (f"{v * f:.6g}" if v is not None else "?", {"class": "num"}), UNITS[k], bounds.get(k, "")])
         if rows:
-            out.append(html_table(["key", "value (SI)", "a bound, not a resolved value"], rows))
+            header = ["key", "value", "unit", "a bound, not a resolved value"]
+            if not any(r[-1] for r in rows):
+                header, rows = header[:-1], [r[:-1] for r in rows]
+            out.append(html_table(header, rows))
     if text and text not in shown_texts:
         out.append(copy_block("imu.yaml", text, "filter-yaml", label="kalibr"))
     out.append("</section>")
@@ -486,7 +544,8 @@ def recording_page(est, figures: dict, exports: dict | None = None, title: str |
     """The self-contained HTML page of one recording (see the module docstring).
 
     ``est``: the fits and the record's facts (:class:`avbench.recordings.report.Estimate`);
-    ``figures``: ``{sensor: matplotlib Figure or PNG bytes}`` (a sensor without one has no figure);
+    ``figures``: ``{sensor: matplotlib Figure or PNG bytes}``, or ``{sensor: {axis: Figure}}`` (one figure
+    per axis, each readable from a narrow window up; a sensor without one has no figure);
     ``exports``: ``{name: (file name, text)}`` of the stack formats, each shown in a block with a copy
     button; ``title``: the page's heading (default: the sources). Returns the page as a string.
 
@@ -520,10 +579,9 @@ def recording_page(est, figures: dict, exports: dict | None = None, title: str |
     if combine:
         nav.append(("runs", "several recordings"))
         body.append(combine)
-    shown = {text for _, text in (exports or {}).values()}
-    filt = _filter_section(data, shown)
+    filt = _filter_section(data, exports)
     if filt:
-        nav.append(("filter", "filter yaml"))
+        nav.append(("filter", "Kalibr keys"))
         body.append(filt)
     ex = _exports_section(exports)
     if ex:

@@ -31,6 +31,7 @@ made (``model_choice``) and the warnings it raised.
 from __future__ import annotations
 
 import math
+import re
 import textwrap
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -44,7 +45,7 @@ from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, TERM_NAMES, 
 
 __all__ = ["Estimate", "display_units", "coefficient_flags", "poor_fit", "payload", "tables", "screen",
            "screen_tables", "shown_value", "shown_interval", "wrap", "term_evidence", "model_choice_notes",
-           "fitted_on", "in_unit", "level_text", "SCHEMA", "SCREEN_WIDTH"]
+           "fitted_on", "in_unit", "level_text", "warning_text", "SCHEMA", "SCREEN_WIDTH"]
 
 SCHEMA = "avbench-estimate/2"
 #: the width of every line :func:`screen` prints
@@ -322,8 +323,14 @@ def _notes(fit, sensor: str, n_samples: int, units: dict) -> list[str]:
     where = fitted_on(fit, n_samples)
     if where != "whole record":
         notes.append(f"fitted on the {where}")
-    notes.extend(r.warnings)
+    notes.extend(warning_text(w) for w in r.warnings)
     return notes
+
+
+def warning_text(message: str) -> str:
+    """A warning a fit raised, as a footnote says it: without the Python class it was raised as
+    (``"IdentifiabilityWarning: B not resolved ..."`` -> ``"B not resolved ..."``)."""
+    return re.sub(r"^[A-Za-z]*Warning: ", "", message)
 
 
 def tables(est: Estimate) -> dict[str, pd.DataFrame]:

@@ -141,13 +141,11 @@ def recording():
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, RateRandomWalk
     from avbench.recordings import figure, report
     from avbench.recordings.estimate import fit_sensors
     from avbench.recordings.fit import scaled_allan
-    from avbench.recordings.html import png_bytes
     from avbench.recordings.sensors import SensorRecord
     from avbench.recordings.static import static_check
     from avbench.recordings.timing import Timing
@@ -171,9 +169,8 @@ def recording():
     est = report.Estimate([NASTY_FILE], timing, sensors, fits, extra)
     gyro = sensors[0]  # the gyro's figure only (drawing is the slow part); the accelerometer has none
     flags = {ax: {m: f.result.fit_check.poor_fit for m, f in fits["gyro"][ax].items()} for ax in gyro.axes}
-    fig = figure.figure(gyro, fits["gyro"], avs["gyro"], dt, NASTY_FILE, flags)
-    figures = {"gyro": png_bytes(fig)}
-    plt.close(fig)
+    figures = {"gyro": {ax: figure.figure(gyro, fits["gyro"], avs["gyro"], dt, NASTY_FILE, flags, axes=[ax])
+                        for ax in gyro.axes}}  # one figure per axis, as avbench estimate --html draws them
     exports = {"kalibr": NASTY_EXPORT, "openvins": ("kalibr_imu_chain.yaml", "imu0:\n  update_rate: 100.0\n")}
     return est, figures, exports
 
@@ -183,7 +180,12 @@ def recording_html(recording):
     from avbench.recordings.html import recording_page
 
     data, figures, exports = recording
-    return recording_page(data, figures, exports, title=NASTY_TITLE)
+    import matplotlib.pyplot as plt
+
+    page = recording_page(data, figures, exports, title=NASTY_TITLE)
+    for f in figures["gyro"].values():
+        plt.close(f)
+    return page
 
 
 @pytest.fixture(scope="module")
@@ -255,8 +257,11 @@ def test_the_page_shows_the_record_the_static_check_and_the_figures(recording, r
     evidence = [t for t in tables if t and t[0][-1] == "evidence (likelihood ratio test)"]
     assert evidence and any(r[3] == "not resolved" for t in evidence for r in t[1:])
     assert any(r[-1].startswith("present, p") for t in evidence for r in t[1:])  # whittle_debiased tests each term
-    srcs = [a["src"] for t, a in page.elements if t == "img"]
-    assert [base64.b64decode(s.split(",", 1)[1]) for s in srcs] == list(figures.values())
+    imgs = [a for t, a in page.elements if t == "img"]
+    assert len(imgs) == len(figures["gyro"])  # one per axis, each a PNG shown at its 110 dpi width
+    for a in imgs:
+        png = base64.b64decode(a["src"].split(",", 1)[1])
+        assert png[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(png[16:20], "big") > int(a["width"]) > 500
     for name, (filename, body) in recording[2].items():
         assert filename in text and body in text  # each export under its file name, verbatim
 
@@ -409,8 +414,12 @@ def test_markdown_is_escaped():
 PROBE = """
 window.addEventListener("load", function () {
   var out = {images: [], coef: [], tables: [], scripts: document.scripts.length, title: document.title, copy: null};
+  out.width = window.innerWidth;
+  out.scroll = document.documentElement.scrollWidth;
+  out.body_px = parseFloat(getComputedStyle(document.body).fontSize);
   document.querySelectorAll("img").forEach(function (im) {
-    out.images.push([im.naturalWidth, im.naturalHeight, im.getBoundingClientRect().width]);
+    out.images.push([im.naturalWidth, im.naturalHeight, im.getBoundingClientRect().width,
+                     parseFloat(im.getAttribute("width")), parseFloat(im.dataset.textPx)]);
   });
   document.querySelectorAll("td[data-coef]").forEach(function (td) {
     out.coef.push([td.dataset.sensor, td.dataset.axis, td.dataset.method, td.dataset.coef, td.innerText]);
@@ -438,7 +447,7 @@ window.addEventListener("load", function () {
 _FLAGS = ["--headless=new", "--disable-gpu", "--no-sandbox", "--enable-logging=stderr", "--v=0",
           "--host-resolver-rules=MAP * ~NOTFOUND", "--disable-background-networking", "--disable-component-update",
           "--disable-sync", "--no-first-run", "--no-default-browser-check", "--disable-extensions",
-          "--disable-default-apps", "--window-size=1400,1000", "--virtual-time-budget=3000"]
+          "--disable-default-apps", "--virtual-time-budget=3000"]
 
 
 def _with_probe(raw: str) -> str:
@@ -448,14 +457,14 @@ def _with_probe(raw: str) -> str:
     return out.replace("</body>", f"<script>{PROBE}</script>\n</body>", 1)
 
 
-def _browse(raw: str, folder: Path) -> dict:
+def _browse(raw: str, folder: Path, width: int = 1400) -> dict:
     """Open the page (with the probe) in headless chromium: the probe's findings, the page's console
     messages and the requests the page made (netlog events whose isolation key is the page's file:// site)."""
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "page.html"
     path.write_text(_with_probe(raw), encoding="utf-8")
     net = folder / "net.json"
-    run = subprocess.run([CHROMIUM, *_FLAGS, f"--user-data-dir={folder / 'profile'}", f"--log-net-log={net}",
+    run = subprocess.run([CHROMIUM, *_FLAGS, f"--window-size={width},1000", f"--user-data-dir={folder / 'profile'}", f"--log-net-log={net}",
                           "--dump-dom", path.as_uri()], capture_output=True, text=True, timeout=60)
     console = [line for line in run.stderr.splitlines() if ":CONSOLE" in line and "source: file://" in line]
     events = json.loads(net.read_text())
@@ -474,7 +483,7 @@ def _browse(raw: str, folder: Path) -> dict:
 def browser_times():
     times = []
     yield times
-    assert sum(times) < 20, f"the browser runs took {sum(times):.1f} s"
+    assert sum(times) < 30, f"the browser runs took {sum(times):.1f} s"
 
 
 @needs_browser
@@ -486,7 +495,7 @@ def test_browser_detects_console_errors_external_requests_and_broken_images(tmp_
     r = _browse(bad, tmp_path / "bad")
     assert any('"boom"' in line for line in r["console"])
     assert r["requests"] == ["http://example.invalid/a.png"]
-    assert [w for w, _, _ in r["probe"]["images"]] == [0, 0]
+    assert [im[0] for im in r["probe"]["images"]] == [0, 0]
     # the pages' own policy turns an external load into a console message, blocked before any request
     from avbench.recordings.html import document
 
@@ -496,15 +505,22 @@ def test_browser_detects_console_errors_external_requests_and_broken_images(tmp_
 
 
 @needs_browser
-def test_browser_recording_page(recording, recording_html, tmp_path, browser_times):
+@pytest.mark.parametrize("width", [800, 1400])
+def test_browser_recording_page(recording, recording_html, tmp_path, browser_times, width):
+    """At a window 800 and 1400 px wide: nothing wider than the window, every figure's smallest text
+    at least the body's size as shown, and every cell the fit's."""
     from avbench.recordings.report import shown_value
 
     t0 = time.perf_counter()
-    r = _browse(recording_html, tmp_path)
+    r = _browse(recording_html, tmp_path, width)
     browser_times.append(time.perf_counter() - t0)
     assert r["console"] == [] and r["requests"] == []
     p = r["probe"]
-    assert len(p["images"]) == len(recording[1]) and all(w > 500 and h > 200 and shown > 300 for w, h, shown in p["images"])
+    assert abs(p["width"] - width) < 40 and p["scroll"] <= p["width"], (p["scroll"], p["width"])
+    assert len(p["images"]) == len(recording[1]["gyro"])
+    for natural, height, shown, attr_width, text_px in p["images"]:
+        assert natural > 500 and height > 200 and shown > 300
+        assert text_px * shown / attr_width >= p["body_px"], (text_px, shown, attr_width, p["body_px"])
     assert p["scripts"] == 2 and p["title"] == NASTY_TITLE  # the copy script and the probe; the title as text
     assert p["copy"] != "copy"  # the copy script answered the click
     est = recording[0]
@@ -524,7 +540,7 @@ def test_browser_study_page(study, tmp_path, browser_times):
     browser_times.append(time.perf_counter() - t0)
     assert r["console"] == [] and r["requests"] == []
     p = r["probe"]
-    assert len(p["images"]) == 4 and all(w > 300 and h > 200 and shown > 200 for w, h, shown in p["images"])
+    assert len(p["images"]) == 4 and all(w > 300 and h > 200 and shown > 200 for w, h, shown, _, _ in p["images"])
     assert p["tables"] == Page(raw).tables  # the browser shows the cells the HTML holds
     md = _md_tables((study / "table.md").read_text())
     assert p["tables"][1:1 + len(md)] == md

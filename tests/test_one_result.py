@@ -222,6 +222,8 @@ def _check_surfaces(method, seed, unit, quantized, n=8192):
     assert max(len(line) for line in screen.splitlines()) <= 100
     for sensor, per_axis in est.fits.items():
         table, footnotes = screen_tables[sensor]
+        for note in footnotes:  # in a user's words: no Python class or attribute names
+            assert not re.search(r"\b[A-Z]\w*Warning\b|\w_\[|\bdiagnostics_", note), note
         units = est.units(sensor)
         assert units in (DISPLAY_UNITS[sensor], si_units(sensor))  # one choice for the sensor
         for axis, per_method in per_axis.items():
