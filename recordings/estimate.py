@@ -412,7 +412,12 @@ def run(args) -> int:
         if args.kalibr is not None and "kalibr" not in pages:
             pages["kalibr"] = (Path(args.kalibr).name, yaml_text)
         try:
-            results["html"] = recording_page(est, panels, pages, title=title)
+            from avbench.recordings import exports as exports_
+
+            names = list(pages)
+            values = exports_.tables(est.results(), names, filter_method, timing.fs, args.filter_rate, inflate,
+                                     avs=all_avs) if names else None
+            results["html"] = recording_page(est, panels, pages, title=title, tables=values)
         finally:
             import matplotlib.pyplot as plt
 

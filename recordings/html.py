@@ -489,6 +489,23 @@ def _combine_section(data: dict) -> str:
 KALIBR_KEY_FORMATS = ("kalibr", "allan_variance_ros", "openvins")
 
 
+def _values_section(tables: dict, exports: dict | None) -> str:
+    """Each written format's own keys, values and units (``tables``: ``{name: [Entry]}``,
+    :func:`avbench.recordings.exports.tables`), one table per format under its file's name."""
+    out = ['<section id="filter"><h2>Filter values</h2>',
+           '<p class="legend">each format\'s keys, values and units as its file writes them (the files '
+           "themselves under Exports).</p>"]
+    for name, entries in tables.items():
+        filename = (exports or {}).get(name, (name,))[0]
+        rows = [[e.key, (f"{e.value:.6g}", {"class": "num"}), e.unit, e.axis, e.bound or ""] for e in entries]
+        header = ["key", "value", "unit", "axis", "a bound, not an estimate"]
+        if not any(r[-1] for r in rows):
+            header, rows = header[:-1], [r[:-1] for r in rows]
+        out.append(f"<h3>{esc(filename)} <span class=\"fmt\">{esc(name)}</span></h3>" + html_table(header, rows))
+    out.append("</section>")
+    return "\n".join(out)
+
+
 def _filter_section(data: dict, exports: dict | None) -> str:
     """Kalibr's keys as the files that hold them write them (each value with its unit, inflated as
     written), where such a file was written; every other format's keys are its own, in its block
@@ -540,14 +557,17 @@ def _exports_section(exports: dict | None) -> str:
     return "\n".join(out)
 
 
-def recording_page(est, figures: dict, exports: dict | None = None, title: str | None = None) -> str:
+def recording_page(est, figures: dict, exports: dict | None = None, title: str | None = None,
+                   tables: dict | None = None) -> str:
     """The self-contained HTML page of one recording (see the module docstring).
 
     ``est``: the fits and the record's facts (:class:`avbench.recordings.report.Estimate`);
     ``figures``: ``{sensor: matplotlib Figure or PNG bytes}``, or ``{sensor: {axis: Figure}}`` (one figure
     per axis, each readable from a narrow window up; a sensor without one has no figure);
     ``exports``: ``{name: (file name, text)}`` of the stack formats, each shown in a block with a copy
-    button; ``title``: the page's heading (default: the sources). Returns the page as a string.
+    button; ``title``: the page's heading (default: the sources); ``tables``: ``{name: [Entry]}``, the
+    numbers each format writes under its own keys (:func:`avbench.recordings.exports.tables`), one
+    table each. Returns the page as a string.
 
     >>> import numpy as np
     >>> from avbench.noise_models import AngleRandomWalk, Gyro
@@ -567,21 +587,21 @@ def recording_page(est, figures: dict, exports: dict | None = None, title: str |
     from avbench.recordings.report import SCHEMA, screen_tables
 
     figures = figures or {}
-    tables = screen_tables(est)
+    coefficient_tables = screen_tables(est)
     data = {"sources": [str(x) for x in est.sources], "timing": jsonable(est.timing.to_dict()),
             **jsonable(est.extra), "notes": est.notes}  # the record's facts
     nav = [("record", "record"), ("static", "static check")]
     body = [_record_section(data), _static_section(data)]
-    for sensor, (table, footnotes) in tables.items():
+    for sensor, (table, footnotes) in coefficient_tables.items():
         nav.append((f"sensor-{_anchor(sensor)}", sensor))
         body.append(_sensor_section(est, sensor, table, footnotes, figures.get(sensor)))
     combine = _combine_section(data)
     if combine:
         nav.append(("runs", "several recordings"))
         body.append(combine)
-    filt = _filter_section(data, exports)
+    filt = _values_section(tables, exports) if tables else _filter_section(data, exports)
     if filt:
-        nav.append(("filter", "Kalibr keys"))
+        nav.append(("filter", "filter values"))
         body.append(filt)
     ex = _exports_section(exports)
     if ex:

@@ -544,3 +544,65 @@ def test_browser_study_page(study, tmp_path, browser_times):
     assert p["tables"] == Page(raw).tables  # the browser shows the cells the HTML holds
     md = _md_tables((study / "table.md").read_text())
     assert p["tables"][1:1 + len(md)] == md
+
+
+# -- the filter values: each format's own keys, values and units --------------------------------------------
+def _written_numbers(name: str, text: str) -> dict:
+    """key -> number as the file writes it, read as its stack reads it (PyYAML for the YAML files, the
+    parameter rows for PX4, the assignments of GTSAM's snippet)."""
+    import yaml
+
+    if name == "px4":
+        return {k: float(v) for k, v in re.findall(r"^1\t1\t(\w+)\t(\S+)\t9$", text, re.M)}
+    if name == "gtsam":
+        return {k: float(v) for k, v in re.findall(r"^([A-Z_]+) = ([-+.\deE]+)", text, re.M)}
+    d = yaml.safe_load(text.split("\n", 1)[1] if text.startswith("%YAML") else text)
+    return d["imu0"] if name == "openvins" else d
+
+
+#: the numbers a file writes that are not noise values avbench measured (rates, placeholders, constants)
+_NOT_NOISE = {"update_rate", "IMU.Frequency", "GRAVITY", "INTEGRATION_COVARIANCE", "time_offset"}
+
+
+def _values_tables(tables) -> dict:
+    """key -> [value, unit] of the page's filter-value tables (header row starting "key", "value", "unit")."""
+    return {row[0]: row[1:3] for t in tables if t and t[0][:3] == ["key", "value", "unit"] for row in t[1:]}
+
+
+def _values_page(recording, names):
+    from avbench.recordings import exports
+    from avbench.recordings.html import recording_page
+
+    est = recording[0]
+    rendered = exports.render(est.results(), names, "gmwm", est.timing.fs)
+    files = {name: ("imu" + suffix, text) for name, (suffix, text) in rendered.items()}
+    values = exports.tables(est.results(), names, "gmwm", est.timing.fs)
+    return recording_page(est, {}, files, tables=values), files
+
+
+@pytest.mark.parametrize("names", [["px4", "gtsam"], ["kalibr", "vins", "orbslam3", "openvins"]])
+def test_the_filter_values_are_each_files_own_keys_and_numbers(recording, names):
+    page, files = _values_page(recording, names)
+    shown = _values_tables(Page(page).tables)
+    written = {k: v for name, (_, text) in files.items() for k, v in _written_numbers(name, text).items()
+               if isinstance(v, float) and k not in _NOT_NOISE}
+    assert set(shown) == set(written), (sorted(shown), sorted(written))  # no key of a format not asked for
+    for key, (value, unit) in shown.items():
+        assert math.isclose(float(value), written[key], rel_tol=5e-6), key  # at the 6 digits shown
+        assert unit and unit in files[next(n for n in names if key in _written_numbers(n, files[n][1]))][1]
+    assert "value (SI)" not in page
+
+
+@needs_browser
+def test_browser_filter_values_at_800_px(recording, tmp_path, browser_times):
+    page, files = _values_page(recording, ["px4", "gtsam"])
+    t0 = time.perf_counter()
+    r = _browse(page, tmp_path, 800)
+    browser_times.append(time.perf_counter() - t0)
+    p = r["probe"]
+    assert p["scroll"] <= p["width"]
+    shown = _values_tables(p["tables"])
+    written = {**_written_numbers("px4", files["px4"][1]), **_written_numbers("gtsam", files["gtsam"][1])}
+    written = {k: v for k, v in written.items() if k not in _NOT_NOISE}
+    assert set(shown) == set(written)
+    assert all(math.isclose(float(v), written[k], rel_tol=5e-6) for k, (v, _) in shown.items())

@@ -48,7 +48,7 @@ from avbench.recordings.exports.px4 import PX4
 from avbench.recordings.exports.ros_imu import ROS_IMU_COVARIANCE
 from avbench.recordings.exports.vins import VINS
 
-__all__ = ["FORMATS", "Exporter", "Request", "render", "parse_names", "default_method"]
+__all__ = ["FORMATS", "Exporter", "Request", "render", "tables", "parse_names", "default_method"]
 
 #: name -> exporter, in the order of the table above
 FORMATS: dict[str, Exporter] = {e.name: e for e in (KALIBR, ALLAN_VARIANCE_ROS, OPENVINS, VINS, ORBSLAM3, BASALT,
@@ -144,13 +144,28 @@ def render(results: dict, names, method: str | None, rate: float, filter_rate: f
         sensor without three axes -- each message names the option and what was expected.
     """
     wanted = parse_names(names, option)
+    req = _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option)
+    return {name: (FORMATS[name].suffix, FORMATS[name].write(req)) for name in wanted}
+
+
+def tables(results: dict, names, method: str | None, rate: float, filter_rate: float | None = None,
+           inflate=(1.0, 1.0), *, avs=None, option: str = "--format") -> dict[str, list]:
+    """The noise numbers each format of ``names`` writes, ``{name: [Entry]}``
+    (:class:`~avbench.recordings.exports.base.Entry`: key, value as written, unit, axis, bound), for the
+    formats that have such a table; the arguments as :func:`render` takes them."""
+    wanted = parse_names(names, option)
+    req = _request(results, method, rate, filter_rate, inflate, None, (), avs, option)
+    return {name: FORMATS[name].table(req) for name in wanted if FORMATS[name].table is not None}
+
+
+def _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option) -> Request:
+    """The :class:`Request` of :func:`render`'s arguments, each checked."""
     rate = _rate(rate, "the record's rate")
     if filter_rate is not None:
         filter_rate = _rate(filter_rate, "--filter-rate")
         if filter_rate > rate * (1 + 1e-9):
             raise ValueError(f"--filter-rate {filter_rate:g} Hz: above the record's rate {rate:g} Hz; expected the rate "
                              "at which the stack receives (or predicts with) the samples, at most the record's")
-    req = Request(results=results, method=method if method is not None else default_method(results), rate=rate,
-                  filter_rate=filter_rate, inflate=_inflate(inflate, "--inflate"), topic=topic,
-                  sources=tuple(sources), avs=avs, option=option)
-    return {name: (FORMATS[name].suffix, FORMATS[name].write(req)) for name in wanted}
+    return Request(results=results, method=method if method is not None else default_method(results), rate=rate,
+                   filter_rate=filter_rate, inflate=_inflate(inflate, "--inflate"), topic=topic,
+                   sources=tuple(sources), avs=avs, option=option)

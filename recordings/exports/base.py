@@ -40,7 +40,7 @@ import numpy as np
 
 from avbench.recordings import filter_yaml
 
-__all__ = ["Value", "Request", "Exporter", "PLATEAU", "fmt", "factor", "sensor_values", "axis_values",
+__all__ = ["Value", "Entry", "Request", "Exporter", "PLATEAU", "fmt", "factor", "sensor_values", "axis_values",
            "axis_order", "bias_instability", "plateau_bound", "header", "bound_lines", "inflate_text"]
 
 #: the Allan variance of bias instability on its flat band, per B^2 (IEEE Std 952 Annex C): 2 ln2 / pi
@@ -90,15 +90,29 @@ class Request:
 
 
 @dataclass(frozen=True)
+class Entry:
+    """One number a file writes: under its ``key``, in the stack's ``unit``, from ``axis`` (or the
+    axes), ``bound`` saying why it is an upper bound (None for an estimate)."""
+
+    key: str
+    value: float
+    unit: str
+    axis: str
+    bound: str | None = None
+
+
+@dataclass(frozen=True)
 class Exporter:
     """One format: its ``name`` (the ``--format`` value), file ``extension``, the ``stack`` it is for,
-    whether it writes one value per axis, and ``write(request) -> text``."""
+    whether it writes one value per axis, ``write(request) -> text``, and ``table(request) -> [Entry]``
+    (the noise numbers the text writes, each under its key; None where the format has none)."""
 
     name: str
     extension: str
     stack: str
     per_axis: bool
     write: Callable[[Request], str]
+    table: Callable[[Request], list] | None = None
 
     @property
     def suffix(self) -> str:

@@ -42,7 +42,7 @@ reads); ``--filter-rate`` sets OpenVINS's ``update_rate`` where the IMU stream i
 from __future__ import annotations
 
 from avbench.recordings import filter_yaml
-from avbench.recordings.exports.base import Exporter, Request, bound_lines, fmt, header, sensor_values
+from avbench.recordings.exports.base import Entry, Exporter, Request, bound_lines, fmt, header, sensor_values
 
 __all__ = ["KALIBR", "ALLAN_VARIANCE_ROS", "OPENVINS", "kalibr", "allan_variance_ros", "openvins"]
 
@@ -99,7 +99,14 @@ def openvins(req: Request) -> str:
     return "\n".join(lines) + "\n"
 
 
-KALIBR = Exporter("kalibr", "yaml", "Kalibr imu.yaml", False, kalibr)
+def table(req: Request) -> list[Entry]:
+    """Kalibr's four densities as the three files write them (inflated; the units of Kalibr's wiki)."""
+    values = {filter_yaml.KEYS[sc]: v for sc, v in sensor_values(req).items()}
+    return [Entry(key, float(fmt(values[key].value)), filter_yaml.UNITS[key], values[key].axis, values[key].bound)
+            for key in _ORDER]
+
+
+KALIBR = Exporter("kalibr", "yaml", "Kalibr imu.yaml", False, kalibr, table)
 ALLAN_VARIANCE_ROS = Exporter("allan_variance_ros", "yaml", "allan_variance_ros imu.yaml (Kalibr keys)", False,
-                              allan_variance_ros)
-OPENVINS = Exporter("openvins", "yaml", "OpenVINS kalibr_imu_chain.yaml", False, openvins)
+                              allan_variance_ros, table)
+OPENVINS = Exporter("openvins", "yaml", "OpenVINS kalibr_imu_chain.yaml", False, openvins, table)
