@@ -213,6 +213,28 @@ def _method_entry(fit, sensor, n_samples, units):
 
 
 _BIAS_MODELS = {"GM": "Gauss-Markov", "FL": "flicker"}
+#: the model choices with notes of their own words below; ``min_m`` (the first AV scale fitted) is drawn
+#: in the figure, where each model curve starts
+_WORDED = ("filter_test", "filter_held", "line_test", "resonance_test", "bias_evidence", "min_m")
+
+
+def _plain(v) -> str | None:
+    """A scalar as a note shows it (numbers to 3 digits), None for what is not a scalar."""
+    if isinstance(v, bool) or isinstance(v, str):
+        return str(v)
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return f"{float(v):.3g}" if math.isfinite(v) else None
+    return None
+
+
+def _choice_note(key: str, value) -> str | None:
+    """A model choice without words of its own: its name in words and its scalar parts (up to six)."""
+    shown = _plain(value)
+    if shown is None and isinstance(value, dict):
+        parts = [(k, _plain(v)) for k, v in value.items()]
+        parts = [f"{str(k).replace('_', ' ')} {v}" for k, v in parts if v is not None][:6]
+        shown = ", ".join(parts) if parts else None
+    return None if shown is None else f"{key.replace('_', ' ')}: {shown}"
 
 
 def model_choice_notes(choice: dict, sensor: str, units: dict | None = None) -> list[str]:
@@ -251,6 +273,11 @@ def model_choice_notes(choice: dict, sensor: str, units: dict | None = None) -> 
                          f"{ev['weight']:.2f}) over the {_BIAS_MODELS[fitted]} model these values come from; the "
                          f"{_BIAS_MODELS[preferred]} model gives {shown}" +
                          ("" if ev.get("decisive") else "; the intervals hold both"))
+    for key, value in choice.items():  # every other choice the method made, as it reports it
+        if key not in _WORDED:
+            note = _choice_note(key, value)
+            if note is not None:
+                notes.append(note)
     return notes
 
 
