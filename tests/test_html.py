@@ -556,12 +556,23 @@ def _written_numbers(name: str, text: str) -> dict:
         return {k: float(v) for k, v in re.findall(r"^1\t1\t(\w+)\t(\S+)\t9$", text, re.M)}
     if name == "gtsam":
         return {k: float(v) for k, v in re.findall(r"^([A-Z_]+) = ([-+.\deE]+)", text, re.M)}
-    d = yaml.safe_load(text.split("\n", 1)[1] if text.startswith("%YAML") else text)
-    return d["imu0"] if name == "openvins" else d
+    if name == "matlab":  # gyro = gyroparams( 'NoiseDensity', [x y z], ...: one number per axis
+        out = {}
+        for var, body in re.findall(r"^(\w+) = \w+\( \.\.\.\n(.*?)\);", text, re.M | re.S):
+            for prop, vector in re.findall(r"'(\w+)', \[([^\]]*)\]", body):
+                out.update({f"{var}.{prop}({i + 1})": float(v) for i, v in enumerate(vector.split())})
+        return out
+    d = json.loads(text)["value0"] if name == "basalt" else \
+        yaml.safe_load(text.split("\n", 1)[1] if text.startswith("%YAML") else text)
+    d = d["imu0"] if name == "openvins" else d
+    out = {}
+    for k, v in d.items():  # a list: one number per element, key[i]
+        out.update({f"{k}[{i}]": x for i, x in enumerate(v) if isinstance(x, float) and x} if isinstance(v, list) else {k: v})
+    return out
 
 
 #: the numbers a file writes that are not noise values avbench measured (rates, placeholders, constants)
-_NOT_NOISE = {"update_rate", "IMU.Frequency", "GRAVITY", "INTEGRATION_COVARIANCE", "time_offset"}
+_NOT_NOISE = {"update_rate", "imu_update_rate", "IMU.Frequency", "GRAVITY", "INTEGRATION_COVARIANCE", "time_offset"}
 
 
 def _values_tables(tables) -> dict:
@@ -580,7 +591,8 @@ def _values_page(recording, names):
     return recording_page(est, {}, files, tables=values), files
 
 
-@pytest.mark.parametrize("names", [["px4", "gtsam"], ["kalibr", "vins", "orbslam3", "openvins"]])
+@pytest.mark.parametrize("names", [["px4", "gtsam"], ["kalibr", "vins", "orbslam3", "openvins"],
+                                   ["basalt", "matlab", "ros_imu_covariance"]])
 def test_the_filter_values_are_each_files_own_keys_and_numbers(recording, names):
     page, files = _values_page(recording, names)
     shown = _values_tables(Page(page).tables)
@@ -589,7 +601,8 @@ def test_the_filter_values_are_each_files_own_keys_and_numbers(recording, names)
     assert set(shown) == set(written), (sorted(shown), sorted(written))  # no key of a format not asked for
     for key, (value, unit) in shown.items():
         assert math.isclose(float(value), written[key], rel_tol=5e-6), key  # at the 6 digits shown
-        assert unit and unit in files[next(n for n in names if key in _written_numbers(n, files[n][1]))][1]
+        name = next(n for n in names if key in _written_numbers(n, files[n][1]))
+        assert unit and (unit in files[name][1] or name == "basalt")  # basalt's JSON states no unit
     assert "value (SI)" not in page
 
 
