@@ -478,12 +478,12 @@ def _summary_text(est, rec) -> str:
                 p = f"p = {a['p_value']:.3g}" if a["p_value"] is not None else a["note"]
                 _say(lines, f"# recordings {verdict} on {sensor} {axis} ({p})")
     if "between_runs" in est.extra:
-        _between_runs_text(lines, est.extra["between_runs"])
+        _between_runs_text(lines, est.extra["between_runs"], est)
     return "\n".join(lines)
 
 
-def _between_runs_text(lines, br):
-    from avbench.noise_models.units import DISPLAY_UNITS, from_si
+def _between_runs_text(lines, br, est):
+    from avbench.noise_models.units import from_si
 
     lines.append("")
     _say(lines, f"## between-run spread ({br['method']} on each recording alone; random effects, DerSimonian & Laird 1986)")
@@ -492,7 +492,7 @@ def _between_runs_text(lines, br):
             for c, r in per_coef.items():
                 if r["tau"] is None:
                     continue
-                unit = DISPLAY_UNITS[sensor][c]
+                unit = est.units(sensor)[c]  # the unit of the sensor's coefficient table
 
                 def d(v):
                     return from_si(c, v, unit, sensor)

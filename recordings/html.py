@@ -442,8 +442,10 @@ def _sensor_section(est, sensor: str, table, footnotes, fig) -> str:
     return "\n".join(out)
 
 
-def _combine_section(data: dict) -> str:
-    from avbench.noise_models.units import DISPLAY_UNITS, from_si
+def _combine_section(data: dict, units) -> str:
+    """The agreement test of ``--combine`` and the between-run spread, each coefficient in ``units(sensor)``
+    (the unit of the sensor's coefficient table)."""
+    from avbench.noise_models.units import from_si
 
     if "combine" not in data and "between_runs" not in data:
         return ""
@@ -464,7 +466,7 @@ def _combine_section(data: dict) -> str:
                 for c, r in per_coef.items():
                     if r.get("tau") is None:
                         continue
-                    unit = DISPLAY_UNITS[sensor][c]
+                    unit = units(sensor)[c]
 
                     def d(v, c=c, unit=unit, sensor=sensor):
                         return "?" if v is None else f"{from_si(c, v, unit, sensor):.4g}"
@@ -595,7 +597,7 @@ def recording_page(est, figures: dict, exports: dict | None = None, title: str |
     for sensor, (table, footnotes) in coefficient_tables.items():
         nav.append((f"sensor-{_anchor(sensor)}", sensor))
         body.append(_sensor_section(est, sensor, table, footnotes, figures.get(sensor)))
-    combine = _combine_section(data)
+    combine = _combine_section(data, est.units)
     if combine:
         nav.append(("runs", "several recordings"))
         body.append(combine)
