@@ -494,23 +494,24 @@ class Estimator:
         return self
 
     # -- presentation --------------------------------------------------------------------------
-    def summary(self, units: dict[str, str] | None = None) -> pd.DataFrame:
-        """The fitted coefficients in SI and in ``units`` (default: the papers' units)."""
+    def summary(self, units: dict[str, str] | None = None, level: float = 0.95) -> pd.DataFrame:
+        """The fit's :class:`~avbench.estimators.results.FitResult` (:meth:`result` at ``level``) as a table:
+        per coefficient the fitted value in SI and in ``units`` (default: the papers' units), its status
+        and its interval in ``units`` (NaN where there is none)."""
         import pandas as pd
 
         from avbench.noise_models.units import PAPER_UNITS, SI_UNITS, from_si
 
         units = units or PAPER_UNITS
-        c = self.coefficients_
-        return pd.DataFrame(
-            {
-                "SI": c,
-                "SI unit": pd.Series(SI_UNITS),
-                "value": pd.Series({k: from_si(k, c[k], units[k]) for k in c.index}),
-                "unit": pd.Series(units),
-                "nonphysical": self.nonphysical_,
-            }
-        ).loc[list(COEFFICIENTS)]
+        r = self.result(level)
+        rows = {}
+        for c in COEFFICIENTS:
+            e = r.coefficients[c]
+            lo, hi = e.interval if e.interval is not None else (math.nan, math.nan)
+            rows[c] = {"SI": e.fitted, "SI unit": SI_UNITS[c], "value": from_si(c, e.fitted, units[c]), "unit": units[c],
+                       "status": e.status, "lower": from_si(c, lo, units[c]), "upper": from_si(c, hi, units[c]),
+                       "nonphysical": e.status == "non-physical"}
+        return pd.DataFrame.from_dict(rows, orient="index")
 
 
 #: the noise level (:func:`noise_level`) every record is standardised to before an estimator fits it:

@@ -50,7 +50,7 @@ import numpy as np
 
 from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["STATUSES", "REASONS", "jsonable", "Coefficient", "Evidence", "FitCheck", "FitResult", "MODEL_CHOICES", "build", "failed"]
+__all__ = ["STATUSES", "REASONS", "BOUND_REASONS", "jsonable", "Coefficient", "Evidence", "FitCheck", "FitResult", "MODEL_CHOICES", "build", "failed"]
 
 #: the statuses of a coefficient (module docstring)
 STATUSES = ("ok", "not resolved", "not modelled", "non-physical", "failed")
@@ -59,6 +59,10 @@ STATUSES = ("ok", "not resolved", "not modelled", "non-physical", "failed")
 #: term's evidence (its likelihood-ratio test does not show it), or an estimate of exactly 0
 REASONS = {"record": "the record does not resolve it", "evidence": "its evidence does not show the term",
            "zero": "estimated as 0"}
+
+#: why a filter file takes a bound and not the estimate (:meth:`Coefficient.estimate_or_bound`): the
+#: :data:`REASONS` a coefficient is not resolved, its interval reaching zero, or a poor fit
+BOUND_REASONS = (*REASONS, "reaches zero", "poor fit")
 
 #: the model choices an estimator reports (its ``diagnostics_`` entries of these names): the
 #: spectral-line test, the sensor filter entered on evidence or held at a given time constant, the
@@ -123,6 +127,34 @@ class Coefficient:
     def upper(self) -> float | None:
         """The upper end of ``interval`` (None where there is none)."""
         return None if self.interval is None or not _finite(self.interval[1]) else float(self.interval[1])
+
+    def estimate_or_bound(self, poor_fit: bool | None = False) -> tuple[float | None, str | None]:
+        """What a filter file takes for this coefficient: ``(value, None)`` for a resolved estimate, and
+        ``(upper end of the interval or None, why)`` otherwise, ``why`` a code of :data:`BOUND_REASONS`
+        (or the status where there is no value). A value is not taken as it is where the record does not
+        resolve the coefficient (``why``: its ``reason``), where its interval reaches zero
+        (``"reaches zero"``), or where the fit check flags the fit (``poor_fit``, ``"poor fit"``) -- except
+        for the noise density N, read at the shortest scales where hours of samples pin it (the filter
+        yaml's module docstring, :mod:`avbench.recordings.filter_yaml`).
+
+        >>> Coefficient("K", "ok", value=2.0, interval=(1.0, 3.0)).estimate_or_bound()
+        (2.0, None)
+        >>> Coefficient("K", "ok", value=2.0, interval=(1.0, 3.0)).estimate_or_bound(poor_fit=True)
+        (3.0, 'poor fit')
+        >>> Coefficient("N", "ok", value=2.0, interval=(1.0, 3.0)).estimate_or_bound(poor_fit=True)
+        (2.0, None)
+        >>> Coefficient("K", "not resolved", interval=(0.0, 4.0), reason="record").estimate_or_bound()
+        (4.0, 'record')
+        """
+        if self.status == "not resolved":
+            return self.upper, self.reason
+        if not _finite(self.value):
+            return None, self.status
+        if self.interval is not None and _finite(self.interval[0]) and self.interval[0] <= 0:
+            return self.upper, "reaches zero"
+        if poor_fit and self.name != "N":
+            return self.upper, "poor fit"
+        return float(self.value), None
 
 
 @dataclass(frozen=True)

@@ -288,32 +288,6 @@ def _plan(args, stem, sensors):
     return plan
 
 
-def shown_in_si_where_display_overflows(data: dict) -> list[str]:
-    """Switch to SI, in the payload ``data``, every sensor one of whose values, intervals or standard errors
-    is finite in SI but overflows its display unit (a record of 1e306 rad/s in deg/h); returns a note per
-    sensor switched (also appended to ``data["notes"]``)."""
-    from avbench.noise_models.units import from_si
-
-    def overflows(c, sensor, e):
-        values = [e.get("si"), e.get("std_err_si"), e.get("fitted_si"), *(e.get("interval_si") or [])]
-        with np.errstate(over="ignore"):
-            return any(v is not None and np.isfinite(v) and not np.isfinite(from_si(c, v, e["unit"], sensor))
-                       for v in values)
-
-    notes = []
-    for sensor, sd in data["sensors"].items():
-        entries = [(c, e) for ad in sd["axes"].values() for md in ad["methods"].values()
-                   for c, e in md["coefficients"].items()]
-        if not any(overflows(c, sensor, e) for c, e in entries):
-            continue
-        for c, e in entries:
-            e["value"] = e["si"] if e["flag"] == "ok" else e["value"]
-            e["unit"] = e["si_unit"]
-        notes.append(f"{sensor}: coefficients shown in SI units, as their values overflow the usual display units")
-    data.setdefault("notes", []).extend(notes)
-    return notes
-
-
 def run(args) -> int:
     """Run ``avbench estimate`` (see the module docstring); returns the exit code."""
     from tqdm import tqdm
@@ -380,19 +354,20 @@ def run(args) -> int:
             fs_ = [f for f in fs_ if f is not None]
             inflate[key] = max(fs_) if fs_ else 1.0
         extra["between_runs"]["inflate"] = inflate
-    data = report.payload([r.path for r, _, _ in loaded], timing, sensors, fits, extra)
-    shown_in_si_where_display_overflows(data)
+    est = report.Estimate([r.path for r, _, _ in loaded], timing, sensors, fits, extra)
 
     # everything that can refuse is checked, and every output rendered, before anything is written
     yaml_text, exported = None, {}
     if args.kalibr is not None or args.format:
-        choices = filter_yaml.filter_choices(data, filter_method, "--kalibr" if args.kalibr else "--format", all_avs)
+        choices = filter_yaml.filter_choices(est.results(), filter_method, "--kalibr" if args.kalibr else "--format",
+                                             all_avs)
         yaml_text = filter_yaml.kalibr_yaml(choices, timing.fs, rec.topic, filter_method,
                                             [r.path for r, _, _ in loaded], inflate, "kalibr")
-        data["filter_yaml"] = {"method": filter_method, "inflate": dict(inflate) if isinstance(inflate, dict) else list(inflate),
+        extra["filter_yaml"] = {"method": filter_method, "inflate": dict(inflate) if isinstance(inflate, dict) else list(inflate),
                                "values_si": {k: v for k, (v, _, _) in choices.items()},
                                "bounds": {k: why for k, (_, _, why) in choices.items() if why}}
-    tables = report.tables(data)
+    data = report.payload(est)
+    tables = report.tables(est)
     av_rows, figs, devs = [], {}, {}
     title = args.title if args.title is not None else rec.path.name.replace("$", r"\$")  # a file name is no mathtext
     for s in sensors:
@@ -416,14 +391,14 @@ def run(args) -> int:
                     av_rows.append(f.assign(statistic=name, sensor=s.sensor, axis=a,
                                             unit=f"variance ({unit})^2, deviation {unit}")[["statistic", *f.columns, "sensor", "axis", "unit"]])
             av_rows.append(frame)
-        flags = {a: {m: data["sensors"][s.sensor]["axes"][a]["methods"][m]["poor_fit"] for m in methods} for a in s.axes}
+        flags = {a: {m: fits[s.sensor][a][m].result.fit_check.poor_fit for m in methods} for a in s.axes}
         figs[s.sensor] = figure.figure(s, fits[s.sensor], avs, dt, title, flags, deviations=devs.get(s.sensor))
     if args.format:
         from avbench.recordings import exports
 
-        exported = exports.render(data, args.format, filter_method, timing.fs, args.filter_rate, inflate, rec.topic,
+        exported = exports.render(est.results(), args.format, filter_method, timing.fs, args.filter_rate, inflate, rec.topic,
                                   [r.path for r, _, _ in loaded], avs=all_avs)
-    screen = json.dumps(data) if args.json else _summary_text(data, timing, fits, rec)
+    screen = json.dumps(data) if args.json else _summary_text(est, rec)
     pngs = {k: _png(f) for k, f in figs.items()}
     results = {"pngs": pngs, "av_table": pd.concat(av_rows, ignore_index=True), "tables": tables, "data": data,
                "yaml": yaml_text, "exports": exported}
@@ -431,9 +406,24 @@ def run(args) -> int:
         from avbench.recordings.html import recording_page
 
         pages = {name: (f"{stem}{suffix}", text) for name, (suffix, text) in exported.items()}
+        panels = {s.sensor: {a: figure.figure(s, fits[s.sensor], all_avs[s.sensor], dt, title,
+                                              {a: {m: f.result.fit_check.poor_fit for m, f in fits[s.sensor][a].items()}},
+                                              deviations=devs.get(s.sensor), axes=[a]) for a in s.axes} for s in sensors}
         if args.kalibr is not None and "kalibr" not in pages:
             pages["kalibr"] = (Path(args.kalibr).name, yaml_text)
-        results["html"] = recording_page(data, pngs, pages, title=title)
+        try:
+            from avbench.recordings import exports as exports_
+
+            names = list(pages)
+            values = exports_.tables(est.results(), names, filter_method, timing.fs, args.filter_rate, inflate,
+                                     avs=all_avs) if names else None
+            results["html"] = recording_page(est, panels, pages, title=title, tables=values)
+        finally:
+            import matplotlib.pyplot as plt
+
+            for per_axis in panels.values():
+                for f in per_axis.values():
+                    plt.close(f)
     try:
         plan.write(results)
     except KeyboardInterrupt as e:  # SIGINT, or SIGTERM/SIGHUP (avbench.outputs.Interrupted), before the renames
@@ -453,7 +443,7 @@ def _say(lines: list, text: str) -> None:
     lines.extend(wrap(text, "#   "))
 
 
-def _summary_text(data, timing, fits, rec) -> str:
+def _summary_text(est, rec) -> str:
     """The screen of ``avbench estimate``: the record, its notes, the coefficient tables with their
     footnotes (:func:`avbench.recordings.report.screen`), the fit times and the between-run checks; no
     line wider than :data:`avbench.recordings.report.SCREEN_WIDTH`. Rendered before the outputs are
@@ -461,40 +451,40 @@ def _summary_text(data, timing, fits, rec) -> str:
     from avbench.recordings import report
 
     lines: list[str] = []
-    src = ", ".join(data["sources"])
+    timing, fits = est.timing, est.fits
+    src = ", ".join(map(str, est.sources))
     joins = int(np.isnan(timing.gap_seconds).sum())  # --combine: file boundaries
     gaps = (f", {timing.n_gaps - joins} gap(s) ({np.nansum(timing.gap_seconds):.3g} s missing)" if timing.n_gaps - joins else "") + \
         (f", {joins} file boundary(ies) treated as gaps" if joins else "")
     jit = f", jitter {timing.jitter:.2%} of dt" if timing.jitter is not None else ""
     _say(lines, f"# {src}: {timing.n_samples} samples at {timing.fs:.6g} Hz ({timing.n_samples * timing.dt / 3600:.2f} h) "
          f"from {timing.source}{jit}{gaps}" + (f"; topic {rec.topic}" if rec.topic else ""))
-    for note in data.get("notes") or []:
+    for note in est.notes:
         _say(lines, f"# note: {note}")
-    still = data.get("static_check")
+    still = est.extra.get("static_check")
     if still is not None and not still["static"]:
         _say(lines, "# NOT STATIC: " + "; ".join(still["reasons"]) + " -- the fits assume a sensor at rest; "
              "a POOR FIT below is expected for this reason")
-    lines.append(report.screen(data))
+    lines.append(report.screen(est))
     times = [(f.seconds, f"{sensor} {axis} {name}") for sensor, per_axis in fits.items()
              for axis, per_method in per_axis.items() for name, f in per_method.items()]
     if times:
         slowest = max(times)
         _say(lines, f"# fits: {sum(t for t, _ in times):.1f} s in all; the slowest {slowest[1]} {slowest[0]:.1f} s")
-    if "combine" in data:
-        for sensor, per_axis in data["combine"].items():
+    if "combine" in est.extra:
+        for sensor, per_axis in est.extra["combine"].items():
             for axis, a in per_axis.items():
                 verdict = "agree" if a["agree"] else ("DISAGREE" if a["agree"] is not None else "not testable")
                 p = f"p = {a['p_value']:.3g}" if a["p_value"] is not None else a["note"]
                 _say(lines, f"# recordings {verdict} on {sensor} {axis} ({p})")
-    if "between_runs" in data:
-        _between_runs_text(lines, data)
+    if "between_runs" in est.extra:
+        _between_runs_text(lines, est.extra["between_runs"], est)
     return "\n".join(lines)
 
 
-def _between_runs_text(lines, data):
-    from avbench.noise_models.units import DISPLAY_UNITS, from_si
+def _between_runs_text(lines, br, est):
+    from avbench.noise_models.units import from_si
 
-    br = data["between_runs"]
     lines.append("")
     _say(lines, f"## between-run spread ({br['method']} on each recording alone; random effects, DerSimonian & Laird 1986)")
     for sensor, per_axis in br["sensors"].items():
@@ -502,7 +492,7 @@ def _between_runs_text(lines, data):
             for c, r in per_coef.items():
                 if r["tau"] is None:
                     continue
-                unit = DISPLAY_UNITS[sensor][c]
+                unit = est.units(sensor)[c]  # the unit of the sensor's coefficient table
 
                 def d(v):
                     return from_si(c, v, unit, sensor)

@@ -1,13 +1,17 @@
 """Step 5c: the Allan deviation of each axis with every method's fitted curve and each fitted term.
 
-One figure per sensor, one panel per axis: the overlapping octave ADEV (gap-aware) with its 68 %
-chi^2 bars, each method's model curve (dashed; "poor fit" in its label when flagged), and for the
-first method that fitted the terms' own lines -- Q: sqrt(3) Q / tau, N: N / sqrt(tau),
+One figure per sensor, one panel per axis (or one figure per axis: ``axes``): the overlapping octave
+ADEV (gap-aware) with its 68 % chi^2 bars, each method's model curve (dashed; "poor fit" in its label
+when flagged) over the scales the method fitted (:func:`fitted_scales`), and for the first method that
+fitted the terms' own lines -- Q: sqrt(3) Q / tau, N: N / sqrt(tau),
 B: sqrt(2 ln2 / pi) B, K: K sqrt(tau / 3), R: R tau / sqrt(2) (IEEE Std 952 Annex C) -- each
 labelled with its value in the display units (resolved values only). Under each panel, the residuals of every method's
 fit check (:mod:`avbench.estimators.allan.fit_check`): z per tau, the decorrelated standardised
 residual of the AV against the method's model (the result's ``fit_check.residuals``; about N(0, 1)
 where the model holds), with the +-2 band: where a flagged fit misses the curve, and by how much.
+
+Every text is drawn at :data:`TEXT_PT` points or more: at the 110 dpi of the files and the page, and a
+panel shown at its own width, no smaller than a page's body text (15 px).
 """
 
 from __future__ import annotations
@@ -18,7 +22,10 @@ import numpy as np
 
 from avbench.noise_models.units import DISPLAY_UNITS, SI_SAMPLE_UNIT, from_si
 
-__all__ = ["figure", "residuals", "deviations_figure"]
+__all__ = ["figure", "residuals", "deviations_figure", "fitted_scales", "TEXT_PT"]
+
+#: the smallest text of a figure, in points (10 pt at 110 dpi: 15.3 px)
+TEXT_PT = 10.0
 
 _TERM = {
     "Q": lambda c, t: math.sqrt(3.0) * c / t,
@@ -29,25 +36,43 @@ _TERM = {
 }
 
 
-def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
+def fitted_scales(fit, tau, dt) -> np.ndarray:
+    """The taus of ``tau`` (s) a method's model holds for: from the first AV scale it fitted (its model
+    choice ``min_m``, in samples, where it makes one) up."""
+    first = fit.result.model_choice.get("min_m")
+    tau = np.asarray(tau, dtype=float)
+    if isinstance(first, (int, float)) and not isinstance(first, bool) and first > 0:
+        return tau[tau >= first * dt * (1 - 1e-9)]
+    return tau
+
+
+def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None, axes=None):
     """A matplotlib Figure for one sensor (``axis_fits``: axis -> method -> MethodFit; ``avs``: axis ->
     (AllanResult of the record times ``scale``, ``scale``), see :func:`~avbench.recordings.fit.scaled_allan`;
     ``flags``: axis -> method -> poor-fit flag; ``deviations``: axis -> name -> AllanResult of the
-    deviation family, drawn as lines with their 68 % chi^2 band, TDEV excepted, which is an angle).
-    Deviations are drawn in SI units."""
+    deviation family, drawn as lines with their 68 % chi^2 band, TDEV excepted, which is an angle;
+    ``axes``: the axes drawn, default all). Deviations are drawn in SI units."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    axes_names = list(sensor_record.axes) if axes is None else list(axes)
+    with plt.rc_context({"font.size": TEXT_PT, "legend.fontsize": TEXT_PT, "axes.titlesize": TEXT_PT,
+                         "axes.labelsize": TEXT_PT, "xtick.labelsize": TEXT_PT, "ytick.labelsize": TEXT_PT}):
+        fig, axs = plt.subplots(2, len(axes_names), figsize=(6.2 * len(axes_names), 7.4), squeeze=False,
+                                sharex="col", gridspec_kw={"height_ratios": [3.0, 1.1]})
+        _panels(fig, axs, axes_names, sensor_record, axis_fits, avs, dt, title, flags, deviations)
+        fig.tight_layout()
+    return fig
+
+
+def _panels(fig, axs, axes_names, sensor_record, axis_fits, avs, dt, title, flags, deviations):
     from avbench.recordings.fit import fitted_avar
 
     sensor = sensor_record.sensor
     units = DISPLAY_UNITS[sensor]
     si = SI_SAMPLE_UNIT[sensor]
-    axes_names = list(sensor_record.axes)
-    fig, axs = plt.subplots(2, len(axes_names), figsize=(6.2 * len(axes_names), 6.6), squeeze=False,
-                            sharex="col", gridspec_kw={"height_ratios": [3.0, 1.1]})
     for ax, rax, name in zip(axs[0], axs[1], axes_names):
         av, scale = avs[name]
         with np.errstate(invalid="ignore", over="ignore"):
@@ -59,18 +84,18 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
         for i, (method, fit) in enumerate(axis_fits[name].items()):
             if fit.error is not None:
                 continue
+            held = fitted_scales(fit, tau, dt)
             with np.errstate(invalid="ignore", over="ignore"):
-                curve = fitted_avar(fit, tau, scaled=True) * (scale / fit.scale) ** 2
+                curve = fitted_avar(fit, held, scaled=True) * (scale / fit.scale) ** 2
             label = method + ("  (POOR FIT)" if flags.get(name, {}).get(method) else "")
             if np.any(curve > 0):
-                ax.plot(tau, np.sqrt(np.where(curve > 0, curve, np.nan)) / scale, "--", color=f"C{i}", label=label)
+                ax.plot(held, np.sqrt(np.where(curve > 0, curve, np.nan)) / scale, "--", color=f"C{i}", label=label)
             if not terms_drawn:
                 for j, (c, f) in enumerate(_TERM.items()):
                     v = fit.result.coefficients[c].value  # resolved values only
                     if math.isfinite(v) and v > 0:
                         shown = from_si(c, v, units[c], sensor)
-                        ax.plot(tau, f(v, tau), ":", lw=1.2, color=f"C{j + 5}",
-                                label=f"{method} {c} = {shown:.4g} {units[c]}")
+                        ax.plot(tau, f(v, tau), ":", lw=1.2, color=f"C{j + 5}", label=f"{c} = {shown:.3g} {units[c]}")
                 terms_drawn = True
         _draw_deviations(ax, (deviations or {}).get(name, {}), skip=("tvar", "avar"))  # OADEV: the points above
         for i, (method, fit) in enumerate(axis_fits[name].items()):
@@ -86,14 +111,12 @@ def figure(sensor_record, axis_fits, avs, dt, title, flags, deviations=None):
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_ylabel(f"Allan deviation ({si})")
-        ax.set_title(f"{title} — {sensor} {name}", fontsize=10)
+        ax.set_title(f"{title} — {sensor} {name}")
         ax.grid(True, which="both", alpha=0.3)
         ymin, ymax = np.nanmin(lo[lo > 0]) if np.any(lo > 0) else None, np.nanmax(hi) if np.any(np.isfinite(hi)) else None
         if ymin and ymax and math.isfinite(ymin) and math.isfinite(ymax):
             ax.set_ylim(ymin / 3, ymax * 3)
-        ax.legend(fontsize=7, loc="best")
-    fig.tight_layout()
-    return fig
+        ax.legend(loc="best", framealpha=0.8)
 
 
 def residuals(fit):

@@ -55,12 +55,13 @@ import math
 
 import numpy as np
 
-__all__ = ["KEYS", "axis_value", "filter_values", "filter_choices", "check_sensors", "kalibr_yaml", "parse_inflate", "av_bound"]
+__all__ = ["KEYS", "UNITS", "axis_value", "filter_values", "filter_choices", "check_sensors", "kalibr_yaml", "parse_inflate", "av_bound"]
 
 #: (sensor, coefficient) -> Kalibr key
 KEYS = {("accel", "N"): "accelerometer_noise_density", ("accel", "K"): "accelerometer_random_walk",
         ("gyro", "N"): "gyroscope_noise_density", ("gyro", "K"): "gyroscope_random_walk"}
-_UNITS = {"accelerometer_noise_density": "m/s^2/sqrt(Hz)", "accelerometer_random_walk": "m/s^3/sqrt(Hz)",
+#: Kalibr key -> its unit
+UNITS = {"accelerometer_noise_density": "m/s^2/sqrt(Hz)", "accelerometer_random_walk": "m/s^3/sqrt(Hz)",
           "gyroscope_noise_density": "rad/s/sqrt(Hz)", "gyroscope_random_walk": "rad/s^2/sqrt(Hz)"}
 
 
@@ -134,31 +135,38 @@ def _length_text(seconds, record_s) -> str:
     return f"; a record of at least {_duration(seconds)} would resolve it (longer if it is smaller than the bound)"
 
 
-def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) -> dict[str, tuple]:
+def _method_result(results: dict, sensor: str, axis: str, method: str, option: str):
+    r = results[sensor][axis].get(method)
+    if r is None:
+        raise ValueError(f"{option}: method {method!r} was not fitted; expected one of --method")
+    return r
+
+
+def filter_choices(results: dict, method: str, option: str = "--kalibr", avs=None) -> dict[str, tuple]:
     """Kalibr key -> (SI value, axis, note or None): the largest over the axes, where each axis gives its
-    estimate when resolved and else the upper end of its interval (module docstring); ``note`` says
-    which are bounds and why. ``avs``: ``{sensor: {axis: (AllanResult, scale)}}`` for the AV bound where
-    the method has no interval. Raises ValueError naming ``option`` when a sensor is missing or an axis
-    has neither a value nor a bound."""
-    check_sensors(list(data["sensors"]), option)
+    estimate when resolved and else the upper end of its interval
+    (:meth:`~avbench.estimators.results.Coefficient.estimate_or_bound`; module docstring); ``note`` says
+    which are bounds and why. ``results``: ``{sensor: {axis: {method: FitResult}}}``
+    (:meth:`avbench.recordings.report.Estimate.results`); ``avs``: ``{sensor: {axis: (AllanResult,
+    scale)}}`` for the AV bound where the method has no interval. Raises ValueError naming ``option``
+    when a sensor is missing or an axis has neither a value nor a bound."""
+    check_sensors(list(results), option)
     out = {}
     for (sensor, coef), key in KEYS.items():
         best = None
-        for axis, ad in data["sensors"][sensor]["axes"].items():
-            md = ad["methods"].get(method)
-            if md is None:
-                raise ValueError(f"{option}: method {method!r} was not fitted; expected one of --method")
-            e = md["coefficients"][coef]
+        for axis in results[sensor]:
+            r = _method_result(results, sensor, axis, method, option)
+            e = r.coefficients[coef]
             av = (avs or {}).get(sensor, {}).get(axis)
-            v, why = axis_value(e, md, coef)
+            v, why = axis_value(r, coef)
             if why is not None and v is None and av is not None:
                 v, why = av_bound(coef, *av), why + " and the method gives no interval: the bound the AV allows"
-            elif md.get("poor_fit") and coef != "N" and v is not None and av is not None:  # the model misses the curve: its
-                b = av_bound(coef, *av)                                    # interval is not to be trusted alone
+            elif r.fit_check.poor_fit and coef != "N" and v is not None and av is not None:  # the model misses the
+                b = av_bound(coef, *av)                                      # curve: its interval is not trusted alone
                 if b is not None and b > v:
                     v, why = b, (why or "the fit is poor") + "; the bound the AV allows is larger: taken"
             if v is None:
-                fail = f"{e['flag']}: {md['failure']}" if md.get("failure") else e["flag"]
+                fail = f"{e.status}: {r.failure}" if r.failure else e.status
                 raise ValueError(f"{option}: {method} gives no {coef} for {sensor} axis {axis} ({fail}); expected "
                                  "a method that models it (choose one with --filter-method)")
             if why is not None and coef == "K" and av is not None:
@@ -169,38 +177,32 @@ def filter_choices(data: dict, method: str, option: str = "--kalibr", avs=None) 
     return out
 
 
-#: the yaml's comment for a value that is a bound, by why the coefficient is not resolved
-#: (:data:`avbench.estimators.results.REASONS`)
-_BOUND_NOTES = {"record": "not resolved by this record: the upper end of its interval",
-                "evidence": "not resolved (its evidence): the upper end of its interval",
-                "zero": "zero (no random walk seen)"}
+#: the files' words for a value that is a bound, by its code
+#: (:meth:`avbench.estimators.results.Coefficient.estimate_or_bound`)
+BOUND_NOTES = {"record": "not resolved by this record: the upper end of its interval",
+               "evidence": "not resolved (its evidence): the upper end of its interval",
+               "zero": "zero (no random walk seen)",
+               "reaches zero": "its interval reaches zero: the upper end of the interval",
+               "poor fit": "the fit is poor: the upper end of its interval"}
 
 
-def axis_value(e, md, coefficient=None):
-    """(SI value, None) for a resolved estimate; (upper bound or None, reason) otherwise (``e``: a
-    coefficient of the JSON payload, ``md``: its method). A poor fit makes a bound of every coefficient but
-    the noise density (``coefficient`` "N": module docstring)."""
-    from avbench.estimators.results import REASONS
-
-    iv = e.get("interval_si")
-    hi = iv[1] if iv is not None and iv[1] is not None and math.isfinite(iv[1]) else None
-    if e["flag"] == "not resolved":
-        code = {text: k for k, text in REASONS.items()}[e["reason"]]
-        if code == "zero":
-            return hi, _BOUND_NOTES[code] + (": the upper end of its interval" if hi is not None else "")
-        return hi, _BOUND_NOTES[code]
-    if e["si"] is None:
-        return None, e["flag"]
-    if iv is not None and iv[0] is not None and iv[0] <= 0:
-        return hi, "its interval reaches zero: the upper end of the interval"
-    if md.get("poor_fit") and coefficient != "N":
-        return hi, "the fit is poor: the upper end of its interval"
-    return e["si"], None
+def axis_value(result, coefficient: str):
+    """(SI value, None) for a resolved estimate; (upper bound or None, why in words) otherwise: the
+    coefficient's :meth:`~avbench.estimators.results.Coefficient.estimate_or_bound` under the fit
+    check of ``result`` (a FitResult), its reason rendered (a status where there is no value)."""
+    v, code = result.coefficients[coefficient].estimate_or_bound(result.fit_check.poor_fit)
+    if code is None:
+        return v, None
+    if code not in BOUND_NOTES:
+        return v, code
+    if code == "zero" and v is not None:
+        return v, BOUND_NOTES[code] + ": the upper end of its interval"
+    return v, BOUND_NOTES[code]
 
 
-def filter_values(data: dict, method: str, option: str = "--kalibr", avs=None) -> dict[str, tuple[float, str]]:
+def filter_values(results: dict, method: str, option: str = "--kalibr", avs=None) -> dict[str, tuple[float, str]]:
     """Kalibr key -> (SI value, the axis it comes from): :func:`filter_choices` without the notes."""
-    return {k: (v, axis) for k, (v, axis, _) in filter_choices(data, method, option, avs).items()}
+    return {k: (v, axis) for k, (v, axis, _) in filter_choices(results, method, option, avs).items()}
 
 
 def kalibr_yaml(values, update_rate: float, topic: str | None, method: str, sources, inflate=(1.0, 1.0),
@@ -219,7 +221,7 @@ def kalibr_yaml(values, update_rate: float, topic: str | None, method: str, sour
                      "conditions, not other temperatures, ageing or vibration")
     else:
         f_noise, f_walk = inflate
-        factors = {k: f_noise if k.endswith("noise_density") else f_walk for k in _UNITS}
+        factors = {k: f_noise if k.endswith("noise_density") else f_walk for k in UNITS}
         lines.append("# values as estimated (no inflation)" if (f_noise, f_walk) == (1.0, 1.0) else
                      f"# INFLATED by the user: noise densities x {f_noise:g}, random walks x {f_walk:g} (--inflate)")
     for key in ("accelerometer_noise_density", "accelerometer_random_walk",
@@ -230,7 +232,7 @@ def kalibr_yaml(values, update_rate: float, topic: str | None, method: str, sour
             lines.append(f"# {key}: a BOUND, not an estimate -- axis {axis} {why}")
         v *= factors[key]
         note = (f"; x {factors[key]:.3g}" if isinstance(inflate, dict) else "") + ("" if v > 0 else "; zero: no random walk seen in this record -- a filter needs a positive value")
-        lines.append(f"{key}: {v:.16e}  # {_UNITS[key]}, axis {axis}{note}")
+        lines.append(f"{key}: {v:.16e}  # {UNITS[key]}, axis {axis}{note}")
     lines.append(f"rostopic: {topic if topic else '/imu0'}" + ("" if topic else "  # not a bag: Kalibr's default topic"))
     lines.append(f"update_rate: {float(update_rate):.6f}  # Hz")
     return "\n".join(lines) + "\n"

@@ -1,8 +1,8 @@
 """Step 5d: the recording as a page a person opens -- one self-contained HTML file.
 
-:func:`recording_page` renders the JSON payload of ``avbench estimate``
-(:func:`avbench.recordings.report.payload`, schema ``avbench-estimate/2``) with the sensors' Allan
-deviation figures and the exported stack formats into one HTML document, ``<stem>_report.html``:
+:func:`recording_page` renders the fits of ``avbench estimate`` (their
+:class:`~avbench.estimators.results.FitResult` s, gathered in :class:`avbench.recordings.report.Estimate`)
+with the sensors' Allan deviation figures and the exported stack formats into one HTML document, ``<stem>_report.html``:
 
 * the record -- sources, format, samples, rate, jitter, gaps and the reader's notes;
 * the static check's verdict (``static_check``), its reasons and its statistics per channel;
@@ -39,9 +39,12 @@ __all__ = ["recording_page", "document", "html_table", "png_img", "copy_block", 
            "CSP", "COPY_SCRIPT"]
 
 #: the page's one script: a click on a ``button.copy`` copies the text of the ``<pre>`` it names
-#: (the clipboard API, or the selection and ``execCommand("copy")`` where that is refused)
+#: (the clipboard API, or the selection and ``execCommand("copy")`` where that is refused); a click on
+#: a ``figure.zoom`` shows it at the page's full width, a second click at its own
 COPY_SCRIPT = """
 document.addEventListener("click", function (ev) {
+  var f = ev.target.closest ? ev.target.closest("figure.zoom") : null;
+  if (f) { f.classList.toggle("zoomed"); return; }
   var b = ev.target.closest ? ev.target.closest("button.copy") : null;
   if (!b) { return; }
   var pre = document.getElementById(b.getAttribute("data-target"));
@@ -111,9 +114,12 @@ table.facts th { background: var(--band); text-align: left; white-space: nowrap;
 .badge.none { color: var(--muted); background: var(--band); }
 figure { margin: 10px 0 14px; }
 figure img { max-width: 100%; height: auto; border: 1px solid var(--line); }
+figure.zoom { cursor: zoom-in; }
+figure.zoomed { cursor: zoom-out; flex-basis: 100% !important; }
+figure.zoomed img { width: 100%; }
 figcaption { color: var(--muted); font-size: 0.9em; }
 .figs { display: flex; flex-wrap: wrap; gap: 12px; }
-.figs figure { flex: 1 1 560px; }
+.figs figure { flex: 0 1 auto; max-width: 100%; }
 ol.notes { font-size: 0.92em; padding-left: 28px; }
 .legend { color: var(--muted); font-size: 0.9em; }
 .block { margin: 12px 0 18px; border: 1px solid var(--line); border-radius: 6px; }
@@ -201,12 +207,36 @@ def png_bytes(fig_or_png, dpi: int = 110) -> bytes:
     return buf.getvalue()
 
 
-def png_img(fig_or_png, alt: str, caption: str | None = None) -> str:
+def _png_width(png: bytes) -> int:
+    """The width in pixels of a PNG (its IHDR chunk)."""
+    return int.from_bytes(png[16:20], "big")
+
+
+def _smallest_text_px(fig, dpi: int) -> float | None:
+    """The size in pixels, at ``dpi``, of the smallest visible text of a drawn matplotlib Figure."""
+    from matplotlib.text import Text
+
+    sizes = [t.get_fontsize() for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
+    return min(sizes) * dpi / 72 if sizes else None
+
+
+def png_img(fig_or_png, alt: str, caption: str | None = None, sharp: float = 1.0) -> str:
     """A ``<figure>`` holding the image inline (``data:image/png;base64``), with an escaped ``alt``
-    text and caption."""
-    data = base64.b64encode(png_bytes(fig_or_png)).decode("ascii")
+    text and caption. A matplotlib Figure is drawn at ``sharp`` x 110 dpi and shown at the size of
+    110 dpi (``width``), larger on a click (``figure.zoom``); its smallest text in pixels as shown is
+    ``data-text-px``."""
+    attrs, cls = "", ""
+    if isinstance(fig_or_png, (bytes, bytearray, memoryview)):
+        png = bytes(fig_or_png)
+    else:
+        png = png_bytes(fig_or_png, dpi=round(110 * sharp))
+        small = _smallest_text_px(fig_or_png, round(110 * sharp))
+        width = round(_png_width(png) / sharp)
+        attrs = f' width="{width}"' + (f' data-text-px="{small / sharp:.2f}"' if small is not None else "")
+        cls = ' class="zoom"'
+    data = base64.b64encode(png).decode("ascii")
     cap = f"<figcaption>{esc(caption)}</figcaption>" if caption else ""
-    return f'<figure><img src="data:image/png;base64,{data}" alt="{esc(alt)}">{cap}</figure>'
+    return f'<figure{cls}><img src="data:image/png;base64,{data}" alt="{esc(alt)}"{attrs}>{cap}</figure>'
 
 
 def copy_block(filename: str, text: str, ident: str, label: str | None = None) -> str:
@@ -299,105 +329,123 @@ def _static_section(data: dict) -> str:
     return "\n".join(out)
 
 
-def _coefficient_table(sensor: str, sd: dict, table, footnotes) -> str:
-    """The screen's table of one sensor as HTML: the same cells, each with the payload entry it shows
+def _coefficient_table(est, sensor: str, table, footnotes) -> str:
+    """The screen's table of one sensor as HTML: the same cells, each with the fit it shows
     (``data-sensor``, ``data-axis``, ``data-method``, ``data-coef``) and its status as a class."""
     cols = [c for c in table.columns if c != "notes"]
     rows, classes = [], []
     for (axis, method), r in table.iterrows():
-        md = sd["axes"][axis]["methods"][method]
+        result = est.fits[sensor][axis][method].result
         row = [axis, method]
         for col in cols:
             c = col.split(" ", 1)[0]
-            flag = md["coefficients"][c]["flag"]
+            flag = result.coefficients[c].status
             row.append((r[col], {"class": "num st-" + flag.replace(" ", "-"), "data-sensor": sensor, "data-axis": axis,
                                  "data-method": method, "data-coef": c}))
         row.append(r["notes"])
         rows.append(row)
-        classes.append("poor" if md.get("poor_fit") else None)
+        classes.append("poor" if result.fit_check.poor_fit else None)
     out = html_table(["axis", "method", *cols, "notes"], rows, classes)
     if footnotes:
         out += '<ol class="notes">' + "".join(f"<li>{esc(x)}</li>" for x in footnotes) + "</ol>"
     return out
 
 
-def _status_details(sensor: str, sd: dict) -> str:
+def _status_details(est, sensor: str) -> str:
     """A table of every coefficient the record does not resolve -- the rule that decided, the fit's
     own number -- and of every term whose evidence the method tests (a non-physical or failed value is
-    a footnote of the coefficient table already; a bound is in its cell)."""
-    from avbench.noise_models.units import from_si
+    a footnote of the coefficient table already; a bound is in its cell); the evidence column only
+    where a method tests a term."""
+    from avbench.estimators.results import REASONS
+    from avbench.recordings.report import in_unit
 
+    units = est.units(sensor)
     rows = []
-    for axis, ad in sd["axes"].items():
-        for method, md in ad["methods"].items():
-            for c, e in md["coefficients"].items():
-                ev = e.get("evidence")
-                if e["flag"] != "not resolved" and ev is None:
+    for axis, per_method in est.fits[sensor].items():
+        for method, fit in per_method.items():
+            for c, e in fit.result.coefficients.items():
+                ev = e.evidence
+                if e.status != "not resolved" and ev is None:
                     continue
                 own = "-"
-                if e["flag"] == "not resolved" and e.get("fitted_si") is not None:
-                    own = f"{from_si(c, e['fitted_si'], e['unit'], sensor):.3g} {e['unit']}"
+                fitted = in_unit(c, e.fitted, units[c], sensor) if e.status == "not resolved" else None
+                if fitted is not None:
+                    own = f"{fitted:.3g} {units[c]}"
                 evidence = "-"
                 if ev is not None:
-                    p = ev.get("p_value")
-                    ptext = "p = ?" if p is None else ("p < 1e-6" if p < 1e-6 else f"p = {p:.2g}")
-                    evidence = f"{'present' if ev.get('present') else 'not shown'}, {ptext}"
-                rows.append([axis, method, c, e["flag"], e.get("reason") or "-", (own, {"class": "num"}), evidence])
+                    p = ev.p_value
+                    ptext = "p = ?" if not math.isfinite(p) else ("p < 1e-6" if p < 1e-6 else f"p = {p:.2g}")
+                    evidence = f"{'present' if ev.present else 'not shown'}, {ptext}"
+                why = REASONS[e.reason] if e.status == "not resolved" and e.reason in REASONS else "-"
+                rows.append([axis, method, c, e.status, why, (own, {"class": "num"}), evidence])
     if not rows:
         return ""
-    return ("<h3>Not resolved, and the terms' evidence</h3>"
-            + html_table(["axis", "method", "coefficient", "status", "why", "the fit's own value",
-                          "evidence (likelihood ratio test)"], rows))
+    header = ["axis", "method", "coefficient", "status", "why", "the fit's own value", "evidence (likelihood ratio test)"]
+    if all(r[-1] == "-" for r in rows):  # no method tests a term's evidence: no empty column
+        header, rows = header[:-1], [r[:-1] for r in rows]
+    return "<h3>Not resolved, and the terms' evidence</h3>" + html_table(header, rows)
 
 
-def _fit_check_table(sd: dict) -> str:
+def _fit_check_table(est, sensor: str) -> str:
     """The fit check's verdict of every method on every axis, with its statistic and where it was fitted."""
+    from avbench.recordings.report import fitted_on
+
+    n = {a: int(x.size) for a, x in est.record(sensor).axes.items()}
     rows, classes = [], []
-    for axis, ad in sd["axes"].items():
-        for method, md in ad["methods"].items():
-            pf = md.get("poor_fit")
-            if md.get("failure"):
-                verdict = "failed"
-            else:
-                verdict = {True: "POOR FIT", False: "fits", None: "no check"}[pf]
-            stat = (f"{_g(md.get('fit_stat'))} on {md.get('fit_dof')} dof ({md.get('fit_reference')})"
-                    if md.get("fit_stat") is not None else "-")
-            p = md.get("fit_pvalue")
-            ptext = "-" if p is None else ("< 1e-6" if p < 1e-6 else f"{p:.3g}")
+    for axis, per_method in est.fits[sensor].items():
+        for method, fit in per_method.items():
+            r = fit.result
+            check = r.fit_check
+            pf = check.poor_fit
+            verdict = "failed" if r.failure else {True: "POOR FIT", False: "fits", None: "no check"}[pf]
+            stat = (f"{_g(check.stat)} on {check.dof} dof ({check.reference})"
+                    if pf is not None and math.isfinite(check.stat) else "-")
+            p = check.pvalue if pf is not None else math.nan
+            ptext = "-" if not math.isfinite(p) else ("< 1e-6" if p < 1e-6 else f"{p:.3g}")
             rows.append([axis, method, (verdict, {"class": "nowrap"}), stat, (ptext, {"class": "num"}),
-                         md.get("fitted_on", "?"), (f"{md.get('seconds', 0):.3g}", {"class": "num"}),
-                         md.get("failure") or ""])
-            classes.append("poor" if pf or md.get("failure") else None)
+                         fitted_on(fit, n[axis]), (f"{fit.seconds:.3g}", {"class": "num"}), r.failure or ""])
+            classes.append("poor" if pf or r.failure else None)
     return "<h3>Fit check</h3>" + html_table(["axis", "method", "verdict", "statistic", "p-value", "fitted on",
                                                 "time (s)", "failure"], rows, classes) + \
         '<p class="legend">POOR FIT: the model misses the Allan variance beyond its intervals (the chi-square type ' \
         'check of each method, p &lt; its level); "no check": the method makes none.</p>'
 
 
-def _sensor_section(sensor: str, sd: dict, table, footnotes, fig) -> str:
-    terms = ", ".join(f"{c} = {n}" for c, n in (sd.get("terms") or {}).items())
+def _sensor_section(est, sensor: str, table, footnotes, fig) -> str:
+    from avbench.noise_models.units import TERM_NAMES
+    from avbench.recordings.report import level_text
+
+    s = est.record(sensor)
+    terms = ", ".join(f"{c} = {n}" for c, n in TERM_NAMES[sensor].items())
+    level = level_text(est)
     out = [f'<section id="sensor-{esc(_anchor(sensor))}"><h2>{esc(sensor)}</h2>',
-           f'<p class="sub">samples in {esc(sd.get("units_in", "?"))} (SI: {esc(sd.get("si_unit", "?"))}); '
-           f"{esc(terms)}</p>"]
-    if fig is not None:
+           f'<p class="sub">samples in {esc(s.unit_in)} (SI: {esc(s.si_unit)}); {esc(terms)}</p>']
+    caption = ("Allan deviation (points, 68 % chi-square bars) with each method's model (dashed, over the scales "
+               "it fitted) and the first method's terms (dotted); under it the fit check's standardised residuals "
+               "z per tau with the +-2 band. Click a figure to enlarge it.")
+    if isinstance(fig, dict):  # one figure per axis
+        out.append('<div class="figs">' + "".join(
+            png_img(f, f"Allan deviation of {sensor} {axis} with each method's model curve, and the fit check's "
+                       f"residuals under it", f"{sensor} {axis}", sharp=1.5) for axis, f in fig.items()) + "</div>")
+        out.append(f'<p class="legend">{esc(caption)}</p>')
+    elif fig is not None:
         out.append(png_img(fig, f"Allan deviation of each {sensor} axis with each method's model curve, and the fit "
-                                "check's residuals under it",
-                           "Allan deviation of each axis (points, 68 % chi-square bars) with each method's model "
-                           "(dashed) and the first method's terms (dotted); under each panel the fit check's "
-                           "standardised residuals z per tau with the +-2 band."))
+                                "check's residuals under it", caption))
     out.append("<h3>Coefficients</h3>")
-    out.append('<p class="legend">value [95 % interval]; "&lt; x": not resolved by this record, x its upper 95 % bound; '
-               '"(+- s)": a standard error only; "-": not in the method\'s model; notes: the footnotes under the '
-               "table.</p>")
-    out.append(_coefficient_table(sensor, sd, table, footnotes))
-    out.append(_status_details(sensor, sd))
-    out.append(_fit_check_table(sd))
+    out.append(f'<p class="legend">value [{level} % interval]; "&lt; x": not resolved by this record, x its upper '
+               f'{level} % bound; "(+- s)": a standard error only; "-": not in the method\'s model; notes: the '
+               "footnotes under the table.</p>")
+    out.append(_coefficient_table(est, sensor, table, footnotes))
+    out.append(_status_details(est, sensor))
+    out.append(_fit_check_table(est, sensor))
     out.append("</section>")
     return "\n".join(out)
 
 
-def _combine_section(data: dict) -> str:
-    from avbench.noise_models.units import DISPLAY_UNITS, from_si
+def _combine_section(data: dict, units) -> str:
+    """The agreement test of ``--combine`` and the between-run spread, each coefficient in ``units(sensor)``
+    (the unit of the sensor's coefficient table)."""
+    from avbench.noise_models.units import from_si
 
     if "combine" not in data and "between_runs" not in data:
         return ""
@@ -418,7 +466,7 @@ def _combine_section(data: dict) -> str:
                 for c, r in per_coef.items():
                     if r.get("tau") is None:
                         continue
-                    unit = DISPLAY_UNITS[sensor][c]
+                    unit = units(sensor)[c]
 
                     def d(v, c=c, unit=unit, sensor=sensor):
                         return "?" if v is None else f"{from_si(c, v, unit, sensor):.4g}"
@@ -439,21 +487,61 @@ def _combine_section(data: dict) -> str:
     return "\n".join(out)
 
 
-def _filter_section(data: dict, shown_texts: set) -> str:
+#: the formats whose file holds Kalibr's four keys (:data:`avbench.recordings.filter_yaml.KEYS`)
+KALIBR_KEY_FORMATS = ("kalibr", "allan_variance_ros", "openvins")
+
+
+def _values_section(tables: dict, exports: dict | None) -> str:
+    """Each written format's own keys, values and units (``tables``: ``{name: [Entry]}``,
+    :func:`avbench.recordings.exports.tables`), one table per format under its file's name."""
+    out = ['<section id="filter"><h2>Filter values</h2>',
+           '<p class="legend">each format\'s keys, values and units as its file writes them (the files '
+           "themselves under Exports).</p>"]
+    for name, entries in tables.items():
+        filename = (exports or {}).get(name, (name,))[0]
+        rows = [[e.key, (f"{e.value:.6g}", {"class": "num"}), e.unit, e.axis, e.bound or ""] for e in entries]
+        header = ["key", "value", "unit", "axis", "a bound, not an estimate"]
+        if not any(r[-1] for r in rows):
+            header, rows = header[:-1], [r[:-1] for r in rows]
+        out.append(f"<h3>{esc(filename)} <span class=\"fmt\">{esc(name)}</span></h3>" + html_table(header, rows))
+    out.append("</section>")
+    return "\n".join(out)
+
+
+def _filter_section(data: dict, exports: dict | None) -> str:
+    """Kalibr's keys as the files that hold them write them (each value with its unit, inflated as
+    written), where such a file was written; every other format's keys are its own, in its block
+    under Exports."""
+    from avbench.recordings.exports.base import factor
+    from avbench.recordings.filter_yaml import KEYS, UNITS
+
     fy = data.get("filter_yaml")
     if not fy:
         return ""
-    out = ['<section id="filter"><h2>Filter yaml</h2>']
     text = fy if isinstance(fy, str) else fy.get("text")
+    kalibr_files = [n for n in (exports or {}) if n in KALIBR_KEY_FORMATS]
+    if not text and not kalibr_files:
+        return ""
+    shown_texts = {t for _, t in (exports or {}).values()}
+    out = ['<section id="filter"><h2>Kalibr keys</h2>']
     if isinstance(fy, dict):
         inflate = fy.get("inflate")
-        out.append(f"<p>values from <code>{esc(fy.get('method', '?'))}</code>, largest over the axes"
-                   + (f"; inflated by {esc(inflate)}" if inflate and inflate != [1.0, 1.0] else "; not inflated") + "</p>")
+        pair = tuple(inflate) if isinstance(inflate, list) else inflate
+        where = ", ".join(kalibr_files) if kalibr_files else "imu.yaml"
+        out.append(f"<p>as written in {esc(where)}: values from <code>{esc(fy.get('method', '?'))}</code>, the "
+                   "largest over the axes" + ("; not inflated" if pair in (None, (1.0, 1.0)) else "; inflated as the "
+                                              "file says") + "</p>")
+        sensor_coef = {k: sc for sc, k in KEYS.items()}
         bounds = fy.get("bounds") or {}
-        rows = [[k, (f"{v:.6g}" if v is not None else "?", {"class": "num"}), bounds.get(k, "")]
-                for k, v in (fy.get("values_si") or {}).items()]
+        rows = []
+        for k, v in (fy.get("values_si") or {}).items():
+            f = factor(pair if pair is not None else (1.0, 1.0), *sensor_coef[k])
+            rows.append([k, (f"{v * f:.6g}" if v is not None else "?", {"class": "num"}), UNITS[k], bounds.get(k, "")])
         if rows:
-            out.append(html_table(["key", "value (SI)", "a bound, not a resolved value"], rows))
+            header = ["key", "value", "unit", "a bound, not a resolved value"]
+            if not any(r[-1] for r in rows):
+                header, rows = header[:-1], [r[:-1] for r in rows]
+            out.append(html_table(header, rows))
     if text and text not in shown_texts:
         out.append(copy_block("imu.yaml", text, "filter-yaml", label="kalibr"))
     out.append("</section>")
@@ -471,13 +559,17 @@ def _exports_section(exports: dict | None) -> str:
     return "\n".join(out)
 
 
-def recording_page(data: dict, figures: dict, exports: dict | None = None, title: str | None = None) -> str:
+def recording_page(est, figures: dict, exports: dict | None = None, title: str | None = None,
+                   tables: dict | None = None) -> str:
     """The self-contained HTML page of one recording (see the module docstring).
 
-    ``data``: the JSON payload of ``avbench estimate`` (:func:`avbench.recordings.report.payload`);
-    ``figures``: ``{sensor: matplotlib Figure or PNG bytes}`` (a sensor without one has no figure);
+    ``est``: the fits and the record's facts (:class:`avbench.recordings.report.Estimate`);
+    ``figures``: ``{sensor: matplotlib Figure or PNG bytes}``, or ``{sensor: {axis: Figure}}`` (one figure
+    per axis, each readable from a narrow window up; a sensor without one has no figure);
     ``exports``: ``{name: (file name, text)}`` of the stack formats, each shown in a block with a copy
-    button; ``title``: the page's heading (default: the sources). Returns the page as a string.
+    button; ``title``: the page's heading (default: the sources); ``tables``: ``{name: [Entry]}``, the
+    numbers each format writes under its own keys (:func:`avbench.recordings.exports.tables`), one
+    table each. Returns the page as a string.
 
     >>> import numpy as np
     >>> from avbench.noise_models import AngleRandomWalk, Gyro
@@ -488,34 +580,36 @@ def recording_page(data: dict, figures: dict, exports: dict | None = None, title
     >>> x = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3)]).simulate(4096, np.random.default_rng(0))
     >>> s = SensorRecord("gyro", "rad/s", {"x": x}, {})
     >>> fits = {"gyro": {"x": fit_axis(x, 0.01, np.zeros(0, dtype=np.int64), ["wls"])}}
-    >>> data = report.payload(["sim <1>"], Timing(0.01, "--fs", 4096), [s], fits)
-    >>> page = recording_page(data, {}, {"kalibr": ("imu.yaml", "a: 1 # <b>")})
+    >>> est = report.Estimate(["sim <1>"], Timing(0.01, "--fs", 4096), [s], fits)
+    >>> page = recording_page(est, {}, {"kalibr": ("imu.yaml", "a: 1 # <b>")})
     >>> page.startswith("<!DOCTYPE html>"), "sim &lt;1&gt;" in page, "# &lt;b&gt;" in page
     (True, True, True)
     """
-    from avbench.recordings.report import screen_tables
+    from avbench.estimators.results import jsonable
+    from avbench.recordings.report import SCHEMA, screen_tables
 
     figures = figures or {}
-    tables = screen_tables(data)
+    coefficient_tables = screen_tables(est)
+    data = {"sources": [str(x) for x in est.sources], "timing": jsonable(est.timing.to_dict()),
+            **jsonable(est.extra), "notes": est.notes}  # the record's facts
     nav = [("record", "record"), ("static", "static check")]
     body = [_record_section(data), _static_section(data)]
-    for sensor, (table, footnotes) in tables.items():
+    for sensor, (table, footnotes) in coefficient_tables.items():
         nav.append((f"sensor-{_anchor(sensor)}", sensor))
-        body.append(_sensor_section(sensor, data["sensors"][sensor], table, footnotes, figures.get(sensor)))
-    combine = _combine_section(data)
+        body.append(_sensor_section(est, sensor, table, footnotes, figures.get(sensor)))
+    combine = _combine_section(data, est.units)
     if combine:
         nav.append(("runs", "several recordings"))
         body.append(combine)
-    shown = {text for _, text in (exports or {}).values()}
-    filt = _filter_section(data, shown)
+    filt = _values_section(tables, exports) if tables else _filter_section(data, exports)
     if filt:
-        nav.append(("filter", "filter yaml"))
+        nav.append(("filter", "filter values"))
         body.append(filt)
     ex = _exports_section(exports)
     if ex:
         nav.append(("exports", "exports"))
         body.append(ex)
-    body.append(f'<footer>avbench {esc(avbench_version())} &middot; payload schema {esc(data.get("schema", "?"))} &middot; '
+    body.append(f'<footer>avbench {esc(avbench_version())} &middot; payload schema {esc(SCHEMA)} &middot; '
                 "a self-contained page: it loads nothing from the network.</footer>")
     sources = ", ".join(data.get("sources") or [])
     return document(title or f"avbench estimate: {sources}", "\n".join(body),

@@ -1,10 +1,16 @@
-"""Step 5a: what the fits mean, per sensor, axis and method -- the JSON payload, the CSV and the screen.
+"""Step 5a: what the fits mean, per sensor, axis and method -- the screen, the CSV and the JSON payload.
 
 Every surface renders one object per fit, the method's :class:`avbench.estimators.results.FitResult`
-(:attr:`avbench.recordings.fit.MethodFit.result`): the JSON payload (:func:`payload`) carries each
-coefficient's value, its interval and its status, and the CSV (:func:`tables`) and the screen
-(:func:`screen`) are drawn from the payload, so that they cannot disagree. Each coefficient has a
-``flag``, its status:
+(:attr:`avbench.recordings.fit.MethodFit.result`), gathered with the record's facts in an
+:class:`Estimate`: the screen (:func:`screen`, :func:`screen_tables`), the CSV (:func:`tables`), the
+JSON payload (:func:`payload`), the filter yaml and the exports (:mod:`avbench.recordings.filter_yaml`,
+:mod:`avbench.recordings.exports`), the page (:mod:`avbench.recordings.html`) -- none reads another's
+output, so that they cannot disagree. Each surface shows a sensor's coefficients in the units of
+:meth:`Estimate.units`, chosen once per sensor: the display units, or SI where one of the sensor's
+numbers (a value, an interval's end, a standard error, an evidence bound) would overflow them (a
+record of 1e306 rad/s in deg/h), so that a value and its bounds are always in one unit.
+
+Each coefficient has a ``flag`` in the JSON, its status:
 
 * ``"ok"`` -- a value, with ``interval_si`` (the method's interval at ``level``) and ``std_err_si``
   where the method gives them;
@@ -25,17 +31,21 @@ made (``model_choice``) and the warnings it raised.
 from __future__ import annotations
 
 import math
+import re
 import textwrap
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pandas as pd
 
-from avbench.estimators.results import REASONS
+from avbench.estimators.results import REASONS, Coefficient
 from avbench.estimators.results import jsonable as _jsonable
 from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, TERM_NAMES, from_si, si_units
 
-__all__ = ["coefficient_flags", "poor_fit", "payload", "method_entry", "tables", "screen", "screen_tables",
-           "shown_value", "shown_interval", "wrap", "term_evidence", "model_choice_notes", "SCHEMA", "SCREEN_WIDTH"]
+__all__ = ["Estimate", "display_units", "coefficient_flags", "poor_fit", "payload", "tables", "screen",
+           "screen_tables", "shown_value", "shown_interval", "wrap", "term_evidence", "model_choice_notes",
+           "fitted_on", "in_unit", "level_text", "warning_text", "SCHEMA", "SCREEN_WIDTH"]
 
 SCHEMA = "avbench-estimate/2"
 #: the width of every line :func:`screen` prints
@@ -44,6 +54,72 @@ SCREEN_WIDTH = 100
 
 def _num(v):
     return float(v) if v is not None and math.isfinite(v) else None
+
+
+def _quantities(e: Coefficient):
+    """Every number of one coefficient that carries the record's unit (SI)."""
+    yield from (e.value, e.fitted, e.std_err)
+    for pair in (e.interval, e.estimate_interval):
+        if pair is not None:
+            yield from pair
+    if e.evidence is not None:
+        yield from (e.evidence.lower, e.evidence.upper)
+
+
+def display_units(sensor: str, results) -> dict[str, str]:
+    """The unit of each coefficient of ``sensor`` in which every surface shows ``results`` (FitResults
+    of that sensor): the display units (:data:`~avbench.noise_models.units.DISPLAY_UNITS`), or SI for
+    all of them where a number finite in SI is not finite in its display unit."""
+    units = DISPLAY_UNITS[sensor]
+    with np.errstate(over="ignore"):
+        for r in results:
+            for c, e in r.coefficients.items():
+                for v in _quantities(e):
+                    if v is not None and math.isfinite(v) and not math.isfinite(from_si(c, v, units[c], sensor)):
+                        return dict(si_units(sensor))
+    return dict(units)
+
+
+@dataclass
+class Estimate:
+    """What ``avbench estimate`` found: the record (``sources``, its :class:`~avbench.recordings.timing.Timing`,
+    its SI ``sensors``: :class:`~avbench.recordings.sensors.SensorRecord`), every fit (``fits``:
+    ``{sensor: {axis: {method: MethodFit}}}``) and the record's other facts (``extra``: the reader's
+    format, topic, time source and notes, the static check, the between-run checks, each JSON-able).
+    Every surface renders it."""
+
+    sources: list
+    timing: object
+    sensors: list
+    fits: dict
+    extra: dict = field(default_factory=dict)
+
+    def results(self, method: str | None = None) -> dict:
+        """``{sensor: {axis: {method: FitResult}}}`` (only ``method`` where given)."""
+        return {s: {a: {m: f.result for m, f in per.items() if method is None or m == method}
+                    for a, per in axes.items()} for s, axes in self.fits.items()}
+
+    @cached_property
+    def _units(self) -> dict:
+        return {s: display_units(s, [f.result for per in axes.values() for f in per.values()])
+                for s, axes in self.fits.items()}
+
+    def units(self, sensor: str) -> dict[str, str]:
+        """The unit of each coefficient of ``sensor`` on every surface (:func:`display_units`)."""
+        return self._units[sensor]
+
+    @property
+    def notes(self) -> list[str]:
+        """The reader's notes, then one per sensor shown in SI because its numbers overflow the display units."""
+        notes = list(self.extra.get("notes") or [])
+        for s in self.fits:
+            if self.units(s) != DISPLAY_UNITS[s]:
+                notes.append(f"{s}: coefficients shown in SI units, as their values overflow the usual display units")
+        return notes
+
+    def record(self, sensor: str):
+        """The :class:`~avbench.recordings.sensors.SensorRecord` of ``sensor``."""
+        return next(s for s in self.sensors if s.sensor == sensor)
 
 
 def coefficient_flags(fit) -> dict[str, str]:
@@ -66,39 +142,49 @@ def _pvalue_text(p):
     return f"p = {p:.2g}"
 
 
-def term_evidence(fit, sensor) -> dict[str, dict]:
-    """Each term's evidence where the method reports it (e.g. ``whittle_debiased``): the likelihood ratio
-    of dropping the term, its boundary-corrected p-value, whether it is present, the interval's bounds
-    (display units) and a one-line reading ("present, p < 1e-6" / "not resolved (p = 0.4), upper 95 %
-    bound 0.31 deg/h"). Empty where the method reports none."""
-    units = DISPLAY_UNITS[sensor]
-    out = {}
-    for c, e in fit.result.coefficients.items():
-        ev = e.evidence
-        if ev is None:
-            continue
-        up = _num(from_si(c, ev.upper, units[c], sensor))
-        low = _num(from_si(c, ev.lower, units[c], sensor))
-        p = _num(ev.p_value)
-        if ev.present:
-            reading = f"present, {_pvalue_text(p)}"
-        else:
-            bound = "?" if up is None else f"{up:.3g}"
-            reading = f"not resolved ({_pvalue_text(p)}), upper {100 * ev.level:g} % bound {bound} {units[c]}"
-        out[c] = {"lr": _num(ev.lr), "p_value": p, "present": ev.present, "lower": low, "upper": up,
-                  "level": ev.level, "reading": reading}
-    return out
+def in_unit(c: str, v, unit: str, sensor: str):
+    """SI ``v`` of coefficient ``c`` in ``unit`` (None where it is not a finite number)."""
+    if v is None:
+        return None
+    with np.errstate(over="ignore"):
+        return _num(from_si(c, v, unit, sensor))
 
 
-def method_entry(fit, sensor, n_samples):
+def term_evidence(e: Coefficient, unit: str, sensor: str) -> dict | None:
+    """One term's evidence where the method reports it (e.g. ``whittle_debiased``), in ``unit``: the
+    likelihood ratio of dropping the term, its boundary-corrected p-value, whether it is present, the
+    interval's bounds and a one-line reading ("present, p < 1e-6" / "not resolved (p = 0.4), upper 95 %
+    bound 0.31 deg/h"). None where the method reports none."""
+    ev = e.evidence
+    if ev is None:
+        return None
+    up, low, p = in_unit(e.name, ev.upper, unit, sensor), in_unit(e.name, ev.lower, unit, sensor), _num(ev.p_value)
+    if ev.present:
+        reading = f"present, {_pvalue_text(p)}"
+    else:
+        bound = "?" if up is None else f"{up:.3g}"
+        reading = f"not resolved ({_pvalue_text(p)}), upper {100 * ev.level:g} % bound {bound} {unit}"
+    return {"lr": _num(ev.lr), "p_value": p, "present": ev.present, "lower": low, "upper": up, "level": ev.level,
+            "reading": reading}
+
+
+def fitted_on(fit, n_samples: int) -> str:
+    """Where ``fit`` (a :class:`~avbench.recordings.fit.MethodFit`) was fitted: the whole record, or its
+    longest gap-free run."""
+    if fit.run is None:
+        return "whole record"
+    return (f"longest gap-free run: samples {fit.run[0]}..{fit.run[0] + fit.run[1] - 1} ({fit.run[1]} of "
+            f"{n_samples}); this method cannot skip gaps")
+
+
+def _method_entry(fit, sensor, n_samples, units):
     """The JSON object of one method on one axis (``fit``: :class:`avbench.recordings.fit.MethodFit`)."""
-    units = DISPLAY_UNITS[sensor]
     si = si_units(sensor)
     r = fit.result
     entry = {}
     for c, e in r.coefficients.items():
-        d = {"value": _num(from_si(c, e.value, units[c], sensor)), "unit": units[c], "si": _num(e.value),
-             "si_unit": si[c], "flag": e.status}
+        d = {"value": in_unit(c, e.value, units[c], sensor), "unit": units[c], "si": _num(e.value), "si_unit": si[c],
+             "flag": e.status}
         if math.isfinite(e.std_err):
             d["std_err_si"] = e.std_err
         if e.interval is not None:
@@ -109,15 +195,13 @@ def method_entry(fit, sensor, n_samples):
             d["fitted_si"] = _num(e.fitted)
             if e.estimate_interval is not None:
                 d["fitted_interval_si"] = [_num(v) for v in e.estimate_interval]
+        ev = term_evidence(e, units[c], sensor)
+        if ev is not None:
+            d["evidence"] = ev
         entry[c] = d
-    for c, ev in term_evidence(fit, sensor).items():
-        entry[c]["evidence"] = ev
     check = r.fit_check
     out = {"coefficients": entry, "poor_fit": check.poor_fit, "failure": r.failure, "warnings": list(r.warnings),
-           "seconds": round(float(fit.seconds), 3),
-           "fitted_on": ("whole record" if fit.run is None else
-                         f"longest gap-free run: samples {fit.run[0]}..{fit.run[0] + fit.run[1] - 1} "
-                         f"({fit.run[1]} of {n_samples}); this method cannot skip gaps")}
+           "seconds": round(float(fit.seconds), 3), "fitted_on": fitted_on(fit, n_samples)}
     if check.detail is not None:
         out["poor_fit_detail"] = check.detail
     if check.poor_fit is not None:  # the chi^2-type check behind poor_fit
@@ -128,18 +212,45 @@ def method_entry(fit, sensor, n_samples):
     return out
 
 
-def model_choice_notes(md: dict, sensor: str) -> list[str]:
-    """Notes on the model a method chose (``md``: a method of the JSON payload): the sensor filter it
-    modelled or held, a spectral line or resonance it added, and which bias-instability model the
-    record favours, with the weight and the other model's B and K."""
+_BIAS_MODELS = {"GM": "Gauss-Markov", "FL": "flicker"}
+#: the model choices with notes of their own words below; ``min_m`` (the first AV scale fitted) is drawn
+#: in the figure, where each model curve starts
+_WORDED = ("filter_test", "filter_held", "line_test", "resonance_test", "bias_evidence", "min_m")
+
+
+def _plain(v) -> str | None:
+    """A scalar as a note shows it (numbers to 3 digits), None for what is not a scalar."""
+    if isinstance(v, bool) or isinstance(v, str):
+        return str(v)
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return f"{float(v):.3g}" if math.isfinite(v) else None
+    return None
+
+
+def _choice_note(key: str, value) -> str | None:
+    """A model choice without words of its own: its name in words and its scalar parts (up to six)."""
+    shown = _plain(value)
+    if shown is None and isinstance(value, dict):
+        parts = [(k, _plain(v)) for k, v in value.items()]
+        parts = [f"{str(k).replace('_', ' ')} {v}" for k, v in parts if v is not None][:6]
+        shown = ", ".join(parts) if parts else None
+    return None if shown is None else f"{key.replace('_', ' ')}: {shown}"
+
+
+def model_choice_notes(choice: dict, sensor: str, units: dict | None = None) -> list[str]:
+    """Notes, in a user's words, on the model a method chose (``choice``: its
+    :attr:`~avbench.estimators.results.FitResult.model_choice`; ``units``: the coefficients' units,
+    default the display units): the sensor filter it modelled or held, a spectral line or resonance
+    it added, and which bias-instability model the record favours, with its weight and the other
+    model's B and K."""
+    units = units or DISPLAY_UNITS[sensor]
     notes = []
-    choice = md.get("model_choice") or {}
     ft = choice.get("filter_test") or {}  # nnls_rel_filtered: the sensor's filter entered on evidence
     if ft.get("included") and ft.get("tf") is not None:
         notes.append(f"sensor filter modelled (first-order, tf = {1e3 * ft['tf']:.3g} ms)")
     held = choice.get("filter_held") or {}  # GMWM's filter_tf: the sensor's filter given, not fitted
     if held.get("tf") is not None:
-        notes.append(f"sensor filter held at tf = {1e3 * held['tf']:.3g} ms (filter_tf, not fitted)")
+        notes.append(f"sensor filter held at tf = {1e3 * held['tf']:.3g} ms (the filter_tf setting, not fitted)")
     ln = choice.get("line_test") or {}
     if ln.get("included") and ln.get("f0") is not None and "filter_test" in choice:
         notes.append(f"spectral line at {ln['f0']:.3g} Hz modelled")
@@ -147,138 +258,150 @@ def model_choice_notes(md: dict, sensor: str) -> list[str]:
     if rs.get("included") and rs.get("f0") is not None:
         notes.append(f"resonance at {rs['f0']:.3g} Hz modelled")
     ev = choice.get("bias_evidence") or {}
-    if ev.get("preferred") in ("GM", "FL"):
-        name = {"GM": "Gauss-Markov", "FL": "flicker"}
-        fitted = ev["fitted"]
+    if ev.get("preferred") in _BIAS_MODELS:
+        fitted, preferred = ev["fitted"], ev["preferred"]
         other = "FL" if fitted == "GM" else "GM"
         values = ev[other]["coefficients"]
-        shown = ", ".join(f"{c} {from_si(c, values[c], DISPLAY_UNITS[sensor][c], sensor):.3g} {DISPLAY_UNITS[sensor][c]}"
-                          for c in ("B", "K") if values.get(c) is not None)
-        favoured = f"{name[ev['preferred']]} favoured (weight {ev['weight']:.2f}"
-        if ev.get("decisive"):
-            notes.append(f"B model: {favoured}, decisive); values from the {name[fitted]} fit; the {name[other]} fit: "
-                         f"{shown or '?'}")
+        shown = ", ".join(f"{c} {_g(in_unit(c, values[c], units[c], sensor))} {units[c]}"
+                          for c in ("B", "K") if values.get(c) is not None) or "?"
+        strength = "clearly" if ev.get("decisive") else "not clearly"
+        if preferred == fitted:
+            notes.append(f"bias instability: the record {strength} favours the {_BIAS_MODELS[fitted]} model these "
+                         f"values come from (weight {ev['weight']:.2f}); the {_BIAS_MODELS[other]} model gives {shown}")
         else:
-            notes.append(f"B model: {favoured}, not decisive); values from the {name[fitted]} fit, intervals "
-                         f"hold the {name[other]} fit's too ({shown or '?'})")
+            notes.append(f"bias instability: the record {strength} favours a {_BIAS_MODELS[preferred]} model (weight "
+                         f"{ev['weight']:.2f}) over the {_BIAS_MODELS[fitted]} model these values come from; the "
+                         f"{_BIAS_MODELS[preferred]} model gives {shown}" +
+                         ("" if ev.get("decisive") else "; the intervals hold both"))
+    for key, value in choice.items():  # every other choice the method made, as it reports it
+        if key not in _WORDED:
+            note = _choice_note(key, value)
+            if note is not None:
+                notes.append(note)
     return notes
 
 
-def payload(sources, timing, sensors, fits, extra=None) -> dict:
-    """The JSON object of ``avbench estimate``.
-
-    ``sensors``: list of :class:`~avbench.recordings.sensors.SensorRecord`; ``fits``:
-    ``{sensor: {axis: {method: MethodFit}}}``.
-    """
-    out = {"schema": SCHEMA, "sources": [str(s) for s in sources], "timing": _jsonable(timing.to_dict()),
+def payload(est: Estimate) -> dict:
+    """The JSON object of ``avbench estimate``: the record's facts and, per sensor, axis and method, each
+    coefficient as the fit's result gives it, in the units of :meth:`Estimate.units`."""
+    out = {"schema": SCHEMA, "sources": [str(s) for s in est.sources], "timing": _jsonable(est.timing.to_dict()),
            "sensors": {}}
-    for s in sensors:
+    for s in est.sensors:
+        units = est.units(s.sensor)
         axes = {}
         for axis, x in s.axes.items():
             axes[axis] = {"channel": s.names.get(axis, axis), "n_samples": int(x.size),
-                          "methods": {m: method_entry(f, s.sensor, x.size) for m, f in fits[s.sensor][axis].items()}}
+                          "methods": {m: _method_entry(f, s.sensor, x.size, units)
+                                      for m, f in est.fits[s.sensor][axis].items()}}
         out["sensors"][s.sensor] = {"units_in": s.unit_in, "si_unit": s.si_unit, "terms": TERM_NAMES[s.sensor],
                                     "axes": axes}
-    if extra:
-        out.update(_jsonable(extra))
+    if est.extra:
+        out.update(_jsonable(est.extra))
+    out["notes"] = est.notes
     return out
 
 
 def _g(v) -> str:
-    return f"{v:.3g}"
+    return "?" if v is None else f"{v:.3g}"
 
 
-def shown_interval(e: dict, coefficient: str, sensor: str) -> tuple[float, float] | None:
-    """The interval of one coefficient (``e``: a coefficient of the JSON payload, :func:`method_entry`)
-    in its display unit: ``[0, upper]`` where the record does not resolve it, the method's interval of
-    a value, None where there is none."""
-    iv = e.get("interval_si")
-    if iv is None or iv[0] is None or iv[1] is None:
+def shown_interval(e: Coefficient, unit: str, sensor: str) -> tuple[float, float] | None:
+    """The interval of one coefficient in ``unit``: ``[0, upper]`` where the record does not resolve it,
+    the method's interval of a value, None where there is none."""
+    if e.interval is None:
         return None
-    return (_num(from_si(coefficient, iv[0], e["unit"], sensor)), _num(from_si(coefficient, iv[1], e["unit"], sensor)))
+    lo, hi = (in_unit(e.name, v, unit, sensor) for v in e.interval)
+    return None if lo is None or hi is None else (lo, hi)
 
 
-def shown_value(e: dict, coefficient: str, sensor: str) -> str:
-    """One coefficient as a user should read it, in its display unit (``e``: a coefficient of the JSON
-    payload): ``value [low, high]`` with its interval; ``< upper`` where the record does not resolve it;
-    ``value (+- se)`` where the method gives only a standard error; the bare value with ``(no
-    interval)`` where it gives neither; ``-`` for a term the method does not model, and the status
-    itself for "non-physical" / "failed" (and "not resolved" without a bound)."""
-    flag = e["flag"]
-    if flag == "not modelled":
+def shown_value(e: Coefficient, unit: str, sensor: str) -> str:
+    """One coefficient as a user should read it, in ``unit``: ``value [low, high]`` with its interval;
+    ``< upper`` where the record does not resolve it; ``value (+- se)`` where the method gives only a
+    standard error; the bare value with ``(no interval)`` where it gives neither; ``-`` for a term
+    the method does not model, and the status itself for "non-physical" / "failed" (and "not
+    resolved" without a bound)."""
+    if e.status == "not modelled":
         return "-"
-    if flag in ("non-physical", "failed"):
-        return flag
-    iv = shown_interval(e, coefficient, sensor)
-    if flag == "not resolved":
+    if e.status in ("non-physical", "failed"):
+        return e.status
+    iv = shown_interval(e, unit, sensor)
+    if e.status == "not resolved":
         return f"< {_g(iv[1])}" if iv is not None else "not resolved"
-    v = e["value"]
+    v = in_unit(e.name, e.value, unit, sensor)
     if iv is not None:
         return f"{_g(v)} [{_g(iv[0])}, {_g(iv[1])}]"
-    se = e.get("std_err_si")
-    if se is not None:
-        return f"{_g(v)} (+- {_g(_num(from_si(coefficient, se, e['unit'], sensor)))})"
+    if math.isfinite(e.std_err):
+        return f"{_g(v)} (+- {_g(in_unit(e.name, e.std_err, unit, sensor))})"
     return f"{_g(v)} (no interval)"
 
 
-def _notes(md: dict, sensor: str) -> list[str]:
+def _notes(fit, sensor: str, n_samples: int, units: dict) -> list[str]:
     """Every note on one method's fit of one axis, in the order a reader needs them."""
+    r = fit.result
     notes = []
-    if md["failure"]:
-        notes.append(f"failed: {md['failure']}")
-    if md["poor_fit"]:
+    if r.failure:
+        notes.append(f"failed: {r.failure}")
+    if r.fit_check.poor_fit:
         notes.append("POOR FIT: the model misses the AV curve beyond its intervals")
-    for c in COEFFICIENTS:  # a bound is in its cell ("< x"); what a cell cannot say is here
-        if md["coefficients"][c]["flag"] == "non-physical":
+    for c, e in r.coefficients.items():  # a bound is in its cell ("< x"); what a cell cannot say is here
+        if e.status == "non-physical":
             notes.append(f"{c}: non-physical (the fit's value has no physical meaning)")
-    notes.extend(model_choice_notes(md, sensor))
-    if md["fitted_on"] != "whole record":
-        notes.append(f"fitted on the {md['fitted_on']}")
-    notes.extend(md.get("warnings") or [])
+    notes.extend(model_choice_notes(r.model_choice, sensor, units))
+    where = fitted_on(fit, n_samples)
+    if where != "whole record":
+        notes.append(f"fitted on the {where}")
+    notes.extend(warning_text(w) for w in r.warnings)
     return notes
 
 
-def tables(data: dict) -> dict[str, pd.DataFrame]:
+def warning_text(message: str) -> str:
+    """A warning a fit raised, as a footnote says it: without the Python class it was raised as
+    (``"IdentifiabilityWarning: B not resolved ..."`` -> ``"B not resolved ..."``)."""
+    return re.sub(r"^[A-Za-z]*Warning: ", "", message)
+
+
+def tables(est: Estimate) -> dict[str, pd.DataFrame]:
     """One long table per sensor (the CSV of ``avbench estimate``): rows (axis, method, coefficient),
-    columns the value, the interval and the status as the JSON gives them (display units), the unit,
+    columns the value, the interval and the status (in the units of :meth:`Estimate.units`), the unit,
     the fit's own number and the fit's verdicts."""
     out = {}
-    for sensor, sd in data["sensors"].items():
+    for sensor, axes in est.fits.items():
+        units = est.units(sensor)
         rows, index = [], []
-        for axis, ad in sd["axes"].items():
-            for method, md in ad["methods"].items():
+        for axis, per_method in axes.items():
+            for method, fit in per_method.items():
+                r = fit.result
                 for c in COEFFICIENTS:
-                    e = md["coefficients"][c]
-                    iv = shown_interval(e, c, sensor) or (None, None)
-                    fitted = e.get("fitted_si", e["si"])
-                    rows.append({"value": e["value"], "lower": iv[0], "upper": iv[1], "status": e["flag"],
-                                 "unit": e["unit"], "shown": shown_value(e, c, sensor),
-                                 "fitted": None if fitted is None else _num(from_si(c, fitted, e["unit"], sensor)),
-                                 "poor_fit": md["poor_fit"], "failure": md["failure"]})
+                    e = r.coefficients[c]
+                    iv = shown_interval(e, units[c], sensor) or (None, None)
+                    fitted = e.fitted if e.status == "not resolved" else e.value
+                    rows.append({"value": in_unit(c, e.value, units[c], sensor), "lower": iv[0], "upper": iv[1],
+                                 "status": e.status, "unit": units[c], "shown": shown_value(e, units[c], sensor),
+                                 "fitted": in_unit(c, fitted, units[c], sensor), "poor_fit": r.fit_check.poor_fit,
+                                 "failure": r.failure})
                     index.append((axis, method, c))
         out[sensor] = pd.DataFrame(rows, index=pd.MultiIndex.from_tuples(index, names=["axis", "method", "coefficient"]))
     return out
 
 
-def screen_tables(data: dict) -> dict[str, tuple[pd.DataFrame, list[str]]]:
+def screen_tables(est: Estimate) -> dict[str, tuple[pd.DataFrame, list[str]]]:
     """Per sensor, the table :func:`screen` prints -- rows (axis, method), a column per coefficient some
     method models (:func:`shown_value`, the unit in the column name) and ``notes``, the numbers of the
     footnotes of that row -- and the footnotes in order (each text once, whichever rows it applies to):
     a failure, a poor fit, a non-physical value, the model choices, a fit on the longest gap-free run
     only, and the warnings. Bounds are in their cells ("< x")."""
     out = {}
-    for sensor, sd in data["sensors"].items():
-        modelled = [c for c in COEFFICIENTS if any(md["coefficients"][c]["flag"] != "not modelled"
-                                                   for ad in sd["axes"].values() for md in ad["methods"].values())]
+    for sensor, axes in est.fits.items():
+        units = est.units(sensor)
+        n_samples = {a: int(np.asarray(x).size) for a, x in est.record(sensor).axes.items()}
+        modelled = [c for c in COEFFICIENTS if any(f.result.coefficients[c].status != "not modelled"
+                                                   for per in axes.values() for f in per.values())]
         rows, index, footnotes = [], [], []
-        for axis, ad in sd["axes"].items():
-            for method, md in ad["methods"].items():
-                row = {}
-                for c in modelled:
-                    e = md["coefficients"][c]
-                    row[f"{c} ({e['unit']})"] = shown_value(e, c, sensor)
+        for axis, per_method in axes.items():
+            for method, fit in per_method.items():
+                row = {f"{c} ({units[c]})": shown_value(fit.result.coefficients[c], units[c], sensor) for c in modelled}
                 marks = []
-                for note in _notes(md, sensor):  # a note shared by several rows is printed once
+                for note in _notes(fit, sensor, n_samples[axis], units):  # a note shared by several rows is printed once
                     if note not in footnotes:
                         footnotes.append(note)
                     marks.append(str(footnotes.index(note) + 1))
@@ -296,18 +419,26 @@ def wrap(text: str, indent: str = "") -> list[str]:
                          break_on_hyphens=False) or [""]
 
 
-def screen(data: dict) -> str:
+def level_text(est: Estimate) -> str:
+    """The interval level of the fits, in per cent ("95"; "90/95" where methods differ)."""
+    levels = sorted({r.level for per in est.fits.values() for axis in per.values() for r in
+                     (f.result for f in axis.values())}) or [0.95]
+    return "/".join(f"{100 * v:g}" for v in levels)
+
+
+def screen(est: Estimate) -> str:
     """The coefficient tables of ``avbench estimate`` as printed: per sensor a header, the table
     (:func:`screen_tables`, columns wrapped into blocks so that no line exceeds :data:`SCREEN_WIDTH`)
     and its numbered footnotes, wrapped at words."""
-    lines = wrap("# each coefficient: value [95 % interval]; '< x': not resolved by this record, x its upper "
-                  "95 % bound; '(+- s)': a standard error only; '-': not in the method's model; notes: the "
-                  "footnotes below each table", "# ")
-    for sensor, (table, footnotes) in screen_tables(data).items():
-        sd = data["sensors"][sensor]
+    level = level_text(est)
+    lines = wrap(f"# each coefficient: value [{level} % interval]; '< x': not resolved by this record, x its upper "
+                 f"{level} % bound; '(+- s)': a standard error only; '-': not in the method's model; notes: the "
+                 "footnotes below each table", "# ")
+    for sensor, (table, footnotes) in screen_tables(est).items():
+        s = est.record(sensor)
         lines.append("")
-        lines += wrap(f"## {sensor} (samples in {sd['units_in']}): "
-                       + ", ".join(f"{c} = {n}" for c, n in sd["terms"].items()), "#  ")
+        lines += wrap(f"## {sensor} (samples in {s.unit_in}): "
+                      + ", ".join(f"{c} = {n}" for c, n in TERM_NAMES[sensor].items()), "#  ")
         lines += table.to_string(line_width=SCREEN_WIDTH).splitlines()
         for k, note in enumerate(footnotes, 1):
             lines += wrap(f"[{k}] {note}", " " * (len(str(k)) + 3))

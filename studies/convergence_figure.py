@@ -68,11 +68,12 @@ def convergence_figure(preset, terms, x0, out, *, n_samples=None, seed=0, filter
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", IdentifiabilityWarning)
             est.fit(rate, g.dt)
-        tr = est.result().trajectory
+        result = est.result()
+        tr = result.trajectory
         tr = tr[tr.index > 0]
         for ax, c in zip(axes[:, 0], terms):
             unit = PAPER_UNITS[c] if c != "Q" else "arcsec"
-            final = from_si(c, est.coefficients_[c], unit)
+            final = from_si(c, result.coefficients[c].fitted, unit)
             y = from_si(c, tr[c].to_numpy(), unit)
             late[c].append(y[tr.index >= n // 2])
             ax.plot(tr.index, y, lw=1, label=f"{name} (end {final:.4g})", **{**series_style(i), "linestyle": "-"})

@@ -219,7 +219,7 @@ def slice_coverage(data: Path, methods, whole: pd.DataFrame, minutes=COVERAGE_SL
     own (share ~ P(|Z| < 1.96 / sqrt(1 - minutes / run length)) = 0.97 for 30 of 167 minutes).
     """
     from avbench.noise_models.units import DISPLAY_UNITS, from_si
-    from avbench.recordings.report import method_entry, shown_interval
+    from avbench.recordings.report import shown_interval
 
     ref = whole.set_index(["record", "sensor", "axis", "method", "coefficient"])
     rows = []
@@ -227,17 +227,16 @@ def slice_coverage(data: Path, methods, whole: pd.DataFrame, minutes=COVERAGE_SL
                                                             sensors=sensors):
         for name, fit in fits.items():
             c = fit.coefficients()
-            entry = method_entry(fit, sensor, n)["coefficients"]
             for coef in COVERAGE_COEFFICIENTS:
                 unit = DISPLAY_UNITS[sensor][coef]
-                lower, upper = shown_interval(entry[coef], coef, sensor) or (math.nan, math.nan)
+                lower, upper = shown_interval(fit.result.coefficients[coef], unit, sensor) or (math.nan, math.nan)
                 key = (rec, sensor, axis, name, coef)
                 w = float(ref.loc[key, "value"]) if key in ref.index and ref.loc[key, "flag"] == "ok" else math.nan
                 holds = bool(lower <= w <= upper) if np.isfinite([lower, upper, w]).all() else None
                 rows.append({"record": rec, "axis": axis, "start_min": first_minute + k * minutes,
                              "method": name, "coefficient": coef, "unit": unit,
                              "value": _round(from_si(coef, c[coef], unit, sensor)), "lower": _round(lower),
-                             "upper": _round(upper), "whole": _round(w), "flag": entry[coef]["flag"], "holds": holds,
+                             "upper": _round(upper), "whole": _round(w), "flag": fit.result.coefficients[coef].status, "holds": holds,
                              "poor_fit": bool(fit.result.fit_check.poor_fit) or fit.error is not None,
                              "sensor": sensor})
             print(f"{rec} {sensor} {axis} {first_minute + k * minutes} min {name}: "

@@ -34,6 +34,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.allan.variance import memoize_allan
+from avbench.estimators.results import FitResult
 from avbench.studies.config import StudyConfig
 from avbench.studies.seeding import replicate_rng
 
@@ -143,7 +144,7 @@ class _Fit:
     ``intervals``: False where its intervals could not be computed (its bootstrap or ``conf_int`` raised)."""
 
     modelled: list
-    result: object
+    result: FitResult
     seconds: float
     intervals: bool = True
 

@@ -47,16 +47,13 @@ _ND_KEYS = ("gyroscope_noise_density", "accelerometer_noise_density")
 NOISE_DENSITY_TOLERANCE = 0.25
 
 
-def _payload_and_avs(sensors, dt, starts, method):
-    from avbench.recordings import report
+def _results_and_avs(sensors, dt, starts, method):
     from avbench.recordings.fit import fit_axis, scaled_allan
-    from avbench.recordings.timing import Timing
 
-    fits = {s.sensor: {a: fit_axis(x, dt, starts, [method]) for a, x in s.axes.items()} for s in sensors}
-    n = next(iter(sensors[0].axes.values())).size
-    data = report.payload(["slice"], Timing(dt, "--fs", n), sensors, fits)
+    results = {s.sensor: {a: {m: f.result for m, f in fit_axis(x, dt, starts, [method]).items()}
+                          for a, x in s.axes.items()} for s in sensors}
     avs = {s.sensor: {a: scaled_allan(x, dt, starts) for a, x in s.axes.items()} for s in sensors}
-    return data, avs
+    return results, avs
 
 
 def yaml_rows(data_root: Path, minutes: float = MINUTES, method: str = METHOD, runs=RUNS,
@@ -77,11 +74,11 @@ def yaml_rows(data_root: Path, minutes: float = MINUTES, method: str = METHOD, r
         sensors = to_si(read_recording(p), "deg/s", "g")
         dt = 0.01
         starts = np.zeros(0, dtype=np.int64)
-        full, full_avs = _payload_and_avs(sensors, dt, starts, method)
+        full, full_avs = _results_and_avs(sensors, dt, starts, method)
         full_max = {}
         for key, (sensor, coef) in _KEYS.items():
-            vals = [ad["methods"][method]["coefficients"][coef]["si"] for ad in full["sensors"][sensor]["axes"].values()]
-            vals = [v for v in vals if v is not None]
+            vals = [per[method].coefficients[coef].value for per in full[sensor].values()]
+            vals = [v for v in vals if math.isfinite(v)]
             full_max[key] = max(vals) if vals else math.nan
         n = next(iter(sensors[0].axes.values())).size
         full_choices = filter_choices(full, method, "--kalibr", full_avs)
@@ -92,21 +89,19 @@ def yaml_rows(data_root: Path, minutes: float = MINUTES, method: str = METHOD, r
         for k in range(k_slices):
             part = [SensorRecord(s.sensor, s.unit_in, {a: x[k * w:(k + 1) * w] for a, x in s.axes.items()}, s.names)
                     for s in sensors]
-            data, avs = _payload_and_avs(part, dt, starts, method)
+            data, avs = _results_and_avs(part, dt, starts, method)
             choices = filter_choices(data, method, "--kalibr", avs)
             rows += _rows(Path(rel).stem, k, minutes, data, choices, method, full_max, full_choices)
     return pd.DataFrame(rows)
 
 
 def _rows(run, k, minutes, data, choices, method, full_max, full_choices) -> list[dict]:
-    """The rows of one yaml (``choices``: :func:`~avbench.recordings.filter_yaml.filter_choices` of the payload
-    ``data``) against the full run's (``full_max``, ``full_choices``)."""
+    """The rows of one yaml (``choices``: :func:`~avbench.recordings.filter_yaml.filter_choices` of the fits
+    ``data``, ``{sensor: {axis: {method: FitResult}}}``) against the full run's (``full_max``, ``full_choices``)."""
     out = []
     for key, (sensor, coef) in _KEYS.items():
         v, axis, why = choices[key]
-        e = data["sensors"][sensor]["axes"][axis]["methods"][method]["coefficients"][coef]
-        ci = e.get("interval_si")
-        upper = v if why else (ci[1] if ci and ci[1] is not None else v)
+        upper = v if why else (data[sensor][axis][method].coefficients[coef].upper or v)
         out.append({"run": run, "slice": k, "minutes": minutes, "key": key, "axis": axis,
                     "yaml_si": v, "bound": bool(why), "why": why or "", "stated_upper_si": upper,
                     "full_run_max_si": full_max[key], "full_yaml_si": full_choices[key][0]})

@@ -24,3 +24,22 @@ def test_residual_panels_show_each_methods_z():
     top, bottom = fig.axes[0], fig.axes[1]
     assert top.get_yscale() == "log" and bottom.get_ylabel() == "fit check z"
     assert len(bottom.lines) >= 1 and np.allclose(bottom.lines[0].get_ydata(), z)
+
+
+def test_a_model_curve_is_drawn_only_over_the_scales_its_method_fitted():
+    """GMWM told to start at the 8th sample (``min_m=8``): its curve starts at 8 dt, the AV's points at dt;
+    a method without that choice (wls) is drawn from the first tau; every text at TEXT_PT points or more."""
+    from matplotlib.text import Text
+
+    dt = 0.01
+    x = Gyro(dt=dt, terms=[AngleRandomWalk(N=1e-4), RateRandomWalk(K=2e-6)]).simulate(40_000, np.random.default_rng(1))
+    starts = np.empty(0, dtype=np.int64)
+    fits = fit_axis(x, dt, starts, ["gmwm", "wls"], {"gmwm": {"min_m": 8}})
+    assert fits["gmwm"].result.model_choice["min_m"] == 8
+    rec = SensorRecord("gyro", "rad/s", {"x": x}, {"x": "x"})
+    fig = figure.figure(rec, {"x": fits}, {"x": scaled_allan(x, dt, starts)}, dt, "t", {"x": {}})
+    curves = {line.get_label(): line.get_xdata() for line in fig.axes[0].lines}
+    assert np.isclose(curves["gmwm"].min(), 8 * dt) and np.isclose(curves["wls"].min(), dt)
+    fig.canvas.draw()
+    sizes = [t.get_fontsize() for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
+    assert min(sizes) >= figure.TEXT_PT

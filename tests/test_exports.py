@@ -12,7 +12,6 @@ and inflation.
 
 from __future__ import annotations
 
-import copy
 import functools
 import json
 import math
@@ -53,7 +52,8 @@ TRUTH = {"gyro": {"x": (1e-3, 1e-5, 1e-5), "y": (2e-3, 1e-5, 0.0), "z": (1.5e-3,
 # -- the payload ------------------------------------------------------------------------------------------
 @functools.lru_cache(maxsize=None)
 def _payload(method: str = "gmwm", axes: tuple = AXES):
-    """(JSON payload, AVs) of a simulated 6-axis record fitted by ``method`` (as test_one_result builds it)."""
+    """(fits ``{sensor: {axis: {method: FitResult}}}``, AVs) of a simulated 6-axis record fitted by ``method``
+    (as test_one_result builds it)."""
     rng = np.random.default_rng(20240611)
     dt = 1.0 / RATE
     sensors = []
@@ -70,37 +70,22 @@ def _payload(method: str = "gmwm", axes: tuple = AXES):
         warnings.simplefilter("ignore")
         with np.errstate(all="ignore"):
             fits = {s.sensor: {a: fit_axis(x, dt, starts, [method]) for a, x in s.axes.items()} for s in sensors}
-    data = report.payload(["sim.npz"], Timing(dt, "--fs", N_RECORD), sensors, fits)
+    data = report.Estimate(["sim.npz"], Timing(dt, "--fs", N_RECORD), sensors, fits).results()
     avs = {s.sensor: {a: scaled_allan(x, dt, starts) for a, x in s.axes.items()} for s in sensors}
     return data, avs
 
 
 def _scaled(data: dict, u: float) -> dict:
-    """The payload of the same record in a unit u times smaller: every SI quantity x u."""
-    out = copy.deepcopy(data)
-    for sd in out["sensors"].values():
-        for ad in sd["axes"].values():
-            for md in ad["methods"].values():
-                for e in md["coefficients"].values():
-                    for k in ("si", "std_err_si", "fitted_si"):
-                        if e.get(k) is not None:
-                            e[k] *= u
-                    for k in ("interval_si", "fitted_interval_si"):
-                        if e.get(k) is not None:
-                            e[k] = [None if v is None else v * u for v in e[k]]
-    return out
+    """The fits of the same record in a unit u times smaller: every SI quantity x u."""
+    return {s: {a: {m: r.rescaled(1.0 / u) for m, r in per.items()} for a, per in axes.items()}
+            for s, axes in data.items()}
 
 
 # -- the rule, restated from the docs (filter_yaml's module docstring), and the conversions ---------------
-def _rule(e: dict, md: dict):
-    """An axis's value: the estimate where resolved (interval above zero, fit not poor), else the upper
-    end of its interval."""
-    iv = e.get("interval_si")
-    if e["flag"] == "ok" and not (iv is not None and iv[0] <= 0) and not md.get("poor_fit"):
-        return e["si"]
-    if e["flag"] in ("ok", "not resolved") and iv is not None:
-        return iv[1]
-    return None
+def _rule(r, c: str):
+    """An axis's value (``r``: its FitResult): the estimate where resolved, else the upper end of its
+    interval -- the coefficient's one rule, :meth:`~avbench.estimators.results.Coefficient.estimate_or_bound`."""
+    return r.coefficients[c].estimate_or_bound(r.fit_check.poor_fit)[0]
 
 
 def _reference(data: dict, method: str, inflate=(1.0, 1.0)):
@@ -108,11 +93,10 @@ def _reference(data: dict, method: str, inflate=(1.0, 1.0)):
     inflated, B as it is."""
     per_axis = {}
     for sensor in SENSORS:
-        for axis, ad in data["sensors"][sensor]["axes"].items():
-            md = ad["methods"][method]
+        for axis, per_method in data[sensor].items():
             for c in ("N", "K", "B"):
                 f = {"N": inflate[0], "K": inflate[1], "B": 1.0}[c]
-                per_axis.setdefault((sensor, c), {})[axis] = _rule(md["coefficients"][c], md) * f
+                per_axis.setdefault((sensor, c), {})[axis] = _rule(per_method[method], c) * f
     largest = {sc: max(v.values()) for sc, v in per_axis.items()}
     return per_axis, largest
 
@@ -302,10 +286,10 @@ def test_a_per_axis_format_needs_three_axes(name):
         render(data, name, "gmwm", RATE)
 
 
-def test_the_defaults_come_from_the_payload():
+def test_the_default_method_is_the_first_fitted():
     data, avs = _payload()
-    a = render(data, "orbslam3", None, None, avs=avs)["orbslam3"][1]
-    b = render(data, "orbslam3", "gmwm", RATE, sources=["sim.npz"], avs=avs)["orbslam3"][1]
+    a = render(data, "orbslam3", None, RATE, avs=avs)["orbslam3"][1]
+    b = render(data, "orbslam3", "gmwm", RATE, avs=avs)["orbslam3"][1]
     assert a == b
 
 
@@ -515,20 +499,14 @@ def test_ros_covariance_is_the_simulated_per_sample_variance():
 # -- bounds and notes -------------------------------------------------------------------------------------
 def _bound_axes(data, method, sensor, coef):
     """The axes whose value is a bound (not a resolved estimate), by the rule of the docs."""
-    out = []
-    for a, ad in data["sensors"][sensor]["axes"].items():
-        md = ad["methods"][method]
-        e = md["coefficients"][coef]
-        iv = e.get("interval_si")
-        if not (e["flag"] == "ok" and not (iv is not None and iv[0] <= 0) and not md.get("poor_fit")):
-            out.append(a)
-    return out
+    return [a for a, per in data[sensor].items()
+            if per[method].coefficients[coef].estimate_or_bound(per[method].fit_check.poor_fit)[1] is not None]
 
 
 @pytest.mark.parametrize("name", list(FORMATS))
 def test_every_bound_is_said(name):
     data, avs = _payload()
-    text = render(data, name, "gmwm", RATE, avs=avs)[name][1]
+    text = render(data, name, "gmwm", RATE, sources=["sim.npz"], avs=avs)[name][1]
     per_axis, largest = _reference(data, "gmwm")
     said = re.findall(r"a BOUND, not an estimate -- axis (\w)", text)
     per_axis_format = FORMATS[name].per_axis

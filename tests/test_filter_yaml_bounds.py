@@ -13,26 +13,26 @@ from avbench.estimators.allan.variance import allan_variance
 from avbench.recordings import filter_yaml
 
 
-def _entry(si, flag="ok", ci=None, reason="record"):
-    """A coefficient of the JSON payload (recordings.report.method_entry): an estimate of 0 is "not
-    resolved" (reason "zero"), as FitResult says."""
-    from avbench.estimators.results import REASONS
+def _entry(si, flag="ok", ci=None, reason="record", name="K"):
+    """A coefficient as a fit gives it (:class:`avbench.estimators.results.Coefficient`): an estimate of 0
+    is "not resolved" (reason "zero"), as FitResult says."""
+    from avbench.estimators.results import Coefficient
 
     if si == 0.0 and flag == "ok":
         flag, reason = "not resolved", "zero"
-    e = {"si": si if flag == "ok" else None, "flag": flag, "unit": "rad/s^1.5", "value": si if flag == "ok" else None}
-    if ci is not None:
-        e["interval_si"] = list(ci)
-    if flag == "not resolved":
-        e["reason"] = REASONS[reason]
-    return e
+    ok = flag == "ok"
+    return Coefficient(name=name, status=flag, value=si if ok else np.nan, fitted=np.nan if si is None else si,
+                       interval=None if ci is None else tuple(ci), reason=None if ok else reason)
 
 
 def _payload(gyro_k: dict, poor=False):
-    def axis(k):
-        return {"methods": {"m": {"coefficients": {"N": _entry(1e-3, ci=(0.9e-3, 1.1e-3)), "K": k}, "poor_fit": poor}}}
-    accel = {"x": axis(_entry(1e-4, ci=(0.5e-4, 2e-4)))}
-    return {"sensors": {"gyro": {"axes": {a: axis(k) for a, k in gyro_k.items()}}, "accel": {"axes": accel}}}
+    """``{sensor: {axis: {"m": FitResult}}}`` with these random walks K of the gyro's axes."""
+    from avbench.estimators.results import FitCheck, FitResult
+
+    def axis(k, n=None):
+        n = n or _entry(1e-3, ci=(0.9e-3, 1.1e-3), name="N")
+        return {"m": FitResult(method="m", coefficients={"N": n, "K": k}, fit_check=FitCheck(poor))}
+    return {"gyro": {a: axis(k) for a, k in gyro_k.items()}, "accel": {"x": axis(_entry(1e-4, ci=(0.5e-4, 2e-4)))}}
 
 
 def test_resolved_values_are_kept_and_unresolved_ones_become_their_upper_bound():
@@ -58,7 +58,7 @@ def test_an_interval_reaching_zero_or_a_poor_fit_gives_the_upper_end():
     assert ch["gyroscope_noise_density"] == (1e-3, "x", None)
     assert ch["accelerometer_noise_density"] == (1e-3, "x", None)
     zero_n = _payload({"x": _entry(2e-5, ci=(1e-5, 3e-5))})
-    zero_n["sensors"]["gyro"]["axes"]["x"]["methods"]["m"]["coefficients"]["N"] = _entry(1e-3, ci=(0.0, 2e-3))
+    zero_n["gyro"]["x"]["m"].coefficients["N"] = _entry(1e-3, ci=(0.0, 2e-3), name="N")
     v, _, why = filter_yaml.filter_choices(zero_n, "m")["gyroscope_noise_density"]
     assert v == 2e-3 and "reaches zero" in why
 
@@ -136,18 +136,19 @@ def test_noise_densities_are_estimates_within_a_quarter_of_the_full_runs(minutes
 
 # -- the printed table ------------------------------------------------------------------------------
 def test_shown_value_by_flag():
+    from avbench.estimators.results import Coefficient
     from avbench.recordings.report import shown_value
 
-    e = {"unit": "deg/h", "flag": "ok", "value": 2.0, "si": 2.0 * np.pi / 180 / 3600,
-         "interval_si": [1.0 * np.pi / 180 / 3600, 3.0 * np.pi / 180 / 3600]}
-    assert shown_value(e, "B", "gyro") == "2 [1, 3]"
-    assert shown_value({**e, "flag": "not resolved", "value": None, "interval_si": [0.0, 4.0 * np.pi / 180 / 3600]},
-                       "B", "gyro") == "< 4"
-    assert shown_value({**e, "flag": "not resolved", "value": None, "interval_si": None}, "B", "gyro") == "not resolved"
-    assert shown_value({k: v for k, v in e.items() if k != "interval_si"} | {"std_err_si": 0.5 * np.pi / 180 / 3600},
-                       "B", "gyro") == "2 (+- 0.5)"
-    assert shown_value({**e, "flag": "not modelled", "value": None}, "B", "gyro") == "-"
-    assert shown_value({k: v for k, v in e.items() if k != "interval_si"}, "B", "gyro") == "2 (no interval)"
+    h = np.pi / 180 / 3600  # 1 deg/h in rad/s
+    e = Coefficient("B", "ok", value=2.0 * h, interval=(1.0 * h, 3.0 * h))
+    assert shown_value(e, "deg/h", "gyro") == "2 [1, 3]"
+    assert shown_value(Coefficient("B", "not resolved", interval=(0.0, 4.0 * h), reason="record"), "deg/h",
+                       "gyro") == "< 4"
+    assert shown_value(Coefficient("B", "not resolved", reason="record"), "deg/h", "gyro") == "not resolved"
+    assert shown_value(Coefficient("B", "ok", value=2.0 * h, std_err=0.5 * h), "deg/h", "gyro") == "2 (+- 0.5)"
+    assert shown_value(Coefficient("B", "not modelled"), "deg/h", "gyro") == "-"
+    assert shown_value(Coefficient("B", "ok", value=2.0 * h), "deg/h", "gyro") == "2 (no interval)"
+    assert shown_value(e, "rad/s", "gyro") == f"{2.0 * h:.3g} [{1.0 * h:.3g}, {3.0 * h:.3g}]"
 
 
 def test_a_poor_fit_takes_the_larger_of_its_interval_and_the_av_bound():

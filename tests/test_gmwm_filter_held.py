@@ -67,5 +67,5 @@ def test_hansen_j_with_the_true_tf_held_has_its_degrees_of_freedom():
 def test_screen_note_says_the_filter_was_given():
     from avbench.recordings.report import model_choice_notes
 
-    notes = model_choice_notes({"model_choice": {"filter_held": {"tf": 0.005}}}, "gyro")
-    assert "sensor filter held at tf = 5 ms (filter_tf, not fitted)" in notes
+    notes = model_choice_notes({"filter_held": {"tf": 0.005}}, "gyro")
+    assert "sensor filter held at tf = 5 ms (the filter_tf setting, not fitted)" in notes

@@ -2,7 +2,7 @@
 (:mod:`avbench.studies.html`).
 
 Read as HTML (:mod:`html.parser`): every cell of a recording's coefficient table is the screen's cell
-of the payload entry it names, and its numbers are the JSON's; every table of a study's page is its
+of the fit it names, and its numbers are the fit's; every table of a study's page is its
 markdown file's and the numbers of ``table.md`` are those of ``table.csv``; every text from the data is
 escaped; nothing refers to the network.
 
@@ -141,13 +141,11 @@ def recording():
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, RateRandomWalk
     from avbench.recordings import figure, report
     from avbench.recordings.estimate import fit_sensors
     from avbench.recordings.fit import scaled_allan
-    from avbench.recordings.html import png_bytes
     from avbench.recordings.sensors import SensorRecord
     from avbench.recordings.static import static_check
     from avbench.recordings.timing import Timing
@@ -168,16 +166,13 @@ def recording():
             fits = fit_sensors(sensors, timing, ["wls", "gmwm", "whittle_debiased"])
     extra = {"format": "text", "topic": None, "time_source": "column 't' (s)", "notes": ["a note <b>with markup</b>"],
              "static_check": static_check(sensors, dt, avs)}
-    data = report.payload([NASTY_FILE], timing, sensors, fits, extra)
-    data = json.loads(json.dumps(data))  # the payload as the JSON file holds it
+    est = report.Estimate([NASTY_FILE], timing, sensors, fits, extra)
     gyro = sensors[0]  # the gyro's figure only (drawing is the slow part); the accelerometer has none
-    flags = {ax: {m: data["sensors"]["gyro"]["axes"][ax]["methods"][m]["poor_fit"] for m in fits["gyro"][ax]}
-             for ax in gyro.axes}
-    fig = figure.figure(gyro, fits["gyro"], avs["gyro"], dt, NASTY_FILE, flags)
-    figures = {"gyro": png_bytes(fig)}
-    plt.close(fig)
+    flags = {ax: {m: f.result.fit_check.poor_fit for m, f in fits["gyro"][ax].items()} for ax in gyro.axes}
+    figures = {"gyro": {ax: figure.figure(gyro, fits["gyro"], avs["gyro"], dt, NASTY_FILE, flags, axes=[ax])
+                        for ax in gyro.axes}}  # one figure per axis, as avbench estimate --html draws them
     exports = {"kalibr": NASTY_EXPORT, "openvins": ("kalibr_imu_chain.yaml", "imu0:\n  update_rate: 100.0\n")}
-    return data, figures, exports
+    return est, figures, exports
 
 
 @pytest.fixture(scope="module")
@@ -185,7 +180,12 @@ def recording_html(recording):
     from avbench.recordings.html import recording_page
 
     data, figures, exports = recording
-    return recording_page(data, figures, exports, title=NASTY_TITLE)
+    import matplotlib.pyplot as plt
+
+    page = recording_page(data, figures, exports, title=NASTY_TITLE)
+    for f in figures["gyro"].values():
+        plt.close(f)
+    return page
 
 
 @pytest.fixture(scope="module")
@@ -207,49 +207,49 @@ def _first_numbers(text: str) -> list[float]:
     return [float(x) for x in re.findall(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?", text)]
 
 
-def test_every_coefficient_cell_is_the_jsons(recording, recording_html):
+def test_every_coefficient_cell_is_the_fits(recording, recording_html):
     from avbench.noise_models.units import from_si
-    from avbench.recordings.report import screen_tables, shown_interval, shown_value
+    from avbench.recordings.report import screen_tables, shown_value
 
-    data = recording[0]
+    est = recording[0]
     page = Page(recording_html)
     cells = dict(page.coef)
     assert len(cells) == len(page.coef)  # one cell per (sensor, axis, method, coefficient)
     expected = {}
-    for sensor, sd in data["sensors"].items():
-        modelled = [c for c in COEFFICIENTS if any(md["coefficients"][c]["flag"] != "not modelled"
-                                                   for ad in sd["axes"].values() for md in ad["methods"].values())]
-        for axis, ad in sd["axes"].items():
-            for method, md in ad["methods"].items():
+    for sensor, axes in est.fits.items():
+        modelled = [c for c in COEFFICIENTS if any(f.result.coefficients[c].status != "not modelled"
+                                                   for per in axes.values() for f in per.values())]
+        for axis, per in axes.items():
+            for method, fit in per.items():
                 for c in modelled:
-                    expected[(sensor, axis, method, c)] = md["coefficients"][c]
+                    expected[(sensor, axis, method, c)] = fit.result.coefficients[c]
     assert set(cells) == set(expected)
     n_values = 0
     for key, e in expected.items():
         sensor, _, _, c = key
-        assert cells[key] == shown_value(e, c, sensor), key
-        # and the numbers themselves, read back from the cell, are the JSON's at the digits shown
-        if e["flag"] == "ok":
+        unit = est.units(sensor)[c]
+        assert cells[key] == shown_value(e, unit, sensor), key
+        # and the numbers themselves, read back from the cell, are the fit's at the digits shown
+        if e.status == "ok":
             nums = _first_numbers(cells[key])
-            assert math.isclose(nums[0], float(f"{e['value']:.3g}"), rel_tol=1e-12), key
-            iv = shown_interval(e, c, sensor)
-            if iv is not None:
+            assert math.isclose(nums[0], float(f"{from_si(c, e.value, unit, sensor):.3g}"), rel_tol=1e-12), key
+            if e.interval is not None:
+                iv = [from_si(c, v, unit, sensor) for v in e.interval]
                 assert np.allclose(nums[1:3], [float(f"{v:.3g}") for v in iv], rtol=1e-12, atol=0), key
-                assert math.isclose(iv[1], from_si(c, e["interval_si"][1], e["unit"], sensor), rel_tol=1e-12)
             n_values += 1
-        elif e["flag"] == "not resolved" and e.get("interval_si"):
-            bound = from_si(c, e["interval_si"][1], e["unit"], sensor)
+        elif e.status == "not resolved" and e.interval is not None:
+            bound = from_si(c, e.interval[1], unit, sensor)
             assert math.isclose(_first_numbers(cells[key])[0], float(f"{bound:.3g}"), rel_tol=1e-12), key
     assert n_values > 10
     # the footnotes are the screen's, in its order
-    assert page.notes == [n for _, (_, notes) in screen_tables(data).items() for n in notes]
+    assert page.notes == [n for _, (_, notes) in screen_tables(est).items() for n in notes]
 
 
 def test_the_page_shows_the_record_the_static_check_and_the_figures(recording, recording_html):
-    data, figures, _ = recording
+    est, figures, _ = recording
     page = Page(recording_html)
     text = page.all_text
-    assert f"{data['timing']['n_samples']}" in text and "1 (0.5 s missing)" in text
+    assert f"{est.timing.n_samples}" in text and "1 (0.5 s missing)" in text
     assert "static" in text and "gyro x" in text and "accel magnitude" in text
     assert "Fit check" in text and ("POOR FIT" in text or "fits" in text)
     assert "a note <b>with markup</b>" in text  # the reader's notes, as text
@@ -257,8 +257,11 @@ def test_the_page_shows_the_record_the_static_check_and_the_figures(recording, r
     evidence = [t for t in tables if t and t[0][-1] == "evidence (likelihood ratio test)"]
     assert evidence and any(r[3] == "not resolved" for t in evidence for r in t[1:])
     assert any(r[-1].startswith("present, p") for t in evidence for r in t[1:])  # whittle_debiased tests each term
-    srcs = [a["src"] for t, a in page.elements if t == "img"]
-    assert [base64.b64decode(s.split(",", 1)[1]) for s in srcs] == list(figures.values())
+    imgs = [a for t, a in page.elements if t == "img"]
+    assert len(imgs) == len(figures["gyro"])  # one per axis, each a PNG shown at its 110 dpi width
+    for a in imgs:
+        png = base64.b64decode(a["src"].split(",", 1)[1])
+        assert png[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(png[16:20], "big") > int(a["width"]) > 500
     for name, (filename, body) in recording[2].items():
         assert filename in text and body in text  # each export under its file name, verbatim
 
@@ -291,10 +294,10 @@ def test_the_stack_exports_show_as_copy_blocks(recording):
     exports = pytest.importorskip("avbench.recordings.exports")
     from avbench.recordings.html import recording_page
 
-    data, figures, _ = recording
-    rendered = exports.render(data, "kalibr,vins", "gmwm", None)
+    est, figures, _ = recording
+    rendered = exports.render(est.results(), "kalibr,vins", "gmwm", est.timing.fs)
     files = {name: ("imu" + suffix, text) for name, (suffix, text) in rendered.items()}
-    page = Page(recording_page(data, figures, files))
+    page = Page(recording_page(est, figures, files))
     pres = {a["id"]: a for t, a in page.elements if t == "pre"}
     buttons = [a["data-target"] for t, a in page.elements if t == "button"]
     assert sorted(buttons) == sorted(pres) and len(buttons) == 2
@@ -307,16 +310,19 @@ def test_several_recordings_and_the_filter_yaml(recording):
     display units, the yaml's values and its text (shown once when an export holds the same text)."""
     from avbench.recordings.html import recording_page
 
-    data = dict(recording[0])
-    data["combine"] = {"gyro": {"x": {"p_value": 0.31, "agree": True, "n_taus": 6, "worst_tau_s": 2.0, "note": "chi^2"},
+    import dataclasses
+
+    extra = dict(recording[0].extra)
+    extra["combine"] = {"gyro": {"x": {"p_value": 0.31, "agree": True, "n_taus": 6, "worst_tau_s": 2.0, "note": "chi^2"},
                                 "y": {"p_value": None, "agree": None, "n_taus": 0, "worst_tau_s": None, "note": "few"}}}
     n_si = np.deg2rad(0.1) / 60  # 0.1 deg/sqrt(h) in rad/sqrt(s)
-    data["between_runs"] = {"method": "gmwm", "inflate": {"gyroscope_noise_density": 1.25}, "sensors": {"gyro": {"x": {
+    extra["between_runs"] = {"method": "gmwm", "inflate": {"gyroscope_noise_density": 1.25}, "sensors": {"gyro": {"x": {
         "N": {"k": 3, "mean": n_si, "mean_se": 0.01 * n_si, "tau": 0.05 * n_si, "tau_ci": [0.0, 0.2 * n_si],
               "cv": 0.05, "prediction": [0.8 * n_si, 1.2 * n_si]}}}}}
     yaml = "gyroscope_noise_density: 2.9e-05  # <unit>\n"
-    data["filter_yaml"] = {"method": "gmwm", "inflate": [1.0, 1.0], "values_si": {"gyroscope_noise_density": 2.9e-5},
+    extra["filter_yaml"] = {"method": "gmwm", "inflate": [1.0, 1.0], "values_si": {"gyroscope_noise_density": 2.9e-5},
                            "bounds": {}, "text": yaml}
+    data = dataclasses.replace(recording[0], extra=extra)
     page = Page(recording_page(data, {}))
     text = page.all_text
     assert "agree" in text and "not testable" in text and "gyroscope_noise_density x 1.25" in text
@@ -338,8 +344,8 @@ def test_a_minimal_payload_renders():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         fits = {"gyro": {"x": fit_axis(x, 0.01, np.zeros(0, dtype=np.int64), ["wls"])}}
-    data = report.payload(["sim"], Timing(0.01, "--fs", 4096), [SensorRecord("gyro", "rad/s", {"x": x}, {})], fits)
-    page = Page(recording_page(data, {}))
+    est = report.Estimate(["sim"], Timing(0.01, "--fs", 4096), [SensorRecord("gyro", "rad/s", {"x": x}, {})], fits)
+    page = Page(recording_page(est, {}))
     assert "not checked" in page.all_text and len(page.coef) >= 3
     assert not any(t == "img" for t, _ in page.elements)
 
@@ -408,8 +414,12 @@ def test_markdown_is_escaped():
 PROBE = """
 window.addEventListener("load", function () {
   var out = {images: [], coef: [], tables: [], scripts: document.scripts.length, title: document.title, copy: null};
+  out.width = window.innerWidth;
+  out.scroll = document.documentElement.scrollWidth;
+  out.body_px = parseFloat(getComputedStyle(document.body).fontSize);
   document.querySelectorAll("img").forEach(function (im) {
-    out.images.push([im.naturalWidth, im.naturalHeight, im.getBoundingClientRect().width]);
+    out.images.push([im.naturalWidth, im.naturalHeight, im.getBoundingClientRect().width,
+                     parseFloat(im.getAttribute("width")), parseFloat(im.dataset.textPx)]);
   });
   document.querySelectorAll("td[data-coef]").forEach(function (td) {
     out.coef.push([td.dataset.sensor, td.dataset.axis, td.dataset.method, td.dataset.coef, td.innerText]);
@@ -437,7 +447,7 @@ window.addEventListener("load", function () {
 _FLAGS = ["--headless=new", "--disable-gpu", "--no-sandbox", "--enable-logging=stderr", "--v=0",
           "--host-resolver-rules=MAP * ~NOTFOUND", "--disable-background-networking", "--disable-component-update",
           "--disable-sync", "--no-first-run", "--no-default-browser-check", "--disable-extensions",
-          "--disable-default-apps", "--window-size=1400,1000", "--virtual-time-budget=3000"]
+          "--disable-default-apps", "--virtual-time-budget=3000"]
 
 
 def _with_probe(raw: str) -> str:
@@ -447,14 +457,14 @@ def _with_probe(raw: str) -> str:
     return out.replace("</body>", f"<script>{PROBE}</script>\n</body>", 1)
 
 
-def _browse(raw: str, folder: Path) -> dict:
+def _browse(raw: str, folder: Path, width: int = 1400) -> dict:
     """Open the page (with the probe) in headless chromium: the probe's findings, the page's console
     messages and the requests the page made (netlog events whose isolation key is the page's file:// site)."""
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "page.html"
     path.write_text(_with_probe(raw), encoding="utf-8")
     net = folder / "net.json"
-    run = subprocess.run([CHROMIUM, *_FLAGS, f"--user-data-dir={folder / 'profile'}", f"--log-net-log={net}",
+    run = subprocess.run([CHROMIUM, *_FLAGS, f"--window-size={width},1000", f"--user-data-dir={folder / 'profile'}", f"--log-net-log={net}",
                           "--dump-dom", path.as_uri()], capture_output=True, text=True, timeout=60)
     console = [line for line in run.stderr.splitlines() if ":CONSOLE" in line and "source: file://" in line]
     events = json.loads(net.read_text())
@@ -473,7 +483,7 @@ def _browse(raw: str, folder: Path) -> dict:
 def browser_times():
     times = []
     yield times
-    assert sum(times) < 20, f"the browser runs took {sum(times):.1f} s"
+    assert sum(times) < 30, f"the browser runs took {sum(times):.1f} s"
 
 
 @needs_browser
@@ -485,7 +495,7 @@ def test_browser_detects_console_errors_external_requests_and_broken_images(tmp_
     r = _browse(bad, tmp_path / "bad")
     assert any('"boom"' in line for line in r["console"])
     assert r["requests"] == ["http://example.invalid/a.png"]
-    assert [w for w, _, _ in r["probe"]["images"]] == [0, 0]
+    assert [im[0] for im in r["probe"]["images"]] == [0, 0]
     # the pages' own policy turns an external load into a console message, blocked before any request
     from avbench.recordings.html import document
 
@@ -495,22 +505,29 @@ def test_browser_detects_console_errors_external_requests_and_broken_images(tmp_
 
 
 @needs_browser
-def test_browser_recording_page(recording, recording_html, tmp_path, browser_times):
+@pytest.mark.parametrize("width", [800, 1400])
+def test_browser_recording_page(recording, recording_html, tmp_path, browser_times, width):
+    """At a window 800 and 1400 px wide: nothing wider than the window, every figure's smallest text
+    at least the body's size as shown, and every cell the fit's."""
     from avbench.recordings.report import shown_value
 
     t0 = time.perf_counter()
-    r = _browse(recording_html, tmp_path)
+    r = _browse(recording_html, tmp_path, width)
     browser_times.append(time.perf_counter() - t0)
     assert r["console"] == [] and r["requests"] == []
     p = r["probe"]
-    assert len(p["images"]) == len(recording[1]) and all(w > 500 and h > 200 and shown > 300 for w, h, shown in p["images"])
+    assert abs(p["width"] - width) < 40 and p["scroll"] <= p["width"], (p["scroll"], p["width"])
+    assert len(p["images"]) == len(recording[1]["gyro"])
+    for natural, height, shown, attr_width, text_px in p["images"]:
+        assert natural > 500 and height > 200 and shown > 300
+        assert text_px * shown / attr_width >= p["body_px"], (text_px, shown, attr_width, p["body_px"])
     assert p["scripts"] == 2 and p["title"] == NASTY_TITLE  # the copy script and the probe; the title as text
     assert p["copy"] != "copy"  # the copy script answered the click
-    data = recording[0]
+    est = recording[0]
     assert len(p["coef"]) == len(Page(recording_html).coef) > 0
     for sensor, axis, method, c, text in p["coef"]:
-        e = data["sensors"][sensor]["axes"][axis]["methods"][method]["coefficients"][c]
-        assert text == shown_value(e, c, sensor)
+        e = est.fits[sensor][axis][method].result.coefficients[c]
+        assert text == shown_value(e, est.units(sensor)[c], sensor)
 
 
 @needs_browser
@@ -523,7 +540,82 @@ def test_browser_study_page(study, tmp_path, browser_times):
     browser_times.append(time.perf_counter() - t0)
     assert r["console"] == [] and r["requests"] == []
     p = r["probe"]
-    assert len(p["images"]) == 4 and all(w > 300 and h > 200 and shown > 200 for w, h, shown in p["images"])
+    assert len(p["images"]) == 4 and all(w > 300 and h > 200 and shown > 200 for w, h, shown, _, _ in p["images"])
     assert p["tables"] == Page(raw).tables  # the browser shows the cells the HTML holds
     md = _md_tables((study / "table.md").read_text())
     assert p["tables"][1:1 + len(md)] == md
+
+
+# -- the filter values: each format's own keys, values and units --------------------------------------------
+def _written_numbers(name: str, text: str) -> dict:
+    """key -> number as the file writes it, read as its stack reads it (PyYAML for the YAML files, the
+    parameter rows for PX4, the assignments of GTSAM's snippet)."""
+    import yaml
+
+    if name == "px4":
+        return {k: float(v) for k, v in re.findall(r"^1\t1\t(\w+)\t(\S+)\t9$", text, re.M)}
+    if name == "gtsam":
+        return {k: float(v) for k, v in re.findall(r"^([A-Z_]+) = ([-+.\deE]+)", text, re.M)}
+    if name == "matlab":  # gyro = gyroparams( 'NoiseDensity', [x y z], ...: one number per axis
+        out = {}
+        for var, body in re.findall(r"^(\w+) = \w+\( \.\.\.\n(.*?)\);", text, re.M | re.S):
+            for prop, vector in re.findall(r"'(\w+)', \[([^\]]*)\]", body):
+                out.update({f"{var}.{prop}({i + 1})": float(v) for i, v in enumerate(vector.split())})
+        return out
+    d = json.loads(text)["value0"] if name == "basalt" else \
+        yaml.safe_load(text.split("\n", 1)[1] if text.startswith("%YAML") else text)
+    d = d["imu0"] if name == "openvins" else d
+    out = {}
+    for k, v in d.items():  # a list: one number per element, key[i]
+        out.update({f"{k}[{i}]": x for i, x in enumerate(v) if isinstance(x, float) and x} if isinstance(v, list) else {k: v})
+    return out
+
+
+#: the numbers a file writes that are not noise values avbench measured (rates, placeholders, constants)
+_NOT_NOISE = {"update_rate", "imu_update_rate", "IMU.Frequency", "GRAVITY", "INTEGRATION_COVARIANCE", "time_offset"}
+
+
+def _values_tables(tables) -> dict:
+    """key -> [value, unit] of the page's filter-value tables (header row starting "key", "value", "unit")."""
+    return {row[0]: row[1:3] for t in tables if t and t[0][:3] == ["key", "value", "unit"] for row in t[1:]}
+
+
+def _values_page(recording, names):
+    from avbench.recordings import exports
+    from avbench.recordings.html import recording_page
+
+    est = recording[0]
+    rendered = exports.render(est.results(), names, "gmwm", est.timing.fs)
+    files = {name: ("imu" + suffix, text) for name, (suffix, text) in rendered.items()}
+    values = exports.tables(est.results(), names, "gmwm", est.timing.fs)
+    return recording_page(est, {}, files, tables=values), files
+
+
+@pytest.mark.parametrize("names", [["px4", "gtsam"], ["kalibr", "vins", "orbslam3", "openvins"],
+                                   ["basalt", "matlab", "ros_imu_covariance"]])
+def test_the_filter_values_are_each_files_own_keys_and_numbers(recording, names):
+    page, files = _values_page(recording, names)
+    shown = _values_tables(Page(page).tables)
+    written = {k: v for name, (_, text) in files.items() for k, v in _written_numbers(name, text).items()
+               if isinstance(v, float) and k not in _NOT_NOISE}
+    assert set(shown) == set(written), (sorted(shown), sorted(written))  # no key of a format not asked for
+    for key, (value, unit) in shown.items():
+        assert math.isclose(float(value), written[key], rel_tol=5e-6), key  # at the 6 digits shown
+        name = next(n for n in names if key in _written_numbers(n, files[n][1]))
+        assert unit and (unit in files[name][1] or name == "basalt")  # basalt's JSON states no unit
+    assert "value (SI)" not in page
+
+
+@needs_browser
+def test_browser_filter_values_at_800_px(recording, tmp_path, browser_times):
+    page, files = _values_page(recording, ["px4", "gtsam"])
+    t0 = time.perf_counter()
+    r = _browse(page, tmp_path, 800)
+    browser_times.append(time.perf_counter() - t0)
+    p = r["probe"]
+    assert p["scroll"] <= p["width"]
+    shown = _values_tables(p["tables"])
+    written = {**_written_numbers("px4", files["px4"][1]), **_written_numbers("gtsam", files["gtsam"][1])}
+    written = {k: v for k, v in written.items() if k not in _NOT_NOISE}
+    assert set(shown) == set(written)
+    assert all(math.isclose(float(v), written[k], rel_tol=5e-6) for k, (v, _) in shown.items())

@@ -1,13 +1,15 @@
-"""One result per fit, every surface renders it: the JSON payload, the CSV, the screen and the filter
-yaml of ``avbench estimate`` give each coefficient the value, the interval and the status of the fit's
-:class:`avbench.estimators.results.FitResult`; no module outside the estimators package reads an
-estimator's ``diagnostics_``."""
+"""One result per fit, every surface renders it: the JSON payload, the CSV, the screen, the page and the
+filter yaml of ``avbench estimate`` give each coefficient the value, the interval and the status of the
+fit's :class:`avbench.estimators.results.FitResult`, each in one unit per sensor; no surface reads the
+JSON payload, and no module outside the estimators package reads an estimator's ``diagnostics_``."""
 
 from __future__ import annotations
 
 import ast
+import json
 import math
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -19,7 +21,7 @@ from hypothesis import strategies as st
 from avbench import estimators
 from avbench.estimators.results import STATUSES, Coefficient, FitResult, build
 from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, Quantization, RateRandomWalk
-from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si
+from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si, si_units
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the folders installed as subpackages of avbench other than the estimators package
@@ -43,6 +45,53 @@ def test_the_rule_finds_a_read(tmp_path):
     assert _reads_of_diagnostics(bad) == [2]
 
 
+# -- no surface reads another's output ---------------------------------------------------------------------
+#: the keys only the JSON payload has (:func:`avbench.recordings.report.payload`)
+_JSON_KEYS = {"interval_si", "std_err_si", "fitted_si", "fitted_interval_si", "si", "si_unit", "methods"}
+#: the functions that write the JSON payload: the only ones that may use its keys
+_JSON_WRITERS = {("recordings/report.py", "payload"), ("recordings/report.py", "_method_entry")}
+
+
+def _reads_of_the_payload(path: Path, rel: str) -> list[str]:
+    """Where ``path`` calls ``payload(...)`` (but in the command that writes the JSON) or subscripts a
+    key only the JSON payload has, outside the functions that write it."""
+    tree = ast.parse(path.read_text(), str(path))
+    found = []
+
+    def visit(node, function):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            function = node.name
+        if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant) and node.slice.value in _JSON_KEYS \
+                and (rel, function) not in _JSON_WRITERS:
+            found.append(f"{rel}:{node.lineno} [{node.slice.value!r}]")
+        if isinstance(node, ast.Call):
+            f = node.func
+            name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
+            if name in ("payload", "method_entry") and (rel, function) != ("recordings/estimate.py", "run"):
+                found.append(f"{rel}:{node.lineno} {name}()")
+        for child in ast.iter_child_nodes(node):
+            visit(child, function)
+
+    visit(tree, None)
+    return found
+
+
+def test_every_surface_renders_the_fit_result_not_the_json():
+    """The screen, the CSV, the yaml, the exports, the page and the studies' rows read the fits'
+    FitResults; only the JSON renderer uses the JSON's keys, and only the command that writes the JSON
+    calls it."""
+    found = [hit for folder in OUTSIDE for p in sorted((ROOT / folder).rglob("*.py"))
+             for hit in _reads_of_the_payload(p, str(p.relative_to(ROOT)))]
+    assert not found, "render the FitResult (recordings.report.Estimate), not the JSON payload: " + ", ".join(found)
+
+
+def test_the_payload_rule_finds_a_read(tmp_path):
+    bad = tmp_path / "m.py"
+    bad.write_text("def yaml(data):\n    e = data['sensors']['gyro']\n    return e['interval_si'], payload(data)\n")
+    assert _reads_of_the_payload(bad, "recordings/m.py") == ["recordings/m.py:3 ['interval_si']",
+                                                             "recordings/m.py:3 payload()"]
+
+
 # -- the surfaces ---------------------------------------------------------------------------------------
 def _record(seed, unit, n, quantized):
     rng = np.random.default_rng(seed)
@@ -58,6 +107,7 @@ def _record(seed, unit, n, quantized):
 def _surfaces(method, seed, unit, quantized, n=8192):
     from avbench.recordings import filter_yaml, report
     from avbench.recordings.fit import fit_axis
+    from avbench.recordings.html import recording_page
     from avbench.recordings.sensors import SensorRecord
     from avbench.recordings.timing import Timing
 
@@ -68,12 +118,28 @@ def _surfaces(method, seed, unit, quantized, n=8192):
         with np.errstate(all="ignore"):
             fits = {s.sensor: {a: fit_axis(x, 0.01, np.zeros(0, dtype=np.int64), [method]) for a, x in s.axes.items()}
                     for s in sensors}
-    data = report.payload(["sim"], Timing(0.01, "--fs", n), sensors, fits)
+    est = report.Estimate(["sim"], Timing(0.01, "--fs", n), sensors, fits)
+    data = json.loads(json.dumps(report.payload(est)))  # as the file holds it
     try:
-        yaml = filter_yaml.filter_choices(data, method)
+        yaml = filter_yaml.filter_choices(est.results(), method)
     except ValueError:  # the method does not give N and K on every axis
         yaml = None
-    return fits, data, report.tables(data), report.screen_tables(data), report.screen(data), yaml
+    return (est, data, report.tables(est), report.screen_tables(est), report.screen(est), yaml,
+            _page_cells(recording_page(est, {})))
+
+
+def _page_cells(page: str) -> dict:
+    """(sensor, axis, method, coefficient) -> the text of the page's cell, and "header" -> its tables'
+    column labels."""
+    import html as html_
+
+    cells = {}
+    for attrs, text in re.findall(r"<td ([^>]*data-coef[^>]*)>(.*?)</td>", page):
+        a = dict(re.findall(r'([\w-]+)="([^"]*)"', attrs))
+        cells[tuple(html_.unescape(a[k]) for k in ("data-sensor", "data-axis", "data-method", "data-coef"))] = \
+            html_.unescape(text)
+    cells["header"] = [html_.unescape(h) for h in re.findall(r"<th>(.*?)</th>", page)]
+    return cells
 
 
 def _close(a, b):
@@ -84,9 +150,17 @@ def _close(a, b):
     return math.isclose(a, b, rel_tol=1e-12, abs_tol=0.0)
 
 
-def _expected_cell(e: Coefficient, c, sensor) -> str:
-    """The screen's text of one coefficient, from the FitResult alone."""
-    u = DISPLAY_UNITS[sensor][c]
+def _in(c, v, unit, sensor):
+    """SI ``v`` in ``unit``, None where it is not a finite number there."""
+    if v is None or not math.isfinite(v):
+        return None
+    with np.errstate(over="ignore"):
+        out = from_si(c, v, unit, sensor)
+    return out if math.isfinite(out) else None
+
+
+def _expected_cell(e: Coefficient, c, sensor, u) -> str:
+    """The screen's text of one coefficient, from the FitResult alone, in unit ``u``."""
 
     def d(v):
         return f"{from_si(c, v, u, sensor):.3g}"
@@ -104,19 +178,11 @@ def _expected_cell(e: Coefficient, c, sensor) -> str:
 
 def _expected_yaml(fits, sensor, c):
     """The filter yaml's value for one sensor's coefficient, from the FitResults alone: per axis the
-    resolved value, or the upper end of the interval where it is not resolved, reaches zero or (but for
-    the noise density N) the fit is poor; the largest over the axes."""
+    coefficient's estimate or its bound (:meth:`Coefficient.estimate_or_bound`), the largest over the axes."""
     best = None
     for per_method in fits[sensor].values():
         (fit,) = per_method.values()
-        e = fit.result.coefficients[c]
-        poor = fit.result.fit_check.poor_fit and c != "N"
-        if e.status == "ok" and not (e.interval is not None and e.interval[0] <= 0) and not poor:
-            v = e.value
-        elif e.status in ("ok", "not resolved"):
-            v = e.upper
-        else:
-            return None
+        v, _ = fit.result.coefficients[c].estimate_or_bound(fit.result.fit_check.poor_fit)
         if v is None:
             return None
         best = v if best is None else max(best, v)
@@ -126,12 +192,13 @@ def _expected_yaml(fits, sensor, c):
 #: estimators whose fit of a record costs seconds: one example each (the others: three)
 _SLOW = ("mle",)
 _UNITS = st.sampled_from([1.0, 180 / math.pi, 2.0**-30, 1e6])
+_BUILTIN = [m for m in estimators.names() if m in estimators.base.BUILTIN]
 
 
-@pytest.mark.parametrize("method", [m for m in estimators.names() if m in estimators.base.BUILTIN and m not in _SLOW])
+@pytest.mark.parametrize("method", [m for m in _BUILTIN if m not in _SLOW])
 @settings(max_examples=3, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**31), unit=_UNITS, quantized=st.booleans())
-def test_screen_json_csv_and_yaml_render_the_same_result(method, seed, unit, quantized):
+def test_screen_json_csv_yaml_and_page_render_the_same_result(method, seed, unit, quantized):
     _check_surfaces(method, seed, unit, quantized)
 
 
@@ -142,24 +209,42 @@ def test_slow_estimators_render_the_same_result(method, seed, unit, quantized):
     _check_surfaces(method, seed, unit, quantized)
 
 
-def _check_surfaces(method, seed, unit, quantized):
-    fits, data, csv, screen_tables, screen, yaml = _surfaces(method, seed, unit, quantized)
+@pytest.mark.parametrize("unit", [1e306, 1e-300])
+@pytest.mark.parametrize("method", [m for m in _BUILTIN if m not in _SLOW])
+def test_a_record_at_the_ends_of_float64_renders_in_one_unit(method, unit):
+    """A record of 1e306 or 1e-300 times a gyro's rad/s: on every surface each coefficient's value,
+    interval, bound and evidence are in one unit, each number finite there."""
+    _check_surfaces(method, 12345, unit, False, n=4096)
+
+
+def _check_surfaces(method, seed, unit, quantized, n=8192):
+    est, data, csv, screen_tables, screen, yaml, page = _surfaces(method, seed, unit, quantized, n)
     assert max(len(line) for line in screen.splitlines()) <= 100
-    for sensor, per_axis in fits.items():
+    for sensor, per_axis in est.fits.items():
         table, footnotes = screen_tables[sensor]
+        for note in footnotes:  # in a user's words: no Python class or attribute names
+            assert not re.search(r"\b[A-Z]\w*Warning\b|\w_\[|\bdiagnostics_", note), note
+        units = est.units(sensor)
+        assert units in (DISPLAY_UNITS[sensor], si_units(sensor))  # one choice for the sensor
         for axis, per_method in per_axis.items():
             r = per_method[method].result
             assert isinstance(r, FitResult)
             md = data["sensors"][sensor]["axes"][axis]["methods"][method]
             assert md["poor_fit"] == r.fit_check.poor_fit
+            assert set(md.get("model_choice") or {}) == set(r.model_choice)  # every choice the fit made
             for c in COEFFICIENTS:
                 e = r.coefficients[c]
+                u = units[c]
                 assert e.status in STATUSES
+                # every number of the coefficient finite in SI is finite in the unit shown
+                for v in (e.value, e.std_err, *(e.interval or ()), *((e.evidence.lower, e.evidence.upper)
+                                                                      if e.evidence is not None else ())):
+                    assert not math.isfinite(v) or _in(c, v, u, sensor) is not None, (c, v, u)
                 j = md["coefficients"][c]
-                u = j["unit"]
-                # JSON: the status, the value and the interval of the result
-                assert j["flag"] == e.status
+                # JSON: the status, the value and the interval of the result, value and evidence in the unit
+                assert j["flag"] == e.status and j["unit"] == u
                 assert _close(j["si"], e.value if math.isfinite(e.value) else None)
+                assert _close(j["value"], _in(c, e.value, u, sensor))
                 iv = j.get("interval_si")
                 assert (iv is None) == (e.interval is None)
                 if iv is not None:
@@ -167,28 +252,34 @@ def _check_surfaces(method, seed, unit, quantized):
                 if e.status == "not resolved":
                     assert e.interval is None or e.interval[0] == 0.0
                     assert j["value"] is None and not math.isfinite(e.value)
-                # CSV: the same, in display units
+                if e.evidence is not None:
+                    ev = j["evidence"]
+                    assert _close(ev["upper"], _in(c, e.evidence.upper, u, sensor))
+                    assert _close(ev["lower"], _in(c, e.evidence.lower, u, sensor))
+                    assert ev["present"] or ev["reading"].endswith(f" {u}")
+                # CSV: the same, in the unit
                 row = csv[sensor].loc[(axis, method, c)]
-                assert row["status"] == e.status
-                shown = None if not math.isfinite(e.value) else from_si(c, e.value, u, sensor)
-                assert _close(None if row["value"] is None or (isinstance(row["value"], float) and math.isnan(row["value"]))
-                              else float(row["value"]), shown)
+                assert row["status"] == e.status and row["unit"] == u
+                value = None if row["value"] is None or (isinstance(row["value"], float) and math.isnan(row["value"])) \
+                    else float(row["value"])
+                assert _close(value, _in(c, e.value, u, sensor))
                 if e.interval is not None:
-                    assert _close(float(row["lower"]), from_si(c, e.interval[0], u, sensor))
-                    assert _close(float(row["upper"]), from_si(c, e.interval[1], u, sensor))
-                # screen: the cell rendered from the result alone, and printed
-                expected = _expected_cell(e, c, sensor)
+                    assert _close(float(row["lower"]), _in(c, e.interval[0], u, sensor))
+                    assert _close(float(row["upper"]), _in(c, e.interval[1], u, sensor))
+                # screen and page: the cell rendered from the result alone, in the column of the unit
+                expected = _expected_cell(e, c, sensor, u)
                 col = f"{c} ({u})"
                 if col in table.columns:
                     assert table.loc[(axis, method), col] == expected
                     assert expected in screen
+                    assert page[(sensor, axis, method, c)] == expected and col in page["header"]
                 else:
                     assert e.status == "not modelled"
     if yaml is not None:
         from avbench.recordings.filter_yaml import KEYS
 
         for (sensor, c), key in KEYS.items():
-            want = _expected_yaml(fits, sensor, c)
+            want = _expected_yaml(est.fits, sensor, c)
             assert want is not None and _close(yaml[key][0], want), (key, yaml[key], want)
 
 
@@ -241,20 +332,21 @@ def test_real_record_surfaces_agree():
     sensors = [SensorRecord(s, "SI", a, {}) for s, a in axes.items()]
     fits = {s.sensor: {a: fit_axis(x, 0.01, np.zeros(0, dtype=np.int64), DEFAULT_METHODS) for a, x in s.axes.items()}
             for s in sensors}
-    data = report.payload(["adis"], Timing(0.01, "--fs", 60_000), sensors, fits)
-    screen = report.screen(data)
+    est = report.Estimate(["adis"], Timing(0.01, "--fs", 60_000), sensors, fits)
+    screen = report.screen(est)
     assert max(len(line) for line in screen.splitlines()) <= 100
-    tables = report.screen_tables(data)
+    tables = report.screen_tables(est)
+    data = report.payload(est)
     for s in sensors:
         for axis in s.axes:
             for m in DEFAULT_METHODS:
                 r = fits[s.sensor][axis][m].result
                 for c in ("N", "B", "K"):
                     e = r.coefficients[c]
+                    u = est.units(s.sensor)[c]
                     assert data["sensors"][s.sensor]["axes"][axis]["methods"][m]["coefficients"][c]["flag"] == e.status
-                    assert tables[s.sensor][0].loc[(axis, m), f"{c} ({DISPLAY_UNITS[s.sensor][c]})"] == \
-                        _expected_cell(e, c, s.sensor)
-    ch = filter_yaml.filter_choices(data, DEFAULT_METHODS[0])
+                    assert tables[s.sensor][0].loc[(axis, m), f"{c} ({u})"] == _expected_cell(e, c, s.sensor, u)
+    ch = filter_yaml.filter_choices(est.results(), DEFAULT_METHODS[0])
     from avbench.recordings.filter_yaml import KEYS
 
     sub = {s: {a: {DEFAULT_METHODS[0]: f[DEFAULT_METHODS[0]]} for a, f in per.items()} for s, per in fits.items()}

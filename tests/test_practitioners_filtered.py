@@ -124,14 +124,23 @@ def test_fit_check_calibrated_with_the_filter_and_line():
 
 def test_report_says_what_the_curve_fit_assumed():
     # avbench estimate's screen notes (recordings/report.py): the filter and the line the fit modelled, from
-    # the JSON's model_choice; nothing when they did not enter
+    # the fit's model_choice; nothing when they did not enter
     from avbench.recordings.report import model_choice_notes
 
-    md = {"model_choice": {"filter_test": {"included": True, "tf": 0.005, "p_without": 1e-9, "p_with": 0.2},
-                           "line_test": {"included": True, "f0": 0.56, "p_value": 1e-30}}}
+    md = {"filter_test": {"included": True, "tf": 0.005, "p_without": 1e-9, "p_with": 0.2},
+          "line_test": {"included": True, "f0": 0.56, "p_value": 1e-30}}
     notes = model_choice_notes(md, "gyro")
     assert "sensor filter modelled (first-order, tf = 5 ms)" in notes
     assert "spectral line at 0.56 Hz modelled" in notes
-    md = {"model_choice": {"filter_test": {"included": False, "tf": float("nan")},
-                           "line_test": {"included": False, "f0": 3.0}}}
+    md = {"filter_test": {"included": False, "tf": float("nan")}, "line_test": {"included": False, "f0": 3.0}}
     assert model_choice_notes(md, "gyro") == []
+
+
+def test_every_other_model_choice_reaches_the_notes_in_words():
+    """A choice without words of its own (Whittle's bias model and term selection, say) is still a
+    note: its name in words and its scalar parts; the first AV scale fitted is the figure's."""
+    from avbench.recordings.report import model_choice_notes
+
+    notes = model_choice_notes({"bias_model": "flicker", "selection": {"QNBK": 2567.34, "NBK": 2558.33},
+                                "min_m": 4}, "gyro")
+    assert notes == ["bias model: flicker", "selection: QNBK 2.57e+03, NBK 2.56e+03"]

@@ -255,10 +255,15 @@ def test_accelerometer_units():
 
 
 def _payload(values):
+    """``{sensor: {axis: {"m": FitResult}}}`` with these (N, K), None for a term not modelled."""
+    from avbench.estimators.results import Coefficient, FitResult
+
+    def coef(name, v):
+        return Coefficient(name, "ok", value=v) if v is not None else Coefficient(name, "not modelled")
+
     def axis(n, k):
-        return {"methods": {"m": {"coefficients": {"N": {"si": n, "flag": "ok" if n is not None else "not modelled"},
-                                                   "K": {"si": k, "flag": "ok" if k is not None else "not modelled"}}}}}
-    return {"sensors": {s: {"axes": {a: axis(*values[s][a]) for a in values[s]}} for s in values}}
+        return {"m": FitResult(method="m", coefficients={"N": coef("N", n), "K": coef("K", k)})}
+    return {s: {a: axis(*values[s][a]) for a in values[s]} for s in values}
 
 
 def test_kalibr_values_take_the_largest_axis_and_refuse_gaps_in_the_model():

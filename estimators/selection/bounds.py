@@ -92,7 +92,7 @@ def gm_unresolved(latents, values, tau_first, tau, upper_av, dt, tau_fl) -> dict
         f"bounded by the 97.5 % upper limit of the smallest AV read as a plateau"
         + (f"; {', '.join(others)} not resolved either (the model has no bias instability to share the curve "
            f"with): bounded by the record's AV" if others else "")
-        + " (the bounds: diagnostics_['unresolved'])",
+        + " (each bound: the upper end of the coefficient's interval)",
         IdentifiabilityWarning, stacklevel=3,
     )
     return unresolved

@@ -1,7 +1,8 @@
 """The noise parameters of ``avbench estimate`` in the file each filter stack reads.
 
 One module per stack (or family), each an :class:`~avbench.recordings.exports.base.Exporter` -- a
-name, a file extension and a function from the JSON payload to the file's text:
+name, a file extension and a function from the fits (per sensor, axis and method a
+:class:`~avbench.estimators.results.FitResult`) to the file's text:
 
 ======================  ===========  ============================================================
 name                    extension    stack (module)
@@ -47,7 +48,7 @@ from avbench.recordings.exports.px4 import PX4
 from avbench.recordings.exports.ros_imu import ROS_IMU_COVARIANCE
 from avbench.recordings.exports.vins import VINS
 
-__all__ = ["FORMATS", "Exporter", "Request", "render", "parse_names", "default_method"]
+__all__ = ["FORMATS", "Exporter", "Request", "render", "tables", "parse_names", "default_method"]
 
 #: name -> exporter, in the order of the table above
 FORMATS: dict[str, Exporter] = {e.name: e for e in (KALIBR, ALLAN_VARIANCE_ROS, OPENVINS, VINS, ORBSLAM3, BASALT,
@@ -72,17 +73,14 @@ def parse_names(names, option: str = "--format") -> list[str]:
     return wanted
 
 
-def default_method(data: dict) -> str:
-    """The method a file is written from when none is named: the one the payload's filter yaml used,
-    else the first method fitted (the first of ``--method``, the default of ``--filter-method``)."""
-    fy = data.get("filter_yaml") or {}
-    if fy.get("method"):
-        return fy["method"]
-    for sd in data["sensors"].values():
-        for ad in sd["axes"].values():
-            for method in ad["methods"]:
+def default_method(results: dict) -> str:
+    """The method a file is written from when none is named: the first method fitted (the first of
+    ``--method``, the default of ``--filter-method``)."""
+    for axes in results.values():
+        for per_method in axes.values():
+            for method in per_method:
                 return method
-    raise ValueError("the payload holds no fitted method; expected the JSON of avbench estimate")
+    raise ValueError("no fitted method; expected {sensor: {axis: {method: FitResult}}} of avbench estimate")
 
 
 def _rate(value, what: str) -> float:
@@ -111,29 +109,29 @@ def _inflate(inflate, option: str):
     return f_noise, f_walk
 
 
-def render(data: dict, names, method: str | None, rate: float | None, filter_rate: float | None = None,
+def render(results: dict, names, method: str | None, rate: float, filter_rate: float | None = None,
            inflate=(1.0, 1.0), topic: str | None = None, sources=(), *, avs=None,
            option: str = "--format") -> dict[str, tuple[str, str]]:
     """The text of each format in ``names``: ``{name: (suffix, text)}``, the file ``<stem><suffix>``.
 
     Parameters
     ----------
-    data : dict
-        The JSON payload of ``avbench estimate`` (:func:`avbench.recordings.report.payload`).
+    results : dict
+        ``{sensor: {axis: {method: FitResult}}}``, the fits of ``avbench estimate``
+        (:meth:`avbench.recordings.report.Estimate.results`).
     names : str or iterable of str
         Format names (:data:`FORMATS`), a comma-separated string or a list.
     method : str or None
         The method whose values are written; None: :func:`default_method`.
-    rate : float or None
-        The record's sample rate (Hz); None: the payload's ``timing.rate_hz``.
+    rate : float
+        The record's sample rate (Hz).
     filter_rate : float, optional
         ``--filter-rate``: the rate at which the stack receives (PX4: predicts with) the samples, where a
         stack discretises at it; at most the record's rate.
     inflate : pair or dict
         As :func:`avbench.recordings.filter_yaml.kalibr_yaml` takes it.
     topic, sources
-        The bag's IMU topic (None: Kalibr's ``/imu0``) and the recordings named in the headers (empty:
-        the payload's ``sources``).
+        The bag's IMU topic (None: Kalibr's ``/imu0``) and the recordings named in the headers.
     avs : dict, optional
         ``{sensor: {axis: (AllanResult, scale)}}``, the Allan variances of ``avbench estimate``: the bound
         the AV allows where the method gives no interval.
@@ -146,15 +144,28 @@ def render(data: dict, names, method: str | None, rate: float | None, filter_rat
         sensor without three axes -- each message names the option and what was expected.
     """
     wanted = parse_names(names, option)
-    if rate is None:
-        rate = (data.get("timing") or {}).get("rate_hz")
+    req = _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option)
+    return {name: (FORMATS[name].suffix, FORMATS[name].write(req)) for name in wanted}
+
+
+def tables(results: dict, names, method: str | None, rate: float, filter_rate: float | None = None,
+           inflate=(1.0, 1.0), *, avs=None, option: str = "--format") -> dict[str, list]:
+    """The noise numbers each format of ``names`` writes, ``{name: [Entry]}``
+    (:class:`~avbench.recordings.exports.base.Entry`: key, value as written, unit, axis, bound), for the
+    formats that have such a table; the arguments as :func:`render` takes them."""
+    wanted = parse_names(names, option)
+    req = _request(results, method, rate, filter_rate, inflate, None, (), avs, option)
+    return {name: FORMATS[name].table(req) for name in wanted if FORMATS[name].table is not None}
+
+
+def _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option) -> Request:
+    """The :class:`Request` of :func:`render`'s arguments, each checked."""
     rate = _rate(rate, "the record's rate")
     if filter_rate is not None:
         filter_rate = _rate(filter_rate, "--filter-rate")
         if filter_rate > rate * (1 + 1e-9):
             raise ValueError(f"--filter-rate {filter_rate:g} Hz: above the record's rate {rate:g} Hz; expected the rate "
                              "at which the stack receives (or predicts with) the samples, at most the record's")
-    req = Request(data=data, method=method if method is not None else default_method(data), rate=rate,
-                  filter_rate=filter_rate, inflate=_inflate(inflate, "--inflate"), topic=topic,
-                  sources=tuple(sources) or tuple(data.get("sources") or ()), avs=avs, option=option)
-    return {name: (FORMATS[name].suffix, FORMATS[name].write(req)) for name in wanted}
+    return Request(results=results, method=method if method is not None else default_method(results), rate=rate,
+                   filter_rate=filter_rate, inflate=_inflate(inflate, "--inflate"), topic=topic,
+                   sources=tuple(sources), avs=avs, option=option)

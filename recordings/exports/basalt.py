@@ -36,13 +36,25 @@ from __future__ import annotations
 
 import json
 
-from avbench.recordings.exports.base import Exporter, Request, axis_order, axis_values, bound_lines, header
+from avbench.recordings.exports.base import Entry, Exporter, Request, axis_order, axis_values, bound_lines, header
 
 __all__ = ["BASALT", "basalt"]
 
 #: key -> (sensor, coefficient)
 KEYS = {"accel_noise_std": ("accel", "N"), "gyro_noise_std": ("gyro", "N"),
         "accel_bias_std": ("accel", "K"), "gyro_bias_std": ("gyro", "K")}
+
+
+#: key -> its unit (module docstring)
+UNITS = {"accel_noise_std": "m/s^2/sqrt(Hz)", "gyro_noise_std": "rad/s/sqrt(Hz)", "accel_bias_std": "m/s^3/sqrt(Hz)",
+         "gyro_bias_std": "rad/s^2/sqrt(Hz)"}
+
+
+def table(req: Request) -> list[Entry]:
+    """Each axis's value as written, ``key[i]`` (i: x, y, z)."""
+    values, order = axis_values(req, "basalt"), axis_order(req, "basalt")
+    return [Entry(f"{key}[{i}]", float(values[sc][axis].value), UNITS[key], axis, values[sc][axis].bound)
+            for key, sc in KEYS.items() for i, axis in enumerate(order[sc[0]])]
 
 
 def basalt(req: Request) -> str:
@@ -63,4 +75,4 @@ def basalt(req: Request) -> str:
     return json.dumps({"value0": body, "avbench_notes": notes}, indent=4) + "\n"
 
 
-BASALT = Exporter("basalt", "json", "Basalt calibration JSON (per axis)", True, basalt)
+BASALT = Exporter("basalt", "json", "Basalt calibration JSON (per axis)", True, basalt, table)

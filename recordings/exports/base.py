@@ -1,15 +1,17 @@
 """What every export writes: the values, their notes, and the header each file opens with.
 
-An exporter turns the JSON payload of ``avbench estimate`` (:func:`avbench.recordings.report.payload`)
+An exporter turns the fits of ``avbench estimate`` -- per sensor, axis and method a
+:class:`~avbench.estimators.results.FitResult` (:meth:`avbench.recordings.report.Estimate.results`) --
 into the text of one filter stack's file. They all write the same numbers, chosen once here:
 
 * **Which value.** Per sensor (gyro, accel) and coefficient (N, K) the rule of the Kalibr yaml,
-  :func:`avbench.recordings.filter_yaml.filter_choices`: an axis gives its estimate where the method
+  :func:`avbench.recordings.filter_yaml.filter_choices`, each coefficient's
+  :meth:`~avbench.estimators.results.Coefficient.estimate_or_bound`: an axis gives its estimate where the method
   resolves it and else the upper end of its interval (a BOUND, with the reason), or the bound the
   Allan variance allows where the method gives no interval. A stack that takes one number per sensor
   gets the largest over the axes (:func:`sensor_values`); a stack that takes one per axis gets each
-  axis's own choice (:func:`axis_values`), made by the same function on a payload that holds only that
-  axis, so the two cannot disagree on an axis.
+  axis's own choice (:func:`axis_values`), made by the same function on the fits of that
+  axis alone, so the two cannot disagree on an axis.
 * **Bias instability B** (only MATLAB's ``gyroparams`` takes it): the same rule per axis
   (:func:`bias_instability`); where the method gives no interval the bound comes from IEEE Std 952's
   flat line: the flicker term adds at least :math:`(2 \\ln 2/\\pi) B^2` to the Allan variance over its
@@ -38,7 +40,7 @@ import numpy as np
 
 from avbench.recordings import filter_yaml
 
-__all__ = ["Value", "Request", "Exporter", "PLATEAU", "fmt", "factor", "sensor_values", "axis_values",
+__all__ = ["Value", "Entry", "Request", "Exporter", "PLATEAU", "fmt", "factor", "sensor_values", "axis_values",
            "axis_order", "bias_instability", "plateau_bound", "header", "bound_lines", "inflate_text"]
 
 #: the Allan variance of bias instability on its flat band, per B^2 (IEEE Std 952 Annex C): 2 ln2 / pi
@@ -65,7 +67,7 @@ class Value:
 class Request:
     """What an exporter is asked to write (see the module docstring for each field)."""
 
-    data: dict
+    results: dict  # {sensor: {axis: {method: FitResult}}}
     method: str
     rate: float
     filter_rate: float | None = None
@@ -88,15 +90,29 @@ class Request:
 
 
 @dataclass(frozen=True)
+class Entry:
+    """One number a file writes: under its ``key``, in the stack's ``unit``, from ``axis`` (or the
+    axes), ``bound`` saying why it is an upper bound (None for an estimate)."""
+
+    key: str
+    value: float
+    unit: str
+    axis: str
+    bound: str | None = None
+
+
+@dataclass(frozen=True)
 class Exporter:
     """One format: its ``name`` (the ``--format`` value), file ``extension``, the ``stack`` it is for,
-    whether it writes one value per axis, and ``write(request) -> text``."""
+    whether it writes one value per axis, ``write(request) -> text``, and ``table(request) -> [Entry]``
+    (the noise numbers the text writes, each under its key; None where the format has none)."""
 
     name: str
     extension: str
     stack: str
     per_axis: bool
     write: Callable[[Request], str]
+    table: Callable[[Request], list] | None = None
 
     @property
     def suffix(self) -> str:
@@ -128,17 +144,17 @@ def _value(req: Request, sensor: str, coefficient: str, choice) -> Value:
 def sensor_values(req: Request) -> dict[tuple[str, str], Value]:
     """(sensor, "N"|"K") -> the largest over the axes (:func:`~avbench.recordings.filter_yaml.filter_choices`),
     inflated."""
-    choices = filter_yaml.filter_choices(req.data, req.method, req.option, req.avs)
+    choices = filter_yaml.filter_choices(req.results, req.method, req.option, req.avs)
     return {(s, c): _value(req, s, c, choices[key]) for (s, c), key in filter_yaml.KEYS.items()}
 
 
 def axis_order(req: Request, stack: str) -> dict[str, list[str]]:
     """sensor -> its three axes in the order a per-axis stack takes them (x, y, z where those are the
     names, else the record's order). Raises ValueError naming the stack where a sensor has not three."""
-    filter_yaml.check_sensors(list(req.data["sensors"]), req.option)
+    filter_yaml.check_sensors(list(req.results), req.option)
     out = {}
     for sensor in SENSORS:
-        axes = list(req.data["sensors"][sensor]["axes"])
+        axes = list(req.results[sensor])
         if len(axes) != 3:
             raise ValueError(f"{req.option} {stack}: takes three axes per sensor (x, y, z); the recording's "
                              f"{sensor} has {len(axes)} ({', '.join(axes)})")
@@ -146,20 +162,18 @@ def axis_order(req: Request, stack: str) -> dict[str, list[str]]:
     return out
 
 
-def _one_axis(data: dict, sensor: str, axis: str) -> dict:
-    """The payload with ``sensor`` reduced to ``axis`` (the other sensor as it is)."""
-    sensors = dict(data["sensors"])
-    sensors[sensor] = {**sensors[sensor], "axes": {axis: sensors[sensor]["axes"][axis]}}
-    return {**data, "sensors": sensors}
+def _one_axis(results: dict, sensor: str, axis: str) -> dict:
+    """The fits with ``sensor`` reduced to ``axis`` (the other sensor as it is)."""
+    return {**results, sensor: {axis: results[sensor][axis]}}
 
 
 def axis_values(req: Request, stack: str) -> dict[tuple[str, str], dict[str, Value]]:
     """(sensor, "N"|"K") -> axis -> that axis's own choice, inflated: the rule of
-    :func:`~avbench.recordings.filter_yaml.filter_choices` on a payload holding that axis alone."""
+    :func:`~avbench.recordings.filter_yaml.filter_choices` on the fits of that axis alone."""
     out: dict[tuple[str, str], dict[str, Value]] = {}
     for sensor, axes in axis_order(req, stack).items():
         for axis in axes:
-            choices = filter_yaml.filter_choices(_one_axis(req.data, sensor, axis), req.method, req.option, req.avs)
+            choices = filter_yaml.filter_choices(_one_axis(req.results, sensor, axis), req.method, req.option, req.avs)
             for c in ("N", "K"):
                 out.setdefault((sensor, c), {})[axis] = _value(req, sensor, c, choices[filter_yaml.KEYS[(sensor, c)]])
     return out
@@ -191,21 +205,20 @@ def bias_instability(req: Request, stack: str) -> dict[str, dict[str, Value]]:
     out: dict[str, dict[str, Value]] = {}
     for sensor, axes in axis_order(req, stack).items():
         for axis in axes:
-            md = req.data["sensors"][sensor]["axes"][axis]["methods"].get(req.method)
-            if md is None:
+            r = req.results[sensor][axis].get(req.method)
+            if r is None:
                 raise ValueError(f"{req.option}: method {req.method!r} was not fitted; expected one of --method")
-            e = md["coefficients"]["B"]
             av = (req.avs or {}).get(sensor, {}).get(axis)
-            v, why = axis_value(e, md)
+            v, why = axis_value(r, "B")
             if why is not None and v is None and av is not None:
                 v = plateau_bound(*av)
                 why += " and the method gives no interval: the bound the AV allows (flat line 0.664 B)"
-            elif md.get("poor_fit") and v is not None and av is not None:
+            elif r.fit_check.poor_fit and v is not None and av is not None:
                 b = plateau_bound(*av)
                 if b is not None and b > v:
                     v, why = b, (why or "the fit is poor") + "; the bound the AV allows is larger: taken"
             if v is None:
-                raise ValueError(f"{req.option} {stack}: {req.method} gives no B for {sensor} axis {axis} ({e['flag']}); "
+                raise ValueError(f"{req.option} {stack}: {req.method} gives no B for {sensor} axis {axis} ({r.coefficients['B'].status}); "
                                  "expected a method that models bias instability (choose one with --filter-method)")
             out.setdefault(sensor, {})[axis] = Value(value=v, estimate=v, factor=1.0, axis=axis, bound=why)
     return out

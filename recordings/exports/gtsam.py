@@ -35,7 +35,7 @@ it and writes a small placeholder (``1e-8 I``, m^2/s), named so that the user se
 
 from __future__ import annotations
 
-from avbench.recordings.exports.base import Exporter, Request, bound_lines, fmt, header, sensor_values
+from avbench.recordings.exports.base import Entry, Exporter, Request, bound_lines, fmt, header, sensor_values
 
 __all__ = ["GTSAM", "gtsam_snippet", "INTEGRATION_COVARIANCE"]
 
@@ -46,6 +46,13 @@ NAMES = {"GYRO_NOISE_DENSITY": ("gyro", "N", "rad/s/sqrt(Hz)"),
          "ACCEL_NOISE_DENSITY": ("accel", "N", "m/s^2/sqrt(Hz)"),
          "GYRO_RANDOM_WALK": ("gyro", "K", "rad/s^2/sqrt(Hz)"),
          "ACCEL_RANDOM_WALK": ("accel", "K", "m/s^3/sqrt(Hz)")}
+
+
+def table(req: Request) -> list[Entry]:
+    """The four constants as written (module docstring)."""
+    values = sensor_values(req)
+    return [Entry(name, float(fmt(values[(s, c)].value)), unit, values[(s, c)].axis, values[(s, c)].bound)
+            for name, (s, c, unit) in NAMES.items()]
 
 
 def gtsam_snippet(req: Request) -> str:
@@ -80,4 +87,4 @@ def gtsam_snippet(req: Request) -> str:
     return "\n".join(lines) + "\n"
 
 
-GTSAM = Exporter("gtsam", "py", "GTSAM PreintegrationCombinedParams (Python snippet)", False, gtsam_snippet)
+GTSAM = Exporter("gtsam", "py", "GTSAM PreintegrationCombinedParams (Python snippet)", False, gtsam_snippet, table)

@@ -42,7 +42,7 @@ reads); ``--filter-rate`` sets OpenVINS's ``update_rate`` where the IMU stream i
 from __future__ import annotations
 
 from avbench.recordings import filter_yaml
-from avbench.recordings.exports.base import Exporter, Request, bound_lines, fmt, header, sensor_values
+from avbench.recordings.exports.base import Entry, Exporter, Request, bound_lines, fmt, header, sensor_values
 
 __all__ = ["KALIBR", "ALLAN_VARIANCE_ROS", "OPENVINS", "kalibr", "allan_variance_ros", "openvins"]
 
@@ -53,13 +53,13 @@ _ORDER = ("accelerometer_noise_density", "accelerometer_random_walk", "gyroscope
 
 def kalibr(req: Request) -> str:
     """Kalibr's ``imu.yaml``: :func:`~avbench.recordings.filter_yaml.kalibr_yaml`'s text, at the record's rate."""
-    choices = filter_yaml.filter_choices(req.data, req.method, req.option, req.avs)
+    choices = filter_yaml.filter_choices(req.results, req.method, req.option, req.avs)
     return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate, "kalibr")
 
 
 def allan_variance_ros(req: Request) -> str:
     """allan_variance_ros's ``imu.yaml``: Kalibr's keys, its own comment line."""
-    choices = filter_yaml.filter_choices(req.data, req.method, req.option, req.avs)
+    choices = filter_yaml.filter_choices(req.results, req.method, req.option, req.avs)
     return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate,
                                    "allan_variance_ros")
 
@@ -99,7 +99,14 @@ def openvins(req: Request) -> str:
     return "\n".join(lines) + "\n"
 
 
-KALIBR = Exporter("kalibr", "yaml", "Kalibr imu.yaml", False, kalibr)
+def table(req: Request) -> list[Entry]:
+    """Kalibr's four densities as the three files write them (inflated; the units of Kalibr's wiki)."""
+    values = {filter_yaml.KEYS[sc]: v for sc, v in sensor_values(req).items()}
+    return [Entry(key, float(fmt(values[key].value)), filter_yaml.UNITS[key], values[key].axis, values[key].bound)
+            for key in _ORDER]
+
+
+KALIBR = Exporter("kalibr", "yaml", "Kalibr imu.yaml", False, kalibr, table)
 ALLAN_VARIANCE_ROS = Exporter("allan_variance_ros", "yaml", "allan_variance_ros imu.yaml (Kalibr keys)", False,
-                              allan_variance_ros)
-OPENVINS = Exporter("openvins", "yaml", "OpenVINS kalibr_imu_chain.yaml", False, openvins)
+                              allan_variance_ros, table)
+OPENVINS = Exporter("openvins", "yaml", "OpenVINS kalibr_imu_chain.yaml", False, openvins, table)

@@ -30,7 +30,7 @@ variance allows (:func:`~avbench.recordings.exports.base.bias_instability`), is 
 
 from __future__ import annotations
 
-from avbench.recordings.exports.base import (Exporter, Request, axis_order, axis_values, bias_instability,
+from avbench.recordings.exports.base import (Entry, Exporter, Request, axis_order, axis_values, bias_instability,
                                              bound_lines, fmt, header)
 
 __all__ = ["MATLAB", "matlab"]
@@ -43,8 +43,8 @@ OBJECTS = {"gyroparams": ("gyro", {"NoiseDensity": ("N", "(rad/s)/sqrt(Hz)"), "B
 _VARIABLE = {"gyroparams": "gyro", "accelparams": "accel"}
 
 
-def matlab(req: Request) -> str:
-    """The MATLAB script (module docstring)."""
+def _per_axis(req: Request):
+    """((object, property) -> the Value of each axis, sensor -> its axes in order)."""
     nk = axis_values(req, "matlab")
     b = bias_instability(req, "matlab")
     order = axis_order(req, "matlab")
@@ -52,6 +52,19 @@ def matlab(req: Request) -> str:
     for obj, (sensor, props) in OBJECTS.items():
         for prop, (c, _) in props.items():
             per_axis[(obj, prop)] = [b[sensor][a] if c == "B" else nk[(sensor, c)][a] for a in order[sensor]]
+    return per_axis, order
+
+
+def table(req: Request) -> list[Entry]:
+    """Each property's value per axis as written, ``variable.Property(i)``."""
+    per_axis, _ = _per_axis(req)
+    return [Entry(f"{_VARIABLE[obj]}.{prop}({i + 1})", float(fmt(v.value)), OBJECTS[obj][1][prop][1], v.axis, v.bound)
+            for (obj, prop), vs in per_axis.items() for i, v in enumerate(vs)]
+
+
+def matlab(req: Request) -> str:
+    """The MATLAB script (module docstring)."""
+    per_axis, order = _per_axis(req)
     lines = ["% " + s for s in header(
         req, "MATLAB gyroparams / accelparams (Sensor Fusion and Tracking / Navigation Toolbox)",
         "one value per axis (x, y, z); BiasInstability not inflated",
@@ -73,4 +86,4 @@ def matlab(req: Request) -> str:
     return "\n".join(lines) + "\n"
 
 
-MATLAB = Exporter("matlab", "m", "MATLAB gyroparams / accelparams script (per axis)", True, matlab)
+MATLAB = Exporter("matlab", "m", "MATLAB gyroparams / accelparams script (per axis)", True, matlab, table)

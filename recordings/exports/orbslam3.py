@@ -34,13 +34,20 @@ lines into the settings file.
 
 from __future__ import annotations
 
-from avbench.recordings.exports.base import Exporter, Request, bound_lines, fmt, header, sensor_values
+from avbench.recordings.exports.base import Entry, Exporter, Request, bound_lines, fmt, header, sensor_values
 
 __all__ = ["ORBSLAM3", "orbslam3"]
 
 #: key -> (sensor, coefficient, unit)
 KEYS = {"IMU.NoiseGyro": ("gyro", "N", "rad/s/sqrt(Hz)"), "IMU.NoiseAcc": ("accel", "N", "m/s^2/sqrt(Hz)"),
         "IMU.GyroWalk": ("gyro", "K", "rad/s^2/sqrt(Hz)"), "IMU.AccWalk": ("accel", "K", "m/s^3/sqrt(Hz)")}
+
+
+def table(req: Request) -> list[Entry]:
+    """The four ``IMU.*`` densities as written (module docstring)."""
+    values = sensor_values(req)
+    return [Entry(key, float(fmt(values[(s, c)].value)), unit, values[(s, c)].axis, values[(s, c)].bound)
+            for key, (s, c, unit) in KEYS.items()]
 
 
 def orbslam3(req: Request) -> str:
@@ -63,4 +70,4 @@ def orbslam3(req: Request) -> str:
     return "\n".join(lines) + "\n"
 
 
-ORBSLAM3 = Exporter("orbslam3", "yaml", "ORB-SLAM3 settings (IMU.*)", False, orbslam3)
+ORBSLAM3 = Exporter("orbslam3", "yaml", "ORB-SLAM3 settings (IMU.*)", False, orbslam3, table)

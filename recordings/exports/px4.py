@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import math
 
-from avbench.recordings.exports.base import Exporter, Request, bound_lines, header, sensor_values
+from avbench.recordings.exports.base import Entry, Exporter, Request, bound_lines, header, sensor_values
 
 __all__ = ["PX4", "px4", "PARAMETERS"]
 
@@ -55,12 +55,23 @@ def _num(v: float) -> str:
     return f"{float(v):.9g}"  # a float32 parameter: 9 digits restore it exactly
 
 
+def _written(req: Request):
+    """(parameter -> its chosen Value, parameter -> the number written: the Value times sqrt(f))."""
+    values = sensor_values(req)
+    by_name = {p: values[(s, c)] for p, (s, c, _, _, _) in PARAMETERS.items()}
+    return by_name, {p: by_name[p].value * math.sqrt(req.used_rate) for p in PARAMETERS}
+
+
+def table(req: Request) -> list[Entry]:
+    """The four parameters as written (module docstring)."""
+    by_name, written = _written(req)
+    return [Entry(p, float(_num(written[p])), unit, by_name[p].axis, by_name[p].bound)
+            for p, (_, _, unit, _, _) in PARAMETERS.items()]
+
+
 def px4(req: Request) -> str:
     """The four EKF2 parameters in QGroundControl's ``.params`` format (module docstring)."""
-    values = sensor_values(req)
-    f = req.used_rate
-    by_name = {p: values[(s, c)] for p, (s, c, _, _, _) in PARAMETERS.items()}
-    written = {p: by_name[p].value * math.sqrt(f) for p in PARAMETERS}
+    by_name, written = _written(req)
     rate = req.rate_text("f (EKF2's prediction rate, 1e6 / EKF2_PREDICT_US)")
     if req.filter_rate is None:
         rate += " -- EKF2 predicts at 100 Hz by default (EKF2_PREDICT_US = 10000): give --filter-rate"
@@ -88,4 +99,4 @@ def px4(req: Request) -> str:
     return "\n".join(lines) + "\n"
 
 
-PX4 = Exporter("px4", "params", "PX4 EKF2 parameters (QGroundControl .params)", False, px4)
+PX4 = Exporter("px4", "params", "PX4 EKF2 parameters (QGroundControl .params)", False, px4, table)

@@ -28,13 +28,21 @@ fragment holding the two 9-element lists, for a driver's parameters or a relay n
 
 from __future__ import annotations
 
-from avbench.recordings.exports.base import Exporter, Request, axis_order, axis_values, bound_lines, fmt, header
+from avbench.recordings.exports.base import Entry, Exporter, Request, axis_order, axis_values, bound_lines, fmt, header
 
 __all__ = ["ROS_IMU_COVARIANCE", "ros_imu_covariance"]
 
 #: message field -> (sensor, unit)
 FIELDS = {"angular_velocity_covariance": ("gyro", "(rad/s)^2"),
           "linear_acceleration_covariance": ("accel", "(m/s^2)^2")}
+
+
+def table(req: Request) -> list[Entry]:
+    """Each diagonal element as written, ``field[k]``: the axis's N^2 f (module docstring)."""
+    values, order = axis_values(req, "ros_imu_covariance"), axis_order(req, "ros_imu_covariance")
+    return [Entry(f"{field}[{4 * i}]", float(fmt(values[(sensor, "N")][axis].value ** 2 * req.used_rate)), unit, axis,
+                  values[(sensor, "N")][axis].bound)
+            for field, (sensor, unit) in FIELDS.items() for i, axis in enumerate(order[sensor])]
 
 
 def ros_imu_covariance(req: Request) -> str:
@@ -60,4 +68,4 @@ def ros_imu_covariance(req: Request) -> str:
 
 
 ROS_IMU_COVARIANCE = Exporter("ros_imu_covariance", "yaml", "ROS sensor_msgs/Imu covariances (per axis)", True,
-                              ros_imu_covariance)
+                              ros_imu_covariance, table)

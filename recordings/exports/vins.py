@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 
-from avbench.recordings.exports.base import Exporter, Request, bound_lines, fmt, header, sensor_values
+from avbench.recordings.exports.base import Entry, Exporter, Request, bound_lines, fmt, header, sensor_values
 
 __all__ = ["VINS", "vins"]
 
@@ -46,6 +46,14 @@ KEYS = {"acc_n": ("accel", "N", "m/s^2", "accelerometer measurement noise standa
         "gyr_n": ("gyro", "N", "rad/s", "gyroscope measurement noise standard deviation"),
         "acc_w": ("accel", "K", "m/s^3", "accelerometer bias random walk noise standard deviation"),
         "gyr_w": ("gyro", "K", "rad/s^2", "gyroscope bias random walk noise standard deviation")}
+
+
+def table(req: Request) -> list[Entry]:
+    """The four keys as written: each sensor's value times sqrt(f) (module docstring)."""
+    values = sensor_values(req)
+    f = req.used_rate
+    return [Entry(key, float(fmt(values[(s, c)].value * math.sqrt(f))), unit, values[(s, c)].axis,
+                  values[(s, c)].bound) for key, (s, c, unit, _) in KEYS.items()]
 
 
 def vins(req: Request) -> str:
@@ -71,4 +79,4 @@ def vins(req: Request) -> str:
     return "\n".join(lines) + "\n"
 
 
-VINS = Exporter("vins", "yaml", "VINS-Mono / VINS-Fusion config keys", False, vins)
+VINS = Exporter("vins", "yaml", "VINS-Mono / VINS-Fusion config keys", False, vins, table)
