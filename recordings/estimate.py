@@ -324,6 +324,7 @@ def run(args) -> int:
     from avbench.recordings.fit import agreement, auto_inflation, between_runs, fit_axis, scaled_allan
     from avbench.recordings.load import load_recording, pool_recordings, reader_options_of
     from avbench.recordings.plan import output_stem
+    from avbench.recordings.quality import file_lines as quality_file_lines
 
     methods, settings, filter_method, inflate = _check_args(args)
     progress = not args.no_progress and sys.stderr.isatty()
@@ -346,6 +347,9 @@ def run(args) -> int:
     # the AV engine, asked once per axis: the static check, the yaml's bounds, the AV table and the figure use it
     all_avs = {s.sensor: {a: scaled_allan(x, dt, timing.starts) for a, x in s.axes.items()} for s in sensors}
     still = static_check(sensors, dt, all_avs)  # said before the fits, which still run
+    from avbench.recordings.quality import judge_record
+
+    quality = judge_record(sensors, dt).to_dict()  # what the record is, judged before the fits
     if not still["static"] and not args.json:
         print("# NOT STATIC: the record does not look like a sensor at rest -- " + "; ".join(still["reasons"][:4]) +
               ("; ..." if len(still["reasons"]) > 4 else "") + ". The fits below assume rest: poor fits are expected.",
@@ -355,7 +359,7 @@ def run(args) -> int:
         fits = fit_sensors(sensors, timing, methods, settings, bar)
     notes = list(rec.notes) if len(loaded) == 1 else [f"{r.path.name}: {n}" for r, _, _ in loaded for n in r.notes]
     extra = {"format": rec.format, "topic": rec.topic, "time_source": rec.time_source, "notes": notes,
-             "static_check": still}
+             "static_check": still, "record_quality": quality}
     if len(loaded) > 1:
         extra["combine"] = {}
         for s_i, s in enumerate(sensors):
@@ -388,7 +392,8 @@ def run(args) -> int:
     if args.kalibr is not None or args.format:
         choices = filter_yaml.filter_choices(data, filter_method, "--kalibr" if args.kalibr else "--format", all_avs)
         yaml_text = filter_yaml.kalibr_yaml(choices, timing.fs, rec.topic, filter_method,
-                                            [r.path for r, _, _ in loaded], inflate, "kalibr")
+                                            [r.path for r, _, _ in loaded], inflate, "kalibr",
+                                            flags=quality_file_lines(data))
         data["filter_yaml"] = {"method": filter_method, "inflate": dict(inflate) if isinstance(inflate, dict) else list(inflate),
                                "values_si": {k: v for k, (v, _, _) in choices.items()},
                                "bounds": {k: why for k, (_, _, why) in choices.items() if why}}
@@ -474,6 +479,9 @@ def _summary_text(data, timing, fits, rec) -> str:
     if still is not None and not still["static"]:
         _say(lines, "# NOT STATIC: " + "; ".join(still["reasons"]) + " -- the fits assume a sensor at rest; "
              "a POOR FIT below is expected for this reason")
+    from avbench.recordings.quality import screen_lines
+
+    lines += screen_lines(data)
     lines.append(report.screen(data))
     times = [(f.seconds, f"{sensor} {axis} {name}") for sensor, per_axis in fits.items()
              for axis, per_method in per_axis.items() for name, f in per_method.items()]

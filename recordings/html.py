@@ -299,6 +299,24 @@ def _static_section(data: dict) -> str:
     return "\n".join(out)
 
 
+def _quality_section(data: dict) -> str:
+    """The record's quality flags (the payload's ``record_quality``, :mod:`avbench.recordings.quality`)."""
+    rq = data.get("record_quality")
+    if rq is None:
+        return ""
+    out = ['<section id="quality"><h2>Is the record what the fits assume?</h2>']
+    if rq.get("ok"):
+        out.append("<p>" + _badge("no flag", "good") + " no spikes, clipping, raw counts, implausible mean, dominant "
+                   "rounding or moving noise level seen.</p>")
+    else:
+        out.append("<p>" + _badge("RECORD FLAGGED: " + ", ".join(rq.get("flagged") or []), "bad") + " the fits below "
+                   "assume a record without these.</p>")
+        rows = [[f["name"], f["channel"], f["finding"], f["todo"]] for f in rq.get("flags") or []]
+        out.append(html_table(["flag", "channel", "what was seen", "what to do"], rows))
+    out.append("</section>")
+    return "\n".join(out)
+
+
 def _coefficient_table(sensor: str, sd: dict, table, footnotes) -> str:
     """The screen's table of one sensor as HTML: the same cells, each with the payload entry it shows
     (``data-sensor``, ``data-axis``, ``data-method``, ``data-coef``) and its status as a class."""
@@ -499,6 +517,10 @@ def recording_page(data: dict, figures: dict, exports: dict | None = None, title
     tables = screen_tables(data)
     nav = [("record", "record"), ("static", "static check")]
     body = [_record_section(data), _static_section(data)]
+    quality = _quality_section(data)
+    if quality:
+        nav.append(("quality", "record checks"))
+        body.append(quality)
     for sensor, (table, footnotes) in tables.items():
         nav.append((f"sensor-{_anchor(sensor)}", sensor))
         body.append(_sensor_section(sensor, data["sensors"][sensor], table, footnotes, figures.get(sensor)))

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from avbench.recordings import filter_yaml
+from avbench.recordings.quality import file_lines
 
 __all__ = ["Value", "Request", "Exporter", "PLATEAU", "fmt", "factor", "sensor_values", "axis_values",
            "axis_order", "bias_instability", "plateau_bound", "header", "bound_lines", "inflate_text"]
@@ -227,14 +228,15 @@ def inflate_text(inflate) -> str:
 def header(req: Request, title: str, scope: str, convention: list[str], rate: str | None) -> list[str]:
     """The opening lines every file carries (without comment marks): what it is and where it comes
     from, the method and whether a value is per axis or the largest over the axes, the stack's
-    convention with its sources, the rate used and the inflation."""
+    convention with its sources, the rate used, the inflation and a line per flag on the record's
+    quality (:func:`avbench.recordings.quality.file_lines`)."""
     sources = ", ".join(map(str, req.sources)) or "(no source named)"
     lines = [f"{title} written by avbench estimate from {sources}", f"method: {req.method}; {scope}"]
     lines += convention
     if rate is not None:
         lines.append(rate)
     lines.append(inflate_text(req.inflate))
-    return lines
+    return lines + file_lines(req.data)
 
 
 def bound_lines(values: dict[str, Value]) -> list[str]:

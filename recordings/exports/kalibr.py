@@ -48,6 +48,7 @@ import json
 
 from avbench.recordings import filter_yaml
 from avbench.recordings.exports.base import Exporter, Request, bound_lines, fmt, header, sensor_values
+from avbench.recordings.quality import file_lines
 
 __all__ = ["KALIBR", "ALLAN_VARIANCE_ROS", "OPENVINS", "kalibr", "allan_variance_ros", "openvins"]
 
@@ -59,14 +60,15 @@ _ORDER = ("accelerometer_noise_density", "accelerometer_random_walk", "gyroscope
 def kalibr(req: Request) -> str:
     """Kalibr's ``imu.yaml``: :func:`~avbench.recordings.filter_yaml.kalibr_yaml`'s text, at the record's rate."""
     choices = filter_yaml.filter_choices(req.data, req.method, req.option, req.avs)
-    return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate, "kalibr")
+    return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate, "kalibr",
+                                   flags=file_lines(req.data))
 
 
 def allan_variance_ros(req: Request) -> str:
     """allan_variance_ros's ``imu.yaml``: Kalibr's keys, its own comment line."""
     choices = filter_yaml.filter_choices(req.data, req.method, req.option, req.avs)
     return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate,
-                                   "allan_variance_ros")
+                                   "allan_variance_ros", flags=file_lines(req.data))
 
 
 def _matrix(rows) -> list[str]:
