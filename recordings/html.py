@@ -378,8 +378,8 @@ def _fit_check_table(sd: dict) -> str:
                 verdict = "failed"
             else:
                 verdict = {True: "POOR FIT", False: "fits", None: "no check"}[pf]
-            stat = (f"{_g(md.get('fit_stat'))} on {md.get('fit_dof')} dof ({md.get('fit_reference')})"
-                    if md.get("fit_stat") is not None else "-")
+            stat = md.get("fit_reading") or (f"{_g(md.get('fit_stat'))} against {md.get('fit_reference')}"
+                                             if md.get("fit_stat") is not None else "-")
             p = md.get("fit_pvalue")
             ptext = "-" if p is None else ("< 1e-6" if p < 1e-6 else f"{p:.3g}")
             rows.append([axis, method, (verdict, {"class": "nowrap"}), stat, (ptext, {"class": "num"}),

@@ -123,6 +123,8 @@ def method_entry(fit, sensor, n_samples):
     if check.poor_fit is not None:  # the chi^2-type check behind poor_fit
         out.update(fit_stat=_num(check.stat), fit_dof=check.dof, fit_pvalue=_num(check.pvalue),
                    fit_reference=check.reference)
+        if check.reading:
+            out["fit_reading"] = check.reading
     if r.model_choice:
         out["model_choice"] = _jsonable(r.model_choice)
     return out
@@ -227,7 +229,10 @@ def _notes(md: dict, sensor: str) -> list[str]:
     if md["failure"]:
         notes.append(f"failed: {md['failure']}")
     if md["poor_fit"]:
-        notes.append("POOR FIT: the model misses the AV curve beyond its intervals")
+        notes.append("POOR FIT: the model misses the AV curve beyond its intervals" +
+                     (f" ({md['fit_reading']})" if md.get("fit_reading") else ""))
+    elif "NOT STATIONARY" in (md.get("fit_reading") or ""):
+        notes.append("fits, " + md["fit_reading"])
     for c in COEFFICIENTS:  # a bound is in its cell ("< x"); what a cell cannot say is here
         if md["coefficients"][c]["flag"] == "non-physical":
             notes.append(f"{c}: non-physical (the fit's value has no physical meaning)")
