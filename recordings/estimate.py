@@ -74,7 +74,7 @@ def add_parser(subparsers, parents):
                         "ros_imu_covariance (keys, units and conventions: docs/EXPORTS.md)")
     s.add_argument("--filter-rate", default=None, type=float, metavar="HZ",
                    help="the rate at which the filter receives the samples, where a stack needs a discrete value at "
-                        "it (PX4: EKF2's prediction rate; default: the record's rate; the file says which)")
+                        "it (default: the record's rate; PX4: EKF2's prediction rate, default 100 Hz; the file says which)")
     s.add_argument("--html", action="store_true",
                    help="also write <stem>_report.html: one self-contained page (the record, the static check, the "
                         "figures, the coefficient tables, the fit checks and every exported file, ready to copy)")
