@@ -199,18 +199,19 @@ def _clipping(u, c, channel, q):
                 "full-scale range, or leave out the clipped spans")
 
 
-def _units(x, channel, sensor, unit_in, q):
+def _raw_counts(x, channel, sensor, unit_in, q):
     from avbench.noise_models.units import samples_to_si
 
     factor = float(samples_to_si(1.0, unit_in, sensor))
-    flags = []
-    if q is not None and abs(q / factor - 1.0) <= 1e-9 and np.all(np.abs(x / factor - np.round(x / factor)) <= 1e-9 *
-                                                                   np.maximum(np.abs(x / factor), 1.0)):
-        flags.append(Flag("raw counts", channel, q / factor,
-                          f"every sample is a whole number of {unit_in} (step 1 {unit_in}): raw ADC counts declared "
-                          f"as {unit_in}?", "convert the counts with the datasheet's sensitivity (counts per unit) "
-                          "before estimating: every coefficient is in counts until then"))
-    return flags
+    if q is None or abs(q / factor - 1.0) > 1e-9:
+        return None
+    given = x / factor  # the samples in the unit they were declared in
+    if np.any(np.abs(given - np.round(given)) > 1e-9 * np.maximum(np.abs(given), 1.0)):
+        return None
+    return Flag("raw counts", channel, q / factor,
+                f"every sample is a whole number of {unit_in} (step 1 {unit_in}): raw ADC counts declared as {unit_in}?",
+                "convert the counts with the datasheet's sensitivity (counts per unit) before estimating: every "
+                "coefficient is in counts until then")
 
 
 def _mean_flags(sensor_record):
@@ -227,21 +228,21 @@ def _mean_flags(sensor_record):
     elif s.sensor == "accel" and means:
         g = math.sqrt(sum(m * m for m in means.values()))
         off = g / _G - 1.0 if len(means) == 3 else (g / _G - 2.0 if g > 2 * _G else 0.0)
-        if abs(off) > GRAVITY_SHARE and len(means) == 3 or off > 0 and len(means) != 3:
+        if (len(means) == 3 and abs(off) > GRAVITY_SHARE) or (len(means) != 3 and off > 0):
             out.append(Flag("implausible mean", "accel", g,
                             f"the mean acceleration's magnitude is {g:.4g} m/s^2 ({g / _G:.3g} g): at rest it is 1 g",
                             "check --accel-units (raw counts? g declared as m/s^2?) and that the sensor was at rest"))
     return out
 
 
-def _quantization(x, channel, q, short_var):
+def _quantization(channel, q, si_unit, short_var):
     if q is None or not short_var > 0:
         return None
     share = q * q / 12.0 / short_var
     if share < QUANTIZATION_SHARE:
         return None
     return Flag("quantization", channel, share,
-                f"the samples are rounded to {q:.4g} (SI); the rounding's variance q^2/12 is {100 * share:.3g} % of the "
+                f"the samples are rounded to {q:.4g} {si_unit}; the rounding's variance q^2/12 is {100 * share:.3g} % of the "
                 "short-scale variance: the shortest taus show the rounding, not the sensor",
                 f"N is inflated by up to {100 * (math.sqrt(1 + share) - 1):.3g} % and the quantization term Q is the "
                 "rounding's: record at a finer resolution, or read N from the longer taus (fit from a larger tau)")
@@ -313,8 +314,8 @@ def judge_record(sensors, dt: float) -> RecordQuality:
             d = np.diff(x)
             keep = ~(mask[1:] | mask[:-1])
             short_var = float(np.mean(d[keep] ** 2)) / 2 if keep.any() else 0.0
-            found = [spike, clip, *_units(x, channel, s.sensor, s.unit_in, q),
-                     _quantization(x, channel, q, short_var), _stationarity(x, channel, mask)]
+            found = [spike, clip, _raw_counts(x, channel, s.sensor, s.unit_in, q),
+                     _quantization(channel, q, s.si_unit, short_var), _stationarity(x, channel, mask)]
             flags += [f for f in found if f is not None]
         flags += _mean_flags(s)
     order = {n: i for i, n in enumerate(NAMES)}
