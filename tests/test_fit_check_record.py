@@ -109,6 +109,7 @@ def test_a_missing_term_on_a_record_whose_noise_moves_is_still_flagged_and_the_m
     assert np.any(d["fit_check"]["record_factor"] > 1.0)
     assert d["poor_fit"], d["fit_reading"]
     assert "NOT STATIONARY" in d["fit_reading"] and "largest residual" in d["fit_reading"]
+    assert isinstance(d["fit_dof"], int) and est.result().fit_check.reading == d["fit_reading"]
     z, lim = np.asarray(d["fit_check"]["z"]), d["fit_check"]["residual_limit"]
     # the verdict agrees with the residuals the figure draws: a residual beyond its limit, or the whole misfit
     assert np.any(np.abs(z) > lim) or d["fit_pvalue"] < 0.005

@@ -148,7 +148,8 @@ weighted by :math:`\\Omega^{-1}`), the reference is the weighted chi^2 of the fi
 the scales can hide a few scales the model misses among many whose variance the record inflates, so the
 misfit is then also judged scale by scale: each residual over its own standard deviation under that
 reference (:func:`record_residual_sd`, the diagonal of :math:`PS\\Omega SP^T`; these are the ``z`` the
-figures draw), the largest against the Bonferroni limit over the scales (:func:`residual_limit`). Here
+figures draw), each against the Bonferroni limit over the scales (:func:`residual_limit`: Student's t with
+B - 1 degrees of freedom where the variance came from the batches, Gaussian where it is the model's). Here
 the batches' variance is set against the variance the record's own AV level implies, :math:`\\Omega_{mm}
 (\\hat\\sigma^2_m/\\sigma^2_{model,m})^2` (an AV value's variance goes with its square): a term the model
 lacks raises the level of every batch alike, which is a misfit, not a spread between batches; and scales
@@ -375,12 +376,17 @@ def record_residual_sd(omega, factor, jacobian) -> np.ndarray:
     return np.sqrt(np.clip(np.einsum("ij,jk,ik->i", P, rec, P), 0.0, None))
 
 
-def residual_limit(k: int, alpha: float) -> float:
+def residual_limit(k: int, alpha: float, dof=None):
     """The |z| beyond which one of ``k`` standardised residuals flags the fit at family-wise level ``alpha``
-    (two-sided Gaussian, Bonferroni)."""
-    from scipy.special import ndtri
+    (two-sided, Bonferroni): the Gaussian quantile, or Student's t with ``dof`` degrees of freedom where a
+    residual's variance was estimated (``dof`` a number or an array per residual, inf for a known variance)."""
+    from scipy.special import ndtri, stdtrit
 
-    return float(-ndtri(alpha / (2 * max(int(k), 1))))
+    q = alpha / (2 * max(int(k), 1))
+    if dof is None:
+        return float(-ndtri(q))
+    dof = np.asarray(dof, float)
+    return np.where(np.isfinite(dof), -stdtrit(np.where(np.isfinite(dof), dof, 1.0), q), -ndtri(q))
 
 
 def reading(stat, dof, pvalue, reference, mean=None, record_factor=None, tau=None, residual_z=None,
@@ -404,10 +410,11 @@ def reading(stat, dof, pvalue, reference, mean=None, record_factor=None, tau=Non
            f"a larger one by chance: {p}")
     if residual_z is not None and limit is not None and np.size(residual_z):
         z = np.asarray(residual_z, float)
-        i = int(np.nanargmax(np.abs(z)))
+        lim = np.broadcast_to(np.asarray(limit, float), z.shape)
+        i = int(np.nanargmax(np.abs(z) / lim))
         at = f" at {tau[i]:.3g} s" if tau is not None else ""
-        out += (f"; the largest residual {z[i]:+.3g} of its own standard deviation{at} (limit +-{limit:.3g} over "
-                f"the {z.size} scales)")
+        out += (f"; the largest residual {z[i]:+.3g} of its own standard deviation{at} (limit +-{lim[i]:.3g} there, "
+                f"over the {z.size} scales)")
     if record_factor is not None and np.any(np.asarray(record_factor) > 1.0):
         f = np.asarray(record_factor, float)
         where = ""
@@ -592,7 +599,9 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
                 with np.errstate(divide="ignore", invalid="ignore"):
                     zr = np.where(sd_r > 0, (avar - model) / sd_r, 0.0)
                 out["fit_check"]["z"] = zr
-                out["fit_check"]["residual_limit"] = residual_limit(zr.size, alpha / 2)
+                # a variance taken from the batches is estimated (B - 1 dof): its residual is read against t
+                z_dof = np.where(spread > 1.0, RECORD_BATCHES - 1.0, np.inf)
+                out["fit_check"]["residual_limit"] = residual_limit(zr.size, alpha / 2, z_dof)
                 residual_poor = bool(np.any(np.abs(zr) > out["fit_check"]["residual_limit"]))
     if union is not None and np.isfinite(T):
         try:
