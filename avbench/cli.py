@@ -414,10 +414,20 @@ def cmd_deviations(args) -> int:
         plan.add(f"{stem}_{s.sensor}_deviations.png", lambda r, sensor=s.sensor: r["pngs"][sensor])
     out = plan.check([rec.path])
     title = args.title if args.title is not None else rec.path.name.replace("$", r"\$")  # a file name is no mathtext
-    rows, figs = [], []
+    from tqdm import tqdm
+
+    from avbench.recordings.deviations import longest_run, screen
+
+    rows, figs, shown, runs = [], [], {}, {}
+    bar = tqdm(total=sum(len(s.axes) for s in sensors) * len(names), desc="deviations", unit="statistic",
+               disable=args.no_progress or not sys.stderr.isatty(), leave=False)
     for s in sensors:
-        devs = {a: axis_deviations(x, timing.dt, timing.starts, names, args.taus, args.intervals, args.bias_corrected)
-                for a, x in s.axes.items()}
+        devs = {a: axis_deviations(x, timing.dt, timing.starts, names, args.taus, args.intervals, args.bias_corrected,
+                                   bar) for a, x in s.axes.items()}
+        for a, d in devs.items():
+            shown[(s.sensor, a)] = d
+            lo, hi = longest_run(timing.n_samples, timing.starts)
+            runs[(s.sensor, a)] = hi - lo
         for a, d in devs.items():
             for name, r in d.items():
                 unit = s.si_unit.split("/")[0] if r.kind in ("tvar", "ttotvar") else s.si_unit
@@ -426,6 +436,7 @@ def cmd_deviations(args) -> int:
                                      unit=f"variance ({unit})^2, deviation {unit}")[["statistic", *f.columns, "sensor", "axis", "unit"]])
         confidence = next(iter(next(iter(devs.values())).values())).confidence
         figs.append((s.sensor, figure.deviations_figure(s.sensor, s.si_unit, devs, title, confidence)))
+    bar.close()
     table = pd.concat(rows, ignore_index=True)
 
     import matplotlib.pyplot as plt
@@ -437,18 +448,11 @@ def cmd_deviations(args) -> int:
         plt.close(fig)
         pngs[sensor] = buf.getvalue()
     plan.write({"table": table, "pngs": pngs})
-    from avbench.recordings.report import wrap
-
-    print("\n".join(wrap(f"# {rec.path.name}: {timing.n_samples} samples at {1 / timing.dt:.6g} Hz; deviations on each "
-                          "axis' longest gap-free run, SI units (TDEV and TTOTDEV in rad or m/s), 'edf' the equivalent "
-                          "degrees of freedom" + ("; Stable32's intervals" if args.intervals == "stable32" else "")
-                          + ("; bias-corrected where Stable32 corrects" if args.bias_corrected else ""), "#   ")))
-    for (sensor, axis), g in table.groupby(["sensor", "axis"], sort=False):
-        wide = g.assign(tau=g["tau"].map(lambda t: float(f"{t:.4g}"))).pivot_table(
-            index="tau", columns="statistic", values="adev", sort=True)[list(dict.fromkeys(g["statistic"]))]
-        print(f"\n## {sensor} {axis}")
-        with pd.option_context("display.float_format", "{:.4g}".format, "display.width", 100):
-            print(wide.to_string(na_rep="-"))
+    print(screen(shown, runs, f"# {rec.path.name}: {timing.n_samples} samples at {1 / timing.dt:.6g} Hz; deviations on "
+                 "each axis' longest gap-free run, SI units (TDEV and TTOTDEV in rad or m/s); each cell: the deviation "
+                 "[its chi^2 interval]; each value's edf is in the CSV"
+                 + ("; Stable32's intervals" if args.intervals == "stable32" else "")
+                 + ("; bias-corrected where Stable32 corrects" if args.bias_corrected else "")))
     print(f"\n# wrote {', '.join(plan.names)} in {out}")
     return 0
 

@@ -161,8 +161,8 @@ class Coefficient:
 class FitCheck:
     """Whether the fitted model misses the record's statistic (:mod:`avbench.estimators.allan.fit_check`):
     ``poor_fit`` (None where the method makes no check), the chi^2-type statistic with its degrees of
-    freedom and p-value, the reference distribution's name, and the per-scale residuals ``(tau, z)``
-    where the check is made per AV scale (None otherwise)."""
+    freedom and p-value, the reference distribution's name, the per-scale residuals ``(tau, z)``
+    where the check is made per AV scale (None otherwise) and the check in words (``reading``)."""
 
     poor_fit: bool | None
     stat: float = math.nan
@@ -171,6 +171,7 @@ class FitCheck:
     reference: str | None = None
     residuals: tuple[np.ndarray, np.ndarray] | None = None
     detail: dict | None = None
+    reading: str | None = None  #: the check in words (:func:`avbench.estimators.allan.fit_check.reading`)
 
 
 @dataclass(frozen=True)
@@ -317,7 +318,7 @@ def _fit_check(diag: dict) -> FitCheck:
     dof = diag.get("fit_dof")
     return FitCheck(poor_fit=poor, stat=_f(diag.get("fit_stat")), dof=None if dof is None else int(dof),
                     pvalue=_f(diag.get("fit_pvalue")), reference=diag.get("fit_reference"), residuals=residuals,
-                    detail=detail)
+                    detail=detail, reading=diag.get("fit_reading"))
 
 
 def _evidence(diag: dict) -> dict[str, Evidence]:

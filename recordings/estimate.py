@@ -74,7 +74,7 @@ def add_parser(subparsers, parents):
                         "ros_imu_covariance (keys, units and conventions: docs/EXPORTS.md)")
     s.add_argument("--filter-rate", default=None, type=float, metavar="HZ",
                    help="the rate at which the filter receives the samples, where a stack needs a discrete value at "
-                        "it (PX4: EKF2's prediction rate; default: the record's rate; the file says which)")
+                        "it (default: the record's rate; PX4: EKF2's prediction rate, default 100 Hz; the file says which)")
     s.add_argument("--html", action="store_true",
                    help="also write <stem>_report.html: one self-contained page (the record, the static check, the "
                         "figures, the coefficient tables, the fit checks and every exported file, ready to copy)")
@@ -298,6 +298,7 @@ def run(args) -> int:
     from avbench.recordings.fit import agreement, auto_inflation, between_runs, fit_axis, scaled_allan
     from avbench.recordings.load import load_recording, pool_recordings, reader_options_of
     from avbench.recordings.plan import output_stem
+    from avbench.recordings.quality import file_lines as quality_file_lines
 
     methods, settings, filter_method, inflate = _check_args(args)
     progress = not args.no_progress and sys.stderr.isatty()
@@ -320,6 +321,9 @@ def run(args) -> int:
     # the AV engine, asked once per axis: the static check, the yaml's bounds, the AV table and the figure use it
     all_avs = {s.sensor: {a: scaled_allan(x, dt, timing.starts) for a, x in s.axes.items()} for s in sensors}
     still = static_check(sensors, dt, all_avs)  # said before the fits, which still run
+    from avbench.recordings.quality import judge_record
+
+    quality = judge_record(sensors, dt).to_dict()  # what the record is, judged before the fits
     if not still["static"] and not args.json:
         print("# NOT STATIC: the record does not look like a sensor at rest -- " + "; ".join(still["reasons"][:4]) +
               ("; ..." if len(still["reasons"]) > 4 else "") + ". The fits below assume rest: poor fits are expected.",
@@ -329,7 +333,7 @@ def run(args) -> int:
         fits = fit_sensors(sensors, timing, methods, settings, bar)
     notes = list(rec.notes) if len(loaded) == 1 else [f"{r.path.name}: {n}" for r, _, _ in loaded for n in r.notes]
     extra = {"format": rec.format, "topic": rec.topic, "time_source": rec.time_source, "notes": notes,
-             "static_check": still}
+             "static_check": still, "record_quality": quality}
     if len(loaded) > 1:
         extra["combine"] = {}
         for s_i, s in enumerate(sensors):
@@ -362,7 +366,8 @@ def run(args) -> int:
         choices = filter_yaml.filter_choices(est.results(), filter_method, "--kalibr" if args.kalibr else "--format",
                                              all_avs)
         yaml_text = filter_yaml.kalibr_yaml(choices, timing.fs, rec.topic, filter_method,
-                                            [r.path for r, _, _ in loaded], inflate, "kalibr")
+                                            [r.path for r, _, _ in loaded], inflate, "kalibr",
+                                            flags=quality_file_lines(quality))
         extra["filter_yaml"] = {"method": filter_method, "inflate": dict(inflate) if isinstance(inflate, dict) else list(inflate),
                                "values_si": {k: v for k, (v, _, _) in choices.items()},
                                "bounds": {k: why for k, (_, _, why) in choices.items() if why}}
@@ -397,7 +402,7 @@ def run(args) -> int:
         from avbench.recordings import exports
 
         exported = exports.render(est.results(), args.format, filter_method, timing.fs, args.filter_rate, inflate, rec.topic,
-                                  [r.path for r, _, _ in loaded], avs=all_avs)
+                                  [r.path for r, _, _ in loaded], avs=all_avs, flags=quality_file_lines(quality))
     screen = json.dumps(data) if args.json else _summary_text(est, rec)
     pngs = {k: _png(f) for k, f in figs.items()}
     results = {"pngs": pngs, "av_table": pd.concat(av_rows, ignore_index=True), "tables": tables, "data": data,
@@ -465,6 +470,9 @@ def _summary_text(est, rec) -> str:
     if still is not None and not still["static"]:
         _say(lines, "# NOT STATIC: " + "; ".join(still["reasons"]) + " -- the fits assume a sensor at rest; "
              "a POOR FIT below is expected for this reason")
+    from avbench.recordings.quality import screen_lines
+
+    lines += screen_lines(est.extra.get("record_quality"))
     lines.append(report.screen(est))
     times = [(f.seconds, f"{sensor} {axis} {name}") for sensor, per_axis in fits.items()
              for axis, per_method in per_axis.items() for name, f in per_method.items()]

@@ -206,14 +206,16 @@ def filter_values(results: dict, method: str, option: str = "--kalibr", avs=None
 
 
 def kalibr_yaml(values, update_rate: float, topic: str | None, method: str, sources, inflate=(1.0, 1.0),
-                style: str = "kalibr", notes=None) -> str:
+                style: str = "kalibr", notes=None, flags=()) -> str:
     """The text of a Kalibr ``imu.yaml`` (``style="allan_variance_ros"`` only changes the comment).
 
     ``inflate``: a pair (noise densities, random walks) given by the user, or a mapping Kalibr key ->
-    factor derived from the between-run spread (``--inflate auto``)."""
+    factor derived from the between-run spread (``--inflate auto``); ``flags``: lines on the record's
+    quality (:func:`avbench.recordings.quality.file_lines`), each a comment."""
     who = "Kalibr imu.yaml" if style == "kalibr" else "allan_variance_ros-style imu.yaml (Kalibr keys)"
     lines = [f"# {who} written by avbench estimate from {', '.join(map(str, sources))}",
              f"# method: {method}; each value is the largest over the sensor's axes (axis in the comment)"]
+    lines += [f"# {f}" for f in flags]
     if isinstance(inflate, dict):
         factors = dict(inflate)
         lines.append("# INFLATED from the between-run spread (--inflate auto): each value x (upper 95 % prediction "

@@ -329,6 +329,24 @@ def _static_section(data: dict) -> str:
     return "\n".join(out)
 
 
+def _quality_section(est) -> str:
+    """The record's quality flags (``record_quality`` of the record's facts, :mod:`avbench.recordings.quality`)."""
+    rq = est.extra.get("record_quality")
+    if rq is None:
+        return ""
+    out = ['<section id="quality"><h2>Is the record what the fits assume?</h2>']
+    if rq.get("ok"):
+        out.append("<p>" + _badge("no flag", "good") + " no spikes, clipping, raw counts, implausible mean, dominant "
+                   "rounding or moving noise level seen.</p>")
+    else:
+        out.append("<p>" + _badge("RECORD FLAGGED: " + ", ".join(rq.get("flagged") or []), "bad") + " the fits below "
+                   "assume a record without these.</p>")
+        rows = [[f["name"], f["channel"], f["finding"], f["todo"]] for f in rq.get("flags") or []]
+        out.append(html_table(["flag", "channel", "what was seen", "what to do"], rows))
+    out.append("</section>")
+    return "\n".join(out)
+
+
 def _coefficient_table(est, sensor: str, table, footnotes) -> str:
     """The screen's table of one sensor as HTML: the same cells, each with the fit it shows
     (``data-sensor``, ``data-axis``, ``data-method``, ``data-coef``) and its status as a class."""
@@ -398,8 +416,8 @@ def _fit_check_table(est, sensor: str) -> str:
             check = r.fit_check
             pf = check.poor_fit
             verdict = "failed" if r.failure else {True: "POOR FIT", False: "fits", None: "no check"}[pf]
-            stat = (f"{_g(check.stat)} on {check.dof} dof ({check.reference})"
-                    if pf is not None and math.isfinite(check.stat) else "-")
+            stat = check.reading or (f"{_g(check.stat)} against {check.reference}"
+                                     if pf is not None and math.isfinite(check.stat) else "-")
             p = check.pvalue if pf is not None else math.nan
             ptext = "-" if not math.isfinite(p) else ("< 1e-6" if p < 1e-6 else f"{p:.3g}")
             rows.append([axis, method, (verdict, {"class": "nowrap"}), stat, (ptext, {"class": "num"}),
@@ -594,6 +612,10 @@ def recording_page(est, figures: dict, exports: dict | None = None, title: str |
             **jsonable(est.extra), "notes": est.notes}  # the record's facts
     nav = [("record", "record"), ("static", "static check")]
     body = [_record_section(data), _static_section(data)]
+    quality = _quality_section(est)
+    if quality:
+        nav.append(("quality", "record checks"))
+        body.append(quality)
     for sensor, (table, footnotes) in coefficient_tables.items():
         nav.append((f"sensor-{_anchor(sensor)}", sensor))
         body.append(_sensor_section(est, sensor, table, footnotes, figures.get(sensor)))

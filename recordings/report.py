@@ -207,6 +207,8 @@ def _method_entry(fit, sensor, n_samples, units):
     if check.poor_fit is not None:  # the chi^2-type check behind poor_fit
         out.update(fit_stat=_num(check.stat), fit_dof=check.dof, fit_pvalue=_num(check.pvalue),
                    fit_reference=check.reference)
+        if check.reading:
+            out["fit_reading"] = check.reading
     if r.model_choice:
         out["model_choice"] = _jsonable(r.model_choice)
     return out
@@ -342,7 +344,10 @@ def _notes(fit, sensor: str, n_samples: int, units: dict) -> list[str]:
     if r.failure:
         notes.append(f"failed: {r.failure}")
     if r.fit_check.poor_fit:
-        notes.append("POOR FIT: the model misses the AV curve beyond its intervals")
+        notes.append("POOR FIT: the model misses the AV curve beyond its intervals" +
+                     (f" ({r.fit_check.reading})" if r.fit_check.reading else ""))
+    elif "NOT STATIONARY" in (r.fit_check.reading or ""):
+        notes.append("fits, " + r.fit_check.reading)
     for c, e in r.coefficients.items():  # a bound is in its cell ("< x"); what a cell cannot say is here
         if e.status == "non-physical":
             notes.append(f"{c}: non-physical (the fit's value has no physical meaning)")

@@ -9,8 +9,8 @@ largest difference found is 1.9e-4, at edf ~ 4); ensemble means within 4 standar
 replicates; ensemble variances within 4 standard errors of a sample variance of a chi^2-like statistic.
 """
 
+import re
 from pathlib import Path
-
 
 import numpy as np
 import pytest
@@ -650,6 +650,13 @@ def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "ohdev" in printed and "mtotdev" in printed
+    flat = " ".join(printed.replace("\n#   ", " ").split())
+    assert "each value's edf is in the CSV" in flat and "'edf' the equivalent" not in flat
+    for name in ("oadev", "ohdev", "mtotdev", "tdev"):  # each statistic's interval, and where and why it stops
+        assert f"{name} [68.3 %]" in printed and re.search(rf"^# {name} stops at \S+ s: ", printed, re.M), name
+    first = re.search(r"^0\.01\s+(\S+) \[(\S+), (\S+)\]", printed, re.M)
+    v, lo, hi = (float(first.group(k).rstrip("]")) for k in (1, 2, 3))
+    assert lo < v < hi
     table = pd.read_csv(out / "rec_deviations.csv")
     assert list(dict.fromkeys(table["statistic"])) == ["oadev", "ohdev", "mtotdev", "tdev"]
     x = np.load(f) * np.pi / 180
@@ -666,6 +673,17 @@ def test_deviations_command_writes_csv_and_plot(tmp_path, capsys):
     assert main(["deviations", str(long), "--fs", "100", "--units", "deg/s", "--deviation", "theobr",
                  "--out", str(tmp_path / "o2")]) == 2
     assert "theobr" in capsys.readouterr().err and not (tmp_path / "o2" / "long_deviations.csv").exists()
+
+
+def test_a_statistic_says_why_it_stops():
+    from avbench.recordings.deviations import stop_reason
+
+    w = np.random.default_rng(4).standard_normal(3000)
+    full = deviation(w, 0.1, "mtotvar")
+    assert "the longest tau its definition allows on a run of 3000 samples" in stop_reason("mtotdev", full, 3000)
+    cut = deviation(w, 0.1, "mtotvar", max_terms=2e6)
+    assert cut.m.size < full.m.size
+    assert "would take it past 2e+06 terms summed" in stop_reason("mtotdev", cut, 3000, budget=2e6)
 
 
 @pytest.mark.parametrize("n", [16, 17, 31, 1200, 1201, 4095, 4096, 4099, 8191, 4096 * 3 + 5, 70001, 2**17 + 6, 2**19 + 3])

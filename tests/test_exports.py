@@ -4,10 +4,12 @@ Each stack's conversion is checked from first principles: a white noise of the d
 walk of the coefficient the payload gives are simulated (avbench's noise models) at the rate the file
 names; the written parameter is put through the stack's own discretisation, re-implemented here from
 the line its module cites; the variance that predicts for a sample, a step or an interval must lie in
-the chi^2 interval (level 1 - 1e-6) of the simulated one. The files are parsed as the stack reads them
-(YAML, JSON, the GTSAM snippet executed, the MATLAB and ``.params`` text by regex), and a property
-test holds every format to its stated conversion of the JSON's coefficients over unit factors, rates
-and inflation.
+the chi^2 interval (level 1 - 1e-6) of the simulated one. Every file is read by its consumer's parser:
+OpenCV's FileStorage for OpenVINS, VINS and ORB-SLAM3, with the node types each one's code asks for;
+PyYAML for Kalibr, allan_variance_ros and the ROS covariances; JSON with basalt's keys and types; the
+GTSAM snippet executed (against GTSAM itself where it is installed); the MATLAB and ``.params`` text by
+regex. A property test holds every format to its stated conversion of the JSON's coefficients over
+unit factors, rates and inflation.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import warnings
 import zlib
 from unittest import mock
 
+import cv2
 import numpy as np
 import pytest
 import yaml
@@ -101,17 +104,115 @@ def _reference(data: dict, method: str, inflate=(1.0, 1.0)):
     return per_axis, largest
 
 
+# -- each consumer's parser ------------------------------------------------------------------------------
+#: what the consumer's code asks of a node: "real" (``isReal()``), "int" (``isInt()``), "number" (either:
+#: ``node >> double``, ``(double)node``), "string" (``isString()``; ``>> std::string`` reads "" otherwise),
+#: "matrix" (a sequence of sequences of numbers, read as ``(double)node[r][c]``)
+OPENCV_NUMBER_KINDS = {"real": ("isReal",), "int": ("isInt",), "number": ("isReal", "isInt")}
+#: OpenVINS: VioManagerOptions.h print_and_load_noise / print_and_load_state, StateOptions.h ("model"),
+#: ROS1Visualizer.cpp ("rostopic") -- all under ``imu0`` through opencv_yaml_parse.h
+OPENVINS_NODES = {"gyroscope_noise_density": "number", "gyroscope_random_walk": "number",
+                  "accelerometer_noise_density": "number", "accelerometer_random_walk": "number",
+                  "rostopic": "string", "model": "string", "Tw": "matrix", "Ta": "matrix", "R_IMUtoACC": "matrix",
+                  "R_IMUtoGYRO": "matrix", "Tg": "matrix", "T_i_b": "matrix", "time_offset": "number",
+                  "update_rate": "number"}
+#: ORB-SLAM3, File.version "1.0": Settings::readIMU, readParameter<float> (aborts unless isReal())
+ORBSLAM3_NODES = {"IMU.NoiseGyro": "real", "IMU.NoiseAcc": "real", "IMU.GyroWalk": "real", "IMU.AccWalk": "real",
+                  "IMU.Frequency": "real"}
+#: ORB-SLAM3, older settings files: Tracking::ParseIMUParamFile (IMU.Frequency: isInt(); the rest: isReal())
+ORBSLAM3_LEGACY_NODES = {**ORBSLAM3_NODES, "IMU.Frequency": "int"}
+#: VINS-Fusion parameters.cpp: ACC_N = fsSettings["acc_n"] ... (operator double); the config around the
+#: fragment keeps its own keys (imu_topic >> std::string, g_norm as a double)
+VINS_NODES = {"acc_n": "number", "gyr_n": "number", "acc_w": "number", "gyr_w": "number", "imu_topic": "string",
+              "g_norm": "number"}
+#: a VINS config's own lines around the pasted fragment (config/euroc/euroc_stereo_imu_config.yaml)
+VINS_CONFIG = ('%YAML:1.0\n\nimu: 1\nnum_of_cam: 2\n\nimu_topic: "/imu0"\n\n#imu parameters\n{fragment}'
+               "g_norm: 9.81007     # gravity magnitude\n")
+#: basalt's calibration: the keys of value0 the fragment holds and their JSON types (data/euroc_ds_calib.json:
+#: "imu_update_rate": 200.0, "accel_noise_std": [0.016, 0.016, 0.016], ...)
+BASALT_TYPES = {"imu_update_rate": float, "accel_noise_std": list, "gyro_noise_std": list, "accel_bias_std": list,
+                "gyro_bias_std": list}
+
+
+def _opencv_value(node):
+    """A FileNode as Python: int, float, str, list or dict by the node's own type."""
+    if node.isInt():
+        return int(node.real())
+    if node.isReal():
+        return node.real()
+    if node.isString():
+        return node.string()
+    if node.isSeq():
+        return [_opencv_value(node.at(i)) for i in range(node.size())]
+    if node.isMap():
+        return {k: _opencv_value(node.getNode(k)) for k in node.keys()}
+    return None
+
+
+def _opencv_type(node) -> str:
+    return next((t for t in ("Int", "Real", "String", "Seq", "Map") if getattr(node, f"is{t}")()), "none")
+
+
+def _opencv_read(text: str, nodes: dict, under: str | None = None, what: str = "") -> dict:
+    """``text`` read by OpenCV's FileStorage as the consumer reads it: every node in ``nodes`` must be of
+    the kind its code asks for (AssertionError naming the key, the kind and what OpenCV made of it); the
+    values (under the map ``under``, if given) as Python."""
+    fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+    try:
+        root = fs.getNode(under) if under else fs.root()
+        assert root.isMap(), f"{what}: OpenCV reads no map{' under ' + under if under else ''}"
+        for key, kind in nodes.items():
+            node = root.getNode(key)
+            got = _opencv_type(node)
+            if kind == "matrix":
+                ok = node.isSeq() and all(node.at(r).isSeq() and all(
+                    node.at(r).at(c).isReal() or node.at(r).at(c).isInt() for c in range(node.at(r).size()))
+                    for r in range(node.size()))
+            elif kind == "string":
+                ok = node.isString()
+            else:
+                ok = any(getattr(node, m)() for m in OPENCV_NUMBER_KINDS[kind])
+            assert ok, f"{what}: OpenCV reads {key} as {got} ({_opencv_value(node)!r}); the consumer needs {kind}"
+        return {k: _opencv_value(root.getNode(k)) for k in root.keys()}
+    finally:
+        fs.release()
+
+
+def _orbslam3_legacy(text: str) -> str:
+    """The fragment as an older settings file takes it: the commented integer IMU.Frequency line in place of
+    the real one, as the file's own comment says."""
+    legacy = re.findall(r"^# (IMU\.Frequency: \S+)$", text, re.M)
+    assert len(legacy) == 1, "orbslam3: expected one commented IMU.Frequency line for older settings files"
+    return re.sub(r"^IMU\.Frequency: .*$", legacy[0], text, count=1, flags=re.M)
+
+
 def _parse(name: str, text: str) -> dict:
     """The numbers a file holds, read as its stack reads it."""
-    if name in ("kalibr", "allan_variance_ros", "vins", "ros_imu_covariance"):
+    if name in ("kalibr", "allan_variance_ros", "ros_imu_covariance"):
         return yaml.safe_load(text)
-    if name in ("openvins", "orbslam3"):
-        first, rest = text.split("\n", 1)
+    if name == "openvins":
+        return _opencv_read(text, OPENVINS_NODES, "imu0", name)
+    if name == "vins":
+        assert not text.startswith("%YAML"), "vins: a fragment to paste into a config, which has its own %YAML:1.0"
+        d = _opencv_read(VINS_CONFIG.format(fragment=text), VINS_NODES, None, name)
+        assert d["imu_topic"] == "/imu0" and d["g_norm"] == 9.81007, "vins: the fragment changed the config around it"
+        return d
+    if name == "orbslam3":
+        first = text.split("\n", 1)[0]
         assert first == "%YAML:1.0", f"{name}: OpenCV's FileStorage needs the %YAML:1.0 directive first, got {first!r}"
-        d = yaml.safe_load(rest)
-        return d["imu0"] if name == "openvins" else d
+        d = _opencv_read(text, ORBSLAM3_NODES, None, "orbslam3 (File.version 1.0: Settings::readIMU)")
+        old = _opencv_read(_orbslam3_legacy(text), ORBSLAM3_LEGACY_NODES, None,
+                           "orbslam3 (older settings: Tracking::ParseIMUParamFile)")
+        assert old["IMU.Frequency"] == round(d["IMU.Frequency"]), (old["IMU.Frequency"], d["IMU.Frequency"])
+        return d
     if name == "basalt":
-        return json.loads(text)["value0"]
+        body = json.loads(text)["value0"]
+        assert set(body) == set(BASALT_TYPES), f"basalt: value0 holds {sorted(body)}, expected {sorted(BASALT_TYPES)}"
+        for key, t in BASALT_TYPES.items():
+            assert isinstance(body[key], t), f"basalt: {key} is {type(body[key]).__name__}, expected {t.__name__}"
+            if t is list:
+                assert len(body[key]) == 3 and all(isinstance(v, float) for v in body[key]), (key, body[key])
+        return body
     if name == "gtsam":
         return _run_gtsam_snippet(text)
     if name == "px4":
@@ -169,7 +270,8 @@ def _run_gtsam_snippet(text: str) -> dict:
 
 
 #: per format: the written number under each label from the continuous coefficients (docs' conventions)
-def _expected(name: str, per_axis: dict, largest: dict, f_record: float, f_used: float) -> dict:
+def _expected(name: str, per_axis: dict, largest: dict, f_record: float, f_used: float, f_predict: float) -> dict:
+    """``f_predict``: PX4's prediction rate (--filter-rate, else EKF2's default 100 Hz, at most the record's)."""
     s = math.sqrt(f_used)
     if name in ("kalibr", "allan_variance_ros", "openvins"):
         out = {"accelerometer_noise_density": largest[("accel", "N")], "accelerometer_random_walk": largest[("accel", "K")],
@@ -195,6 +297,7 @@ def _expected(name: str, per_axis: dict, largest: dict, f_record: float, f_used:
                 "biasAccCovariance": largest[("accel", "K")] ** 2 * eye,
                 "integrationCovariance": 1e-8 * eye}
     if name == "px4":
+        s = math.sqrt(f_predict)
         return {"EKF2_GYR_NOISE": largest[("gyro", "N")] * s, "EKF2_ACC_NOISE": largest[("accel", "N")] * s,
                 "EKF2_GYR_B_NOISE": largest[("gyro", "K")] * s, "EKF2_ACC_B_NOISE": largest[("accel", "K")] * s}
     if name == "matlab":
@@ -458,7 +561,38 @@ def test_px4_says_when_a_value_is_outside_its_documented_range():
     data, _ = _payload()
     text = render(_scaled(data, 1e-3), "px4", "gmwm", RATE)["px4"][1]
     assert re.search(r"EKF2_ACC_NOISE: outside its documented range \[0\.01, 1\]", text)
-    assert "give --filter-rate" in text  # the record's rate used: said
+
+
+@pytest.mark.parametrize("record_rate, f", [(400.0, 100.0), (100.0, 100.0), (50.0, 50.0)])
+def test_px4_predicts_at_ekf2s_default_rate_unless_told(record_rate, f):
+    """Without --filter-rate: EKF2_PREDICT_US's default, 10000 us (100 Hz), at most the record's rate; said."""
+    data, avs = _payload()
+    text = render(data, "px4", "gmwm", record_rate, avs=avs)["px4"][1]
+    _, largest = _truth()
+    w = _parse("px4", text)
+    _close(w["EKF2_GYR_NOISE"], largest[("gyro", "N")] * math.sqrt(f), 1e-8, "EKF2_GYR_NOISE")
+    said = re.search(r"^# f \(EKF2's prediction rate, 1e6 / EKF2_PREDICT_US\): (\S+) Hz, (.*)$", text, re.M)
+    assert said and float(said.group(1)) == f
+    assert ("EKF2's default (EKF2_PREDICT_US = 10000 us)" in said.group(2)) == (record_rate >= 100.0)
+
+
+@pytest.mark.parametrize("name, today, match", [
+    ("openvins", "  rostopic: /imu0  # not a bag: Kalibr's default topic", "rostopic as Map"),
+    ("orbslam3", "IMU.Frequency: 100.000000  # Hz", r"IMU\.Frequency as Real .* needs int")])
+def test_the_opencv_readers_refuse_what_their_stacks_cannot_take(name, today, match):
+    """The checks fail on the lines these files held before: an unquoted topic with a comment (OpenCV makes a
+    map of it, and OpenVINS's ``>> std::string`` an empty topic) and ORB-SLAM3's frequency as a real number
+    (an older settings file's ``isInt()`` refuses it)."""
+    text = _text(name)
+    key = today.split(":")[0].strip()
+    old = re.sub(rf"^(# )?\s*{re.escape(key)}: .*\n", "", text, flags=re.M)
+    old = old.replace("imu0:\n", "imu0:\n" + today + "\n") if name == "openvins" else old + today + "\n"
+    _parse(name, text)
+    with pytest.raises(AssertionError, match=match if name == "openvins" else "one commented IMU.Frequency line"):
+        _parse(name, old)
+    if name == "orbslam3":  # and with the integer line present but the old real one in use by older files
+        with pytest.raises(AssertionError, match=match):
+            _opencv_read(old, ORBSLAM3_LEGACY_NODES, None, "orbslam3 (older settings)")
 
 
 def test_matlab_values_follow_the_allan_relations_of_mathworks_example():
@@ -542,7 +676,7 @@ def test_bounds_from_the_allan_variance_where_the_method_gives_no_interval():
 def test_the_file_says_which_rate():
     assert "f: 100 Hz, the record's rate (--filter-rate not given)" in _text("vins")
     assert "f: 50 Hz from --filter-rate (the record's rate: 100 Hz)" in _text("vins", filter_rate=50.0)
-    assert "IMU.Frequency: 50.000000" in _text("orbslam3", filter_rate=50.0)
+    assert re.search(r"^IMU\.Frequency: 50\.0$", _text("orbslam3", filter_rate=50.0), re.M)
 
 
 def test_inflation_is_said_and_applied():
@@ -572,7 +706,7 @@ def test_every_format_is_its_conversion_of_the_json(u, rate, share, f_noise, f_w
     for name, (suffix, text) in out.items():
         assert suffix == f"_{name}.{FORMATS[name].extension}"
         got = _parse(name, text)
-        want = _expected(name, per_axis, largest, rate, f_used)
+        want = _expected(name, per_axis, largest, rate, f_used, min(100.0, rate) if filter_rate is None else filter_rate)
         for label, value in want.items():
             rates = label in ("update_rate", "IMU.Frequency", "imu_update_rate", "SampleRate")
             if rates:  # written with 6 decimals

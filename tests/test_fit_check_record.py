@@ -84,3 +84,32 @@ def test_the_record_check_on_a_correct_model_is_the_model_check_where_nothing_mo
             assert np.all(rec.std_err_.fillna(0) >= mod.std_err_.fillna(0) * (1 - 1e-12))
     assert flags <= stats.binom.ppf(0.999, R, 0.01), flags
     assert same >= R // 2, same
+
+
+@pytest.mark.parametrize("fit_covariance", ["model", "record"])
+def test_a_missing_random_walk_is_flagged_with_either_variance(fit_covariance):
+    # a stationary record whose rate random walk the model lacks: the check flags it whichever variances it uses,
+    # and its reading names the reference it was read against in words, not in degrees of freedom alone
+    x = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=2e-6)]).simulate(200_000, np.random.default_rng(21))
+    d = estimators.get("gmwm", model="WN", min_m=1, fit_covariance=fit_covariance).fit(x, 0.1).diagnostics_
+    assert d["poor_fit"], d["fit_reading"]
+    assert "where a record the fitted model describes gives about" in d["fit_reading"]
+
+
+def test_a_missing_term_on_a_record_whose_noise_moves_is_still_flagged_and_the_move_said():
+    # the white noise's level moves by +-40 % between eighths (the record's variances are used at the short
+    # scales) and the model lacks the random walk: the flag stays, and the reading says the record moves
+    n, dt = 200_000, 0.1
+    rng = np.random.default_rng(8)
+    level = np.repeat(1.0 + 0.4 * np.array([1, -1, 1, -1, -1, 1, -1, 1]), n // 8)
+    x = 1e-3 / np.sqrt(dt) * level * rng.standard_normal(n)
+    x += Gyro(dt=dt, terms=[RateRandomWalk(K=3e-6)]).simulate(n, rng)
+    est = estimators.get("gmwm", model="WN", min_m=1, fit_covariance="record").fit(x, dt)
+    d = est.diagnostics_
+    assert np.any(d["fit_check"]["record_factor"] > 1.0)
+    assert d["poor_fit"], d["fit_reading"]
+    assert "NOT STATIONARY" in d["fit_reading"] and "largest residual" in d["fit_reading"]
+    assert isinstance(d["fit_dof"], int) and est.result().fit_check.reading == d["fit_reading"]
+    z, lim = np.asarray(d["fit_check"]["z"]), d["fit_check"]["residual_limit"]
+    # the verdict agrees with the residuals the figure draws: a residual beyond its limit, or the whole misfit
+    assert np.any(np.abs(z) > lim) or d["fit_pvalue"] < 0.005

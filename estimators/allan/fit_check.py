@@ -144,10 +144,28 @@ for its robust form). Where no factor exceeds 1 the check is the one above. Wher
 fit's Jacobian is given (``jacobian``: d model AV / d free log-parameter at the check's scales, the fit
 weighted by :math:`\\Omega^{-1}`), the reference is the weighted chi^2 of the fit's residual
 :math:`r = (I - G(G^T\\Omega^{-1}G)^{-1}G^T\\Omega^{-1})e`, :math:`e \\sim N(0, S\\Omega S)`
-(:func:`record_reference_weights`; ``fit_reference`` "weighted chi2 (record)"). What it does not do: it
-does not make a wrong model pass; its residuals are judged against the record's own variability (the
-tests: a missing term is still flagged on simulated records), and a scale whose batches vary more than
-the model says counts less. The factors are in ``fit_check["record_factor"]``.
+(:func:`record_reference_weights`; ``fit_reference`` "weighted chi2 (record)"). A statistic summed over
+the scales can hide a few scales the model misses among many whose variance the record inflates, so the
+misfit is then also judged scale by scale: each residual over its own standard deviation under that
+reference (:func:`record_residual_sd`, the diagonal of :math:`PS\\Omega SP^T`; these are the ``z`` the
+figures draw), each against the Bonferroni limit over the scales (:func:`residual_limit`: Student's t with
+B - 1 degrees of freedom where the variance came from the batches, Gaussian where it is the model's). Here
+the batches' variance is set against the variance the record's own AV level implies, :math:`\\Omega_{mm}
+(\\hat\\sigma^2_m/\\sigma^2_{model,m})^2` (an AV value's variance goes with its square): a term the model
+lacks raises the level of every batch alike, which is a misfit, not a spread between batches; and scales
+too long for the batches keep the model's variance (no batch says the record varies more there). The fit
+is poor where either test fails, each at ``alpha / 2``, so the flag's level stays ``alpha``. What it does
+not do: it does not make a wrong model pass; its residuals are judged against the record's own
+variability (the tests: a missing term is still flagged on simulated records), and a scale whose batches
+vary more than the model says counts less. The factors are in ``fit_check["record_factor"]``; the
+reading (:func:`reading`, ``fit_reading``) says that the record is not stationary, by how much and where.
+
+The reading
+-----------
+``fit_reading`` says the check in words (:func:`reading`): the statistic, what a record the fitted model
+describes gives (the reference's mean: its degrees of freedom, or the sum of the weighted chi-square's
+weights), which reference that is, and the p-value; in record mode the largest residual against its limit
+and the non-stationarity the batches show.
 
 Five-term fits (Lv et al. 2015 model, :mod:`avbench.estimators.allan.model`) are checked with their
 continuous model curve; the covariance uses the spectra of the same terms (white angle noise for
@@ -166,7 +184,7 @@ import numpy as np
 from avbench.noise_models.gyro import Gyro
 
 __all__ = ["ALPHA", "MIN_CLUSTERS", "RECORD_BATCHES", "RECORD_LEVEL", "record_variance_factor",
-           "record_reference_weights", "assess_fit", "assess_five_term", "fit_statistic",
+           "record_reference_weights", "record_residual_sd", "residual_limit", "reading", "assess_fit", "assess_five_term", "fit_statistic",
            "union_covariance", "refit_weights", "weighted_chi2_sf", "chernoff_bound", "bootstrap_fit_check"]
 
 #: significance level of the poor-fit flag
@@ -291,14 +309,15 @@ def chernoff_bound(x, weights) -> float:
     return float(math.exp(min(0.0, -s * x - 0.5 * float(np.sum(np.log1p(-2.0 * s * w))))))
 
 
-def record_variance_factor(rate, m, model_var, n_samples, batches=RECORD_BATCHES, level=RECORD_LEVEL):
+def record_variance_factor(rate, m, model_var, n_samples, batches=RECORD_BATCHES, level=RECORD_LEVEL, carry=True):
     """Per cluster size ``m``, the factor (>= 1) by which the record's own variance of its AV value exceeds the
     model's ``model_var`` (the diagonal of the model covariance of the whole record's AV), from the AVs of
     ``batches`` equal batches (module docstring, "The record's own covariance"): the ratio
     :math:`\\rho_m = s^2_m / (\\Omega_{mm}(n - 2m + 1)/(L - 2m + 1))` where it exceeds the one-sided ``level``
     point of chi^2_{B-1}/(B-1), else 1; scales whose batches hold fewer than :data:`MIN_CLUSTERS` clusters take
-    the factor of the longest scale that holds them (1 if none does). The batches are contiguous stretches of the
-    samples given (a record's gaps are not looked for here)."""
+    the factor of the longest scale that holds them (1 if none does; with ``carry=False`` they keep 1: the record
+    says nothing of its variability there). The batches are contiguous stretches of the samples given (a record's
+    gaps are not looked for here)."""
     from scipy.special import chdtri  # chi^2 upper quantile: chdtri(dof, p) is scipy.stats.chi2.isf(p, dof)
 
     from avbench.estimators.allan.variance import allan_variance
@@ -317,8 +336,9 @@ def record_variance_factor(rate, m, model_var, n_samples, batches=RECORD_BATCHES
     rho = s2 / batch_var
     crit = float(chdtri(batches - 1, level)) / (batches - 1)
     factor[seen] = np.where(rho > crit, rho, 1.0)
-    last = np.flatnonzero(seen)[-1]
-    factor[last + 1:] = factor[last]
+    if carry:
+        last = np.flatnonzero(seen)[-1]
+        factor[last + 1:] = factor[last]
     return factor
 
 
@@ -340,6 +360,71 @@ def record_reference_weights(omega, factor, jacobian) -> np.ndarray:
     A = solve_triangular(L, P @ rec @ P.T, lower=True)
     A = solve_triangular(L, A.T, lower=True)
     return np.clip(np.linalg.eigvalsh(0.5 * (A + A.T)), 0.0, None)
+
+
+def record_residual_sd(omega, factor, jacobian) -> np.ndarray:
+    """Each scale's standard deviation of the fit's residual when the AV values' covariance is ``S omega S``
+    and the fit weighted them by ``omega`` (the setting of :func:`record_reference_weights`): the square root
+    of the diagonal of :math:`P S\\Omega S P^T`."""
+    from scipy.linalg import cho_factor, cho_solve
+
+    G = np.asarray(jacobian, float)
+    s = np.sqrt(np.asarray(factor, float))
+    rec = omega * np.outer(s, s)
+    WG = cho_solve(cho_factor(omega, lower=True), G)
+    P = np.eye(omega.shape[0]) - G @ np.linalg.solve(G.T @ WG, WG.T)
+    return np.sqrt(np.clip(np.einsum("ij,jk,ik->i", P, rec, P), 0.0, None))
+
+
+def residual_limit(k: int, alpha: float, dof=None):
+    """The |z| beyond which one of ``k`` standardised residuals flags the fit at family-wise level ``alpha``
+    (two-sided, Bonferroni): the Gaussian quantile, or Student's t with ``dof`` degrees of freedom where a
+    residual's variance was estimated (``dof`` a number or an array per residual, inf for a known variance)."""
+    from scipy.special import ndtri, stdtrit
+
+    q = alpha / (2 * max(int(k), 1))
+    if dof is None:
+        return float(-ndtri(q))
+    dof = np.asarray(dof, float)
+    return np.where(np.isfinite(dof), -stdtrit(np.where(np.isfinite(dof), dof, 1.0), q), -ndtri(q))
+
+
+def reading(stat, dof, pvalue, reference, mean=None, record_factor=None, tau=None, residual_z=None,
+            limit=None) -> str:
+    """The fit check in words: the statistic, the reference it is read against (what a record the fitted
+    model describes gives: the mean ``mean``, else ``dof``), the p-value; where the record's own variances
+    were used, how much more the record varies than a stationary model allows and where; where residuals
+    are judged one by one, the largest against its limit."""
+    if stat is None or not np.isfinite(stat):
+        return "no check: too few scales to test the model against"
+    ref = {"chi2": f"a chi-square with {dof} degrees of freedom",
+           "weighted chi2": "the spread this fit's own sampling error gives (a weighted chi-square)",
+           "weighted chi2 (record)": "the spread the record's own batches show, passed through the fit (a weighted "
+                                     "chi-square)"}.get(reference, None)
+    if ref is None:
+        ref = f"{reference}: the statistics of records simulated from the fit" if str(reference).startswith(
+            "parametric bootstrap") else str(reference)
+    typical = mean if mean is not None and np.isfinite(mean) else dof
+    p = "p < 1e-6" if pvalue is not None and pvalue < 1e-6 else f"p = {pvalue:.3g}"
+    out = (f"misfit {stat:.3g}, where a record the fitted model describes gives about {typical:.3g} ({ref}); "
+           f"a larger one by chance: {p}")
+    if residual_z is not None and limit is not None and np.size(residual_z):
+        z = np.asarray(residual_z, float)
+        lim = np.broadcast_to(np.asarray(limit, float), z.shape)
+        i = int(np.nanargmax(np.abs(z) / lim))
+        at = f" at {tau[i]:.3g} s" if tau is not None else ""
+        out += (f"; the largest residual {z[i]:+.3g} of its own standard deviation{at} (limit +-{lim[i]:.3g} there, "
+                f"over the {z.size} scales)")
+    if record_factor is not None and np.any(np.asarray(record_factor) > 1.0):
+        f = np.asarray(record_factor, float)
+        where = ""
+        if tau is not None:
+            moved = np.asarray(tau, float)[f > 1.0]
+            where = f" at {moved.min():.3g}-{moved.max():.3g} s"
+        out += (f"; NOT STATIONARY: the record's Allan variance varies between its {RECORD_BATCHES} batches up to "
+                f"{f.max():.3g} x more than a stationary model allows{where} -- the check and the intervals use the "
+                "record's own variances there")
+    return out
 
 
 def union_covariance(m_fit, m_check, cov_gyro, n_samples, cov_scale=1.0):
@@ -446,7 +531,8 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
 
     Returns
     -------
-    dict with ``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``, ``fit_reference``, ``fit_check``.
+    dict with ``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``, ``fit_reference``, ``fit_reading``,
+    ``fit_check``.
     """
     from avbench.estimators.allan.variance import allan_variance
     from avbench.estimators.allan.covariance import av_covariance
@@ -466,7 +552,8 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
                          "alpha": float(alpha)}}
     if tau.size <= n_params:
         # nothing left to test the model against
-        out.update(poor_fit=False, fit_stat=math.nan, fit_dof=0, fit_pvalue=math.nan, fit_reference="none")
+        out.update(poor_fit=False, fit_stat=math.nan, fit_dof=0, fit_pvalue=math.nan, fit_reference="none",
+                   fit_reading=reading(math.nan, 0, math.nan, "none"))
         return out
     union = None
     if cov_gyro is None or not np.all(np.isfinite(model)):
@@ -488,6 +575,7 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
     T, dof, p, z = fit_statistic(avar, model, cov, n_params)
     out["fit_check"]["z"] = z
     reference_name = "chi2"
+    residual_poor = None
     if factor is not None and jacobian is not None and np.isfinite(T):
         jt, jac = np.asarray(jacobian[0], float), np.asarray(jacobian[1], float)
         rows = np.searchsorted(jt, tau)
@@ -500,6 +588,21 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
                 p = weighted_chi2_sf(T, lam)
                 reference_name = "weighted chi2 (record)"
                 out["fit_check"]["weights"] = lam
+                # the misfit is judged also scale by scale: each residual over its own standard deviation, the
+                # batches' excess taken over the variance the record's own AV level implies (a missing term
+                # raises the level, not the spread about it)
+                omega = cov / np.sqrt(np.outer(factor, factor))
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    level = np.where((model > 0) & np.isfinite(avar / model), (avar / model) ** 2, 1.0)
+                spread = record_variance_factor(rate, m, np.diag(omega) * level, n, carry=False)
+                sd_r = record_residual_sd(omega, spread, jac[rows])
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    zr = np.where(sd_r > 0, (avar - model) / sd_r, 0.0)
+                out["fit_check"]["z"] = zr
+                # a variance taken from the batches is estimated (B - 1 dof): its residual is read against t
+                z_dof = np.where(spread > 1.0, RECORD_BATCHES - 1.0, np.inf)
+                out["fit_check"]["residual_limit"] = residual_limit(zr.size, alpha / 2, z_dof)
+                residual_poor = bool(np.any(np.abs(zr) > out["fit_check"]["residual_limit"]))
     if union is not None and np.isfinite(T):
         try:
             lam, _ = refit_weights(refit, m, cov_gyro, n, cov_scale, union=union)
@@ -509,7 +612,16 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
             p = weighted_chi2_sf(T, lam)
             reference_name = "weighted chi2"
             out["fit_check"]["weights"] = lam
-    out.update(poor_fit=bool(p < alpha), fit_stat=T, fit_dof=dof, fit_pvalue=p, fit_reference=reference_name)
+    if residual_poor is None:
+        poor = bool(p < alpha)
+    else:  # the record's variances: the whole misfit and the largest residual, each at alpha / 2
+        poor = bool(p < alpha / 2) or residual_poor
+    check = out["fit_check"]
+    weights = check.get("weights")
+    out.update(poor_fit=poor, fit_stat=T, fit_dof=dof, fit_pvalue=p, fit_reference=reference_name,
+               fit_reading=reading(T, dof, p, reference_name, None if weights is None else float(np.sum(weights)),
+                                   check.get("record_factor"), tau,
+                                   check["z"] if residual_poor is not None else None, check.get("residual_limit")))
     return out
 
 
@@ -570,6 +682,7 @@ def bootstrap_fit_check(estimator, n_samples: int, dt: float, n_draws: int = 199
         return estimator
     b = np.array(stats_)
     p = float((1 + np.sum(b >= T)) / (b.size + 1))
-    d.update(fit_pvalue=p, poor_fit=bool(p < d.get("fit_check", {}).get("alpha", ALPHA)),
-             fit_reference=f"parametric bootstrap, {b.size} draws", fit_boot_stats=b)
+    ref = f"parametric bootstrap, {b.size} draws"
+    d.update(fit_pvalue=p, poor_fit=bool(p < d.get("fit_check", {}).get("alpha", ALPHA)), fit_reference=ref,
+             fit_boot_stats=b, fit_reading=reading(T, d.get("fit_dof"), p, ref, float(np.mean(b))))
     return estimator

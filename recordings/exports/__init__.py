@@ -111,7 +111,7 @@ def _inflate(inflate, option: str):
 
 def render(results: dict, names, method: str | None, rate: float, filter_rate: float | None = None,
            inflate=(1.0, 1.0), topic: str | None = None, sources=(), *, avs=None,
-           option: str = "--format") -> dict[str, tuple[str, str]]:
+           option: str = "--format", flags=()) -> dict[str, tuple[str, str]]:
     """The text of each format in ``names``: ``{name: (suffix, text)}``, the file ``<stem><suffix>``.
 
     Parameters
@@ -135,6 +135,9 @@ def render(results: dict, names, method: str | None, rate: float, filter_rate: f
     avs : dict, optional
         ``{sensor: {axis: (AllanResult, scale)}}``, the Allan variances of ``avbench estimate``: the bound
         the AV allows where the method gives no interval.
+    flags : sequence of str
+        The record's quality flags as each file's header carries them
+        (:func:`avbench.recordings.quality.file_lines`).
 
     Raises
     ------
@@ -144,7 +147,7 @@ def render(results: dict, names, method: str | None, rate: float, filter_rate: f
         sensor without three axes -- each message names the option and what was expected.
     """
     wanted = parse_names(names, option)
-    req = _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option)
+    req = _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option, flags)
     return {name: (FORMATS[name].suffix, FORMATS[name].write(req)) for name in wanted}
 
 
@@ -158,7 +161,7 @@ def tables(results: dict, names, method: str | None, rate: float, filter_rate: f
     return {name: FORMATS[name].table(req) for name in wanted if FORMATS[name].table is not None}
 
 
-def _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option) -> Request:
+def _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option, flags=()) -> Request:
     """The :class:`Request` of :func:`render`'s arguments, each checked."""
     rate = _rate(rate, "the record's rate")
     if filter_rate is not None:
@@ -168,4 +171,4 @@ def _request(results, method, rate, filter_rate, inflate, topic, sources, avs, o
                              "at which the stack receives (or predicts with) the samples, at most the record's")
     return Request(results=results, method=method if method is not None else default_method(results), rate=rate,
                    filter_rate=filter_rate, inflate=_inflate(inflate, "--inflate"), topic=topic,
-                   sources=tuple(sources), avs=avs, option=option)
+                   sources=tuple(sources), avs=avs, option=option, flags=tuple(flags))

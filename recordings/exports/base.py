@@ -76,6 +76,7 @@ class Request:
     sources: tuple = ()
     avs: dict | None = None
     option: str = "--format"
+    flags: tuple = ()  # the record's quality flags, one header line each (avbench.recordings.quality.file_lines)
 
     @property
     def used_rate(self) -> float:
@@ -240,14 +241,15 @@ def inflate_text(inflate) -> str:
 def header(req: Request, title: str, scope: str, convention: list[str], rate: str | None) -> list[str]:
     """The opening lines every file carries (without comment marks): what it is and where it comes
     from, the method and whether a value is per axis or the largest over the axes, the stack's
-    convention with its sources, the rate used and the inflation."""
+    convention with its sources, the rate used, the inflation and a line per flag on the record's
+    quality (:func:`avbench.recordings.quality.file_lines`)."""
     sources = ", ".join(map(str, req.sources)) or "(no source named)"
     lines = [f"{title} written by avbench estimate from {sources}", f"method: {req.method}; {scope}"]
     lines += convention
     if rate is not None:
         lines.append(rate)
     lines.append(inflate_text(req.inflate))
-    return lines
+    return lines + list(req.flags)
 
 
 def bound_lines(values: dict[str, Value]) -> list[str]:

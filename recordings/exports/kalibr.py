@@ -32,7 +32,10 @@ Sources:
   intrinsics ``Tw``, ``Ta``, ``R_IMUtoACC``, ``R_IMUtoGYRO``, ``Tg`` -- written here as identity (no
   intrinsic calibration), with ``T_i_b`` identity and ``time_offset`` 0 (not measured by avbench).
   The file opens with ``%YAML:1.0``: OpenVINS reads it with OpenCV's FileStorage, as in its
-  ``config/euroc_mav/kalibr_imu_chain.yaml``.
+  ``config/euroc_mav/kalibr_imu_chain.yaml`` (``ov_core/src/utils/opencv_yaml_parse.h``: ``node >> value``;
+  a string read from a node that is not a string is empty). OpenCV keeps an unquoted scalar up to the end
+  of the line, ``#`` included, and makes a map of one with a colon in it: the topic is written quoted,
+  with no comment on its line; a comment after a number is dropped by OpenCV and PyYAML alike.
 
 Kalibr and allan_variance_ros get today's text unchanged
 (:func:`~avbench.recordings.filter_yaml.kalibr_yaml`, at the record's rate: the rate of the bag Kalibr
@@ -40,6 +43,8 @@ reads); ``--filter-rate`` sets OpenVINS's ``update_rate`` where the IMU stream i
 """
 
 from __future__ import annotations
+
+import json
 
 from avbench.recordings import filter_yaml
 from avbench.recordings.exports.base import Entry, Exporter, Request, bound_lines, fmt, header, sensor_values
@@ -54,14 +59,15 @@ _ORDER = ("accelerometer_noise_density", "accelerometer_random_walk", "gyroscope
 def kalibr(req: Request) -> str:
     """Kalibr's ``imu.yaml``: :func:`~avbench.recordings.filter_yaml.kalibr_yaml`'s text, at the record's rate."""
     choices = filter_yaml.filter_choices(req.results, req.method, req.option, req.avs)
-    return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate, "kalibr")
+    return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate, "kalibr",
+                                   flags=req.flags)
 
 
 def allan_variance_ros(req: Request) -> str:
     """allan_variance_ros's ``imu.yaml``: Kalibr's keys, its own comment line."""
     choices = filter_yaml.filter_choices(req.results, req.method, req.option, req.avs)
     return filter_yaml.kalibr_yaml(choices, req.rate, req.topic, req.method, req.sources, req.inflate,
-                                   "allan_variance_ros")
+                                   "allan_variance_ros", flags=req.flags)
 
 
 def _matrix(rows) -> list[str]:
@@ -88,10 +94,11 @@ def openvins(req: Request) -> str:
         v = by_key[key]
         note = f", x {v.factor:.3g}" if v.factor != 1.0 else ""
         lines.append(f"  {key}: {fmt(v.value)}  # {_UNITS[key]}, axis {v.axis}{note}")
-    lines.append(f"  rostopic: {req.topic if req.topic else '/imu0'}"
-                 + ("" if req.topic else "  # not a bag: Kalibr's default topic"))
+    if not req.topic:
+        lines.append("  # rostopic: not a bag -- Kalibr's default topic")
+    lines.append(f"  rostopic: {json.dumps(req.topic if req.topic else '/imu0')}")
     lines.append("  time_offset: 0.0")
-    lines.append(f"  update_rate: {req.used_rate:.6f}")
+    lines.append(f"  update_rate: {req.used_rate!r}")
     lines.append('  model: "calibrated"')
     for name, rows in (("Tw", identity), ("R_IMUtoGYRO", identity), ("Ta", identity), ("R_IMUtoACC", identity),
                        ("Tg", [[0.0] * 3] * 3)):

@@ -28,15 +28,21 @@ Sources:
   ``C.block(9,9) += NgaWalk`` (bias variance :math:`K^2 / f = K^2 \\Delta t` per sample).
 
 ``IMU.Frequency`` is the rate of the samples ORB-SLAM3 integrates: ``--filter-rate`` where that is not
-the record's rate. The fragment opens with ``%YAML:1.0`` (OpenCV's FileStorage); paste its ``IMU.*``
-lines into the settings file.
+the record's rate. ORB-SLAM3 reads it in one of two ways, chosen by the settings file: with
+``File.version: "1.0"`` (``System.cc``), ``Settings::readIMU`` takes it through
+``readParameter<float>``, which aborts unless the node ``isReal()``; without it,
+``Tracking::ParseIMUParamFile`` takes it only if ``node.isInt()`` ("IMU.Frequency parameter doesn't
+exist or is not an integer"). The fragment writes the real number and, commented out below it, the
+integer an older file needs. The four densities are real numbers on both paths (``isReal()``). The
+fragment opens with ``%YAML:1.0`` (OpenCV's FileStorage); paste its ``IMU.*`` lines into the settings
+file.
 """
 
 from __future__ import annotations
 
 from avbench.recordings.exports.base import Entry, Exporter, Request, bound_lines, fmt, header, sensor_values
 
-__all__ = ["ORBSLAM3", "orbslam3"]
+__all__ = ["ORBSLAM3", "orbslam3", "frequency_lines"]
 
 #: key -> (sensor, coefficient, unit)
 KEYS = {"IMU.NoiseGyro": ("gyro", "N", "rad/s/sqrt(Hz)"), "IMU.NoiseAcc": ("accel", "N", "m/s^2/sqrt(Hz)"),
@@ -66,8 +72,20 @@ def orbslam3(req: Request) -> str:
         v = by_key[key]
         note = f", x {v.factor:.3g}" if v.factor != 1.0 else ""
         lines.append(f"{key}: {fmt(v.value)}  # {unit}, axis {v.axis}{note}")
-    lines.append(f"IMU.Frequency: {req.used_rate:.6f}  # Hz")
+    lines += frequency_lines(req.used_rate)
     return "\n".join(lines) + "\n"
+
+
+def frequency_lines(rate: float) -> list[str]:
+    """``IMU.Frequency`` as a settings file with ``File.version: "1.0"`` reads it (a real number), and the
+    line an older file needs instead (an integer), commented out (module docstring)."""
+    legacy = round(rate)
+    rounded = "" if legacy == rate else f", {rate!r} Hz rounded"
+    return ['# IMU.Frequency (Hz): a real number for a settings file with File.version: "1.0" (Settings::readIMU); '
+            "an older settings file needs an integer (Tracking::ParseIMUParamFile): use the commented line below "
+            f"instead{rounded}",
+            f"IMU.Frequency: {float(rate)!r}",
+            f"# IMU.Frequency: {legacy:d}"]
 
 
 ORBSLAM3 = Exporter("orbslam3", "yaml", "ORB-SLAM3 settings (IMU.*)", False, orbslam3, table)

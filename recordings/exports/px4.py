@@ -29,8 +29,9 @@ Sources:
 
 f is EKF2's prediction rate, ``1e6 / EKF2_PREDICT_US`` (100 Hz by default): the IMU samples are
 accumulated into delta angles and velocities over each step. It is not the sensor's rate:
-``--filter-rate`` gives it, and without it the record's rate is used and the file says so. A value
-outside a parameter's documented range is written as computed, with a comment.
+``--filter-rate`` gives it; without it the file uses EKF2's default, 100 Hz (or the record's rate
+where that is lower: a step holds at least one sample), and says so. A value outside a parameter's
+documented range is written as computed, with a comment.
 
 QGroundControl's parameter file: ``# Vehicle-Id Component-Id Name Value Type`` and tab-separated
 lines, type 9 (``MAV_PARAM_TYPE_REAL32``), vehicle and component id 1.
@@ -42,13 +43,25 @@ import math
 
 from avbench.recordings.exports.base import Entry, Exporter, Request, bound_lines, header, sensor_values
 
-__all__ = ["PX4", "px4", "PARAMETERS"]
+__all__ = ["PX4", "px4", "PARAMETERS", "DEFAULT_PREDICTION_RATE", "prediction_rate"]
 
 #: parameter -> (sensor, coefficient, unit, documented min, max)
 PARAMETERS = {"EKF2_ACC_B_NOISE": ("accel", "K", "m/s^3", 0.0, 0.01),
               "EKF2_ACC_NOISE": ("accel", "N", "m/s^2", 0.01, 1.0),
               "EKF2_GYR_B_NOISE": ("gyro", "K", "rad/s^2", 0.0, 0.01),
               "EKF2_GYR_NOISE": ("gyro", "N", "rad/s", 0.0001, 0.1)}
+
+
+#: EKF2's default prediction rate (Hz): 1e6 / EKF2_PREDICT_US, whose default is 10000 us (module.yaml)
+DEFAULT_PREDICTION_RATE = 100.0
+
+
+def prediction_rate(req: Request) -> float:
+    """f (Hz): ``--filter-rate`` where given, else EKF2's default prediction rate, at most the record's rate
+    (a prediction step holds at least one IMU sample)."""
+    if req.filter_rate is not None:
+        return float(req.filter_rate)
+    return min(DEFAULT_PREDICTION_RATE, float(req.rate))
 
 
 def _num(v: float) -> str:
@@ -59,7 +72,7 @@ def _written(req: Request):
     """(parameter -> its chosen Value, parameter -> the number written: the Value times sqrt(f))."""
     values = sensor_values(req)
     by_name = {p: values[(s, c)] for p, (s, c, _, _, _) in PARAMETERS.items()}
-    return by_name, {p: by_name[p].value * math.sqrt(req.used_rate) for p in PARAMETERS}
+    return by_name, {p: by_name[p].value * math.sqrt(prediction_rate(req)) for p in PARAMETERS}
 
 
 def table(req: Request) -> list[Entry]:
@@ -72,9 +85,16 @@ def table(req: Request) -> list[Entry]:
 def px4(req: Request) -> str:
     """The four EKF2 parameters in QGroundControl's ``.params`` format (module docstring)."""
     by_name, written = _written(req)
-    rate = req.rate_text("f (EKF2's prediction rate, 1e6 / EKF2_PREDICT_US)")
-    if req.filter_rate is None:
-        rate += " -- EKF2 predicts at 100 Hz by default (EKF2_PREDICT_US = 10000): give --filter-rate"
+    f = prediction_rate(req)
+    what = "f (EKF2's prediction rate, 1e6 / EKF2_PREDICT_US)"
+    if req.filter_rate is not None:
+        rate = req.rate_text(what)
+    elif f < DEFAULT_PREDICTION_RATE:
+        rate = (f"{what}: {f:.6g} Hz, the record's rate: EKF2 cannot predict faster than its IMU samples arrive "
+                f"(its default is {DEFAULT_PREDICTION_RATE:g} Hz, EKF2_PREDICT_US = 10000); --filter-rate sets another")
+    else:
+        rate = (f"{what}: {f:.6g} Hz, EKF2's default (EKF2_PREDICT_US = 10000 us), not the record's "
+                f"{float(req.rate):.6g} Hz; where your EKF2_PREDICT_US differs, give --filter-rate = 1e6 / EKF2_PREDICT_US")
     lines = ["# " + s for s in header(
         req, "PX4 EKF2 IMU noise parameters (QGroundControl .params file)",
         "each value is the largest over the sensor's axes (axis in the comment)",
