@@ -39,7 +39,8 @@ import numpy as np
 from avbench.recordings import filter_yaml
 
 __all__ = ["Value", "Request", "Exporter", "PLATEAU", "fmt", "factor", "sensor_values", "axis_values",
-           "axis_order", "bias_instability", "plateau_bound", "header", "bound_lines", "inflate_text"]
+           "axis_order", "bias_instability", "plateau_bound", "header", "not_static_lines", "bound_lines",
+           "inflate_text"]
 
 #: the Allan variance of bias instability on its flat band, per B^2 (IEEE Std 952 Annex C): 2 ln2 / pi
 PLATEAU = 2.0 * math.log(2.0) / math.pi
@@ -229,12 +230,23 @@ def header(req: Request, title: str, scope: str, convention: list[str], rate: st
     from, the method and whether a value is per axis or the largest over the axes, the stack's
     convention with its sources, the rate used and the inflation."""
     sources = ", ".join(map(str, req.sources)) or "(no source named)"
-    lines = [f"{title} written by avbench estimate from {sources}", f"method: {req.method}; {scope}"]
+    lines = not_static_lines(req.data)
+    lines += [f"{title} written by avbench estimate from {sources}", f"method: {req.method}; {scope}"]
     lines += convention
     if rate is not None:
         lines.append(rate)
     lines.append(inflate_text(req.inflate))
     return lines
+
+
+def not_static_lines(data: dict) -> list[str]:
+    """The lines that open a file written from a record the static check called not static (its
+    ``static_check`` in the payload; fitted only because the user asked): none for a static record."""
+    still = data.get("static_check") or {}
+    if still.get("static", True):
+        return []
+    return ["NOT STATIC: the record was not at rest (" + "; ".join(still.get("reasons", [])[:2]) + "); these values "
+            "come from fits asked for anyway (--fit-not-static) and are not a sensor's noise at rest"]
 
 
 def bound_lines(values: dict[str, Value]) -> list[str]:
