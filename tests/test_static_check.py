@@ -104,8 +104,9 @@ _OPTS = ["--fs", "100", "--units", "rad/s", "--accel-units", "m/s^2", "--method"
 
 
 def test_a_record_in_motion_is_answered_before_any_fit(tmp_path, capsys, monkeypatch):
-    """Not static: the verdict, what to do, the figures, the AV table and the JSON; no fit (fit_axis is
-    never called), no coefficients and no filter file although --kalibr and --format were asked; exit 3."""
+    """Not static: the verdict, what to do, the figures, the AV table, the JSON and the page; no fit
+    (fit_axis is never called), no coefficients and no filter file although --kalibr and --format were
+    asked; exit 3."""
     import json
 
     from avbench.cli import main
@@ -117,13 +118,15 @@ def test_a_record_in_motion_is_answered_before_any_fit(tmp_path, capsys, monkeyp
     monkeypatch.setattr(fit, "fit_axis", no_fit)
     f = _flight_file(tmp_path)
     o = tmp_path / "o"
-    code = main(["estimate", str(f), *_OPTS, "--out", str(o), "--kalibr", str(o / "imu.yaml"), "--format", "px4,basalt"])
+    code = main(["estimate", str(f), *_OPTS, "--out", str(o), "--kalibr", str(o / "imu.yaml"), "--format", "px4,basalt",
+                 "--html"])
     out, err = capsys.readouterr()
     assert code == 3
     assert "NOT STATIC" in err and "NOT STATIC" in out and "gyro" in out.split("NOT STATIC", 1)[1].split("\n", 1)[0]
     assert "Nothing fitted" in out and "--fit-not-static" in out and "no filter file written" in err
     assert sorted(p.name for p in o.iterdir()) == ["flight_accel_av.png", "flight_av.csv", "flight_coefficients.json",
-                                                    "flight_gyro_av.png"]
+                                                    "flight_gyro_av.png", "flight_report.html"]
+    assert "nothing fitted" in (o / "flight_report.html").read_text()
     data = json.loads((o / "flight_coefficients.json").read_text())
     assert data["static_check"]["static"] is False and "--fit-not-static" in data["static_check"]["not_fitted"]
     assert all(ad["methods"] == {} for sd in data["sensors"].values() for ad in sd["axes"].values())
