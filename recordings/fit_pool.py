@@ -154,6 +154,8 @@ def fit_axes(items, workers: int = 1, progress=None) -> list:
         finished.wait()
         if failures:
             raise failures[0]
-    finally:  # idle workers are not left behind (nor waited for at this process's exit)
+    except BaseException:  # an error or Ctrl-C does not wait for the workers
         executor.shutdown(wait=False, kill_workers=True)
+        raise
+    executor.shutdown(wait=True, kill_workers=True)  # idle workers stopped and reaped now, not left behind
     return results
