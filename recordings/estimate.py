@@ -204,6 +204,8 @@ def _check_args(args):
         args.format = parse_names(args.format)
     if args.filter_rate is not None and not (math.isfinite(args.filter_rate) and args.filter_rate > 0):
         raise ValueError(f"--filter-rate: expected the filter's rate in Hz (a number > 0), got {args.filter_rate:g}")
+    if getattr(args, "jobs", None) is not None and args.jobs < 1:
+        raise ValueError(f"--jobs: expected a number of processes >= 1, got {args.jobs}")
     if args.filter_rate is not None and not args.format:
         raise ValueError("--filter-rate: sets the rate of the --format files; expected --format NAME as well")
     _check_title(args.title)

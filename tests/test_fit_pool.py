@@ -61,3 +61,10 @@ def test_worker_count_is_capped_by_the_cores_and_the_work():
     assert worker_count(None, 6, PARALLEL_MIN_SAMPLES) == min(6, available_cores())
     with pytest.raises(ValueError, match="--jobs"):
         worker_count(0, 6, 10)
+
+
+def test_jobs_below_one_is_refused_before_the_file_is_read(tmp_path, capsys):
+    from avbench.cli import main
+
+    assert main(["estimate", str(tmp_path / "absent.csv"), "--jobs", "0", "--out", str(tmp_path)]) == 2
+    assert "--jobs: expected a number of processes >= 1, got 0" in capsys.readouterr().err
