@@ -80,6 +80,12 @@ def test_flight_like_motion_is_found_and_located():
     assert min(a for a, _ in spans) >= 300.0 - 2 * r["window_s"] and max(b for _, b in spans) <= 600.0 + 2 * r["window_s"]
     covered = sum(b - a for a, b in spans)
     assert covered > 0.5 * 300.0  # most of the motion is located
+    # what to do names a stretch without moves: about 300 s before or after the motion
+    from avbench.recordings.static import what_to_do
+
+    text = what_to_do(r, 900.0)
+    a, b = (float(v) for v in text.split("longest stretch without moves (", 1)[1].split(" s,", 1)[0].split("-"))
+    assert 290.0 <= b - a <= 300.0 and (b <= 300.0 + 2 * r["window_s"] or a >= 600.0 - 2 * r["window_s"])
 
 
 def test_motion_throughout_is_found_by_the_spread():
