@@ -283,7 +283,8 @@ REAL_CASE_LABELS = {
                          "random walk, quantization), 1 h at 100 Hz",
     "consumer_1h_100Hz_motion": "the same consumer record with rotations (not static: answered, nothing fitted)",
     "consumer_2h_400Hz": "a consumer MEMS record (simulated), 2 h at 400 Hz",
-    "adis_stitched_2h_400Hz": "a real record (ADIS16405 runs 1-3 stitched, 2.88e6 samples read as 400 Hz)",
+    "adis_stitched_2h_400Hz": "a real record (ADIS16405 runs 1-3 stitched, 2.88e6 samples read as 400 Hz; their bias "
+                              "steps make it not static: fitted with --fit-not-static)",
 }
 
 
