@@ -22,7 +22,6 @@ shorter than :data:`PARALLEL_MIN_SAMPLES` per axis.
 from __future__ import annotations
 
 import contextlib
-import os
 import threading
 
 __all__ = ["worker_count", "fit_axes", "available_cores", "one_thread", "PARALLEL_MIN_SAMPLES"]
@@ -33,11 +32,11 @@ PARALLEL_MIN_SAMPLES = 2**17
 
 
 def available_cores() -> int:
-    """The cores this process may run on (its CPU affinity where the system says, else the CPU count)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):  # pragma: no cover - no affinity on this system
-        return max(1, os.cpu_count() or 1)
+    """The cores this process may use: joblib's count, which holds the CPU affinity and a container's CPU
+    quota (a machine of 64 cores that gives this process 2 has 2)."""
+    from joblib import cpu_count
+
+    return max(1, int(cpu_count()))
 
 
 def worker_count(jobs: int | None, n_axes: int, n_samples: int) -> int:
