@@ -34,8 +34,6 @@ __all__ = ["write_euroc", "measure", "CASES"]
 
 #: the records timed: (hours, Hz, the target wall seconds; None: no target)
 CASES = {"1h_100Hz": (1.0, 100.0, 10.0), "2h_400Hz": (2.0, 400.0, 60.0), "quick_2min_100Hz": (2 / 60, 100.0, None)}
-HEADER = ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
-          "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]")
 
 
 def write_euroc(path, hours: float, fs: float, seed: int = 0) -> Path:
@@ -48,21 +46,11 @@ def write_euroc(path, hours: float, fs: float, seed: int = 0) -> Path:
     gyros = [Gyro.from_coefficients(presets.get(p).coefficients, dt) for p in ("ADIS16405_X", "ADIS16405_Y", "ADIS16405_Z")]
     rates = np.column_stack([g.simulate(n, np.random.default_rng([seed, i])) for i, g in enumerate(gyros)])
     rng = np.random.default_rng([seed, 9])
-    block = 1 << 18
-    walk = np.zeros(3)
-    t0 = 1_403_636_579_758_555_392
-    step_ns = int(round(1e9 / fs))
-    with open(path, "w") as fh:
-        fh.write(HEADER + "\n")
-        for a in range(0, n, block):
-            b = min(n, a + block)
-            steps = np.cumsum(2e-5 * np.sqrt(dt) * rng.standard_normal((b - a, 3)), axis=0) + walk
-            walk = steps[-1]
-            acc = 2e-3 * rng.standard_normal((b - a, 3)) + steps + np.array([0.15, -0.2, 9.80])
-            t = (t0 + np.arange(a, b, dtype=np.int64) * step_ns).astype(str)
-            vals = np.char.mod("%.9g", np.column_stack([rates[a:b], acc]))
-            fh.write("\n".join(",".join(row) for row in np.column_stack([t, vals])) + "\n")
-    return Path(path)
+    walk = np.cumsum(2e-5 * np.sqrt(dt) * rng.standard_normal((n, 3)), axis=0)
+    acc = 2e-3 * rng.standard_normal((n, 3)) + walk + np.array([0.15, -0.2, 9.80])
+    from avbench.bench.real_records import write_table
+
+    return write_table(path, rates, acc, fs)
 
 
 def _wall(path: Path, out: Path) -> tuple[float, dict]:

@@ -8,9 +8,16 @@
 * :func:`write_consumer` -- that IMU's 6-axis record as an ``.npz`` (arrays ``gyro`` in rad/s, ``accel``
   in m/s^2, ``fs``), at rest or with motion (:func:`add_motion`: rotations by 90 degrees about the three
   axes in turn, the gyro seeing the rotation rate and the accelerometer the turning gravity);
+* :func:`write_rounded` -- a consumer module's own calibrated output: the consumer IMU written in deg/s
+  and g, rounded to 0.01 deg/s and 0.001 g (as such modules print them), a spectral line and a
+  resonance in it;
+* :func:`write_flight` -- a PX4-like flight log: the consumer IMU at 200 Hz on a vehicle that moves all
+  the time (band-limited rotation rates of ~0.5 rad/s, the gravity they turn, linear accelerations of
+  ~1 m/s^2), 69 s by default;
 * :func:`write_adis` -- the ADIS16405 runs of ``$AVBENCH_REAL_DATA`` (read in place; a temporary slice
   written for the command, never kept), the first ``n`` samples of the runs given, stitched in order
-  (the runs' biases differ: a stitched record has steps where one run ends);
+  (the runs' biases differ: a stitched record has steps where one run ends); ``euroc=True`` writes
+  them as a EuRoC-style CSV (ns stamps, rad/s and m/s^2, 9 digits: what visual-inertial users have);
 * :func:`real_data_folder` -- the ADIS16405 folder, or None when ``$AVBENCH_REAL_DATA`` is not set or
   does not hold it (a real-data case is then skipped).
 
@@ -29,8 +36,12 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["consumer_imu", "add_motion", "write_consumer", "write_adis", "real_data_folder", "ADIS_FOLDER",
-           "GRAVITY"]
+__all__ = ["consumer_imu", "add_motion", "write_consumer", "write_rounded", "write_flight", "write_adis",
+           "write_table", "real_data_folder", "ADIS_FOLDER", "GRAVITY", "HEADER"]
+
+#: the header of a EuRoC-style IMU CSV (names, units and time units all from it: the command needs no flag)
+HEADER = ("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
+          "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]")
 
 #: standard gravity (m/s^2), on the accelerometer's z axis at rest
 GRAVITY = 9.80665
@@ -111,14 +122,74 @@ def write_consumer(path, hours: float, fs: float, seed: int = 0, motion: bool = 
     same samples (the same seed gives the same noise with and without motion)."""
     dt = 1.0 / fs
     n = int(round(hours * 3600 * fs))
+    gyro, accel = _consumer_samples(n, dt, hours, seed)
+    if motion:
+        add_motion(gyro, accel, dt)
+    np.savez(path, gyro=gyro, accel=accel, fs=np.float64(fs))
+    return Path(path)
+
+
+def _consumer_samples(n: int, dt: float, hours: float, seed: int):
+    """(gyro rad/s, accel m/s^2 with gravity on z): ``n`` samples of :func:`consumer_imu`'s six axes."""
     imu = consumer_imu(dt, hours)
     gyro = np.column_stack([g.simulate(n, np.random.default_rng([seed, i])) for i, g in enumerate(imu["gyro"])])
     accel = np.column_stack([g.simulate(n, np.random.default_rng([seed, 3 + i]))
                              for i, g in enumerate(imu["accel"])])
     accel[:, 2] += GRAVITY
-    if motion:
-        add_motion(gyro, accel, dt)
+    return gyro, accel
+
+
+#: the output steps of a consumer module's calibrated output: gyro (deg/s), accelerometer (g)
+ROUNDING = (0.01, 0.001)
+
+
+def write_rounded(path, hours: float, fs: float, seed: int = 0) -> Path:
+    """A consumer module's calibrated output as an ``.npz``: :func:`consumer_imu`'s record in ``gyro``
+    (deg/s) and ``accel`` (g), each rounded to its step (:data:`ROUNDING`), and ``fs``."""
+    n = int(round(hours * 3600 * fs))
+    gyro, accel = _consumer_samples(n, 1.0 / fs, hours, seed)
+    step_g, step_a = ROUNDING
+    np.savez(path, gyro=np.round(np.rad2deg(gyro) / step_g) * step_g,
+             accel=np.round(accel / GRAVITY / step_a) * step_a, fs=np.float64(fs))
+    return Path(path)
+
+
+def write_flight(path, seconds: float = 69.0, fs: float = 200.0, seed: int = 0) -> Path:
+    """A PX4-like flight log as an ``.npz`` (``gyro`` rad/s, ``accel`` m/s^2, ``fs``): the consumer IMU's
+    noise on a vehicle that moves throughout -- per axis a sum of six sinusoids of 0.1-2 Hz (rates of
+    ~0.5 rad/s), the roll and pitch they integrate to turning gravity, and linear accelerations of
+    ~1 m/s^2 (0.2-3 Hz)."""
+    dt = 1.0 / fs
+    n = int(round(seconds * fs))
+    gyro, accel = _consumer_samples(n, dt, seconds / 3600, seed)
+    rng = np.random.default_rng([seed, 99])
+    t = np.arange(n) * dt
+    w = sum(0.5 / 3 * np.sin(2 * np.pi * rng.uniform(0.1, 2.0) * t[:, None] + rng.uniform(0, 2 * np.pi, 3))
+            for _ in range(6))
+    lin = sum(1.0 / 3 * np.sin(2 * np.pi * rng.uniform(0.2, 3.0) * t[:, None] + rng.uniform(0, 2 * np.pi, 3))
+              for _ in range(3))
+    roll, pitch = (np.cumsum(w[:, i]) * dt for i in (0, 1))
+    g_body = GRAVITY * np.column_stack([-np.sin(pitch), np.sin(roll) * np.cos(pitch), np.cos(roll) * np.cos(pitch)])
+    accel += g_body - np.array([0.0, 0.0, GRAVITY]) + lin
+    gyro += w
     np.savez(path, gyro=gyro, accel=accel, fs=np.float64(fs))
+    return Path(path)
+
+
+def write_table(path, gyro, accel, fs: float) -> Path:
+    """``gyro`` (n, 3) rad/s and ``accel`` (n, 3) m/s^2 as a EuRoC-style CSV at ``fs`` (the header of
+    :data:`HEADER`, int64 ns stamps, 9 significant digits), written in blocks."""
+    n = gyro.shape[0]
+    block = 1 << 18
+    t0 = 1_403_636_579_758_555_392
+    step_ns = int(round(1e9 / fs))
+    with open(path, "w") as fh:
+        fh.write(HEADER + "\n")
+        for a in range(0, n, block):
+            b = min(n, a + block)
+            t = (t0 + np.arange(a, b, dtype=np.int64) * step_ns).astype(str)
+            vals = np.char.mod("%.9g", np.column_stack([gyro[a:b], accel[a:b]]))
+            fh.write("\n".join(",".join(row) for row in np.column_stack([t, vals])) + "\n")
     return Path(path)
 
 
@@ -131,10 +202,12 @@ def real_data_folder() -> Path | None:
     return folder if (folder / "adis_16405_imu1.npz").is_file() else None
 
 
-def write_adis(path, n: int, runs=(1,)) -> Path:
+def write_adis(path, n: int, runs=(1,), euroc: bool = False) -> Path:
     """The first ``n`` samples of the ADIS16405 runs ``runs`` stitched in order, as an ``.npz`` (``gyro`` in
-    deg/s, ``accel`` in g: the files' units, given to the command by flag). Raises when the data are not
-    there (:func:`real_data_folder`) or the runs hold fewer than ``n`` samples."""
+    deg/s, ``accel`` in g: the files' units, given to the command by flag), or with ``euroc`` as a
+    EuRoC-style CSV at 100 Hz (:func:`write_table`: ns stamps, rad/s, m/s^2).
+    Raises when the data are not there (:func:`real_data_folder`) or the runs hold fewer than ``n``
+    samples."""
     folder = real_data_folder()
     if folder is None:
         raise FileNotFoundError("AVBENCH_REAL_DATA is not set or holds no ADIS16405 runs")
@@ -148,5 +221,7 @@ def write_adis(path, n: int, runs=(1,)) -> Path:
     if have < n:
         raise ValueError(f"runs {runs} hold {have} samples, fewer than {n}")
     data = np.concatenate(parts)
+    if euroc:
+        return write_table(path, np.deg2rad(data[:, :3]), data[:, 3:6] * GRAVITY, 100.0)
     np.savez(path, gyro=data[:, :3], accel=data[:, 3:6])
     return Path(path)

@@ -39,9 +39,16 @@ LIMITS = {
                      "Python around ~15-element arrays: ~20-60 us per evaluation with its Jacobian, and the solver's own "
                      "iteration (an SVD, the trust-region step) of about as much. The AV covariance (second-step "
                      "weights, fit checks) keeps the grid's Haar gains and trigonometric values: a call is the model's "
-                     "spectral arithmetic on the grid and one rank-k product. Outside the fits, the two figures' layout "
-                     "and PNG rendering (matplotlib: ~2 CPU-s for 6 axes) and the imports (~1 s). A wall-time target "
-                     "holds only on a quiet machine: the measurement reports CPU seconds beside it. See the breakdown.",
+                     "spectral arithmetic on the grid and one rank-k product. The axes are shared between the command's "
+                     "process and worker processes (recordings.fit_pool) where the record is long enough and the "
+                     "machine has the cores: each worker first pays its imports and kernel loads (~2-3 CPU-s), so on "
+                     "2 cores the fits' wall time falls by less than half. Outside the fits, the two figures and their "
+                     "PNGs (~0.4 CPU-s each: no tight-layout pass, no minor ticks) and the imports (~1 s). A wall-time "
+                     "target holds only on a quiet machine: the measurement reports CPU seconds beside it. Each row "
+                     "names its largest part (limited by). See the breakdown.",
+    "estimate_answered": "Imports and the first call of the compiled AV kernels (numba's disk cache), then the two "
+                         "figures: a record the static check calls not static is answered before any fit -- read, "
+                         "its six AVs, the check, the figures, the AV table and the JSON. See the breakdown.",
     "estimate_real_motion": "The number of solves, not their cost: on the record in motion no cut-off is adequate, so "
                             "the scale choice (selection.scales) fits every cut-off, and the resonance choice "
                             "(selection.resonance) refits with three starts at each cut-off below the one kept: about "
@@ -266,53 +273,79 @@ def targets(df: pd.DataFrame, quick: bool) -> list[dict]:
 #: what each EstimateRealRecords case is, as the targets table names it
 REAL_CASE_LABELS = {
     "adis_1h_100Hz": "a real record (ADIS16405 run 1, its first hour), 1 h at 100 Hz",
+    "adis_1h_euroc_csv": "the same real hour as a EuRoC CSV (ns stamps)",
+    "consumer_53min_rounded": "a consumer module's output (simulated), 53 min at 100 Hz rounded to 0.01 deg/s and "
+                              "0.001 g, with a line and a resonance",
+    "consumer_10min_100Hz": "a consumer MEMS record (simulated), 10 min at 100 Hz",
+    "consumer_1h_100Hz_motion_fit": "the consumer record with rotations, fitted anyway (--fit-not-static)",
+    "px4_flight_69s_200Hz": "a PX4-like flight log (simulated), 69 s at 200 Hz, moving throughout",
     "consumer_1h_100Hz": "a consumer MEMS record (simulated: filtered white noise, a line, a resonance, flicker, "
                          "random walk, quantization), 1 h at 100 Hz",
-    "consumer_1h_100Hz_motion": "the same consumer record with rotations (not static)",
+    "consumer_1h_100Hz_motion": "the same consumer record with rotations (not static: answered, nothing fitted)",
     "consumer_2h_400Hz": "a consumer MEMS record (simulated), 2 h at 400 Hz",
-    "adis_stitched_2h_400Hz": "a real record (ADIS16405 runs 1-3 stitched, 2.88e6 samples read as 400 Hz)",
+    "adis_stitched_2h_400Hz": "a real record (ADIS16405 runs 1-3 stitched, 2.88e6 samples read as 400 Hz; their bias "
+                              "steps make it not static: fitted with --fit-not-static)",
 }
 
 
 def _real_breakdown(r) -> str:
     """One case's whole-process figures and where the time went (EstimateRealRecords)."""
+    from avbench.bench.real_e2e import OUTPUT_PARTS
+
     parts = dict(r.get("parts_s") or {})
     calls = dict(r.get("calls") or {})
     per = ", ".join(f"{m} {v:.1f} s" for m, v in (r.get("fits_per_method_s") or {}).items())
-    outputs = ("figures (recordings.figure.figure)", "PNG rendering (recordings.estimate._png)")
+    top = ("reading (read, timing, SI)", "Allan variances (recordings.fit.scaled_allan)", "static check", "fits")
     inner = ", ".join(f"{k} {v:.1f} s ({calls.get(k, 0)} calls)" for k, v in parts.items()
-                      if k not in ("reading (read, timing, SI)", "static check", "fits", *outputs))
-    shown = [f"{k} {parts[k]:.1f} s" for k in outputs if k in parts]
-    rest = f" (of it: {', '.join(shown)})" if shown else ""
+                      if k not in (*top, *OUTPUT_PARTS))
+    shown = ", ".join(f"{k} {parts[k]:.2f} s" for k in OUTPUT_PARTS if k in parts)
+    limit = f"; limited by {r['limited_by']}" if isinstance(r.get("limited_by"), str) else ""
+    fits = (f"fits {parts['fits']:.1f} s wall ({per or 'none'})" if "fits" in parts else "nothing fitted")
+    within = f"; within this process's fits (inclusive, nested parts counted in each): {inner}" if inner else ""
     return (f"{r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} CPU-s (load {r['loadavg_before'][0]:.1f} before, "
-            f"{r['loadavg_after'][0]:.1f} after; n = {int(r['n']):.3g}): imports {r['imports_s']:.1f} s, reading "
-            f"{parts.get('reading (read, timing, SI)', math.nan):.2f} s, static check "
-            f"{parts.get('static check', math.nan):.2f} s, fits {parts.get('fits', math.nan):.1f} s ({per}), the rest "
-            f"(interpreter, six AVs, figures, tables, writing) {r['rest_s']:.1f} s{rest}; within the fits (inclusive, "
-            f"nested parts counted in each): {inner}")
+            f"{r['loadavg_after'][0]:.1f} after; n = {int(r['n']):.3g}){limit}: imports {r['imports_s']:.1f} s, reading "
+            f"{parts.get('reading (read, timing, SI)', math.nan):.2f} s, AVs "
+            f"{parts.get('Allan variances (recordings.fit.scaled_allan)', math.nan):.2f} s, static check "
+            f"{parts.get('static check', math.nan):.2f} s, {fits}, outputs ({shown}), the rest (interpreter, payload, "
+            f"tables) {r['rest_s']:.1f} s{within}")
 
 
 def _real_estimate_targets(df: pd.DataFrame) -> list[dict]:
-    """avbench estimate on real and consumer-grade records (EstimateRealRecords): each against its target, and a
-    non-static record against the static one of the same length (CPU seconds: the wall time of a loaded machine
-    measures the machine)."""
+    """avbench estimate on the corpus of records (EstimateRealRecords): each against its target, their median, and
+    a record in motion fitted anyway against the static one of the same length (CPU seconds: the wall time of a
+    loaded machine measures the machine)."""
+    from avbench.bench.real_e2e import MEDIAN_TARGET_S
+
     d = _pick(df, "EstimateRealRecords", "track_end_to_end") if len(df) else df
     rows = []
     by_case = {r["param_case"]: r for _, r in d.iterrows()} if len(d) else {}
+    walls = []
     for case, r in by_case.items():
         label = REAL_CASE_LABELS.get(case, case)
+        answered = bool(r.get("answered")) if not pd.isna(r.get("answered", None)) else False
         if r.get("target_s") is not None and not pd.isna(r.get("target_s")):
-            rows.append({"target": f"avbench estimate (defaults), {label}, 6 axes, whole process <= {r['target_s']:g} s",
+            walls.append(r["wall_s"])
+            what = "answered not static, nothing fitted" if answered else "6 axes"
+            rows.append({"target": f"avbench estimate (defaults), {label}, {what}, whole process <= {r['target_s']:g} s",
                          "measured": _real_breakdown(r), "met": bool(r["wall_s"] <= r["target_s"]),
-                         "limit": LIMITS["estimate_real"]})
+                         "limit": LIMITS["estimate_answered" if answered else "estimate_real"]})
         static = by_case.get(r.get("static_case")) if isinstance(r.get("static_case"), str) else None
         if static is not None:
             ratio, wall_ratio = r["cpu_s"] / static["cpu_s"], r["wall_s"] / static["wall_s"]
-            rows.append({"target": "a non-static record no slower than a static one of the same length "
+            goal = r.get("ratio_target")
+            goal = 1.0 if goal is None or pd.isna(goal) else float(goal)
+            rows.append({"target": f"a record in motion fitted anyway at most {goal:g}x a static one of the same length "
                                    f"({label} against {REAL_CASE_LABELS.get(r['static_case'], r['static_case'])})",
                          "measured": f"{ratio:.2f}x the static record's CPU seconds ({wall_ratio:.2f}x its wall "
                                      f"time); {_real_breakdown(r)}",
-                         "met": bool(ratio <= 1.0), "limit": LIMITS["estimate_real_motion"]})
+                         "met": bool(ratio <= goal), "limit": LIMITS["estimate_real_motion"]})
+    if len(walls) >= 3:
+        median = float(np.median(walls))
+        rows.append({"target": f"avbench estimate (defaults) on the corpus of records: median whole process <= "
+                               f"{MEDIAN_TARGET_S:g} s",
+                     "measured": f"{median:.1f} s wall over {len(walls)} records "
+                                 f"({', '.join(f'{w:.1f}' for w in sorted(walls))} s)",
+                     "met": bool(median <= MEDIAN_TARGET_S), "limit": LIMITS["estimate_real"]})
     return rows
 
 

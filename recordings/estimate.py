@@ -45,7 +45,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["add_parser", "run", "estimate_file", "fit_sensors"]
+__all__ = ["add_parser", "run", "estimate_file", "fit_sensors", "NOT_STATIC_EXIT"]
+
+#: the exit code of a record answered as not static, nothing fitted (``--fit-not-static`` fits it)
+NOT_STATIC_EXIT = 3
 
 
 def add_parser(subparsers, parents):
@@ -86,6 +89,13 @@ def add_parser(subparsers, parents):
                    help="also draw and tabulate these deviations on each axis (comma-separated: oadev, hdev, ohdev, "
                         "mdev, tdev, totdev, mtotdev, ttotdev, htotdev, pdev, theo1, theobr), on the longest gap-free run; rows of "
                         "<stem>_av.csv by 'statistic' (alone: avbench deviations FILE)")
+    s.add_argument("--fit-not-static", action="store_true",
+                   help="fit a record the static check calls not static (default: it is answered with the verdict, "
+                        "the figure and what to do, nothing fitted and no filter file written, exit code 3); the filter "
+                        "files then say in their header that the record was not static")
+    s.add_argument("--jobs", default=None, type=int, metavar="N",
+                   help="processes fitting the axes, this one included (default: the cores, for a record of at least "
+                        "2^17 samples; 1: none started); the numbers do not depend on it")
     s.add_argument("--json", action="store_true", help="print only the JSON object on stdout")
     s.add_argument("--out", default=".", help="output folder for the plots and tables (default: .)")
     s.add_argument("--title", default=None, help="plot title (default: the file name)")
@@ -100,6 +110,8 @@ def _methods(spec) -> list[str]:
     from avbench import estimators
     from avbench.estimators.base import DEFAULT_METHODS
 
+    from avbench.estimators.base import BUILTIN
+
     if spec is None:
         spec = DEFAULT_METHODS
     items = str(spec).split(",") if isinstance(spec, str) else [str(m) for m in spec]
@@ -107,6 +119,8 @@ def _methods(spec) -> list[str]:
     if not methods:
         raise ValueError("--method: expected at least one estimator name")
     for m in methods:
+        if m in BUILTIN:  # a built-in is there by construction: its module is imported by its first fit
+            continue
         try:
             estimators.estimator_class(m)
         except ValueError as e:
@@ -190,6 +204,8 @@ def _check_args(args):
         args.format = parse_names(args.format)
     if args.filter_rate is not None and not (math.isfinite(args.filter_rate) and args.filter_rate > 0):
         raise ValueError(f"--filter-rate: expected the filter's rate in Hz (a number > 0), got {args.filter_rate:g}")
+    if getattr(args, "jobs", None) is not None and args.jobs < 1:
+        raise ValueError(f"--jobs: expected a number of processes >= 1, got {args.jobs}")
     if args.filter_rate is not None and not args.format:
         raise ValueError("--filter-rate: sets the rate of the --format files; expected --format NAME as well")
     _check_title(args.title)
@@ -197,17 +213,23 @@ def _check_args(args):
     return methods, settings, fm, inflate
 
 
-def fit_sensors(sensors, timing, methods, settings=None, progress=None) -> dict:
+def fit_sensors(sensors, timing, methods, settings=None, progress=None, jobs=None) -> dict:
     """Every method on every axis of SI ``sensors`` timed by ``timing`` (gap-aware:
     :func:`avbench.recordings.fit.fit_axis`): ``{sensor: {axis: {method: MethodFit}}}``. ``progress``
-    (a tqdm bar or None) is advanced once per fit."""
-    from avbench.recordings.fit import fit_axis
+    (a tqdm bar or None) is advanced once per fit; ``jobs``: processes fitting the axes
+    (:func:`avbench.recordings.fit_pool.worker_count`; the numbers do not depend on it)."""
+    from avbench.recordings.fit_pool import fit_axes, worker_count
 
-    return {s.sensor: {a: fit_axis(x, timing.dt, timing.starts, methods, settings, progress) for a, x in s.axes.items()}
-            for s in sensors}
+    axes = [(s.sensor, a, x) for s in sensors for a, x in s.axes.items()]
+    workers = worker_count(jobs, len(axes), timing.n_samples)
+    fitted = fit_axes([(x, timing.dt, timing.starts, methods, settings) for _, _, x in axes], workers, progress)
+    out: dict = {}
+    for (sensor, a, _), fits in zip(axes, fitted):
+        out.setdefault(sensor, {})[a] = fits
+    return out
 
 
-def estimate_file(path, methods=None, settings=None, **reader_options) -> dict:
+def estimate_file(path, methods=None, settings=None, fit_not_static=False, jobs=None, **reader_options) -> dict:
     """The noise coefficients of one recording: every method fitted to every axis, as ``avbench estimate``
     fits them, returned as ``{sensor: {axis: {method: MethodFit}}}``
     (:class:`avbench.recordings.fit.MethodFit`; coefficients in SI).
@@ -215,6 +237,10 @@ def estimate_file(path, methods=None, settings=None, **reader_options) -> dict:
     ``path``: a recording in any format of :mod:`avbench.recordings.readers`; ``methods``: estimator
     names, a list or a comma-separated string (default: the methods safe on real records,
     :data:`avbench.estimators.base.DEFAULT_METHODS`); ``settings``: ``{method: {setting: value}}``;
+    ``fit_not_static``: fit a record that the static check (:mod:`avbench.recordings.static`) calls not
+    static (else that record raises :class:`~avbench.recordings.static.NotStaticError`, a ``ValueError``
+    carrying the check, before any fit); ``jobs``: processes fitting the axes (default: the cores, for
+    a record of at least 2^17 samples; the numbers do not depend on it);
     ``reader_options``: the keywords of :func:`avbench.recordings.load.load_recording` (``fs``,
     ``units``, ``accel_units``, ``column``, ``gyro``, ``accel``, ``time``, ``time_units``, ``topic``,
     ``progress``). A problem with the file, an option, a method or a setting is a ``ValueError``; a
@@ -246,43 +272,48 @@ def estimate_file(path, methods=None, settings=None, **reader_options) -> dict:
         raise ValueError(f"settings: method {unknown[0]!r} is not among the methods {', '.join(methods)}")
     _check_settings(settings, "settings")
     _, timing, sensors = load_recording(path, **reader_options)
-    return fit_sensors(sensors, timing, methods, settings)
+    if not fit_not_static:
+        from avbench.recordings.static import NotStaticError, static_check, verdict, what_to_do
+
+        still = static_check(sensors, timing.dt)
+        if not still["static"]:
+            raise NotStaticError(f"{path}: {verdict(still)}; "
+                                 f"{what_to_do(still, timing.n_samples * timing.dt, 'fit_not_static=True')}", still)
+    return fit_sensors(sensors, timing, methods, settings, jobs=jobs)
 
 
 def _png(fig) -> bytes:
+    """The PNG of a figure of :func:`avbench.recordings.figure.figure` (its own Agg canvas, no pyplot)."""
     import io
 
-    import matplotlib.pyplot as plt
-
     buf = io.BytesIO()
-    try:
-        fig.savefig(buf, format="png", dpi=110)
-    finally:
-        plt.close(fig)
+    fig.savefig(buf, format="png", dpi=110)
     return buf.getvalue()
 
 
-def _plan(args, stem, sensors):
+def _plan(args, stem, sensors, fitted: bool = True):
     """The outputs of ``avbench estimate`` (:class:`avbench.recordings.plan.OutputPlan`), each with its
     writer: a function of the results (a dict: ``pngs`` the figures per sensor, ``av_table``, ``tables``,
     ``data`` the JSON payload, ``yaml`` the Kalibr yaml's text, ``exports`` each ``--format`` file's
-    ``(suffix, text)``, ``html`` the page)."""
+    ``(suffix, text)``, ``html`` the page). Without ``fitted`` (a record not static, not fitted): the
+    figures, the AV table, the JSON and the page only -- no coefficients, no filter file."""
     from avbench.recordings.plan import OutputPlan
 
     plan = OutputPlan(Path(args.out))
     for s in sensors:
         plan.add(f"{stem}_{s.sensor}_av.png", lambda r, sensor=s.sensor: r["pngs"][sensor])
     plan.add(f"{stem}_av.csv", lambda r: r["av_table"].to_csv(index=False).encode("utf-8"))
-    plan.add(f"{stem}_coefficients.csv",
-             lambda r: pd.concat(dict(r["tables"]), names=["sensor"]).to_csv().encode("utf-8"))
-    if args.format:
+    if fitted:
+        plan.add(f"{stem}_coefficients.csv",
+                 lambda r: pd.concat(dict(r["tables"]), names=["sensor"]).to_csv().encode("utf-8"))
+    if args.format and fitted:
         from avbench.recordings.exports import FORMATS
 
         for name in args.format:
             plan.add(f"{stem}{FORMATS[name].suffix}", lambda r, name=name: r["exports"][name][1].encode("utf-8"))
     if getattr(args, "html", False):
         plan.add(f"{stem}_report.html", lambda r: r["html"].encode("utf-8"))
-    if args.kalibr is not None:
+    if args.kalibr is not None and fitted:
         plan.add_path(args.kalibr, "--kalibr", lambda r: r["yaml"].encode("utf-8"))
     plan.add(f"{stem}_coefficients.json", lambda r: (json.dumps(r["data"], indent=2) + "\n").encode("utf-8"))
     return plan
@@ -294,6 +325,7 @@ def run(args) -> int:
 
     from avbench.outputs import Interrupted
     from avbench.recordings import figure, filter_yaml, report
+    from avbench.recordings.exports.base import not_static_lines
     from avbench.recordings.deviations import axis_deviations, check_deviations_feasible
     from avbench.recordings.fit import agreement, auto_inflation, between_runs, fit_axis, scaled_allan
     from avbench.recordings.load import load_recording, pool_recordings, reader_options_of
@@ -312,29 +344,39 @@ def run(args) -> int:
     if args.kalibr is not None or args.format:  # checked from the file to the fit: the yaml's needs before any fit
         filter_yaml.check_sensors([s.sensor for s in sensors], "--kalibr" if args.kalibr else "--format")
     plan = _plan(args, stem, sensors)
-    out = plan.check([r.path for r, _, _ in loaded])
+    inputs = [r.path for r, _, _ in loaded]
+    out = plan.check(inputs)
     dt = timing.dt
     check_deviations_feasible(args.deviation, timing.n_samples, timing.starts)
 
-    from avbench.recordings.static import static_check
+    from avbench.recordings.static import static_check, verdict, what_to_do
 
     # the AV engine, asked once per axis: the static check, the yaml's bounds, the AV table and the figure use it
     all_avs = {s.sensor: {a: scaled_allan(x, dt, timing.starts) for a, x in s.axes.items()} for s in sensors}
-    still = static_check(sensors, dt, all_avs)  # said before the fits, which still run
+    still = static_check(sensors, dt, all_avs)  # said before any fit
     from avbench.recordings.quality import judge_record
 
     quality = judge_record(sensors, dt).to_dict()  # what the record is, judged before the fits
-    if not still["static"] and not args.json:
-        print("# NOT STATIC: the record does not look like a sensor at rest -- " + "; ".join(still["reasons"][:4]) +
-              ("; ..." if len(still["reasons"]) > 4 else "") + ". The fits below assume rest: poor fits are expected.",
-              file=sys.stderr)
-    n_fits = sum(len(s.axes) for s in sensors) * len(methods)
-    with tqdm(total=n_fits, desc="fitting", unit="fit", disable=not progress, leave=False) as bar:
-        fits = fit_sensors(sensors, timing, methods, settings, bar)
+    fitting = still["static"] or args.fit_not_static
+    if not still["static"]:
+        advice = what_to_do(still, timing.n_samples * dt)
+        if not args.json:
+            print("# " + verdict(still) + (". The fits below assume rest: poor fits are expected." if fitting else
+                                           ". " + advice[0].upper() + advice[1:] + "."), file=sys.stderr)
+        if not fitting:
+            plan = _plan(args, stem, sensors, fitted=False)
+            out = plan.check(inputs)
+            still["not_fitted"] = advice
+    if fitting:
+        n_fits = sum(len(s.axes) for s in sensors) * len(methods)
+        with tqdm(total=n_fits, desc="fitting", unit="fit", disable=not progress, leave=False) as bar:
+            fits = fit_sensors(sensors, timing, methods, settings, bar, jobs=args.jobs)
+    else:
+        fits = {s.sensor: {a: {} for a in s.axes} for s in sensors}
     notes = list(rec.notes) if len(loaded) == 1 else [f"{r.path.name}: {n}" for r, _, _ in loaded for n in r.notes]
     extra = {"format": rec.format, "topic": rec.topic, "time_source": rec.time_source, "notes": notes,
              "static_check": still, "record_quality": quality}
-    if len(loaded) > 1:
+    if len(loaded) > 1 and fitting:
         extra["combine"] = {}
         for s_i, s in enumerate(sensors):
             extra["combine"][s.sensor] = {
@@ -348,7 +390,7 @@ def run(args) -> int:
                     a: between_runs([fit_axis(np.asarray(sl[s_i].axes[a]), dt, t.starts, [filter_method],
                                               {filter_method: settings.get(filter_method, {})}, bar_)
                                      for _, t, sl in loaded], filter_method) for a in s.axes}
-    if inflate == "auto":
+    if inflate == "auto" and fitting:
         from avbench.recordings.filter_yaml import KEYS
 
         inflate = {}
@@ -362,17 +404,18 @@ def run(args) -> int:
 
     # everything that can refuse is checked, and every output rendered, before anything is written
     yaml_text, exported = None, {}
-    if args.kalibr is not None or args.format:
+    if fitting and (args.kalibr is not None or args.format):
         choices = filter_yaml.filter_choices(est.results(), filter_method, "--kalibr" if args.kalibr else "--format",
                                              all_avs)
         yaml_text = filter_yaml.kalibr_yaml(choices, timing.fs, rec.topic, filter_method,
                                             [r.path for r, _, _ in loaded], inflate, "kalibr",
                                             flags=quality_file_lines(quality))
+        yaml_text = "".join(f"# {line}\n" for line in not_static_lines(still)) + yaml_text
         extra["filter_yaml"] = {"method": filter_method, "inflate": dict(inflate) if isinstance(inflate, dict) else list(inflate),
                                "values_si": {k: v for k, (v, _, _) in choices.items()},
                                "bounds": {k: why for k, (_, _, why) in choices.items() if why}}
     data = report.payload(est)
-    tables = report.tables(est)
+    tables = report.tables(est) if fitting else {}
     av_rows, figs, devs = [], {}, {}
     title = args.title if args.title is not None else rec.path.name.replace("$", r"\$")  # a file name is no mathtext
     for s in sensors:
@@ -398,12 +441,13 @@ def run(args) -> int:
             av_rows.append(frame)
         flags = {a: {m: fits[s.sensor][a][m].result.fit_check.poor_fit for m in methods} for a in s.axes}
         figs[s.sensor] = figure.figure(s, fits[s.sensor], avs, dt, title, flags, deviations=devs.get(s.sensor))
-    if args.format:
+    if args.format and fitting:
         from avbench.recordings import exports
 
         exported = exports.render(est.results(), args.format, filter_method, timing.fs, args.filter_rate, inflate, rec.topic,
-                                  [r.path for r, _, _ in loaded], avs=all_avs, flags=quality_file_lines(quality))
-    screen = json.dumps(data) if args.json else _summary_text(est, rec)
+                                  [r.path for r, _, _ in loaded], avs=all_avs, flags=quality_file_lines(quality),
+                                  static_check=still)
+    screen = json.dumps(data) if args.json else _summary_text(est, rec, fitting)
     pngs = {k: _png(f) for k, f in figs.items()}
     results = {"pngs": pngs, "av_table": pd.concat(av_rows, ignore_index=True), "tables": tables, "data": data,
                "yaml": yaml_text, "exports": exported}
@@ -438,6 +482,13 @@ def run(args) -> int:
         return 143 if "SIGTERM" in why else 130
     print(screen)
     print(f"avbench estimate: wrote {', '.join(o.name for o in plan.outputs)} (in {out})", file=sys.stderr)
+    if not fitting:
+        asked = ([f"--kalibr {args.kalibr}"] if args.kalibr is not None else []) + \
+            ([f"--format {','.join(args.format)}"] if args.format else [])
+        print("avbench estimate: the record is not static: nothing fitted" +
+              (f", no filter file written ({'; '.join(asked)})" if asked else "") +
+              "; --fit-not-static fits it anyway (exit code 3)", file=sys.stderr)
+        return NOT_STATIC_EXIT
     return 0
 
 
@@ -448,7 +499,7 @@ def _say(lines: list, text: str) -> None:
     lines.extend(wrap(text, "#   "))
 
 
-def _summary_text(est, rec) -> str:
+def _summary_text(est, rec, fitted: bool = True) -> str:
     """The screen of ``avbench estimate``: the record, its notes, the coefficient tables with their
     footnotes (:func:`avbench.recordings.report.screen`), the fit times and the between-run checks; no
     line wider than :data:`avbench.recordings.report.SCREEN_WIDTH`. Rendered before the outputs are
@@ -468,6 +519,10 @@ def _summary_text(est, rec) -> str:
         _say(lines, f"# note: {note}")
     still = est.extra.get("static_check")
     if still is not None and not still["static"]:
+        if not fitted:
+            _say(lines, "# NOT STATIC: " + "; ".join(still["reasons"]))
+            _say(lines, "# " + still["not_fitted"][0].upper() + still["not_fitted"][1:] + ".")
+            return "\n".join(lines)
         _say(lines, "# NOT STATIC: " + "; ".join(still["reasons"]) + " -- the fits assume a sensor at rest; "
              "a POOR FIT below is expected for this reason")
     from avbench.recordings.quality import screen_lines

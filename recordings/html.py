@@ -309,8 +309,9 @@ def _static_section(data: dict) -> str:
         out.append("<p>" + _badge("static", "good") + " no channel moved beyond its noise: the fits' assumption "
                    "of a sensor at rest holds as far as this check sees.</p>")
     else:
-        out.append("<p>" + _badge("NOT STATIC", "bad") + " the record does not look like a sensor at rest; the fits "
-                   "below assume rest, so a poor fit is expected for this reason.</p>")
+        out.append("<p>" + _badge("NOT STATIC", "bad") + " the record does not look like a sensor at rest; " +
+                   (esc(still["not_fitted"]) + "." if still.get("not_fitted") else
+                    "the fits below assume rest, so a poor fit is expected for this reason.") + "</p>")
         out.append("<ul>" + "".join(f"<li>{esc(r)}</li>" for r in still.get("reasons") or []) + "</ul>")
     limit = still.get("spread_limit")
     rows = []

@@ -17,8 +17,11 @@ channel (each gyro axis, each accelerometer axis and the accelerometer magnitude
   and far above where motion between those scales moves the level. A ratio above
   :data:`SPREAD_LIMIT` is a move.
 
-The fits still run; the JSON carries the check (``static_check``) and the screen says in one line
-why the fits may be poor. The false-alarm rate on simulated presets and on the six ADIS runs, and
+A record that is not static is answered before any fit: the verdict, its reasons, the Allan
+deviation figure and what to do (:func:`what_to_do`); nothing is fitted and no filter file is
+written unless the user asks for the fits anyway (``avbench estimate --fit-not-static``,
+``estimate_file(..., fit_not_static=True)``, which raises :class:`NotStaticError` otherwise). The
+JSON carries the check (``static_check``). The false-alarm rate on simulated presets and on the six ADIS runs, and
 the detection of simulated motion, are measured in ``tests/test_static_check.py`` and stated in
 ``results/README.md``.
 """
@@ -29,7 +32,8 @@ import math
 
 import numpy as np
 
-__all__ = ["static_check", "level_threshold", "MIN_WINDOW", "SPREAD_LIMIT", "FAMILY_LEVEL", "WINDOW_S"]
+__all__ = ["static_check", "level_threshold", "what_to_do", "verdict", "NotStaticError", "MIN_WINDOW", "SPREAD_LIMIT",
+           "FAMILY_LEVEL", "WINDOW_S"]
 
 WINDOW_S = 1.0  #: window length (s)
 MIN_WINDOW = 32  #: at least this many samples per window
@@ -39,12 +43,21 @@ SPREAD_LIMIT = 8.0  #: AV(tau) over the white-noise extrapolation of the short-s
 _SHORT = 8  #: tau_s = 8 dt: above the sensor's own anti-alias filter, below the window
 
 
+class NotStaticError(ValueError):
+    """The record is not static, and its fits were not asked for anyway: ``check`` is the static check
+    (:func:`static_check`), the message its verdict and what to do."""
+
+    def __init__(self, message: str, check: dict):
+        super().__init__(message)
+        self.check = check
+
+
 def level_threshold(n_windows: int, level: float = FAMILY_LEVEL) -> float:
     """The |z| beyond which one of ``n_windows`` adjacent-window differences is a move: the two-sided
     Gaussian quantile at ``level / n_windows`` (Bonferroni)."""
-    from scipy import stats
+    from scipy.special import ndtri
 
-    return float(stats.norm.isf(level / (2 * max(n_windows, 1))))
+    return float(-ndtri(level / (2 * max(n_windows, 1))))
 
 
 def _channel(x, dt, n_w, av=None):
@@ -131,3 +144,31 @@ def static_check(sensors, dt: float, avs=None) -> dict:
             merged.append((a, b))
     out["moved"] = [list(p) for p in merged]
     return out
+
+
+def _quiet_stretch(moved, duration_s: float) -> tuple[float, float] | None:
+    """The longest stretch of ``[0, duration_s]`` outside the spans ``moved`` (s), or None."""
+    edges = [0.0] + [v for span in moved for v in span] + [duration_s]
+    gaps = [(max(a, 0.0), min(b, duration_s)) for a, b in zip(edges[::2], edges[1::2])]
+    gaps = [(a, b) for a, b in gaps if b > a]
+    return max(gaps, key=lambda g: g[1] - g[0]) if gaps else None
+
+
+def verdict(check: dict, limit: int = 4) -> str:
+    """``NOT STATIC: <the first reasons>`` of a check that found motion (its reasons joined)."""
+    reasons = check["reasons"]
+    return "NOT STATIC: " + "; ".join(reasons[:limit]) + ("; ..." if len(reasons) > limit else "")
+
+
+def what_to_do(check: dict, duration_s: float, option: str = "--fit-not-static") -> str:
+    """What a user can do with a record that is not static (``check``: :func:`static_check`'s result;
+    ``duration_s``: the record's length; ``option``: how the fits are asked for anyway): record at
+    rest, or keep the longest stretch without moves where the moves are located, or ``option``."""
+    text = ("nothing fitted: every noise coefficient assumes a sensor at rest, and a record that moved gives "
+            "poor fits for a reason no fit can name. Record the sensor at rest (fixed to a stable surface, "
+            "after its warm-up)")
+    stretch = _quiet_stretch(check.get("moved") or [], duration_s) if check.get("moved") else None
+    if stretch is not None and stretch[1] - stretch[0] >= 10 * check.get("window_s", 1.0):
+        text += (f", or fit its longest stretch without moves ({stretch[0]:.0f}-{stretch[1]:.0f} s, "
+                 f"{stretch[1] - stretch[0]:.0f} s), if the sensor was at rest then")
+    return text + f"; {option} fits it anyway (poor fits expected; a filter file then says the record was not static)"

@@ -189,28 +189,61 @@ def test_real_data_cases_skip_without_the_data(monkeypatch):
 
 
 def test_real_record_rows_state_the_targets_and_the_motion_ratio():
-    """The targets rows of EstimateRealRecords: wall against the target with the breakdown, and the record in
-    motion against the static one of the same length by CPU seconds."""
+    """The targets rows of EstimateRealRecords: wall against the target with the breakdown and what limits it,
+    a record answered not static against its own target, the corpus's median, and the record in motion fitted
+    anyway against the static one of the same length by CPU seconds."""
     import pandas as pd
 
-    def row(case, wall, cpu, target=None, static=None):
-        return {"benchmark": "EstimateRealRecords", "method": "track_end_to_end", "kind": "track", "param_case": case,
-                "n": 360_000, "wall_s": wall, "cpu_s": cpu, "target_s": target, "static_case": static,
-                "loadavg_before": [1.0, 1, 1], "loadavg_after": [1.5, 1, 1], "imports_s": 1.0, "rest_s": 2.0,
-                "parts_s": {"reading (read, timing, SI)": 0.1, "static check": 0.05, "fits": wall - 3.2,
-                            "AV covariance (allan.covariance.av_covariance)": 0.5,
-                            "figures (recordings.figure.figure)": 0.8},
-                "calls": {"AV covariance (allan.covariance.av_covariance)": 40},
-                "fits_per_method_s": {"gmwm_filtered": 3.0, "gmwm_despiked": 2.0}}
+    from avbench.bench.real_e2e import limited_by
 
-    df = pd.DataFrame([row("consumer_1h_100Hz", 8.0, 7.0, 10.0), row("consumer_1h_100Hz_motion", 12.0, 10.5,
-                                                                          static="consumer_1h_100Hz")])
+    def row(case, wall, cpu, target=None, static=None, answered=False, ratio=None):
+        r = {"benchmark": "EstimateRealRecords", "method": "track_end_to_end", "kind": "track", "param_case": case,
+             "n": 360_000, "wall_s": wall, "cpu_s": cpu, "target_s": target, "static_case": static,
+             "answered": answered, "ratio_target": ratio,
+             "loadavg_before": [1.0, 1, 1], "loadavg_after": [1.5, 1, 1], "imports_s": 1.0, "rest_s": 2.0,
+             "parts_s": {"reading (read, timing, SI)": 0.1, "static check": 0.05,
+                         "figures (recordings.figure.figure)": 0.8},
+             "calls": {"AV covariance (allan.covariance.av_covariance)": 40},
+             "fits_per_method_s": {"gmwm_filtered": 3.0, "gmwm_despiked": 2.0} if not answered else {}}
+        if not answered:
+            r["parts_s"].update({"fits": wall - 3.2, "AV covariance (allan.covariance.av_covariance)": 0.5})
+        r["limited_by"] = limited_by(r)
+        return r
+
+    df = pd.DataFrame([row("consumer_1h_100Hz", 8.0, 7.0, 10.0),
+                       row("consumer_1h_100Hz_motion_fit", 12.0, 12.0, static="consumer_1h_100Hz", ratio=1.5),
+                       row("consumer_1h_100Hz_motion", 4.0, 3.5, 3.0, answered=True),
+                       row("consumer_10min_100Hz", 5.5, 5.0, 10.0)])
     rows = {r["target"]: r for r in report.targets(df, quick=False)}
-    static = next(r for t, r in rows.items() if "consumer MEMS record" in t and "<= 10 s" in t)
+    static = next(r for t, r in rows.items() if "consumer MEMS record" in t and "1 h" in t and "<= 10 s" in t)
     assert static["met"] is True and "AV covariance (allan.covariance.av_covariance) 0.5 s (40 calls)" in static["measured"]
-    motion = next(r for t, r in rows.items() if t.startswith("a non-static record"))
-    assert motion["met"] is False and motion["measured"].startswith("1.50x the static record's CPU seconds")
-    # the outputs' parts are said as part of the rest, not of the fits; the ratio has its own limit
-    assert "2.0 s (of it: figures (recordings.figure.figure) 0.8 s)" in static["measured"]
-    assert "figures" not in static["measured"].split("within the fits")[1]
+    assert "limited by fits (4.8 s, 60 % of the wall time)" in static["measured"]
+    motion = next(r for t, r in rows.items() if t.startswith("a record in motion fitted anyway at most 1.5x"))
+    assert motion["met"] is False and motion["measured"].startswith("1.71x the static record's CPU seconds")
+    answered = next(r for t, r in rows.items() if "answered not static" in t)
+    assert answered["met"] is False and "nothing fitted" in answered["measured"]
+    assert answered["limit"] == report.LIMITS["estimate_answered"]
+    median = next(r for t, r in rows.items() if "median" in t)
+    assert median["met"] is False and median["measured"].startswith("5.5 s wall over 3 records")
+    # the outputs' parts are said apart from the fits; the ratio has its own limit
+    assert "outputs (figures (recordings.figure.figure) 0.80 s)" in static["measured"]
+    assert "figures" not in static["measured"].split("within this process's fits")[1]
     assert motion["limit"] == report.LIMITS["estimate_real_motion"] != static["limit"]
+
+
+def test_corpus_generators_are_what_they_say(tmp_path):
+    """The rounded consumer output sits on its steps (0.01 deg/s, 0.001 g); the flight log moves throughout
+    (the static check calls it not static by both its tests)."""
+    from avbench.bench import real_records
+    from avbench.recordings.load import load_recording
+    from avbench.recordings.static import static_check
+
+    r = np.load(real_records.write_rounded(tmp_path / "r.npz", 2 / 60, 100.0))
+    for key, step in zip(("gyro", "accel"), real_records.ROUNDING):
+        np.testing.assert_allclose(r[key] / step, np.round(r[key] / step), atol=1e-6)
+    assert r["accel"][:, 2].mean() == pytest.approx(1.0, abs=0.01) and r["gyro"].std() > 10 * real_records.ROUNDING[0]
+    f = real_records.write_flight(tmp_path / "f.npz", 30.0, 200.0)
+    rec = load_recording(f, units="rad/s", accel_units="m/s^2")
+    assert rec.timing.n_samples == 6000
+    check = static_check(rec.sensors, rec.timing.dt)
+    assert not check["static"] and any("wander" in t for t in check["reasons"])

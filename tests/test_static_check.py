@@ -80,6 +80,12 @@ def test_flight_like_motion_is_found_and_located():
     assert min(a for a, _ in spans) >= 300.0 - 2 * r["window_s"] and max(b for _, b in spans) <= 600.0 + 2 * r["window_s"]
     covered = sum(b - a for a, b in spans)
     assert covered > 0.5 * 300.0  # most of the motion is located
+    # what to do names a stretch without moves: about 300 s before or after the motion
+    from avbench.recordings.static import what_to_do
+
+    text = what_to_do(r, 900.0)
+    a, b = (float(v) for v in text.split("longest stretch without moves (", 1)[1].split(" s,", 1)[0].split("-"))
+    assert 290.0 <= b - a <= 300.0 and (b <= 300.0 + 2 * r["window_s"] or a >= 600.0 - 2 * r["window_s"])
 
 
 def test_motion_throughout_is_found_by_the_spread():
@@ -92,20 +98,86 @@ def test_motion_throughout_is_found_by_the_spread():
     assert any("wander" in s for s in r["reasons"])
 
 
-def test_estimate_says_not_static_and_why_fits_are_poor(tmp_path, capsys):
-    from avbench.cli import main
-
-    dt, sensors = _rest("ADIS16405_X", 180.0, 5)
-    moved = _move(sensors, dt, 60.0, 120.0)
+def _flight_file(tmp_path, seconds=180.0):
+    dt, sensors = _rest("ADIS16405_X", seconds, 5)
+    moved = _move(sensors, dt, seconds / 3, 2 * seconds / 3)
     f = tmp_path / "flight.npz"
     np.savez(f, gyro=np.column_stack(list(moved[0].axes.values())), accel=np.column_stack(list(moved[1].axes.values())))
-    assert main(["estimate", str(f), "--fs", "100", "--units", "rad/s", "--accel-units", "m/s^2",
-                 "--method", "wls", "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    return f
+
+
+_OPTS = ["--fs", "100", "--units", "rad/s", "--accel-units", "m/s^2", "--method", "wls", "--no-progress"]
+
+
+def test_a_record_in_motion_is_answered_before_any_fit(tmp_path, capsys, monkeypatch):
+    """Not static: the verdict, what to do, the figures, the AV table, the JSON and the page; no fit
+    (fit_axis is never called), no coefficients and no filter file although --kalibr and --format were
+    asked; exit 3."""
+    import json
+
+    from avbench.cli import main
+    from avbench.recordings import fit
+
+    def no_fit(*a, **k):
+        raise AssertionError("a record that is not static was fitted")
+
+    monkeypatch.setattr(fit, "fit_axis", no_fit)
+    f = _flight_file(tmp_path)
+    o = tmp_path / "o"
+    code = main(["estimate", str(f), *_OPTS, "--out", str(o), "--kalibr", str(o / "imu.yaml"), "--format", "px4,basalt",
+                 "--html"])
+    out, err = capsys.readouterr()
+    assert code == 3
+    assert "NOT STATIC" in err and "NOT STATIC" in out and "gyro" in out.split("NOT STATIC", 1)[1].split("\n", 1)[0]
+    assert "Nothing fitted" in out and "--fit-not-static" in out and "no filter file written" in err
+    assert sorted(p.name for p in o.iterdir()) == ["flight_accel_av.png", "flight_av.csv", "flight_coefficients.json",
+                                                    "flight_gyro_av.png", "flight_report.html"]
+    assert "nothing fitted" in (o / "flight_report.html").read_text()
+    data = json.loads((o / "flight_coefficients.json").read_text())
+    assert data["static_check"]["static"] is False and "--fit-not-static" in data["static_check"]["not_fitted"]
+    assert all(ad["methods"] == {} for sd in data["sensors"].values() for ad in sd["axes"].values())
+
+
+def test_fitting_a_record_in_motion_is_asked_and_its_filter_files_say_so(tmp_path, capsys):
+    """--fit-not-static: the fits run (poor fits expected) and every filter file opens with NOT STATIC."""
+    from avbench.cli import main
+
+    f = _flight_file(tmp_path)
+    o = tmp_path / "o"
+    assert main(["estimate", str(f), *_OPTS, "--fit-not-static", "--out", str(o), "--kalibr", str(o / "imu.yaml"),
+                 "--format", "px4,basalt"]) == 0
     out, err = capsys.readouterr()
     assert "NOT STATIC" in err and "NOT STATIC" in out
-    assert "gyro" in out.split("NOT STATIC", 1)[1].split("\n", 1)[0]
     # the printed table (same run): the unit in the column name, the legend of the intervals
     assert "N (deg/sqrt(h))" in out and "value [95 % interval]" in out
+    assert (o / "imu.yaml").read_text().startswith("# NOT STATIC")
+    assert (o / "flight_px4.params").read_text().startswith("# NOT STATIC")
+    assert "NOT STATIC" in (o / "flight_basalt.json").read_text()
+
+
+def test_estimate_file_refuses_a_record_in_motion_unless_asked(tmp_path):
+    from avbench.recordings import estimate_file
+    from avbench.recordings.static import NotStaticError
+
+    f = _flight_file(tmp_path, 120.0)
+    opts = dict(fs=100, units="rad/s", accel_units="m/s^2")
+    with pytest.raises(NotStaticError, match="NOT STATIC.*fit_not_static=True") as e:
+        estimate_file(f, methods="wls", **opts)
+    assert e.value.check["static"] is False and e.value.check["moved"]
+    fits = estimate_file(f, methods="wls", fit_not_static=True, **opts)
+    assert sorted(fits) == ["accel", "gyro"] and fits["gyro"]["x"]["wls"].error is None
+
+
+def test_a_static_record_s_filter_files_do_not_say_not_static(tmp_path, capsys):
+    from avbench.cli import main
+
+    dt, sensors = _rest("ADIS16405_X", 120.0, 6)
+    f = tmp_path / "rest.npz"
+    np.savez(f, gyro=np.column_stack(list(sensors[0].axes.values())), accel=np.column_stack(list(sensors[1].axes.values())))
+    o = tmp_path / "o"
+    assert main(["estimate", str(f), *_OPTS, "--out", str(o), "--kalibr", str(o / "imu.yaml"), "--format", "px4"]) == 0
+    capsys.readouterr()
+    assert "NOT STATIC" not in (o / "imu.yaml").read_text() + (o / "rest_px4.params").read_text()
 
 
 @pytest.mark.skipif(not os.environ.get("AVBENCH_REAL_DATA"), reason="AVBENCH_REAL_DATA is not set: the real ADIS runs are optional")

@@ -111,7 +111,7 @@ def _inflate(inflate, option: str):
 
 def render(results: dict, names, method: str | None, rate: float, filter_rate: float | None = None,
            inflate=(1.0, 1.0), topic: str | None = None, sources=(), *, avs=None,
-           option: str = "--format", flags=()) -> dict[str, tuple[str, str]]:
+           option: str = "--format", flags=(), static_check=None) -> dict[str, tuple[str, str]]:
     """The text of each format in ``names``: ``{name: (suffix, text)}``, the file ``<stem><suffix>``.
 
     Parameters
@@ -138,6 +138,9 @@ def render(results: dict, names, method: str | None, rate: float, filter_rate: f
     flags : sequence of str
         The record's quality flags as each file's header carries them
         (:func:`avbench.recordings.quality.file_lines`).
+    static_check : dict, optional
+        The record's static check (:func:`avbench.recordings.static.static_check`): every file opens with
+        ``NOT STATIC`` where it says the record moved.
 
     Raises
     ------
@@ -147,7 +150,7 @@ def render(results: dict, names, method: str | None, rate: float, filter_rate: f
         sensor without three axes -- each message names the option and what was expected.
     """
     wanted = parse_names(names, option)
-    req = _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option, flags)
+    req = _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option, flags, static_check)
     return {name: (FORMATS[name].suffix, FORMATS[name].write(req)) for name in wanted}
 
 
@@ -161,7 +164,8 @@ def tables(results: dict, names, method: str | None, rate: float, filter_rate: f
     return {name: FORMATS[name].table(req) for name in wanted if FORMATS[name].table is not None}
 
 
-def _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option, flags=()) -> Request:
+def _request(results, method, rate, filter_rate, inflate, topic, sources, avs, option, flags=(),
+             static_check=None) -> Request:
     """The :class:`Request` of :func:`render`'s arguments, each checked."""
     rate = _rate(rate, "the record's rate")
     if filter_rate is not None:
@@ -171,4 +175,5 @@ def _request(results, method, rate, filter_rate, inflate, topic, sources, avs, o
                              "at which the stack receives (or predicts with) the samples, at most the record's")
     return Request(results=results, method=method if method is not None else default_method(results), rate=rate,
                    filter_rate=filter_rate, inflate=_inflate(inflate, "--inflate"), topic=topic,
-                   sources=tuple(sources), avs=avs, option=option, flags=tuple(flags))
+                   sources=tuple(sources), avs=avs, option=option, flags=tuple(flags),
+                   static_check=static_check)

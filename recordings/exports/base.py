@@ -41,7 +41,8 @@ import numpy as np
 from avbench.recordings import filter_yaml
 
 __all__ = ["Value", "Entry", "Request", "Exporter", "PLATEAU", "fmt", "factor", "sensor_values", "axis_values",
-           "axis_order", "bias_instability", "plateau_bound", "header", "bound_lines", "inflate_text"]
+           "axis_order", "bias_instability", "plateau_bound", "header", "not_static_lines", "bound_lines",
+           "inflate_text"]
 
 #: the Allan variance of bias instability on its flat band, per B^2 (IEEE Std 952 Annex C): 2 ln2 / pi
 PLATEAU = 2.0 * math.log(2.0) / math.pi
@@ -77,6 +78,8 @@ class Request:
     avs: dict | None = None
     option: str = "--format"
     flags: tuple = ()  # the record's quality flags, one header line each (avbench.recordings.quality.file_lines)
+    static_check: dict | None = None  # the record's static check (avbench.recordings.static): a file opens with
+    #                                   NOT STATIC where it says the record moved
 
     @property
     def used_rate(self) -> float:
@@ -244,12 +247,24 @@ def header(req: Request, title: str, scope: str, convention: list[str], rate: st
     convention with its sources, the rate used, the inflation and a line per flag on the record's
     quality (:func:`avbench.recordings.quality.file_lines`)."""
     sources = ", ".join(map(str, req.sources)) or "(no source named)"
-    lines = [f"{title} written by avbench estimate from {sources}", f"method: {req.method}; {scope}"]
+    lines = not_static_lines(req.static_check)
+    lines += [f"{title} written by avbench estimate from {sources}", f"method: {req.method}; {scope}"]
     lines += convention
     if rate is not None:
         lines.append(rate)
     lines.append(inflate_text(req.inflate))
     return lines + list(req.flags)
+
+
+def not_static_lines(still: dict | None) -> list[str]:
+    """The lines that open a file written from a record the static check (``still``,
+    :func:`avbench.recordings.static.static_check`) called not static (fitted only because the user asked):
+    none for a static record or where no check was made."""
+    still = still or {}
+    if still.get("static", True):
+        return []
+    return ["NOT STATIC: the record was not at rest (" + "; ".join(still.get("reasons", [])[:2]) + "); these values "
+            "come from fits asked for anyway (--fit-not-static) and are not a sensor's noise at rest"]
 
 
 def bound_lines(values: dict[str, Value]) -> list[str]:
