@@ -439,7 +439,7 @@ def run(args) -> int:
                     av_rows.append(f.assign(statistic=name, sensor=s.sensor, axis=a,
                                             unit=f"variance ({unit})^2, deviation {unit}")[["statistic", *f.columns, "sensor", "axis", "unit"]])
             av_rows.append(frame)
-        flags = {a: {m: fits[s.sensor][a][m].result.fit_check.poor_fit for m in methods} for a in s.axes}
+        flags = {a: {m: f.result.fit_check.poor_fit for m, f in fits[s.sensor][a].items()} for a in s.axes}
         figs[s.sensor] = figure.figure(s, fits[s.sensor], avs, dt, title, flags, deviations=devs.get(s.sensor))
     if args.format and fitting:
         from avbench.recordings import exports
@@ -458,7 +458,7 @@ def run(args) -> int:
         panels = {s.sensor: {a: figure.figure(s, fits[s.sensor], all_avs[s.sensor], dt, title,
                                               {a: {m: f.result.fit_check.poor_fit for m, f in fits[s.sensor][a].items()}},
                                               deviations=devs.get(s.sensor), axes=[a]) for a in s.axes} for s in sensors}
-        if args.kalibr is not None and "kalibr" not in pages:
+        if fitting and args.kalibr is not None and "kalibr" not in pages:
             pages["kalibr"] = (Path(args.kalibr).name, yaml_text)
         try:
             from avbench.recordings import exports as exports_

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import threading
 
@@ -10,7 +11,7 @@ import pytest
 
 from avbench.noise_models import presets
 from avbench.recordings.fit_pool import PARALLEL_MIN_SAMPLES, available_cores, fit_axes, worker_count
-from avbench.recordings.report import method_entry
+from avbench.estimators.results import jsonable
 
 
 def _bits(fits, dt):
@@ -19,8 +20,7 @@ def _bits(fits, dt):
     out = {}
     tau = dt * 2.0 ** np.arange(12)
     for name, f in fits.items():
-        entry = method_entry(f, "gyro", 1)
-        entry.pop("seconds")
+        entry = jsonable(dataclasses.asdict(f.result))  # every field a surface renders
         residuals = f.result.fit_check.residuals
         out[name] = (json.dumps(entry, sort_keys=True), f.result.model_avar(tau).tobytes(),
                      None if residuals is None else tuple(np.asarray(r).tobytes() for r in residuals))
