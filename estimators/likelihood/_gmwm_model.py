@@ -33,8 +33,9 @@ class LatentAV:
     flicker with its fixed memory ``tau_fl``, random walk, ramp) and, for one with a shape parameter
     (Gauss-Markov Tc, the filter's tf, the sinusoid's f0), with its derivative in one call of the
     unit term's ``avar_shape_derivative`` (analytic for the Gauss-Markov term and the sinusoid; the resonance's
-    central differences take steps its oscillation at long taus allows), kept for the last value (least_squares asks for the residuals and then the Jacobian at the same point). ``extra``:
-    None or ``(j, e)``, a term :math:`e^{2u_j} e(\tau)` added (the white gain of a robust AV,
+    central differences take steps its oscillation at long taus allows), kept for the last value (least_squares
+    asks for the residuals and then the Jacobian at the same point). ``extra``: None or ``(j, e)``, a term
+    :math:`e^{2u_j} e(\tau)` added (the white gain of a robust AV,
     :class:`avbench.estimators.likelihood.gmwm.WaveletVariance`)."""
 
     def __init__(self, latents, tau, dt, tau_fl, extra=None):
