@@ -31,7 +31,7 @@ from avbench.noise_models.power_law_terms import _FIRStream
 from avbench.noise_models.term_base import NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt, _positive
 from avbench.noise_models.units import as_si
 
-__all__ = ["Sinusoidal", "FilteredWhiteNoise", "Resonance", "RESONANCE_MAX_FREQUENCY"]
+__all__ = ["Sinusoidal", "FilteredWhiteNoise", "Resonance", "RESONANCE_MAX_FREQUENCY", "GRADIENT_PHASE_STEP"]
 
 #: a fitted resonance is centred below this fraction of the sampling rate (at the Nyquist frequency its
 #: autocovariance's sine weight, (1 - rho^2) / (2 rho sin w), has no finite value)
@@ -157,20 +157,24 @@ class Sinusoidal(NoiseTerm):
         return self.A**2 * np.sin(m * w / 2) ** 4 / (m**2 * math.sin(w / 2) ** 2)
 
     def avar_shape_derivative(self, m, dt):
-        """``(avar, d avar / d ln f0)``: the base class's central difference in ln f0 (relative step 1e-4),
-        its three AVs as the rows of one array computation (the same element-wise operations as
-        :meth:`avar`: bit for bit). Where a step passes the Nyquist frequency, the base class's one-sided
-        difference."""
-        h = 1e-4
-        freqs = (self.f0, self.f0 * math.exp(h), self.f0 * math.exp(-h))
-        dt = _check_dt(dt)
-        if any(f > 0.5 / dt * (1 + 1e-12) for f in freqs):
-            return super().avar_shape_derivative(m, dt)
+        """``(avar, d avar / d ln f0)``, the derivative analytic: with s = sin(m omega / 2), d/d ln f0 =
+        omega d/d omega,
+
+        .. math:: \\frac{\\partial\\sigma^2(m)}{\\partial\\ln f_0} = \\frac{A^2\\,\\omega\\,s^3}{m^2\\sin^2(\\omega/2)}
+            \\left[2m\\cos(m\\omega/2) - s\\cot(\\omega/2)\\right].
+
+        Why not a central difference: at long taus the AV oscillates in f0 with period 2 / (m dt) (a zero at
+        every whole number of periods), so a step of 1e-4 in ln f0 spans several oscillations where m omega
+        exceeds ~1e4 (a 13 Hz line at 100 Hz from tau ~ 100 s on): the difference is then no derivative, the
+        fit's Jacobian is wrong there, and its solves stop where the rounding of their path leaves them (a
+        record's answer moved by 1e-4 of its AV between units)."""
         mf = check_m(m).astype(float)
-        w = np.array([2 * math.pi * f * dt for f in freqs])
-        s2 = np.array([math.sin(x / 2) ** 2 for x in w])
-        value, up, down = self.A**2 * np.sin(mf * w[:, None] / 2) ** 4 / (mf**2 * s2[:, None])
-        return value, (up - down) / (h - (-h))
+        w = self._omega(dt)
+        half, sw = mf * w / 2, math.sin(w / 2)
+        s = np.sin(half)
+        value = self.A**2 * s**4 / (mf**2 * sw**2)
+        d = self.A**2 * w * s**3 * (2 * mf * np.cos(half) - s * (math.cos(w / 2) / sw)) / (mf**2 * sw**2)
+        return value, d
 
     def spectral_lines(self, dt) -> list[tuple[float, float]]:
         """[(f0, power)]: the line's frequency (Hz) and the variance it carries, A^2 / 2."""
@@ -427,6 +431,11 @@ def _resonance_short_avar(terms, ms: np.ndarray, dt) -> np.ndarray:
     return np.asarray((4 * var_sum(ms) - var_sum(2 * ms)) / (2 * ml * ml), dtype=np.float64)
 
 
+#: the largest turn (radians) of the longest cluster's phase, or its decay, within one step of
+#: :meth:`Resonance.avar_shape_gradient`'s central differences (:meth:`Resonance.gradient_steps`)
+GRADIENT_PHASE_STEP = 1e-2
+
+
 class Resonance(NoiseTerm):
     r"""Band-pass (oscillatory) Gauss-Markov rate noise: the noise of a lightly damped mode at f0.
 
@@ -576,15 +585,27 @@ class Resonance(NoiseTerm):
             left = [r for r in left if r not in same]
         return out
 
+    def gradient_steps(self, m, dt) -> tuple[float, float]:
+        """The steps in ln f0 and ln tc of :meth:`avar_shape_gradient`'s central differences at cluster sizes
+        ``m``: 1e-4, or less where the longest cluster's phase m omega (in f0) or decay m dt / tc (in tc)
+        would turn by more than :data:`GRADIENT_PHASE_STEP` within a step. The AV of a resonance oscillates in
+        f0 at long taus (a narrow band's AV is a sinusoid's, zero at every whole number of periods), so a fixed
+        step of 1e-4 spans several oscillations where m omega exceeds 1e4 and the difference is no
+        derivative; the smaller step keeps its truncation error below (1e-2)^2 / 6 of the oscillation's
+        derivative while its round-off, ~1e-16 / step of the AV, stays below 1e-8 of it."""
+        m_max = float(np.max(check_m(m)))
+        w, decay = 2 * math.pi * self.f0 * dt, m_max * dt / self.tc
+        return (min(1e-4, GRADIENT_PHASE_STEP / (w * m_max)), min(1e-4, GRADIENT_PHASE_STEP / decay))
+
     def avar_shape_gradient(self, m, dt):
-        """``(avar, [d avar / d ln f0, d avar / d ln tc])``: the base class's central differences in ln p
-        (relative step 1e-4), its five AVs in one call of :meth:`_avar_rows` (bit for bit)."""
-        h = 1e-4
-        up, down = math.exp(h), math.exp(-h)
+        """``(avar, [d avar / d ln f0, d avar / d ln tc])``: central differences in ln p with the steps of
+        :meth:`gradient_steps`, its five AVs in one call of :meth:`_avar_rows` (bit for bit those of
+        :meth:`avar`)."""
+        hf, ht = self.gradient_steps(m, dt)
         sg, f, tc = self.sigma, self.f0, self.tc
-        v = self._avar_rows([(sg, f, tc), (sg, f * up, tc), (sg, f * down, tc), (sg, f, tc * up),
-                             (sg, f, tc * down)], m, dt)
-        return v[0], [(v[1] - v[2]) / (2 * h), (v[3] - v[4]) / (2 * h)]
+        v = self._avar_rows([(sg, f, tc), (sg, f * math.exp(hf), tc), (sg, f * math.exp(-hf), tc),
+                             (sg, f, tc * math.exp(ht)), (sg, f, tc * math.exp(-ht))], m, dt)
+        return v[0], [(v[1] - v[2]) / (2 * hf), (v[3] - v[4]) / (2 * ht)]
 
     def psd(self, f, dt):
         """One-sided: 2 dt [r(0) + 2 sum_{k>=1} r(k) cos(k theta)], summed in closed form."""

@@ -89,8 +89,17 @@ def fit_axis(x, dt, starts, methods, settings=None, progress=None) -> dict[str, 
     """Fit each method in ``methods`` to the SI record ``x`` with gap-free runs starting at ``starts``.
 
     ``settings`` maps a method name to its settings; ``progress`` (a tqdm bar or None) is advanced
-    once per method.
+    once per method. The methods share their model choices where one would make them alike on the same
+    values (:mod:`avbench.estimators.selection.shared`).
     """
+    from avbench.estimators.selection.shared import shared_choices
+
+    with shared_choices():
+        return _fit_methods(x, dt, starts, methods, settings, progress)
+
+
+def _fit_methods(x, dt, starts, methods, settings=None, progress=None) -> dict[str, MethodFit]:
+    """:func:`fit_axis` within its scope of shared choices."""
     from avbench import estimators
     from avbench.estimators.allan.variance import skip_gaps
 

@@ -379,3 +379,70 @@ def test_each_terms_starts_lie_in_its_box():
     lo, hi = LATENT_TERMS["SN"].fit_bounds(tau, avar, DT, T, FitHint(window=(2.0, 3.0)))
     assert (lo[1], hi[1]) == (math.log(2.0), math.log(3.0))
     assert LATENT_TERMS["RS"].fit_starts(tau, avar, np.array(lo + [0.0]), np.array(hi + [1.0])) == []
+
+
+# -- choices shared between the methods of one axis -------------------------------------------------------------
+
+def _fits_equal(a, b):
+    """Two fitted estimators report the same numbers, bit for bit (coefficients, standard errors, J, the
+    scale choice, the fit check)."""
+    assert a.coefficients_.equals(b.coefficients_)
+    assert a.diagnostics_["std_err"].equals(b.diagnostics_["std_err"])
+    for k in ("J_stat", "min_m", "scale_choice", "fit_pvalue", "params", "outlier_fraction"):
+        assert a.diagnostics_.get(k) == b.diagnostics_.get(k), k
+
+
+def test_a_second_method_takes_the_first_ones_choices_only_on_the_same_values():
+    """gmwm_despiked on a record where it finds no spike matches the classical AV, the values gmwm_filtered
+    matches: within one axis's scope it takes gmwm_filtered's outcome (computed once, shared once) and reports
+    exactly what it reports fitted on its own; with a spike it matches other values and fits them itself; a
+    setting that shapes the choices, or no scope, shares nothing."""
+    from avbench import estimators
+    from avbench.estimators.selection.shared import AxisChoices, shared_choices
+
+    g = Gyro(DT, [FilteredWhiteNoise(N=2e-4, tf=0.008), GaussMarkov(sigma=3e-5, tc=20.0), RateRandomWalk(K=2e-6)])
+    x = g.simulate(1 << 15, np.random.default_rng(5))
+    spiky = x.copy()
+    spiky[::4000] += 40 * np.std(x)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        alone = {(name, i): estimators.get(name).fit(rec, DT) for name in ("gmwm_filtered", "gmwm_despiked")
+                 for i, rec in enumerate((x, spiky))}
+        assert alone["gmwm_despiked", 0].diagnostics_["outlier_fraction"] == 0.0
+        assert alone["gmwm_despiked", 1].diagnostics_["outlier_fraction"] > 0.0
+        for i, rec in enumerate((x, spiky)):
+            with shared_choices() as kept:
+                first = estimators.get("gmwm_filtered").fit(rec, DT)
+                second = estimators.get("gmwm_despiked").fit(rec, DT)
+                other = estimators.get("gmwm_despiked", n_starts=2).fit(rec, DT)
+            assert (kept.computed, kept.shared) == ((2, 1) if i == 0 else (3, 0))
+            _fits_equal(first, alone["gmwm_filtered", i])
+            _fits_equal(second, alone["gmwm_despiked", i])
+            assert "outlier_fraction" not in first.diagnostics_  # the outcome kept holds no entry of the AV's
+        assert isinstance(kept, AxisChoices)
+
+
+def test_fit_axis_shares_the_choices_of_its_methods(monkeypatch):
+    """recordings.fit.fit_axis opens one scope per axis: its two default methods fit a spike-free record's curve
+    once, and report what each reports fitted alone."""
+    from avbench import estimators
+    from avbench.estimators.selection import shared
+    from avbench.recordings.fit import fit_axis
+
+    g = Gyro(DT, [FilteredWhiteNoise(N=2e-4, tf=0.008), RateRandomWalk(K=2e-6)])
+    x = g.simulate(1 << 14, np.random.default_rng(6))
+    scopes = []
+    real = shared.AxisChoices.outcome
+
+    def counting(self, key, compute):
+        scopes.append(id(self))
+        return real(self, key, compute)
+
+    monkeypatch.setattr(shared.AxisChoices, "outcome", counting)
+    fits = fit_axis(x, DT, [], ["gmwm_filtered", "gmwm_despiked"])
+    assert len(scopes) == 2 and len(set(scopes)) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name, fit in fits.items():
+            alone = estimators.get(name).fit(x, DT).result(0.95)
+            assert repr(fit.result.coefficients) == repr(alone.coefficients), name  # NaN where not modelled

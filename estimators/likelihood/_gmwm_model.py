@@ -32,9 +32,10 @@ class LatentAV:
     with :math:`U_l` computed once for a latent without a shape parameter (white, quantization,
     flicker with its fixed memory ``tau_fl``, random walk, ramp) and, for one with a shape parameter
     (Gauss-Markov Tc, the filter's tf, the sinusoid's f0), with its derivative in one call of the
-    unit term's ``avar_shape_derivative`` (analytic for the Gauss-Markov term), kept for the last
-    value (least_squares asks for the residuals and then the Jacobian at the same point). ``extra``:
-    None or ``(j, e)``, a term :math:`e^{2u_j} e(\tau)` added (the white gain of a robust AV,
+    unit term's ``avar_shape_derivative`` (analytic for the Gauss-Markov term and the sinusoid; the resonance's
+    central differences take steps its oscillation at long taus allows), kept for the last value (least_squares
+    asks for the residuals and then the Jacobian at the same point). ``extra``: None or ``(j, e)``, a term
+    :math:`e^{2u_j} e(\tau)` added (the white gain of a robust AV,
     :class:`avbench.estimators.likelihood.gmwm.WaveletVariance`)."""
 
     def __init__(self, latents, tau, dt, tau_fl, extra=None):

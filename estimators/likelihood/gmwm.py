@@ -107,7 +107,7 @@ from avbench.estimators.base import Estimator, register
 from avbench.estimators.likelihood._gmwm_model import LatentAV, log_bounds, log_starts, report
 from avbench.estimators.likelihood._trf import lower_triangular_solver
 from avbench.estimators.likelihood.solve import solve as _solve
-from avbench.estimators.selection import bias_model, bounds
+from avbench.estimators.selection import bias_model, bounds, shared
 from avbench.estimators.selection.lines import choose_line, frequency_at_bound, sinusoid_hint
 from avbench.estimators.selection.resonance import band_seen, choose_resonance, resonance_hint
 from avbench.estimators.selection.scales import (ScaleChoice, choose_scales, cutoffs, reach_binds, shorter_adequate,
@@ -382,9 +382,40 @@ class GMWM(Estimator):
 
     @one_blas_thread()
     def _fit(self, rate, dt):
+        """The fit of the wavelet variance (:meth:`_wavelet_variance`) by :meth:`_fit_curve`; within a
+        :func:`~avbench.estimators.selection.shared.shared_choices` scope (an axis of ``avbench estimate``) the
+        outcome of another method that matched the same values of the same samples with the same choice settings
+        is taken instead of fitting them again (the same numbers: :meth:`_choice_key`)."""
+        wv = self._wavelet_variance(rate, dt)
+        kept = shared.current()
+        if kept is None:
+            coefs, diag = self._fit_curve(rate, dt, wv)
+        else:
+            coefs, diag = kept.outcome(self._choice_key(rate, dt, wv), lambda: self._fit_curve(rate, dt, wv))
+        diag.update(wv.diagnostics or {})
+        return coefs, {}, diag
+
+    #: the settings of :class:`GMWM` that shape its fit of the curve (the key of :meth:`_choice_key`)
+    _CHOICE_SETTINGS = ("model", "min_clusters", "min_m", "weighting", "n_starts", "lines", "resonance",
+                        "bias_evidence", "filter_tf", "fit_covariance")
+
+    def _choice_key(self, rate, dt, wv):
+        """What the fit of the curve reads (:func:`~avbench.estimators.selection.shared.choice_key`): the samples
+        (the line and band tests, the poor-fit check), ``dt``, the wavelet variance's arrays and factors, the
+        settings of :data:`_CHOICE_SETTINGS`, whether the fit is checked, and the methods that fit it."""
+        settings = tuple((k, repr(getattr(self, k))) for k in self._CHOICE_SETTINGS)
+        settings += (("cov_scale", float(wv.cov_scale)), ("reference_is_classical", bool(wv.reference_is_classical)),
+                     ("assess", bool(self._assess)))
+        cls = type(self)
+        code = tuple(getattr(cls, f) for f in ("_fit_curve", "_scale_choice", "_fit_scales", "_fit_check",
+                                               "_bias_evidence", "_record_std_err", "_alternatives", "_hold"))
+        return shared.choice_key(rate, dt, [wv.tau, wv.avar, wv.m, wv.edf, wv.white_gain], settings, code)
+
+    def _fit_curve(self, rate, dt, wv):
+        """``(coefficients, diagnostics)``: the model choices and the fit of the wavelet variance ``wv`` of
+        ``rate``."""
         latents = self.check_settings()
         n = rate.size
-        wv = self._wavelet_variance(rate, dt)
         usable = (n // wv.m >= self.min_clusters) & (wv.avar > 0)
         line = None
         if "SN" in latents or self.lines == "auto":
@@ -431,7 +462,7 @@ class GMWM(Estimator):
             diag["resonance_test"] = resonance_test or {"included": "RS" in latents, "reason": "in the model"}
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
             diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
-            return best["coefs"], {}, diag
+            return best["coefs"], diag
         tau_ok, upper_av = bounds.av_upper_limits(wv.tau, wv.avar, wv.edf, usable)
         unresolved = {}
         if "GM" in latents:
@@ -446,9 +477,8 @@ class GMWM(Estimator):
         if self.fit_covariance == "record":
             self._record_std_err(diag, latents, gyro, check["fit_check"].get("record_factor"), n, wv.cov_scale)
         diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
-        diag.update(wv.diagnostics or {})
         diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
-        return best["coefs"], {}, diag
+        return best["coefs"], diag
 
     def conf_int(self, level=0.95, conservative=False):
         """The intervals of :meth:`Estimator.conf_int`, each widened to hold the same coefficient's interval

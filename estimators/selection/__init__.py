@@ -17,6 +17,8 @@
   the models' AIC weights;
 * :mod:`~avbench.estimators.selection.bounds` -- the upper bounds the record's AV allows a term it
   does not resolve.
+* :mod:`~avbench.estimators.selection.shared` -- the choices made once per axis and taken by every method
+  that would make them alike on the same values.
 
 The modules import the contract's leaves and numpy/scipy only, never an estimator family.
 """
