@@ -606,6 +606,9 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    empty = _empty_values(parser, args)
+    if empty:
+        return _fail(f"{empty}: expected a value, got an empty string")
     try:
         return int(args.func(args) or 0)
     except BrokenPipeError:  # the reader went away (e.g. '| head'): not an error of ours
@@ -629,6 +632,17 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("avbench: interrupted; finished blocks are saved, rerun the same command to resume", file=sys.stderr)
         return 130
+
+
+def _empty_values(parser: argparse.ArgumentParser, args) -> str | None:
+    """The first option or argument of the command given as an empty (or blank) string, as its name in
+    the usage (``--format``, ``FILE``): every command refuses them alike, before any work."""
+    command = next(sub.choices[args.command] for sub in parser._subparsers._group_actions)
+    for a in command._actions:
+        value = getattr(args, a.dest, None)
+        if any(isinstance(v, str) and not v.strip() for v in (value if isinstance(value, list) else [value])):
+            return max(a.option_strings, key=len) if a.option_strings else (a.metavar or a.dest)
+    return None
 
 
 def _one_line(e: BaseException) -> str:
