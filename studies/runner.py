@@ -375,6 +375,13 @@ def run_study(
         _atomic_write_text(json.dumps(cfg.result_payload(), indent=2, sort_keys=True, default=str), about)
     tasks = tasks_of(cfg)
     todo = [t for t in tasks if not (shard_dir / t.shard_name).exists()]
+    if backend == "loky" and n_jobs != 1:  # no more processes than cores and blocks, said
+        from avbench.studies.workers import worker_count, workers_note
+
+        note = workers_note(n_jobs, len(todo)) if todo else None
+        if note:
+            print(f"study {cfg.name}: {note}", file=sys.stderr)
+        n_jobs = worker_count(n_jobs, len(todo) or None)
     bar = _progress(len(tasks), len(tasks) - len(todo), progress and bool(todo))
     try:
         _execute(cfg, todo, shard_dir, n_jobs, backend, scheduler, bar, max_retries)
