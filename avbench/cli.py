@@ -477,33 +477,38 @@ def _add_hat_parser(sub) -> None:
 def cmd_hat(args) -> int:
     import pandas as pd
 
-    from avbench.outputs import atomic_write_text, prepare_out_dir
     from avbench.recordings.hat import hat_of_recordings, hat_table
     from avbench.recordings.load import check_reader_options, reader_options_of
+    from avbench.recordings.plan import OutputPlan, output_stem
 
     if not 0 < args.confidence < 1:
         raise ValueError(f"--confidence: expected a level between 0 and 1, got {args.confidence}")
     options = reader_options_of(args)
     check_reader_options(**options)
-    stem = Path(args.files[0]).stem or "hat"
-    out = prepare_out_dir(args.out, "--out", [f"{stem}_hat.csv"])
-    hat, srec, axis, dt = hat_of_recordings(args.files, sensor=args.sensor, axis=args.axis, kind=args.deviation,
-                                            taus=args.taus, confidence=args.confidence, **options)
-    labels = [Path(f).name for f in args.files]
-    table = hat_table(hat, srec, labels)
-    atomic_write_text(out / f"{stem}_hat.csv", table.to_csv(index=False))
+    name = f"{output_stem(args.files[0])}_hat.csv"
+    plan = OutputPlan(Path(args.out))
+    plan.add(name, lambda table: table.to_csv(index=False).encode("utf-8"))
+    out = plan.check(args.files)  # never over an input, before any reading
+    run = hat_of_recordings(args.files, sensor=args.sensor, axis=args.axis, kind=args.deviation,
+                            taus=args.taus, confidence=args.confidence, **options)
+    hat, labels = run.hat, run.labels
+    table = hat_table(hat, run.sensor_record, labels)
+    plan.write(table)
     from avbench.recordings.report import wrap
 
-    print("\n".join(wrap(f"# three-cornered hat of {srec.sensor} {axis} ({args.deviation}, {hat.n_samples} samples at "
-                          f"{1 / dt:.6g} Hz): each unit's own deviation in {srec.si_unit}; '< x': not seen beside "
-                          "the other two, x its upper bound; 'negative': below zero beyond its error bar (the "
-                          "noises are not independent, or a unit is far quieter)", "#   ")))
+    print("\n".join(wrap(f"# three-cornered hat of {run.sensor_record.sensor} {run.axis} ({args.deviation}, "
+                          f"{hat.n_samples} samples at {1 / run.dt:.6g} Hz): each unit's own deviation in "
+                          f"{run.sensor_record.si_unit}; '< x': not seen beside the other two, x its upper bound; "
+                          "'negative': below zero beyond its error bar (the noises are not independent, or a unit "
+                          "is far quieter)", "#   ")))
+    for note in run.notes:
+        print("\n".join(wrap(f"# note: {note}", "#   ")))
     wide = table.assign(shown=[f"{d:.4g}" if not neg else (f"< {u:.3g}" if u > 0 else "negative")
                                for d, u, neg in zip(table["deviation"], table["upper_dev"], table["negative"])])
     with pd.option_context("display.width", 100):
         print(wide.pivot_table(index="tau", columns="unit", values="shown", aggfunc="first", sort=True)[labels]
               .to_string())
-    print(f"# wrote {stem}_hat.csv in {out}")
+    print(f"# wrote {name} in {out}")
     return 0
 
 
