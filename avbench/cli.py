@@ -277,23 +277,28 @@ def _run(args) -> int:
         overrides["replicates"] = args.replicates
     cfg = load_config(packaged.resolve(args.config), overrides)
     out = Path(args.out) if args.out else Path("results") / cfg.name
-    from avbench.outputs import prepare_out_dir
+    from avbench.outputs import folder_lock, prepare_out_dir
+    from avbench.studies.figure_files import figure_names
 
-    prepare_out_dir(out, "--out", REPORT_FILES)
-    run_study(
-        cfg,
-        out=out,
-        n_jobs=args.jobs,
-        backend=args.backend,
-        scheduler=args.scheduler,
-        progress=not args.no_progress,
-    )
-    if args.html:  # after meta.json, and not among its outputs: the page embeds the avbench version
-        from avbench.outputs import atomic_write_text
-        from avbench.studies.html import study_page
+    inputs = [("the study file", cfg.path)] if cfg.path is not None else []
+    inputs += [("the study's paper_table", cfg.paper_table)] if cfg.paper_table is not None else []
+    figures = [n for label in (cfg.figure_gyros or [g.label for g in cfg.gyros]) for n in figure_names(label)]
+    prepare_out_dir(out, "--out", [*REPORT_FILES, *figures], inputs=inputs)
+    with folder_lock(out, "--out", f"avbench run {args.config}"):  # one run per output folder
+        tidy = run_study(
+            cfg,
+            out=out,
+            n_jobs=args.jobs,
+            backend=args.backend,
+            scheduler=args.scheduler,
+            progress=not args.no_progress,
+        )
+        if args.html:  # after meta.json, and not among its outputs: the page embeds the avbench version
+            from avbench.outputs import atomic_write_text
+            from avbench.studies.html import study_page
 
-        atomic_write_text(out / "report.html", study_page(out))
-    print((out / "table.md").read_text())
+            atomic_write_text(out / "report.html", study_page(out))
+    print(tidy.attrs["table.md"])  # this run's own table, not what the folder holds now
     print(f"# results in {out}/ (tidy.csv, table.md, table.csv, leaderboard.md, figures; fit times in timings.md)", file=sys.stderr)
     return 0
 
@@ -425,7 +430,12 @@ def cmd_deviations(args) -> int:
                                      unit=f"variance ({unit})^2, deviation {unit}")[["statistic", *f.columns, "sensor", "axis", "unit"]])
         confidence = next(iter(next(iter(devs.values())).values())).confidence
         figs.append((s.sensor, figure.deviations_figure(s.sensor, s.si_unit, devs, title, confidence)))
-    table = pd.concat(rows, ignore_index=True)
+    table = pd.concat(rows, ignore_index=True).assign(note="")
+    skipped = [{"sensor": c.sensor, "axis": c.axis or c.name, "note": note} for c in rec.channels
+               for note in rec.notes if note.startswith(f"{c.sensor} {c.name}: ") and note.endswith("skipped")
+               and args.sensor in (None, c.sensor)]
+    if skipped:  # an axis left out is said in the CSV too: a row of its own, no statistic
+        table = pd.concat([table, pd.DataFrame(skipped)], ignore_index=True)
 
     import matplotlib.pyplot as plt
 
@@ -442,7 +452,9 @@ def cmd_deviations(args) -> int:
                           "axis' longest gap-free run, SI units (TDEV and TTOTDEV in rad or m/s), 'edf' the equivalent "
                           "degrees of freedom" + ("; Stable32's intervals" if args.intervals == "stable32" else "")
                           + ("; bias-corrected where Stable32 corrects" if args.bias_corrected else ""), "#   ")))
-    for (sensor, axis), g in table.groupby(["sensor", "axis"], sort=False):
+    for note in rec.notes:
+        print("\n".join(wrap(f"# note: {note}", "#   ")))
+    for (sensor, axis), g in table[table["statistic"].notna()].groupby(["sensor", "axis"], sort=False):
         wide = g.assign(tau=g["tau"].map(lambda t: float(f"{t:.4g}"))).pivot_table(
             index="tau", columns="statistic", values="adev", sort=True)[list(dict.fromkeys(g["statistic"]))]
         print(f"\n## {sensor} {axis}")

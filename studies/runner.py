@@ -356,7 +356,8 @@ def run_study(
     max_retries: int = 2,
     make_report: bool = True,
 ) -> pd.DataFrame:
-    """Run (or resume) a study; write the tidy table, tables and figures; return the tidy table.
+    """Run (or resume) a study; write the tidy table, tables and figures; return the tidy table (with
+    the report: ``attrs["table.md"]``, the text of this run's table.md).
 
     Blocks already saved by the same code under ``<out>/_shards/<result key>-<code key>/``
     (:func:`shard_folder`) are not recomputed. ``backend``
@@ -367,6 +368,14 @@ def run_study(
     """
     n_jobs, backend, scheduler = resolve_execution(cfg, n_jobs, backend, scheduler)
     out = Path(out) if out is not None else Path("results") / cfg.name
+    out.mkdir(parents=True, exist_ok=True)
+    from avbench.outputs import folder_lock
+
+    with folder_lock(out, "out", f"study {cfg.name}"):  # one run per output folder
+        return _run_study(cfg, out, n_jobs, backend, scheduler, progress, max_retries, make_report)
+
+
+def _run_study(cfg, out, n_jobs, backend, scheduler, progress, max_retries, make_report) -> pd.DataFrame:
     shard_dir = shard_folder(out, cfg)
     shard_dir.mkdir(parents=True, exist_ok=True)
     _remove_stale_tmp(shard_dir)
@@ -405,7 +414,7 @@ def run_study(
             from avbench.studies.workers import local_workers
 
             pool = local_workers(n_jobs)
-        write_report(cfg, tidy, out, executor=pool)
+        tidy.attrs["table.md"] = write_report(cfg, tidy, out, executor=pool).attrs["table.md"]
     else:
         write_tidy(tidy, out)
     return tidy
