@@ -470,7 +470,9 @@ def _add_hat_parser(sub) -> None:
         "three-cornered-hat", help="each of three sensors' own deviation from three recordings made together",
         description="The three-cornered hat: three units recorded side by side (three gyros on one table) see the "
                     "same motion; the pairwise differences cancel it, and each unit's own variance follows from the "
-                    "three pairwise variances (avbench.recordings.hat). A negative estimate (a unit too quiet to be "
+                    "three pairwise variances (avbench.recordings.hat). The records are put on the instants all three have (by "
+                    "their time stamps; without stamps their first samples are one instant) and the same axis is "
+                    "read in each. A negative estimate (a unit too quiet to be "
                     "seen beside the others at that tau) is kept, with an upper bound. Writes <stem>_hat.csv (one row "
                     "per unit and tau) and prints each unit's deviation.",
         epilog="example:\n  avbench three-cornered-hat a.csv b.csv c.csv --units deg/s --sensor gyro --axis z",
