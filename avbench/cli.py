@@ -618,6 +618,11 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     return p
 
 
+#: the commands that write a set of files into the folder ``--out`` (``run`` locks its folder itself, in
+#: :func:`avbench.studies.runner.run_study`, which also creates it)
+WRITES_INTO_OUT = ("estimate", "deviations", "three-cornered-hat")
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
@@ -629,6 +634,11 @@ def main(argv=None) -> int:
     if empty:
         return _fail(f"{empty}: expected a value, got an empty string")
     try:
+        if args.command in WRITES_INTO_OUT and Path(args.out).is_dir():  # one writer per output folder
+            from avbench.outputs import folder_lock
+
+            with folder_lock(args.out, "--out", " ".join(["avbench", *argv])[:200]):
+                return int(args.func(args) or 0)
         return int(args.func(args) or 0)
     except BrokenPipeError:  # the reader went away (e.g. '| head'): not an error of ours
         try:
