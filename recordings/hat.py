@@ -67,13 +67,6 @@ def unit_labels(paths) -> list[str]:
     return labels
 
 
-def _same_file(a, b) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return os.path.realpath(a) == os.path.realpath(b)
-
-
 def _sensor_of(loaded, sensor, who):
     rec, _, sensors = loaded
     chosen = [s for s in sensors if sensor in (None, s.sensor)]
@@ -147,16 +140,14 @@ def hat_of_recordings(paths, *, sensor=None, axis=None, kind="oadev", taus="octa
                       **reader_options) -> HatRun:
     """The three-cornered hat of three recordings made together (module docstring)."""
     from avbench.estimators.allan.deviations_tf import three_cornered_hat
+    from avbench.recordings.files import check_distinct
     from avbench.recordings.load import load_recording
 
     if len(paths) != 3:
         raise ValueError(f"expected three recordings made together, got {len(paths)}")
     labels = unit_labels(paths)
     whos = [f"{letter} ({p})" for letter, p in zip(LETTERS, paths)]
-    for i in range(3):
-        for j in range(i):
-            if _same_file(paths[i], paths[j]):
-                raise ValueError(f"{whos[i]} is the same file as {whos[j]}; expected three recordings of three units")
+    check_distinct(paths, whos, "three recordings of three units")
     loaded = [load_recording(p, **reader_options) for p in paths]
     notes = [f"{who}: {note}" for who, (rec, _, _) in zip(whos, loaded) for note in rec.notes]
     records = [_sensor_of(x, sensor, who) for x, who in zip(loaded, whos)]

@@ -383,3 +383,27 @@ def test_every_command_refuses_a_folder_another_run_writes_into(command, tmp_pat
     finally:
         live.kill()
         live.wait()
+
+
+# -- the same file twice ------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("command", ["estimate", "three-cornered-hat"])
+def test_every_command_reading_several_recordings_refuses_one_file_twice(command, tmp_path, capsys):
+    """The same recording given twice (by its path, or by a link to it) where several are read together
+    (``estimate --combine``, ``three-cornered-hat``): refused naming both places (pooled, it would count
+    every sample twice; in the hat it gives 'negative' at every tau)."""
+    import numpy as np
+
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    rng = np.random.default_rng(9)
+    for p in (a, b):
+        np.savetxt(p, rng.standard_normal((2000, 1)) * 1e-3, header="gx [rad/s]", comments="")
+    link = tmp_path / "link.csv"
+    link.symlink_to(a)
+    extra = ["--combine", "--method", "wls"] if command == "estimate" else []
+    for files in ([a, b, a], [a, link, b]):
+        files = files if command == "three-cornered-hat" else files[:2] if files[1] == link else [a, a]
+        assert main([command, *map(str, files), "--fs", "100", *extra, "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err
+        assert "is the same file as" in err and str(files[0]) in err, err
