@@ -337,6 +337,11 @@ class folder_lock:
             with os.fdopen(fd, "w") as f:
                 f.write(text)
             self.held = True
+            self._signals = {}
+            if threading.current_thread() is threading.main_thread():  # a SIGTERM or SIGHUP that would end
+                for sig in (s for s in _HELD if s != signal.SIGINT):  # the process (their default) removes the lock first
+                    if signal.getsignal(sig) in (signal.SIG_DFL, None):
+                        self._signals[sig] = signal.signal(sig, self._end)
             return self
         raise OutputError(f"{self.option} {str(self.path.parent)!r}: cannot take {LOCK_NAME}; expected a folder "
                           "no other run writes into")
@@ -348,10 +353,20 @@ class folder_lock:
         except (OSError, ValueError, IndexError):
             return None, "?"
 
+    def _end(self, signum, frame):
+        """A signal whose default ends the process: release the lock, then end as the default would."""
+        self.__exit__()
+        signal.signal(signum, signal.SIG_DFL)
+        signal.raise_signal(signum)
+
     def __exit__(self, *exc):
         if self.held and self._holder()[0] == os.getpid():
             self.path.unlink(missing_ok=True)
         self.held = False
+        for sig, handler in getattr(self, "_signals", {}).items():
+            if signal.getsignal(sig) == self._end:
+                signal.signal(sig, handler)
+        self._signals = {}
         return False
 
 
