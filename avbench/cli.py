@@ -278,23 +278,28 @@ def _run(args) -> int:
         overrides["replicates"] = args.replicates
     cfg = load_config(packaged.resolve(args.config), overrides)
     out = Path(args.out) if args.out else Path("results") / cfg.name
-    from avbench.outputs import prepare_out_dir
+    from avbench.outputs import folder_lock, prepare_out_dir
+    from avbench.studies.figure_files import figure_names
 
-    prepare_out_dir(out, "--out", REPORT_FILES)
-    run_study(
-        cfg,
-        out=out,
-        n_jobs=args.jobs,
-        backend=args.backend,
-        scheduler=args.scheduler,
-        progress=not args.no_progress,
-    )
-    if args.html:  # after meta.json, and not among its outputs: the page embeds the avbench version
-        from avbench.outputs import atomic_write_text
-        from avbench.studies.html import study_page
+    inputs = [("the study file", cfg.path)] if cfg.path is not None else []
+    inputs += [("the study's paper_table", cfg.paper_table)] if cfg.paper_table is not None else []
+    figures = [n for label in (cfg.figure_gyros or [g.label for g in cfg.gyros]) for n in figure_names(label)]
+    prepare_out_dir(out, "--out", [*REPORT_FILES, *figures], inputs=inputs)
+    with folder_lock(out, "--out", f"avbench run {args.config}"):  # one run per output folder
+        tidy = run_study(
+            cfg,
+            out=out,
+            n_jobs=args.jobs,
+            backend=args.backend,
+            scheduler=args.scheduler,
+            progress=not args.no_progress,
+        )
+        if args.html:  # after meta.json, and not among its outputs: the page embeds the avbench version
+            from avbench.outputs import atomic_write_text
+            from avbench.studies.html import study_page
 
-        atomic_write_text(out / "report.html", study_page(out))
-    print((out / "table.md").read_text())
+            atomic_write_text(out / "report.html", study_page(out))
+    print(tidy.attrs["table.md"])  # this run's own table, not what the folder holds now
     print(f"# results in {out}/ (tidy.csv, table.md, table.csv, leaderboard.md, figures; fit times in timings.md)", file=sys.stderr)
     return 0
 
@@ -437,7 +442,12 @@ def cmd_deviations(args) -> int:
         confidence = next(iter(next(iter(devs.values())).values())).confidence
         figs.append((s.sensor, figure.deviations_figure(s.sensor, s.si_unit, devs, title, confidence)))
     bar.close()
-    table = pd.concat(rows, ignore_index=True)
+    table = pd.concat(rows, ignore_index=True).assign(note="")
+    skipped = [{"sensor": c.sensor, "axis": c.axis or c.name, "note": note} for c in rec.channels
+               for note in rec.notes if note.startswith(f"{c.sensor} {c.name}: ") and note.endswith("skipped")
+               and args.sensor in (None, c.sensor)]
+    if skipped:  # an axis left out is said in the CSV too: a row of its own, no statistic
+        table = pd.concat([table, pd.DataFrame(skipped)], ignore_index=True)
 
     import matplotlib.pyplot as plt
 
@@ -453,6 +463,10 @@ def cmd_deviations(args) -> int:
                  "[its chi^2 interval]; each value's edf is in the CSV"
                  + ("; Stable32's intervals" if args.intervals == "stable32" else "")
                  + ("; bias-corrected where Stable32 corrects" if args.bias_corrected else "")))
+    from avbench.recordings.report import wrap
+
+    for note in rec.notes:
+        print("\n".join(wrap(f"# note: {note}", "#   ")))
     print(f"\n# wrote {', '.join(plan.names)} in {out}")
     return 0
 
@@ -463,7 +477,9 @@ def _add_hat_parser(sub) -> None:
         "three-cornered-hat", help="each of three sensors' own deviation from three recordings made together",
         description="The three-cornered hat: three units recorded side by side (three gyros on one table) see the "
                     "same motion; the pairwise differences cancel it, and each unit's own variance follows from the "
-                    "three pairwise variances (avbench.recordings.hat). A negative estimate (a unit too quiet to be "
+                    "three pairwise variances (avbench.recordings.hat). The records are put on the instants all three have (by "
+                    "their time stamps; without stamps their first samples are one instant) and the same axis is "
+                    "read in each. A negative estimate (a unit too quiet to be "
                     "seen beside the others at that tau) is kept, with an upper bound. Writes <stem>_hat.csv (one row "
                     "per unit and tau) and prints each unit's deviation.",
         epilog="example:\n  avbench three-cornered-hat a.csv b.csv c.csv --units deg/s --sensor gyro --axis z",
@@ -482,33 +498,38 @@ def _add_hat_parser(sub) -> None:
 def cmd_hat(args) -> int:
     import pandas as pd
 
-    from avbench.outputs import atomic_write_text, prepare_out_dir
     from avbench.recordings.hat import hat_of_recordings, hat_table
     from avbench.recordings.load import check_reader_options, reader_options_of
+    from avbench.recordings.plan import OutputPlan, output_stem
 
     if not 0 < args.confidence < 1:
         raise ValueError(f"--confidence: expected a level between 0 and 1, got {args.confidence}")
     options = reader_options_of(args)
     check_reader_options(**options)
-    stem = Path(args.files[0]).stem or "hat"
-    out = prepare_out_dir(args.out, "--out", [f"{stem}_hat.csv"])
-    hat, srec, axis, dt = hat_of_recordings(args.files, sensor=args.sensor, axis=args.axis, kind=args.deviation,
-                                            taus=args.taus, confidence=args.confidence, **options)
-    labels = [Path(f).name for f in args.files]
-    table = hat_table(hat, srec, labels)
-    atomic_write_text(out / f"{stem}_hat.csv", table.to_csv(index=False))
+    name = f"{output_stem(args.files[0])}_hat.csv"
+    plan = OutputPlan(Path(args.out))
+    plan.add(name, lambda table: table.to_csv(index=False).encode("utf-8"))
+    out = plan.check(args.files)  # never over an input, before any reading
+    run = hat_of_recordings(args.files, sensor=args.sensor, axis=args.axis, kind=args.deviation,
+                            taus=args.taus, confidence=args.confidence, **options)
+    hat, labels = run.hat, run.labels
+    table = hat_table(hat, run.sensor_record, labels)
+    plan.write(table)
     from avbench.recordings.report import wrap
 
-    print("\n".join(wrap(f"# three-cornered hat of {srec.sensor} {axis} ({args.deviation}, {hat.n_samples} samples at "
-                          f"{1 / dt:.6g} Hz): each unit's own deviation in {srec.si_unit}; '< x': not seen beside "
-                          "the other two, x its upper bound; 'negative': below zero beyond its error bar (the "
-                          "noises are not independent, or a unit is far quieter)", "#   ")))
+    print("\n".join(wrap(f"# three-cornered hat of {run.sensor_record.sensor} {run.axis} ({args.deviation}, "
+                          f"{hat.n_samples} samples at {1 / run.dt:.6g} Hz): each unit's own deviation in "
+                          f"{run.sensor_record.si_unit}; '< x': not seen beside the other two, x its upper bound; "
+                          "'negative': below zero beyond its error bar (the noises are not independent, or a unit "
+                          "is far quieter)", "#   ")))
+    for note in run.notes:
+        print("\n".join(wrap(f"# note: {note}", "#   ")))
     wide = table.assign(shown=[f"{d:.4g}" if not neg else (f"< {u:.3g}" if u > 0 else "negative")
                                for d, u, neg in zip(table["deviation"], table["upper_dev"], table["negative"])])
     with pd.option_context("display.width", 100):
         print(wide.pivot_table(index="tau", columns="unit", values="shown", aggfunc="first", sort=True)[labels]
               .to_string())
-    print(f"# wrote {stem}_hat.csv in {out}")
+    print(f"# wrote {name} in {out}")
     return 0
 
 
@@ -607,6 +628,11 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     return p
 
 
+#: the commands that write a set of files into the folder ``--out`` (``run`` locks its folder itself, in
+#: :func:`avbench.studies.runner.run_study`, which also creates it)
+WRITES_INTO_OUT = ("estimate", "deviations", "three-cornered-hat")
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
@@ -614,7 +640,15 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    empty = _empty_values(parser, args)
+    if empty:
+        return _fail(f"{empty}: expected a value, got an empty string")
     try:
+        if args.command in WRITES_INTO_OUT and Path(args.out).is_dir():  # one writer per output folder
+            from avbench.outputs import folder_lock
+
+            with folder_lock(args.out, "--out", " ".join(["avbench", *argv])[:200]):
+                return int(args.func(args) or 0)
         return int(args.func(args) or 0)
     except BrokenPipeError:  # the reader went away (e.g. '| head'): not an error of ours
         try:
@@ -637,6 +671,17 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("avbench: interrupted; finished blocks are saved, rerun the same command to resume", file=sys.stderr)
         return 130
+
+
+def _empty_values(parser: argparse.ArgumentParser, args) -> str | None:
+    """The first option or argument of the command given as an empty (or blank) string, as its name in
+    the usage (``--format``, ``FILE``): every command refuses them alike, before any work."""
+    command = next(sub.choices[args.command] for sub in parser._subparsers._group_actions)
+    for a in command._actions:
+        value = getattr(args, a.dest, None)
+        if any(isinstance(v, str) and not v.strip() for v in (value if isinstance(value, list) else [value])):
+            return max(a.option_strings, key=len) if a.option_strings else (a.metavar or a.dest)
+    return None
 
 
 def _one_line(e: BaseException) -> str:

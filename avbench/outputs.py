@@ -16,7 +16,13 @@ One way for all commands (``avbench run``, ``estimate``, ``simulate``, ``bench``
   (and then ends the process as it would have). Only a power cut or SIGKILL in the microseconds of
   the renames can leave a mix;
 * :func:`safe_name` makes a file-name component of any text (a column name, a file's stem): no
-  separator, no ``..``, no ``$``, at most :data:`NAME_BYTES` bytes.
+  separator, no ``..``, no ``$``, at most :data:`NAME_BYTES` bytes;
+* no output is an input: :func:`prepare_out_dir` (``inputs``) and :func:`check_not_inputs` refuse an
+  output path that is one of the command's input files (by path, link or hard link);
+* one writer per output folder: :func:`folder_lock` holds ``.avbench.lock`` in it while a command
+  writes there; a second command into the same folder is refused, naming the first (a lock whose
+  process is gone is taken over);
+* :func:`markdown_cell` escapes a text for a cell of a Markdown table.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 __all__ = ["OutputError", "prepare_out_dir", "probe_writable", "atomic_write_text", "atomic_write_bytes", "tmp_name", "write_set",
-           "safe_name", "NAME_BYTES", "Interrupted"]
+           "safe_name", "NAME_BYTES", "Interrupted", "check_not_inputs", "folder_lock", "LOCK_NAME", "markdown_cell"]
 
 
 #: significant digits of the committed numbers: results move by ~1e-12 (relative) between machines
@@ -86,15 +92,42 @@ def probe_writable(folder) -> None:
     os.unlink(probe)
 
 
-def prepare_out_dir(path, option: str = "--out", outputs: Iterable[str] = ()) -> Path:
-    """Check that ``path`` can hold the command's ``outputs`` (file names), then create it.
+def _key(path) -> str:
+    return os.path.normcase(os.path.realpath(path))
+
+
+def _same_file(a, b) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_not_inputs(outputs: Iterable[tuple[str, Path]], inputs: Iterable[tuple[str, Path]]) -> None:
+    """Refuse an output that is an input: ``outputs`` as ``(option, path)``, ``inputs`` as ``(what, path)``
+    (``"the input recording"``, ``"the study's paper_table"``); the same path, a link to it or a hard link.
+    Raises :class:`OutputError` naming both."""
+    inputs = [(what, Path(p)) for what, p in inputs]
+    for option, out in outputs:
+        out = Path(out)
+        for what, src in inputs:
+            if _key(out) == _key(src) or _same_file(out, src):
+                raise OutputError(f"{option} {str(out)!r}: is {what} {str(src)!r}; expected another output place "
+                                  "(an input is never written over)")
+
+
+def prepare_out_dir(path, option: str = "--out", outputs: Iterable[str] = (), inputs=()) -> Path:
+    """Check that ``path`` can hold the command's ``outputs`` (file names), none of them one of
+    ``inputs`` (``(what, path)``, :func:`check_not_inputs`), then create it.
 
     Raises :class:`OutputError` naming ``option`` and ``path`` when ``path`` is an existing
-    non-folder, a parent of it is a file, an output name is taken by a folder or a special file,
-    or the folder cannot be created or written. Nothing is created when it raises, except parent
-    folders that the failing ``mkdir`` itself made before a later component failed.
+    non-folder, a parent of it is a file, an output name is taken by a folder or a special file
+    or is an input, or the folder cannot be created or written. Nothing is created when it raises,
+    except parent folders that the failing ``mkdir`` itself made before a later component failed.
     """
     p = Path(path)
+    outputs = list(outputs)
+    check_not_inputs([(option, p / name) for name in outputs], inputs)
     where = f"{option} {str(path)!r}"
     # the nearest existing ancestor must be a folder
     probe = p
@@ -267,3 +300,91 @@ def _commit(temps: list[tuple[Path, Path]]) -> None:
         for _, keep in done:
             if keep is not None:
                 keep.unlink(missing_ok=True)
+
+
+#: the lock file :func:`folder_lock` holds in an output folder
+LOCK_NAME = ".avbench.lock"
+
+
+class folder_lock:
+    """Hold :data:`LOCK_NAME` in ``folder`` (created exclusively, holding this process's id and the
+    command) for as long as the ``with`` block runs. A folder locked by a live process raises
+    :class:`OutputError` naming ``option``, the folder and that process; a lock left by a process
+    that is gone (killed) is taken over. Two runs into one ``--out`` would otherwise mix their blocks
+    and each print the other's tables as its own. Re-entrant: within a process that holds the lock,
+    a nested ``with`` neither takes nor releases it."""
+
+    def __init__(self, folder, option: str = "--out", command: str = "avbench"):
+        self.path = Path(folder) / LOCK_NAME
+        self.option, self.command, self.held = option, command, False
+
+    def __enter__(self):
+        text = f"{os.getpid()}\n{self.command}\n"
+        for _ in range(3):
+            try:
+                fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                pid, what = self._holder()
+                if pid == os.getpid():  # this process holds it already (a command around run_study)
+                    return self
+                if pid is not None and _alive(pid):
+                    raise OutputError(
+                        f"{self.option} {str(self.path.parent)!r}: another avbench run (process {pid}: {what}) is "
+                        "writing into this folder; expected one run per output folder (wait for it to finish, or "
+                        "choose another folder)") from None
+                self.path.unlink(missing_ok=True)  # left by a process that is gone
+                continue
+            with os.fdopen(fd, "w") as f:
+                f.write(text)
+            self.held = True
+            self._signals = {}
+            if threading.current_thread() is threading.main_thread():  # a SIGTERM or SIGHUP that would end
+                for sig in (s for s in _HELD if s != signal.SIGINT):  # the process (their default) removes the lock first
+                    if signal.getsignal(sig) in (signal.SIG_DFL, None):
+                        self._signals[sig] = signal.signal(sig, self._end)
+            return self
+        raise OutputError(f"{self.option} {str(self.path.parent)!r}: cannot take {LOCK_NAME}; expected a folder "
+                          "no other run writes into")
+
+    def _holder(self) -> tuple[int | None, str]:
+        try:
+            lines = self.path.read_text().splitlines()
+            return int(lines[0]), (lines[1] if len(lines) > 1 else "?")
+        except (OSError, ValueError, IndexError):
+            return None, "?"
+
+    def _end(self, signum, frame):
+        """A signal whose default ends the process: release the lock, then end as the default would."""
+        self.__exit__()
+        signal.signal(signum, signal.SIG_DFL)
+        signal.raise_signal(signum)
+
+    def __exit__(self, *exc):
+        if self.held and self._holder()[0] == os.getpid():
+            self.path.unlink(missing_ok=True)
+        self.held = False
+        for sig, handler in getattr(self, "_signals", {}).items():
+            if signal.getsignal(sig) == self._end:
+                signal.signal(sig, handler)
+        self._signals = {}
+        return False
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
+def markdown_cell(text) -> str:
+    r"""``text`` for one cell of a Markdown table: ``|`` and ``\`` escaped, line breaks as blanks, so that a
+    label such as ``wls|NK`` stays one cell.
+
+    >>> print(markdown_cell("wls|NK"), markdown_cell("a\\b"))
+    wls\|NK a\\b
+    """
+    return str(text).replace("\\", "\\\\").replace("|", "\\|").replace("\r", " ").replace("\n", " ")

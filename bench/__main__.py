@@ -64,6 +64,10 @@ def run(args) -> int:
     from avbench.bench import harness, report, suite
 
     args.out = str(output_folder(args))
+    from avbench.outputs import prepare_out_dir
+
+    outputs = ["README.md", "results.csv", "scaling.png"] + ([] if getattr(args, "report_only", False) else ["results.json"])
+    prepare_out_dir(args.out, "--out", outputs, inputs=[("the --notes file", args.notes)] if args.notes else [])
     if getattr(args, "report_only", False):
         import json
 

@@ -12,13 +12,15 @@ Every figure is measured in fresh child processes (the runner's own imports and 
   first-call cost is the first fit minus the second (what the fit imports lazily included; the
   import of the estimator's own module is timed apart);
 * :func:`study_walls` -- ``avbench run studies/lv2015.toml`` with ``--jobs 1`` and ``--jobs 2``,
-  alternated, each into a fresh output folder; :func:`replicate_profile` -- where a replicate's time goes.
+  alternated, each into a fresh output folder; :func:`replicate_profile` -- where a replicate's time goes;
+* :func:`jobs_costs` -- a study of two blocks with ``--jobs 64`` against ``--jobs`` the cores, alternated
+  (wall and CPU seconds): the worker count is capped at the cores and the blocks.
 
 The benchmark classes that run them: :class:`StartUp` (``avbench --help`` and every subcommand's help
 against the bare interpreter, CPU time of ``from avbench import estimators, noise_models``),
 :class:`FirstCall` (each filter's first-ever compile and second-process first-call cost) and
 :class:`LvStudy` (lv2015 with ``--jobs 1`` and ``--jobs 2`` from fresh processes, alternated; full
-run only).
+run only) and :class:`StudyJobs` (:func:`jobs_costs`; full run only).
 """
 
 from __future__ import annotations
@@ -36,8 +38,8 @@ import numpy as np
 
 from avbench.bench.fits import ESTIMATOR_SETTINGS
 
-__all__ = ["help_times", "import_cpu", "first_call", "study_walls", "replicate_profile", "HELP_COMMANDS",
-           "FIRST_CALL_ESTIMATORS", "StartUp", "QuickStartUp", "FirstCall", "LvStudy"]
+__all__ = ["help_times", "import_cpu", "first_call", "study_walls", "jobs_costs", "replicate_profile", "HELP_COMMANDS",
+           "FIRST_CALL_ESTIMATORS", "StartUp", "QuickStartUp", "FirstCall", "LvStudy", "StudyJobs"]
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the help screens timed: the program's and every subcommand's
@@ -182,6 +184,62 @@ def study_walls(study: str = "lv2015", rounds: int = 2, warm: bool = True) -> di
             "loadavg_after": list(os.getloadavg())}
 
 
+#: the study of :func:`jobs_costs`: two gyros, one block of two replicates each (two blocks of work)
+JOBS_STUDY = """[study]
+name = "jobs"
+seed = 7
+replicates = 2
+n_samples = 3000
+block_size = 2
+
+[[gyros]]
+name = "g1"
+dt = 0.1
+terms = [{type = "AngleRandomWalk", N = [0.5, "deg/sqrt(h)"]}, {type = "BiasInstability", B = [10.0, "deg/h"], tau_max = 600.0}]
+
+[[gyros]]
+name = "g2"
+dt = 0.05
+terms = [{type = "AngleRandomWalk", N = [0.2, "deg/sqrt(h)"]}, {type = "RateRandomWalk", K = [50.0, "deg/h^1.5"]}]
+
+[[estimators]]
+name = "wls"
+settings = { terms = "NBK", taus = "all" }
+"""
+
+
+def jobs_costs(many: int = 64, rounds: int = 2) -> dict:
+    """Wall and CPU seconds (the command's process and its workers) of ``avbench run`` on a study of two
+    blocks with ``--jobs many`` and with ``--jobs`` the cores, alternated, medians; ``ratio``: the
+    former's wall over the latter's (the worker count is capped at the cores and the blocks, so ~1)."""
+    import resource
+
+    folder = Path(tempfile.mkdtemp(prefix="avbench_bench_jobs_"))
+    config = folder / "jobs.toml"
+    config.write_text(JOBS_STUDY)
+    cores = os.cpu_count() or 1
+
+    def run(jobs):
+        out = folder / f"out{jobs}"
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        wall = _wall(_avbench() + ["run", str(config), "--jobs", str(jobs), "--out", str(out), "--no-progress"])
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        shutil.rmtree(out, ignore_errors=True)
+        return wall, (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+
+    try:
+        got: dict[int, list[tuple[float, float]]] = {many: [], cores: []}
+        for r in range(rounds):
+            for jobs in ((cores, many) if r % 2 else (many, cores)):
+                got[jobs].append(run(jobs))
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    med = {j: np.median(np.array(v), axis=0) for j, v in got.items()}
+    return {f"wall_jobs{many}_s": float(med[many][0]), f"cpu_jobs{many}_s": float(med[many][1]),
+            f"wall_jobs{cores}_s": float(med[cores][0]), f"cpu_jobs{cores}_s": float(med[cores][1]),
+            "ratio": float(med[many][0] / med[cores][0]), "cores": cores, "rounds": rounds}
+
+
 def _time_report(out: Path, study: str) -> float:
     """Seconds to rewrite the finished study's tables and figures (avbench.studies.report.write_report)."""
     from avbench.studies.config import load_config
@@ -286,3 +344,18 @@ class LvStudy:
             shutil.rmtree(out, ignore_errors=True)
         walls = study_walls(study, rounds=2, warm=False)
         return {"wall_s": walls["wall_jobs2_s"], "report_s": t_report, **walls, **replicate_profile(study)}
+
+
+class StudyJobs:
+    """``avbench run`` of a two-block study with ``--jobs 64`` against ``--jobs`` the cores (same loop)."""
+
+    params = [[64]]
+    quick_params = [[8]]
+    param_names = ["jobs"]
+    rounds = 2
+
+    def setup(self, jobs):
+        pass
+
+    def track_cost(self, jobs):
+        return jobs_costs(jobs, self.rounds)

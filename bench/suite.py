@@ -13,7 +13,7 @@ The classes live with what they measure:
   :class:`EstimateMemory`, :class:`EstimateEndToEnd`; :mod:`avbench.bench.real_e2e` -- real and
   consumer-grade records end to end: :class:`EstimateRealRecords`;
 * :mod:`avbench.bench.startup` -- whole processes: :class:`StartUp`, :class:`FirstCall`,
-  :class:`LvStudy`.
+  :class:`LvStudy`, :class:`StudyJobs`.
 
 >>> [c.__name__ for c in classes(quick=True)][:3]
 ['Generation', 'AllanOverlapping', 'Deviations']
@@ -45,7 +45,7 @@ from avbench.bench.fits import (
 from avbench.bench.real_e2e import EstimateRealRecords
 from avbench.bench.recordings import EstimateEndToEnd, EstimateMemory, ReadRecording
 from avbench.bench.report import loglog_slope
-from avbench.bench.startup import FirstCall, LvStudy, QuickStartUp, StartUp
+from avbench.bench.startup import FirstCall, LvStudy, QuickStartUp, StartUp, StudyJobs
 
 __all__ = [
     "Generation",
@@ -69,6 +69,7 @@ __all__ = [
     "EstimateEndToEnd",
     "EstimateRealRecords",
     "FitCost",
+    "StudyJobs",
     "ALL",
     "classes",
     "loglog_slope",
@@ -77,7 +78,7 @@ __all__ = [
 #: every benchmark of a full run
 ALL = [Generation, AllanOverlapping, Deviations, AllanEngine, AllanKernel, EstimatorScaling, FitCost, OnlineKernels,
        OnlineDefaults, MleFit, MleFitDrift, WhittleFit, FlickerPreset, StreamingMemory, ReadRecording, EstimateMemory,
-       EstimateEndToEnd, EstimateRealRecords, LvStudy, StartUp, FirstCall]
+       EstimateEndToEnd, EstimateRealRecords, LvStudy, StudyJobs, StartUp, FirstCall]
 
 #: the ``--quick`` run (tiny sizes, for CI): the quick variants of OnlineKernels and StartUp; no
 #: EstimateEndToEnd, no LvStudy; EstimateRealRecords on a 2-minute consumer record

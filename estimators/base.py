@@ -45,7 +45,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from avbench.estimators.results import parameter_power as _parameter_power
-from avbench.estimators.validation import check_common_settings, check_dt, check_record
+from avbench.estimators.validation import check_common_settings, check_dt, check_not_constant, check_record
 from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = [
@@ -308,6 +308,7 @@ class Estimator:
         """
         _validate(type(self), self.get_params())
         rate, dt = check_record(rate, dt)
+        check_not_constant(rate)
         # an online estimator is handed the record as it is (fit must equal partial_fit over chunks,
         # and the noise level that standardises a record is known only at its end: the online filters
         # work relative to their starting coefficients, ARMA-EM in its own offset and scale), unless

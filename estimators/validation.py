@@ -13,7 +13,8 @@ import numpy as np
 from avbench.noise_models.terms import _check_dt as check_dt
 from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["DT_RANGE", "TAU_GRIDS", "check_common_settings", "check_dt", "check_record", "check_taus", "check_terms"]
+__all__ = ["DT_RANGE", "TAU_GRIDS", "check_common_settings", "check_dt", "check_record", "check_not_constant", "check_taus",
+           "check_terms"]
 
 
 #: sample intervals an estimator accepts (1 ns .. ~11.6 days): beyond them tau**2 and tau**-2 in the
@@ -42,6 +43,17 @@ def check_record(rate, dt) -> tuple[np.ndarray, float]:
         first = int(np.flatnonzero(bad)[0])
         raise ValueError(f"rate: {int(bad.sum())} non-finite sample(s) (NaN/inf), the first at index {first}")
     return arr, dt
+
+
+def check_not_constant(rate: np.ndarray) -> None:
+    """Refuse a record whose samples are all equal: a constant record has no noise, every Allan variance
+    of it is 0, and no coefficient can be estimated (nor bounded: any noise below its resolution fits it).
+    One rule for every estimator (:meth:`avbench.estimators.base.Estimator.fit` applies it), so that
+    none answers with an error of its own arithmetic on it (a division by zero, an SVD that does not
+    converge, a reduction of an empty array)."""
+    if rate.size and float(np.min(rate)) == float(np.max(rate)):
+        raise ValueError(f"rate: every one of the {rate.size} samples is {float(rate[0]):g}, a constant record: no "
+                         "noise to estimate; expected a sensor's record (noise on every sample)")
 
 
 TAU_GRIDS = ("octave", "decade", "all")

@@ -64,7 +64,8 @@ class Recording:
     path: Path
     format: str
     channels: list[Channel]
-    time: np.ndarray | None = None  # seconds, one per sample
+    time: np.ndarray | None = None  # seconds since the first stamp, one per sample
+    time_origin: float | None = None  # the first stamp in seconds, on the file's own clock
     time_source: str | None = None  # e.g. "column 't'", "header stamps"
     topic: str | None = None
     notes: list[str] = field(default_factory=list)
@@ -290,6 +291,7 @@ def resolve_time(rec, time_units=None, fs=None) -> None:
     hint = (fs, "--fs") if fs else rec.rate
     seconds, unit, how, q, notes = stamps_in_seconds(rec.path, rec.stamps, time_units, hint)
     rec.time = seconds
+    rec.time_origin = float(rec.stamps.values[0]) * TIME_SCALE[unit]
     rec.time_resolution = q
     rec.time_source = f"{rec.stamps.what} ({unit}, from {how})"
     rec.notes.extend(notes)

@@ -8,6 +8,8 @@ cases where NumPy's own errors do not name the file or are misleading:
   (a ROS 2 bag);
 * :func:`load_npy` / :func:`load_npz` -- a corrupt or non-NumPy file (NumPy raises a ValueError
   about "pickled (object) data" without the file name), an archive that is not a zip;
+* :func:`check_distinct` -- the same file given twice where several recordings are read together
+  (``--combine``, the three-cornered hat), naming both places;
 * :func:`is_header_row` -- a first text row is a header only if none of its cells is a number,
   counting ``nan``/``inf`` spellings as numbers (a record starting with NaN must be rejected as
   non-finite, not silently read as a column named "nan").
@@ -22,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["check_file", "check_path_kind", "load_npy", "load_npz", "is_header_row"]
+__all__ = ["check_file", "check_path_kind", "check_distinct", "load_npy", "load_npz", "is_header_row"]
 
 _NONFINITE_WORDS = {"nan", "+nan", "-nan", "inf", "+inf", "-inf", "infinity", "+infinity", "-infinity"}
 
@@ -119,3 +121,17 @@ def _reason(e: BaseException) -> str:
     if "pickled" in text or "allow_pickle" in text:
         return "not a NumPy file, or one holding Python objects, which are never loaded"
     return text[:200]
+
+
+def check_distinct(paths, whos=None, expected: str = "distinct recordings, each once") -> None:
+    """Refuse the same file (by path, link or hard link) given twice among ``paths``; ``whos`` names each
+    place in the message (default ``recording k (path)``)."""
+    whos = whos or [f"recording {k + 1} ({p})" for k, p in enumerate(paths)]
+    for i in range(len(paths)):
+        for j in range(i):
+            try:
+                same = os.path.samefile(paths[i], paths[j])
+            except OSError:
+                same = os.path.realpath(paths[i]) == os.path.realpath(paths[j])
+            if same:
+                raise ValueError(f"{whos[i]} is the same file as {whos[j]}; expected {expected}")

@@ -101,6 +101,10 @@ def pool_recordings(loaded: list[LoadedRecording]) -> tuple[Timing, list[SensorR
     """One (timing, sensors) from several recordings of one sensor: concatenated, file boundaries are
     gaps (their missing time NaN). The recordings must hold the same sensors and axes, sampled at one
     rate (within :data:`~avbench.recordings.timing.FS_TOLERANCE`)."""
+    from avbench.recordings.files import check_distinct
+
+    check_distinct([rec.path for rec, _, _ in loaded], [f"--combine: recording {k + 1} ({rec.path})"
+                                                        for k, (rec, _, _) in enumerate(loaded)])
     rec0, t0, s0 = loaded[0]
     layout = [(s.sensor, tuple(s.axes)) for s in s0]
     for rec, t, s in loaded[1:]:

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from avbench.outputs import NAME_BYTES, OutputError, prepare_out_dir, probe_writable, safe_name, write_set
+from avbench.outputs import NAME_BYTES, OutputError, check_not_inputs, prepare_out_dir, probe_writable, safe_name, write_set
 
 __all__ = ["PlannedOutput", "OutputPlan", "output_stem", "check_file_target", "STEM_BYTES"]
 
@@ -99,12 +99,7 @@ class OutputPlan:
                 raise OutputError(f"{o.option} {o.name!r}: is also the output {other.name!r} ({other.option}); "
                                   "expected another file name")
             keys[k] = o
-        for src in inputs:
-            src_key = _key(Path(src))
-            for o in self.outputs:
-                if _key(o.path) == src_key or _same_file(o.path, Path(src)):
-                    raise OutputError(f"{o.option} {o.name!r}: is the input recording {str(src)!r}; expected another "
-                                      "file name (a recording is never written over)")
+        check_not_inputs([(o.option, o.path) for o in self.outputs], [("the input recording", src) for src in inputs])
         return prepare_out_dir(self.out, "--out", [o.name for o in self.outputs if o.option == "--out"])
 
     def write(self, results) -> list[Path]:
@@ -116,13 +111,6 @@ class OutputPlan:
 
 def _key(path: Path) -> str:
     return os.path.normcase(os.path.realpath(path))
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return False
 
 
 def check_file_target(path: Path, option: str) -> None:

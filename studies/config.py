@@ -375,6 +375,11 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         unknown = [x for x in study["figure_gyros"] if x not in labels]
         if unknown:
             ctx.fail("study.figure_gyros", f"unknown gyro label(s) {unknown}; expected some of {labels}")
+    from avbench.studies.figure_files import figure_name_problem
+
+    problem = figure_name_problem(study.get("figure_gyros", labels))  # the file names, before any work
+    if problem:
+        ctx.fail("study.figure_gyros" if "figure_gyros" in study else "gyros", problem)
 
     if not raw["estimators"]:
         ctx.fail("estimators", "expected at least one [[estimators]] entry")
@@ -547,7 +552,7 @@ def load_config(path, overrides: dict[str, Any] | None = None) -> StudyConfig:
     except ValueError as e:
         raise ConfigError(str(e)) from None
     try:
-        raw = tomllib.loads(path.read_text())
+        raw = tomllib.loads(path.read_text(encoding="utf-8-sig"))  # a BOM, as some editors save, is no text
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML: {e}") from None
     except UnicodeDecodeError:

@@ -10,7 +10,10 @@ from pathlib import Path
 
 import pandas as pd
 
-__all__ = ["figure_jobs"]
+__all__ = ["figure_jobs", "figure_names", "figure_name_problem", "FIGURE_KINDS"]
+
+#: the figures of each gyro, by kind: ``<kind>_<label made safe>.png``
+FIGURE_KINDS = ("av", "spread")
 
 
 def figure_jobs(cfg, tidy: pd.DataFrame, out: Path) -> list[tuple[str, int, Path]]:
@@ -25,6 +28,32 @@ def figure_jobs(cfg, tidy: pd.DataFrame, out: Path) -> list[tuple[str, int, Path
             continue
         if not ((tidy["gyro"] == g.label) & (tidy["replicate"] == 0)).any():
             continue
-        safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in g.label)
-        jobs += [("av", gi, out / f"av_{safe}.png"), ("spread", gi, out / f"spread_{safe}.png")]
+        jobs += [(kind, gi, out / name) for kind, name in zip(FIGURE_KINDS, figure_names(g.label))]
     return jobs
+
+
+def figure_names(label: str) -> list[str]:
+    """The file names of a gyro's figures: its label with every character other than a letter, a digit,
+    ``-`` and ``_`` made ``_``."""
+    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in label)
+    return [f"{kind}_{safe}.png" for kind in FIGURE_KINDS]
+
+
+def figure_name_problem(labels) -> str | None:
+    """What stops the gyros ``labels`` from having a figure file each, before any work: two labels that
+    give one file name (``a b`` and ``a_b``, ``x/y`` and ``x?y``), or a name too long for a file system
+    (:data:`avbench.outputs.NAME_BYTES`); None when there is nothing."""
+    from avbench.outputs import NAME_BYTES
+
+    seen: dict[str, str] = {}
+    for label in labels:
+        for name in figure_names(label):
+            if len(name.encode("utf-8", "surrogateescape")) > NAME_BYTES:
+                return (f"gyro label {label[:40]!r}... gives the figure file name {name[:40]!r}... of "
+                        f"{len(name.encode('utf-8', 'surrogateescape'))} bytes; expected a label giving at most "
+                        f"{NAME_BYTES} (a shorter label)")
+            if name in seen and seen[name] != label:
+                return (f"gyro labels {seen[name]!r} and {label!r} give one figure file name {name!r}; expected labels "
+                        "that differ in a letter, a digit, '-' or '_'")
+            seen[name] = label
+    return None

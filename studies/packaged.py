@@ -32,7 +32,7 @@ def path_of(name: str) -> Path:
 
 def description(name: str) -> str:
     """The ``[study] description`` of a packaged study."""
-    raw = tomllib.loads(path_of(name).read_text())
+    raw = tomllib.loads(path_of(name).read_text(encoding="utf-8-sig"))
     return str(raw.get("study", {}).get("description", ""))
 
 

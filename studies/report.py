@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.noise_models.units import COEFFICIENTS, PAPER_UNITS, from_si
-from avbench.outputs import TABLE_DIGITS, TIDY_DIGITS, atomic_write_text
+from avbench.outputs import TABLE_DIGITS, TIDY_DIGITS, atomic_write_text, markdown_cell
 
 __all__ = ["summarize", "render_markdown", "render_latex", "write_report", "check_report", "read_summary",
            "read_tidy", "write_tidy", "timings"]
@@ -172,7 +172,7 @@ def render_markdown(summary: pd.DataFrame, meta: dict | None = None) -> str:
                 label = "**" + label.replace(" mean (error)", "** mean (error)")
             elif kind.startswith("paper"):
                 label = label.replace("paper ", "*paper* ", 1)
-            out.append(f"| {label} | " + " | ".join(cells) + " |")
+            out.append(f"| {markdown_cell(label)} | " + " | ".join(map(markdown_cell, cells)) + " |")
         out.append("")
     out.append(_NOTE + " Fit times: `timings.md` beside this file (measured on the machine that ran the study; "
                "not part of the compared results).")
@@ -263,7 +263,7 @@ def leaderboard(summary: pd.DataFrame, wins: pd.DataFrame | None = None) -> str:
         ints = ("gyros", "tested wins", "best, tied", "no estimate %")
         for e, r in table.iterrows():
             cells = ["–" if pd.isna(v) else (str(int(v)) if k in ints else f"{v:g}") for k, v in r.items()]
-            out.append(f"| {e} | " + " | ".join(cells) + " |")
+            out.append(f"| {markdown_cell(e)} | " + " | ".join(cells) + " |")
         out.append("")
     return "\n".join(out) + "\n"
 
@@ -362,7 +362,7 @@ def render_timings(t: pd.DataFrame, meta: dict) -> str:
              "results; not committed).", "",
              "| gyro | estimator | median s | mean s | max s | replicates |", "|---|---|---|---|---|---|"]
     for _, r in t.iterrows():
-        lines.append(f"| {r['gyro']} | {r['estimator']} | {r['median']:.3g} | {r['mean']:.3g} | {r['max']:.3g} "
+        lines.append(f"| {markdown_cell(r['gyro'])} | {markdown_cell(r['estimator'])} | {r['median']:.3g} | {r['mean']:.3g} | {r['max']:.3g} "
                      f"| {int(r['replicates'])} |")
     return "\n".join(lines) + "\n"
 
@@ -382,7 +382,8 @@ def _truth_curve(gyro) -> dict:
 
 
 def write_report(cfg, tidy: pd.DataFrame, out: Path, executor=None) -> pd.DataFrame:
-    """tidy.csv, table.csv, table.md, leaderboard.md, figures and (last) meta.json; returns the summary.
+    """tidy.csv, table.csv, table.md, leaderboard.md, figures and (last) meta.json; returns the summary
+    (``attrs["table.md"]``: the text of table.md).
 
     The set changes as one: the marker ``meta.json`` is removed first and written last with the
     SHA-256 of every output, so an interrupted report is recognised (:func:`check_report`) instead
@@ -425,7 +426,8 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path, executor=None) -> pd.DataFr
         "paper_table": os.path.basename(str(cfg.paper_table)) if cfg.paper_table else None,
     }
     atomic_write_text(out / "table.csv", summary.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
-    atomic_write_text(out / "table.md", render_markdown(summary, meta))
+    summary.attrs["table.md"] = render_markdown(summary, meta)  # what the command prints: this run's own table
+    atomic_write_text(out / "table.md", summary.attrs["table.md"])
     written += [out / "table.csv", out / "table.md"]
     w = wins(tidy)  # the paired bootstrap comparisons, once, for the leaderboard and the scores
     if len(cfg.gyros) > 1 or len(cfg.estimators) > 1:

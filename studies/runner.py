@@ -357,7 +357,8 @@ def run_study(
     max_retries: int = 2,
     make_report: bool = True,
 ) -> pd.DataFrame:
-    """Run (or resume) a study; write the tidy table, tables and figures; return the tidy table.
+    """Run (or resume) a study; write the tidy table, tables and figures; return the tidy table (with
+    the report: ``attrs["table.md"]``, the text of this run's table.md).
 
     Blocks already saved by the same code under ``<out>/_shards/<result key>-<code key>/``
     (:func:`shard_folder`) are not recomputed. ``backend``
@@ -368,6 +369,14 @@ def run_study(
     """
     n_jobs, backend, scheduler = resolve_execution(cfg, n_jobs, backend, scheduler)
     out = Path(out) if out is not None else Path("results") / cfg.name
+    out.mkdir(parents=True, exist_ok=True)
+    from avbench.outputs import folder_lock
+
+    with folder_lock(out, "out", f"study {cfg.name}"):  # one run per output folder
+        return _run_study(cfg, out, n_jobs, backend, scheduler, progress, max_retries, make_report)
+
+
+def _run_study(cfg, out, n_jobs, backend, scheduler, progress, max_retries, make_report) -> pd.DataFrame:
     shard_dir = shard_folder(out, cfg)
     shard_dir.mkdir(parents=True, exist_ok=True)
     _remove_stale_tmp(shard_dir)
@@ -376,6 +385,13 @@ def run_study(
         _atomic_write_text(json.dumps(cfg.result_payload(), indent=2, sort_keys=True, default=str), about)
     tasks = tasks_of(cfg)
     todo = [t for t in tasks if not (shard_dir / t.shard_name).exists()]
+    if backend == "loky" and n_jobs != 1:  # no more processes than cores and blocks, said
+        from avbench.studies.workers import worker_count, workers_note
+
+        note = workers_note(n_jobs, len(todo)) if todo else None
+        if note:
+            print(f"study {cfg.name}: {note}", file=sys.stderr)
+        n_jobs = worker_count(n_jobs, len(todo) or None)
     bar = _progress(len(tasks), len(tasks) - len(todo), progress and bool(todo))
     try:
         _execute(cfg, todo, shard_dir, n_jobs, backend, scheduler, bar, max_retries)
@@ -399,7 +415,7 @@ def run_study(
             from avbench.studies.workers import local_workers
 
             pool = local_workers(n_jobs)
-        write_report(cfg, tidy, out, executor=pool)
+        tidy.attrs["table.md"] = write_report(cfg, tidy, out, executor=pool).attrs["table.md"]
     else:
         write_tidy(tidy, out)
     return tidy

@@ -32,6 +32,7 @@ import pandas as pd
 from scipy.special import betaincinv
 
 from avbench.noise_models.units import COEFFICIENTS
+from avbench.outputs import markdown_cell
 
 __all__ = ["scores", "comparable", "paired_rmse_ratio", "wins", "render_scores", "crlb_table", "write_scores"]
 
@@ -154,7 +155,7 @@ def _md_table(df: pd.DataFrame) -> list[str]:
     out = ["| " + " | ".join(df.columns) + " |", "|" + "---|" * len(df.columns)]
     for _, r in df.iterrows():
         out.append("| " + " | ".join("–" if (isinstance(v, float) and not np.isfinite(v)) else
-                                      (f"{v:.3g}" if isinstance(v, float) else str(v)) for v in r) + " |")
+                                      (f"{v:.3g}" if isinstance(v, float) else markdown_cell(v)) for v in r) + " |")
     return out
 
 

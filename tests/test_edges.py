@@ -268,7 +268,7 @@ FAILING = textwrap.dedent(
 
 
 def test_method_failing_on_every_record_is_data_not_a_config_error(tmp_path):
-    """gmwm cannot fit 16 samples, nobody can fit N = 0: the study runs and records it, and a
+    """gmwm cannot fit 16 samples, nobody can fit N = 0 (a constant record): the study runs and records it, and a
     gyro of absurd magnitude (N = 1e200) does not abort the report."""
     from avbench.studies.config import load_config
     from avbench.studies.report import check_report, read_tidy
@@ -285,4 +285,6 @@ def test_method_failing_on_every_record_is_data_not_a_config_error(tmp_path):
     assert {"av_huge.png", "spread_huge.png", "av_zero.png"} <= set(meta["outputs"])
     tidy = read_tidy(out)
     g = tidy[tidy["estimator"] == "gmwm"]
-    assert (g["failure"] != "").all() and g["failure"].str.contains("use a longer record").all()
+    assert (g["failure"] != "").all()
+    assert g.loc[g["gyro"] == "huge", "failure"].str.contains("use a longer record").all()
+    assert tidy.loc[tidy["gyro"] == "zero", "failure"].str.contains("constant record").all()  # N = 0: no noise

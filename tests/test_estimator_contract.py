@@ -213,3 +213,17 @@ def test_cli_check_estimator(tmp_path, capsys):
     assert main(["check-estimator", f"{tmp_path / 'missing.py'}:X"]) == 2
     assert "no such file" in capsys.readouterr().err
     assert main(["check-estimator", "ols", "--settings", "[1]"]) == 2
+
+
+@pytest.mark.parametrize("level", [0.0, 0.01, -3.5e-7, 1e300])
+@pytest.mark.parametrize("name", estimators.names())
+def test_every_estimator_refuses_a_constant_record_naming_it(name, level, capfd):
+    """A constant record (20,000 samples, long enough for every estimator) has no noise: every estimator
+    of the registry refuses it with one line naming "constant", and nothing else is said (no LAPACK
+    message on stderr, no warning)."""
+    est = estimators.get(name)
+    with pytest.raises(ValueError) as e:
+        est.fit(np.full(20_000, level), 0.01)
+    assert "constant" in str(e.value) and "\n" not in str(e.value), str(e.value)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
