@@ -26,10 +26,12 @@ Every estimator, batch or online, follows the scikit-learn contract:
 code outside this package reads results, never ``diagnostics_``.
 
 Subclasses implement ``_fit(rate, dt)`` returning ``(coefficients: dict, nonphysical: dict,
-diagnostics: dict)``; the base class does the input checks and packs the results. Each subclass
+diagnostics: dict, parts: FitParts)`` (:class:`avbench.estimators.results.FitParts`: the fit check,
+term evidence, model choices, optimiser record, in the standardised record's unit; an estimator with
+nothing of these to report may return the first three); the base class does the input checks, packs
+the results and keeps the parts as ``parts_``, from which ``result()`` is built. Each subclass
 declares what its settings accept in ``parameter_constraints`` (:mod:`avbench.estimators.settings`),
-checked by ``get`` and ``fit``; relations between settings go in ``check_settings()`` (raise
-``ValueError`` naming the setting), which study configs call too: no trial fits.
+relations between settings included, checked by ``get``, ``fit`` and study configs alike: no trial fits.
 
 Register a subclass with the decorator ``@register("name")``; ``estimators.get(name, **settings)``
 returns a new configured instance.
@@ -314,7 +316,7 @@ class Estimator:
         # its magnitude would over- or underflow float64 arithmetic (_extreme_unit: a power of two)
         unit = _extreme_unit(rate) if self.online else data_scale(rate)
         if unit == 1.0:
-            coefs, nonphys, diag = self._fit(rate, dt)
+            coefs, nonphys, diag, parts = _with_parts(self._fit(rate, dt))
             diag = {**(diag or {}), "data_scale": 1.0}
         else:
             saved = {name: getattr(self, name) for name in self._rate_settings() if getattr(self, name) is not None}
@@ -323,14 +325,15 @@ class Estimator:
                 for name, value in saved.items():
                     setattr(self, name, _scale_coefficients(name, value, 1.0 / unit))
                 with _same_gaps(rate, scaled):
-                    coefs, nonphys, diag = self._fit(scaled, dt)
+                    coefs, nonphys, diag, parts = _with_parts(self._fit(scaled, dt))
             finally:
                 for name, value in saved.items():
                     setattr(self, name, value)
             coefs = {c: float(v) * unit for c, v in coefs.items()}
             diag = rescale_diagnostics(diag or {}, unit, {**DIAGNOSTIC_UNITS, **self.diagnostic_units})
             diag["data_scale"] = unit
-        self._set_results(coefs, nonphys, diag)
+            parts = parts.times(unit)
+        self._set_results(coefs, nonphys, diag, parts)
         self._mark_unseen_terms(rate.size, dt)
         return self
 
@@ -353,6 +356,8 @@ class Estimator:
         too, so that a floor reached in one unit and missed by a hair in another reads the same,
         unless the estimator bounds its zeros itself (``diagnostics_["zero_upper"]``: whittle).
         """
+        from dataclasses import replace
+
         from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER
 
         c = self.coefficients_
@@ -368,10 +373,11 @@ class Estimator:
         m = tau / dt
         dof = np.floor(n / m) - 1
         upper_av = model * dof / (2 * gammaincinv(dof / 2, 0.025))
-        unresolved = dict(self.diagnostics_.get("unresolved") or {})
+        unresolved = dict(self.parts_.unresolved)
         for k in judged:
-            unresolved[k] = (0.0, float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k])))))
-        self.diagnostics_["unresolved"] = unresolved
+            unresolved[k] = float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k]))))
+        self.parts_ = replace(self.parts_, unresolved=unresolved)
+        self.diagnostics_["unresolved"] = {k: (0.0, v) for k, v in unresolved.items()}
 
     def _octave_model(self, n: int, dt: float):
         """``(tau, model AV)`` at the octave taus of a record of ``n`` samples with at least 8 clusters,
@@ -413,15 +419,21 @@ class Estimator:
     def _fit(self, rate: np.ndarray, dt: float):  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def _set_results(self, coefs: dict, nonphys: dict | None, diag: dict | None) -> None:
+    def _set_results(self, coefs: dict, nonphys: dict | None, diag: dict | None, parts=None) -> None:
+        """Store a fit: coefficients, non-physical flags, the free-form diagnostics and the typed parts
+        (:class:`avbench.estimators.results.FitParts`; none given: nothing typed to report)."""
+        from avbench.estimators.results import FitParts
+
+        self.parts_ = FitParts() if parts is None else parts
         c = coefficient_series(coefs)
         flags = coefficient_series(nonphys or {}, dtype=bool, fill=False)
         if flags.to_numpy().any():  # (an ndarray key, and only when needed: a boolean Series key costs pandas ~0.3 ms)
             c[flags.to_numpy()] = math.nan
         self.coefficients_ = c
         self.nonphysical_ = flags
-        self.diagnostics_ = dict(diag or {})
-        se = self.diagnostics_.get("std_err")
+        diag = dict(diag or {})
+        self.diagnostics_ = diag
+        se = diag.get("std_err")
         se = coefficient_series({} if se is None else {k: float(v) for k, v in dict(se).items()})
         unset = ~np.isfinite(c.to_numpy())
         if unset.any():
@@ -657,6 +669,17 @@ def _rescale(value, power, unit):
         if isinstance(value, (float, np.floating)):
             return type(value)(np.float64(value) * f)
     return value  # ints (counts), objects: not a measured value in the rate's unit
+
+
+def _with_parts(fitted):
+    """``(coefficients, nonphysical, diagnostics, parts)`` of what ``_fit`` returned: the four, or the
+    first three of an estimator with nothing typed to report (empty :class:`~avbench.estimators.results.FitParts`)."""
+    from avbench.estimators.results import FitParts
+
+    if len(fitted) == 4:
+        return fitted
+    coefs, nonphys, diag = fitted
+    return coefs, nonphys, diag, FitParts()
 
 
 def _standardised(rate, unit):

@@ -43,6 +43,55 @@ def test_the_rule_finds_a_read(tmp_path):
     assert _reads_of_diagnostics(bad) == [2]
 
 
+#: the calls that make a result or a typed part of one (:mod:`avbench.estimators.results`,
+#: :mod:`avbench.estimators.selection.choices`)
+RESULT_PARTS = {"FitResult", "FitParts", "FitCheck", "Evidence", "ModelChoice", "Coefficient", "build",
+                "as_fit_check", "line_test", "filter_test", "filter_held", "resonance_test", "bias_evidence",
+                "first_scale", "term_weights", "bias_model", "criteria"}
+
+
+def _keys_of_diagnostics_read_to_build(path: Path) -> list[int]:
+    """Lines where a function that makes a result or a typed part of one reads into ``diagnostics_`` (a key,
+    a method such as ``.get``, a membership test, or an alias of it); handing it on whole is allowed."""
+    tree = ast.parse(path.read_text(), str(path))
+    parent = {child: node for node in ast.walk(tree) for child in ast.iter_child_nodes(node)}
+    found = []
+    for fn in ast.walk(tree):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        calls = {getattr(n.func, "id", getattr(n.func, "attr", None)) for n in ast.walk(fn) if isinstance(n, ast.Call)}
+        if not calls & RESULT_PARTS:
+            continue
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Attribute) and node.attr == "diagnostics_" and isinstance(node.ctx, ast.Load):
+                up = parent[node]
+                handed_on = isinstance(up, ast.Call) and node in up.args
+                if not handed_on:
+                    found.append(node.lineno)
+    return found
+
+
+def test_no_result_is_built_from_keys_of_diagnostics():
+    """Results are assembled from the typed parts an estimator's fit returns (``FitParts``), never by
+    reading keys out of the free-form ``diagnostics_``: in every module of the package."""
+    found = [f"{p.relative_to(ROOT)}:{line}" for folder in OUTSIDE + ("estimators",)
+             for p in sorted((ROOT / folder).rglob("*.py")) for line in _keys_of_diagnostics_read_to_build(p)]
+    assert not found, "build results from FitParts, not from keys of diagnostics_: " + ", ".join(found)
+
+
+@pytest.mark.parametrize("body, lines", [
+    ("def f(est):\n    return FitCheck(est.diagnostics_['poor_fit'])\n", [2]),
+    ("def f(est):\n    d = est.diagnostics_\n    return FitParts(failure=d.get('failure'))\n", [2]),
+    ("def f(est):\n    return FitParts(failure=est.diagnostics_.get('failure'))\n", [2]),
+    ("def f(est):\n    return FitResult(extras=dict(est.diagnostics_))\n", []),
+    ("def f(est):\n    return est.diagnostics_['poor_fit']\n", []),
+])
+def test_the_rule_finds_a_result_built_from_diagnostics(tmp_path, body, lines):
+    bad = tmp_path / "m.py"
+    bad.write_text(body)
+    assert _keys_of_diagnostics_read_to_build(bad) == lines
+
+
 # -- the surfaces ---------------------------------------------------------------------------------------
 def _record(seed, unit, n, quantized):
     rng = np.random.default_rng(seed)

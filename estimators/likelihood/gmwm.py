@@ -101,7 +101,9 @@ import numpy as np
 from scipy.linalg import cho_factor
 
 from avbench.estimators.allan.covariance import av_covariance
-from avbench.estimators.allan.fit_check import assess_fit
+from avbench.estimators.allan.fit_check import as_fit_check, assess_fit
+from avbench.estimators.results import FitCheck, FitParts
+from avbench.estimators.selection import choices
 from avbench.estimators.allan.variance import _noise_codes_from_slope, allan_variance
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.likelihood._gmwm_model import LatentAV, log_bounds, log_starts, report
@@ -326,9 +328,7 @@ class GMWM(Estimator):
     }
 
     #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
-    diagnostic_units = {"line_test": {"amplitude": 1}, "resonance_test": {"sigma": 1},
-                        "bias_evidence": {m: {"B": 1, "coefficients": 1, "std_err": 1} for m in ("GM", "FL")},
-                        "scale_alternatives": _alternative_units}
+    diagnostic_units = {**choices.UNITS, "scale_alternatives": _alternative_units}
 
     #: run the poor-fit check (:func:`avbench.estimators.allan.fit_check.assess_fit`); not a setting: an estimator
     #: that uses the GMWM fit only as its start sets it False on its instance
@@ -431,7 +431,7 @@ class GMWM(Estimator):
             diag["resonance_test"] = resonance_test or {"included": "RS" in latents, "reason": "in the model"}
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
             diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
-            return best["coefs"], {}, diag
+            return best["coefs"], {}, diag, self._parts(diag, line, resonance_test, evidence)
         tau_ok, upper_av = bounds.av_upper_limits(wv.tau, wv.avar, wv.edf, usable)
         unresolved = {}
         if "GM" in latents:
@@ -448,7 +448,25 @@ class GMWM(Estimator):
         diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
         diag.update(wv.diagnostics or {})
         diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
-        return best["coefs"], {}, diag
+        return best["coefs"], {}, diag, self._parts(diag, line, resonance_test, evidence, check, unresolved)
+
+    def _parts(self, diag, line, resonance_test, evidence, check=None, unresolved=None) -> FitParts:
+        """The typed parts of the fit whose diagnostics are ``diag``: its check, the bounds of the terms it
+        does not resolve, the choices made (in the order line, filter, resonance, bias model, first scale)."""
+        made = [choices.line_test(line)] if line is not None else []
+        if self.filter_tf is not None:
+            made.append(choices.filter_held(self.filter_tf))
+        if self.resonance == "auto":
+            made.append(choices.resonance_test(diag["resonance_test"]))
+        if evidence is not None:
+            made.append(choices.bias_evidence(evidence))
+        made.append(choices.first_scale(diag["min_m"]))
+        failure = diag.get("failure")
+        return FitParts(fit_check=FitCheck(None) if check is None else as_fit_check(check),
+                        unresolved={c: float(b[1]) if b[1] is not None else math.nan
+                                    for c, b in (unresolved or {}).items()},
+                        choices=tuple(made), parameters=dict(diag["params"]), failure=failure,
+                        converged=failure is None)
 
     def conf_int(self, level=0.95, conservative=False):
         """The intervals of :meth:`Estimator.conf_int`, each widened to hold the same coefficient's interval

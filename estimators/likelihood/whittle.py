@@ -146,10 +146,12 @@ import math
 import numpy as np
 import pandas as pd
 
+from avbench.estimators.allan.fit_check import as_fit_check
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.likelihood.whittle_intervals import evidence_table, profile_evidence, zero_bounds
 from avbench.estimators.likelihood.whittle_likelihood import WhittleFit, spectral_fit_check, whittle_fit
-from avbench.estimators.selection import averaging
+from avbench.estimators.results import Evidence, FitParts
+from avbench.estimators.selection import averaging, choices
 from avbench.estimators.selection.elimination import (PENALTY, SLOPE_PENALTY, backward_elimination,
                                                       choose_by_criterion, penalised, wald_drop_candidates)
 from avbench.estimators.selection.profile import steeper_negative_neighbours
@@ -161,6 +163,17 @@ __all__ = ["Whittle", "WhittleDebiased"]
 
 #: the stochastic terms (any but the ramp): a model needs at least one
 _STOCHASTIC = ("N", "Q", "K", "B", "GM")
+
+
+def _typed_evidence(table: pd.DataFrame, level: float) -> dict:
+    """Each row of the evidence table (:func:`~avbench.estimators.likelihood.whittle_intervals.evidence_table`)
+    as an :class:`~avbench.estimators.results.Evidence`."""
+    def num(v):
+        return math.nan if v is None else float(v)
+
+    return {c: Evidence(lr=num(r["lr"]), p_value=num(r["p_value"]), present=bool(r["present"]),
+                        lower=num(r["lower"]), upper=num(r["upper"]), level=float(level))
+            for c, r in table.iterrows()}
 
 
 def _check_whittle_terms(terms) -> None:
@@ -349,12 +362,25 @@ class Whittle(Estimator):
         if bias_choice.weights is not None:  # bias="select": the full models' weights exp(-criterion/2), normalised
             diag["bias_weights"] = bias_choice.weights
         n_params = sum(2 if c == "GM" else 1 for c in kept) + 1
-        diag.update(spectral_fit_check(wf, chosen, n_params))
+        check = spectral_fit_check(wf, chosen, n_params)
+        diag.update(check)
+        evidence = {}
         if self.intervals == "profile":
-            diag.update(self._evidence(wf, full, coefs, se, ramp_z2, "R" in terms))
+            found = self._evidence(wf, full, coefs, se, ramp_z2, "R" in terms)
+            diag.update(found)
+            evidence = _typed_evidence(found["evidence"], found["evidence_level"])
+        failure = None
         if not chosen["converged"]:
-            diag["failure"] = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
-        return coefs, {}, diag
+            failure = diag["failure"] = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
+        made = [choices.bias_model(shape, bias_choice.criteria if len(fulls) > 1 else None, bias_choice.weights),
+                choices.criteria({"".join(k): float(bic(v)) for k, v in fits.items()})]
+        if weights is not None:
+            made.append(choices.term_weights({"penalty": averaging.PENALTY, "models": weights}))
+        llf, k = float(chosen["loglik"]), n_par(chosen)
+        parts = FitParts(fit_check=as_fit_check(check), evidence=evidence, choices=tuple(made), failure=failure,
+                         llf=llf, aic=penalised(llf, k, 2.0), bic=penalised(llf, k, math.log(n)),
+                         converged=bool(chosen["converged"]), n_iter=int(chosen["n_iter"]))
+        return coefs, {}, diag, parts
 
     def _averaged(self, wf, full, n_par, signed):
         """The full fit with its variances replaced by their Akaike-weighted average over the

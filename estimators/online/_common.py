@@ -51,6 +51,7 @@ import warnings
 import numpy as np
 
 from avbench.estimators.online._kernels import FAILURES
+from avbench.estimators.results import FitParts
 from avbench.estimators.settings import Check, Coefficients, Interval, NoneValue, Terms, validate_settings
 from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER, design_matrix
 from avbench.estimators.validation import check_terms
@@ -206,6 +207,7 @@ class OnlineAVFilter(Estimator):
     nonphysical_ = _published("nonphysical_")
     std_err_ = _published("std_err_")
     diagnostics_ = _published("diagnostics_")
+    parts_ = _published("parts_")
 
     # -- hooks for subclasses ------------------------------------------------------------------
     def _filter_settings(self, nq: int) -> dict:  # pragma: no cover - abstract
@@ -424,7 +426,7 @@ class OnlineAVFilter(Estimator):
                 last = np.abs(self._scales()) * self._c_ref
                 diag["last_good"] = coefficient_series(dict(zip(self._cfg["terms"], last)))
             diag.update(self._filter_diagnostics())
-        self._set_results(coefs.to_dict(), None, diag)
+        self._set_results(coefs.to_dict(), None, diag, FitParts(failure=failure, trajectory=diag["trajectory"]))
         self._warn_if_diverged(stacklevel=5)
 
     def _warn_if_diverged(self, stacklevel=4) -> None:
@@ -442,4 +444,4 @@ class OnlineAVFilter(Estimator):
         self._reset(dt)
         self._feed(rate)
         self.flush()
-        return self.coefficients_.to_dict(), None, self.diagnostics_
+        return self.coefficients_.to_dict(), None, self.diagnostics_, self.parts_

@@ -123,6 +123,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.online import _arma_em_kernels as _k
+from avbench.estimators.results import FitParts
 from avbench.estimators.settings import Boolean, Check, Coefficients, Interval, NoneValue, Options, validate_settings
 from avbench.estimators.validation import check_terms
 from avbench.estimators.base import DivergenceWarning, Estimator, register, warn
@@ -618,7 +619,10 @@ class ArmaEM(Estimator):
             **extra,
             "trajectory": self._trajectory(),
         }
-        return coefs, bad, diag
+        loglik = diag["loglik"]
+        parts = FitParts(failure=failure, trajectory=diag["trajectory"], llf=float(loglik[-1]) if loglik else math.nan,
+                         n_iter=int(self._pass))
+        return coefs, bad, diag, parts
 
     def _trace_coefficients(self, rows: np.ndarray) -> np.ndarray:
         """Rows [sample, coefficients (SI)...] from traced kernel rows [k, A, C, Q, R]."""
