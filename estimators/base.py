@@ -47,7 +47,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from avbench.estimators.results import parameter_power as _parameter_power
-from avbench.estimators.validation import check_common_settings, check_dt, check_record
+from avbench.estimators.validation import check_dt, check_record
 from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = [
@@ -199,33 +199,14 @@ def estimator_class(name: str, search=None) -> type["Estimator"]:
 
 
 def get(name, **settings) -> "Estimator":
-    """A new estimator ``name`` (see :func:`estimator_class`; or a class), configured with ``settings``.
-
-    Unknown settings are an error naming the accepted ones.
-    """
-    cls = name if isinstance(name, type) and issubclass(name, Estimator) else estimator_class(name)
-    accepted = cls._param_names()
-    unknown = sorted(set(settings) - set(accepted))
-    if unknown:
-        raise ValueError(
-            f"estimator {cls.name!r}: unknown setting(s) {', '.join(unknown)}; "
-            f"accepted: {', '.join(accepted) or '(none)'}"
-        )
-    _validate(cls, settings)
-    return cls(**settings)
-
-
-def _validate(cls, settings: dict) -> None:
-    """Check ``settings`` of estimator class ``cls``: its declared constraints
-    (:func:`avbench.estimators.settings.validate_settings`) and the settings several estimators share;
-    ``ValueError`` naming the setting (relations between settings: the class's ``check_settings()``)."""
+    """A new estimator ``name`` (see :func:`estimator_class`; or a class), configured with ``settings``,
+    checked against its declaration (:func:`avbench.estimators.settings.validate_settings`: an unknown
+    setting is an error naming the accepted ones)."""
     from avbench.estimators.settings import validate_settings
 
+    cls = name if isinstance(name, type) and issubclass(name, Estimator) else estimator_class(name)
     validate_settings(cls, settings)
-    try:
-        check_common_settings(settings)
-    except ValueError as e:
-        raise ValueError(f"estimator {cls.name!r}: {e}") from None
+    return cls(**settings)
 
 
 def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill=math.nan) -> pd.Series:
@@ -272,10 +253,11 @@ class Estimator:
         return {k: getattr(self, k) for k in self._param_names()}
 
     def set_params(self, **params) -> "Estimator":
-        accepted = self._param_names()
+        """Change settings, checked as ``get`` checks them (:func:`avbench.estimators.settings.validate_settings`)."""
+        from avbench.estimators.settings import validate_settings
+
+        validate_settings(type(self), {**self.get_params(), **params})
         for k, v in params.items():
-            if k not in accepted:
-                raise ValueError(f"{type(self).__name__}: unknown setting {k!r}; accepted: {accepted}")
             setattr(self, k, v)
         return self
 
@@ -308,7 +290,9 @@ class Estimator:
         unit is ``data_scale`` (in the caller's unit). It is exactly 1 for a record already
         standardised (an estimator fitting another inside its ``_fit``) and for a constant one.
         """
-        _validate(type(self), self.get_params())
+        from avbench.estimators.settings import validate_settings
+
+        validate_settings(type(self), self.get_params())
         rate, dt = check_record(rate, dt)
         # an online estimator is handed the record as it is (fit must equal partial_fit over chunks,
         # and the noise level that standardises a record is known only at its end: the online filters
@@ -319,16 +303,21 @@ class Estimator:
             coefs, nonphys, diag, parts = _with_parts(self._fit(rate, dt))
             diag = {**(diag or {}), "data_scale": 1.0}
         else:
-            saved = {name: getattr(self, name) for name in self._rate_settings() if getattr(self, name) is not None}
+            given = {name: getattr(self, name) for name in self._rate_settings() if getattr(self, name) is not None}
             scaled = _standardised(rate, unit)
-            try:
-                for name, value in saved.items():
-                    setattr(self, name, _scale_coefficients(name, value, 1.0 / unit))
-                with _same_gaps(rate, scaled):
-                    coefs, nonphys, diag, parts = _with_parts(self._fit(scaled, dt))
-            finally:
-                for name, value in saved.items():
-                    setattr(self, name, value)
+            # settings holding rates are handed to _fit in the standardised unit, on a copy: fit changes no setting
+            worker = self
+            if given:
+                import copy
+
+                worker = copy.copy(self)
+                for name, value in given.items():
+                    setattr(worker, name, _scale_coefficients(name, value, 1.0 / unit))
+            with _same_gaps(rate, scaled):
+                coefs, nonphys, diag, parts = _with_parts(worker._fit(scaled, dt))
+            if worker is not self:  # what the fit learned (its state, not its settings) is this estimator's
+                settings = set(self._param_names())
+                self.__dict__.update({k: v for k, v in worker.__dict__.items() if k not in settings})
             coefs = {c: float(v) * unit for c, v in coefs.items()}
             diag = rescale_diagnostics(diag or {}, unit, {**DIAGNOSTIC_UNITS, **self.diagnostic_units})
             diag["data_scale"] = unit

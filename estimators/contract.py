@@ -37,7 +37,7 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
     the answer does not depend on the unit of the record (:func:`equivariance`): the shorter record
     fitted in units :data:`EQUIVARIANCE_SCALES` times rad/s (about 1.7e-6 and 5.7e5, neither a power
     of two) and scaled back reports every term the same way (modelled or not, non-physical, not
-    resolved) and the fit the same way (converged, or failed: ``diagnostics_["failure"]``) and gives
+    resolved) and the fit the same way (converged, or failed: ``parts_.failure``) and gives
     the same coefficients, standard errors, bounds of unresolved terms and model AV, to 1e-8
     relative or, for a fit whose answer moves more than that when the last bit of its input does
     (an optimiser stopping on a flat direction, a filter that amplifies round-off), to

@@ -36,7 +36,7 @@ from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.fit_check import as_fit_check, assess_five_term
 from avbench.estimators.results import FitParts
 from avbench.estimators.selection import choices
-from avbench.estimators.settings import Boolean, Interval, Options, Taus, Terms
+from avbench.estimators.settings import Boolean, Interval, Options, Relation, Taus, Terms
 from avbench.estimators.validation import check_terms
 
 __all__ = [
@@ -230,6 +230,13 @@ class SlopeLines(_AVBaseline):
         check = assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit)
         diag.update(check)
         return coefs, {}, diag, FitParts(fit_check=as_fit_check(check))
+
+
+def _filter_needs_n(filter, terms) -> None:
+    """A filter (``filter`` "auto" or "fit") filters the white noise: N must be in ``terms``."""
+    terms = check_terms(terms)
+    if filter != "none" and "N" not in terms:
+        raise ValueError(f"filter={filter!r} filters the white noise N: expected N in terms, got {terms!r}")
 
 
 @register("log_fit")
@@ -520,6 +527,8 @@ class NNLSRel(_AVBaseline):
         "filter": [Options("none", "auto", "fit")],
         "lines": [Options("none", "auto")],
     }
+    setting_relations = (Relation(("filter", "terms"), lambda est: _filter_needs_n(est.filter, est.terms),
+                                  "a filter filters the white noise: N in terms"),)
 
     def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True, min_clusters=2, filter="none",
                  lines="none"):
@@ -530,16 +539,8 @@ class NNLSRel(_AVBaseline):
         self.filter = filter
         self.lines = lines
 
-    def check_settings(self):
-        """The relation between settings: a filter (``filter`` "auto" or "fit") filters the white noise,
-        so N must be in ``terms``."""
-        terms = check_terms(self.terms)
-        if self.filter != "none" and "N" not in terms:
-            raise ValueError(f"filter={self.filter!r} filters the white noise N: expected N in terms, got {terms!r}")
-
     @one_blas_thread()
     def _fit(self, rate, dt):
-        self.check_settings()
         terms, tau, avar = self._prepare(rate, dt)
         if self.filter == "none" and self.lines == "none":
             beta = nnls_rel_beta(tau, avar, terms)

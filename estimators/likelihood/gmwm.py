@@ -114,7 +114,7 @@ from avbench.estimators.selection.lines import choose_line, frequency_at_bound, 
 from avbench.estimators.selection.resonance import band_seen, choose_resonance, resonance_hint
 from avbench.estimators.selection.scales import (ScaleChoice, choose_scales, cutoffs, reach_binds, shorter_adequate,
                                                  white_reach)
-from avbench.estimators.settings import Boolean, Check, Interval, NoneValue, Options
+from avbench.estimators.settings import Boolean, Check, Interval, NoneValue, Options, Relation
 from avbench.estimators.threads import one_blas_thread
 from avbench.noise_models.latents import (  # noqa: F401  (LATENTS, build_gyro: importable from here)
     LATENT_TERMS,
@@ -191,6 +191,13 @@ def _alternative_units(min_m) -> dict:
 #: ``model``'s grammar, as a declared setting reads it
 _MODEL = (f"a latent model: names from {', '.join(LATENT_TERMS)} joined by '+' (e.g. 'WN+GM+RW') or a list of "
           "them, without repeats, at most one term per coefficient")
+
+
+def _held_filter_in_model(filter_tf, model) -> None:
+    """``filter_tf`` holds the time constant of ``FW``, which the model must have (a ValueError naming it)."""
+    if filter_tf is not None and "FW" not in parse_model(model):
+        raise ValueError(f"filter_tf: holds the filter latent FW's time constant, but model {model!r} "
+                         f"has no FW (e.g. model='FW+GM+RW')")
 
 
 @register("gmwm")
@@ -312,8 +319,7 @@ class GMWM(Estimator):
 
     uses_allan_variance = True
 
-    #: what each setting accepts (:mod:`avbench.estimators.settings`); :meth:`check_settings` adds the
-    #: relation between them
+    #: what each setting accepts (:mod:`avbench.estimators.settings`), and the relation between them
     parameter_constraints = {
         "model": [Check(parse_model, _MODEL)],
         "min_clusters": [Interval(int, 2, None)],
@@ -326,6 +332,8 @@ class GMWM(Estimator):
         "filter_tf": [NoneValue(), Interval(float, 0, None, closed="neither")],
         "fit_covariance": [Options("model", "record")],
     }
+    setting_relations = (Relation(("filter_tf", "model"), lambda est: _held_filter_in_model(est.filter_tf, est.model),
+                                  "filter_tf holds the time constant of the model's FW"),)
 
     #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
     diagnostic_units = {**choices.UNITS, "scale_alternatives": _alternative_units}
@@ -346,17 +354,6 @@ class GMWM(Estimator):
         self.bias_evidence = bias_evidence
         self.filter_tf = filter_tf
         self.fit_covariance = fit_covariance
-
-    # -- settings --------------------------------------------------------------------------------
-    def check_settings(self):
-        """The relation between settings, after each setting is checked against :attr:`parameter_constraints`
-        (``get``, ``fit`` and study configs do that): ``filter_tf`` holds the time constant of ``FW``, which the
-        model must have; a ValueError naming it otherwise. Returns the parsed latents."""
-        latents = parse_model(self.model)
-        if self.filter_tf is not None and "FW" not in latents:
-            raise ValueError(f"filter_tf: holds the filter latent FW's time constant, but model {self.model!r} "
-                             f"has no FW (e.g. model='FW+GM+RW')")
-        return latents
 
     def _n_free(self, latents) -> int:
         """The number of parameters the fit of ``latents`` estimates (a tf held at ``filter_tf`` is not one)."""
@@ -382,7 +379,7 @@ class GMWM(Estimator):
 
     @one_blas_thread()
     def _fit(self, rate, dt):
-        latents = self.check_settings()
+        latents = parse_model(self.model)
         n = rate.size
         wv = self._wavelet_variance(rate, dt)
         usable = (n // wv.m >= self.min_clusters) & (wv.avar > 0)

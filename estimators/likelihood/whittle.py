@@ -282,14 +282,10 @@ class Whittle(Estimator):
         self.interval_domain = interval_domain
         self.averaging = averaging
 
-    def check_settings(self):
-        """The parsed ``terms``. Every setting is declared in :attr:`parameter_constraints` and none
-        depends on another: a setting that applies only with another (``interval_domain`` with
-        ``intervals="profile"`` and ``domain="spectrum"``) is without effect otherwise."""
-        return check_terms(self.terms)
-
     def _fit(self, rate, dt):
-        terms = self.check_settings()
+        # every setting is declared and none depends on another: a setting that applies only with another
+        # (interval_domain with intervals="profile" and domain="spectrum") is without effect otherwise
+        terms = check_terms(self.terms)
         wf = WhittleFit(rate, dt, reml=self.reml, debiased=self.spectrum == "debiased")
         signed = self.domain == "spectrum"
         n = rate.size
@@ -432,19 +428,17 @@ class Whittle(Estimator):
 
     def conf_int(self, level=0.95, conservative=False) -> pd.DataFrame:
         """With ``intervals="profile"`` and the default two-sided 95 % level: the profile-likelihood
-        intervals of ``diagnostics_["evidence"]`` (every candidate term, valid without knowing the
+        intervals of the terms' evidence (``parts_.evidence``: every candidate term, valid without knowing the
         true set); otherwise the base class's Wald intervals, nested with the profile ones so that
         intervals widen with the level: at a higher level each holds the 95 % profile interval, at a
         lower one it lies within it (the profile interval can be the wider where Wald is not valid: a
         term at its boundary, the ramp with the random walk at its bound)."""
         out = super().conf_int(level, conservative)
-        ev = self.diagnostics_.get("evidence")
-        if ev is None or conservative:
+        if not self.parts_.evidence or conservative:
             return out
-        at = self.diagnostics_["evidence_level"]
-        for c in ev.index:
+        for c, ev in self.parts_.evidence.items():
             if np.isfinite(self.coefficients_[c]):
-                lo, hi = ev.loc[c, ["lower", "upper"]].to_numpy(dtype=float)
+                lo, hi, at = ev.lower, ev.upper, ev.level
                 if math.isclose(level, at):
                     out.loc[c, ["lower", "upper"]] = lo, hi
                 elif level > at:
