@@ -115,11 +115,11 @@ def test_k_interval_covers_when_the_bias_model_is_unknown(which):
     """30-minute records at 100 Hz, where the evidence between the two bias models is rarely decisive: K's
     interval that also holds the other model's fit covers the true K at a rate consistent with 95 %
     (binomial, one-sided 1 %), whether B is flicker (outside the reported Gauss-Markov model, which reads K
-    high) or Gauss-Markov. Measured in the eleventh session on 24 records each (seeds 1000-1023; this test
-    uses others), the fitted model's own interval against the union: flicker K 14 -> 22 of 24, B 18 -> 21,
-    N 22 -> 23; Gauss-Markov K 19 -> 23, B 24 -> 24; median widths +5-40 % (K on flicker the most). On this
-    test's 40 records each: K 18 -> 36 (flicker) and 31 -> 34 (Gauss-Markov); since the twelfth session 36 and
-    37: K flagged not resolved with its data bound where B is (the three Gauss-Markov fits gained)."""
+    high) or Gauss-Markov. Measured on 24 records each (seeds 1000-1023; this test uses others), the fitted
+    model's own interval against the union: flicker K 14 -> 22 of 24, B 18 -> 21, N 22 -> 23; Gauss-Markov
+    K 19 -> 23, B 24 -> 24; median widths +5-40 % (K on flicker the most). On this test's 40 records each:
+    K 18 -> 36 (flicker) and 31 -> 34 (Gauss-Markov), 36 and 37 with K flagged not resolved with its data
+    bound where B is."""
     gyro = FLICKER if which == "flicker" else _gauss_markov_gyro()
     held = 0
     for r in range(COVERAGE_RECORDS):

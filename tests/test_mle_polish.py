@@ -1,4 +1,4 @@
-"""The MLE's end point is the maximum, not where a quasi-Newton run happened to stop (issue 28).
+"""The MLE's end point is the maximum, not where a quasi-Newton run happened to stop.
 
 L-BFGS-B's end point is polished by trust-region Newton steps (``mle._newton_polish``); a variance
 the likelihood drives to zero is set to zero (the boundary rule). Checked here on short simulated
