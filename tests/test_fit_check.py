@@ -97,8 +97,8 @@ def test_weighted_chi2_tail_against_its_special_cases_and_simulation():
 
 
 def _imhof_in_python(x, w):
-    """Imhof's integral with the integrand as plain Python (what weighted_chi2_sf integrated before it was
-    compiled): the compiled callback must give the same integral to round-off."""
+    """Imhof's integral with the integrand as plain Python (the reference of weighted_chi2_sf's compiled
+    integrand): the compiled callback must give the same integral to round-off."""
     from scipy import integrate
 
     def phi(u):
@@ -187,7 +187,7 @@ def test_refit_weights_of_an_efficient_linear_fit_are_zeros_and_ones():
 
 @pytest.mark.parametrize("name", ["nnls_rel", "log_fit", "slope_lines"])
 def test_correct_model_not_flagged_small_sample(name):
-    # white noise fitted with the right term set (N): with the plain chi^2 reference nnls_rel was
+    # white noise fitted with the right term set (N): with the plain chi^2 reference nnls_rel is
     # flagged in ~80 % of such records; with its own reference the flag should fire with
     # probability 1 %: at most 2 of 12 (binomial 1 %: P(>= 3 of 12) = 2e-4)
     from avbench.studies.fit_check_calibration import flag_rates
