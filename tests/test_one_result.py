@@ -340,3 +340,23 @@ def test_estimate_on_a_six_axis_record_prints_within_100_columns(tmp_path, capsy
                 for c, e in md["coefficients"].items():
                     if e["flag"] == "not resolved" and e.get("interval_si"):
                         assert e["value"] is None
+
+
+def test_every_model_choice_reaches_the_result_in_its_units():
+    """The choices an estimator makes reach its FitResult as typed ModelChoices (Whittle's bias model and
+    criteria, GMWM's line test among them), and a rescaled result converts exactly the parts each choice
+    declares in the record's unit (the line's amplitude, not its frequency)."""
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5)])
+    x = g.simulate(8192, np.random.default_rng(4))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whittle = estimators.get("whittle", bias="select").fit(x, g.dt).result()
+        gmwm = estimators.get("gmwm_filtered").fit(x, g.dt).result()
+    assert {"bias_model", "selection"} <= set(whittle.model_choice)
+    assert set(whittle.model_choice["bias_model"]["criteria"]) == {"flicker", "gauss_markov"}
+    assert {"line_test", "min_m"} <= set(gmwm.model_choice)
+    line = gmwm.model_choice["line_test"]
+    moved = gmwm.rescaled(1e3).model_choice["line_test"]
+    assert moved["amplitude"] == pytest.approx(line["amplitude"] / 1e3, rel=1e-15)
+    assert moved["f0"] == line["f0"] and moved["p_value"] == line["p_value"]
+    assert whittle.rescaled(1e3).model_choice == whittle.model_choice  # no part in the record's unit
