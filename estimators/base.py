@@ -343,14 +343,14 @@ class Estimator:
         peaking early), so that the term reads the same in every unit. The coefficient keeps its value.
         A coefficient of exactly 0 (a term at the fit's lower bound: GMWM, nnls_rel) is such a term
         too, so that a floor reached in one unit and missed by a hair in another reads the same,
-        unless the estimator bounds its zeros itself (``diagnostics_["zero_upper"]``: whittle).
+        unless the estimator bounds its zeros itself (``parts_.zero_bounds``: whittle).
         """
         from dataclasses import replace
 
         from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER
 
         c = self.coefficients_
-        own = self.diagnostics_.get("zero_upper")  # bounds an estimator gives its zeros itself (whittle)
+        own = None if self.parts_.zero_bounds is None else self.parts_.zero_bounds[0]  # whittle bounds its zeros
         own = set() if own is None else {k for k in getattr(own, "index", own) if math.isfinite(float(own[k]))}
         shares = self.term_shares(n, dt)
         judged = [k for k, s in shares.items() if s < UNSEEN_SHARE and (float(c[k]) > 0.0 or k not in own)]
@@ -469,16 +469,38 @@ class Estimator:
         Log-scale normal intervals from ``std_err_`` (NaN where there is none); with
         ``conservative=True`` one-sided upper bounds holding jointly with probability ``level``
         (an overbound; lower = 0). See :mod:`avbench.estimators.uncertainty`.
+
+        Where the fit reports models the record cannot tell from this one (``parts_.alternatives``:
+        GMWM's other bias-instability model when the evidence is not decisive, its longer cut-offs within
+        the white reach that Hansen's J accepts), each interval is widened to hold the same coefficient's
+        interval (and value) under each of them: the reported value stays this model's, the interval is
+        the union of the models' intervals (model uncertainty kept in the interval, as model-averaged
+        intervals do, Buckland, Burnham & Augustin 1997, but conservative: it holds the coefficient under
+        each model).
         """
+        import pandas as pd
+
         from avbench.estimators.uncertainty import interval, zero_quantile
 
         self._check_fitted()
         upper0 = None
-        zu = self.diagnostics_.get("zero_upper")
-        if zu is not None and len(zu):  # e.g. whittle: the bound of a term estimated as 0
+        if self.parts_.zero_bounds is not None and len(self.parts_.zero_bounds[0]):  # whittle: its zeros' bounds
+            zu, power = self.parts_.zero_bounds
             z = zero_quantile(level, conservative, self.std_err_, self.coefficients_)
-            upper0 = zu * z ** self.diagnostics_["zero_upper_power"]
-        return interval(self.coefficients_, self.std_err_, level, conservative, upper_if_zero=upper0)
+            upper0 = zu * z ** power
+        ci = interval(self.coefficients_, self.std_err_, level, conservative, upper_if_zero=upper0)
+        for alt in self.parts_.alternatives:
+            coefs = pd.Series(alt.coefficients, dtype=float)
+            other = interval(coefs, pd.Series(alt.std_err, dtype=float).reindex(coefs.index), level, conservative)
+            for c in coefs.index:
+                own = self.coefficients_.get(c, math.nan)
+                v = coefs[c]
+                if not (np.isfinite(own) and np.isfinite(v)):
+                    continue
+                lo = np.nanmin([ci.at[c, "lower"], other.at[c, "lower"], v])
+                hi = np.nanmax([ci.at[c, "upper"], other.at[c, "upper"], v])
+                ci.loc[c] = (lo, hi)
+        return ci
 
     def bootstrap(self, n_samples: int, dt, n_draws: int = 20, seed=0) -> "Estimator":
         """Replace ``std_err_`` by a parametric bootstrap: ``n_draws`` records of ``n_samples``

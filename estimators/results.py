@@ -50,7 +50,7 @@ import numpy as np
 
 from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["STATUSES", "REASONS", "jsonable", "Coefficient", "Evidence", "FitCheck", "ModelChoice", "FitParts",
+__all__ = ["STATUSES", "REASONS", "jsonable", "Coefficient", "Evidence", "FitCheck", "ModelChoice", "Alternative", "FitParts",
            "FitResult", "build", "failed"]
 
 #: the statuses of a coefficient (module docstring)
@@ -167,6 +167,20 @@ class ModelChoice:
 
 
 @dataclass(frozen=True)
+class Alternative:
+    """Another model the record cannot tell from the reported one: its coefficients and their standard
+    errors (SI, by coefficient). The reported intervals hold each alternative's too
+    (:meth:`avbench.estimators.Estimator.conf_int`)."""
+
+    coefficients: dict[str, float]
+    std_err: dict[str, float]
+
+    def converted(self, op) -> "Alternative":
+        return Alternative({c: op(v, 1) for c, v in self.coefficients.items()},
+                           {c: op(v, 1) for c, v in self.std_err.items()})
+
+
+@dataclass(frozen=True)
 class FitParts:
     """What a fit reports besides its coefficients, typed: what an estimator's ``_fit`` returns after
     ``(coefficients, nonphysical, diagnostics)``, and from which :func:`build` assembles the
@@ -176,7 +190,11 @@ class FitParts:
     (coefficient -> the upper bound the record allows a term it does not resolve; NaN: none known),
     ``choices`` (:class:`ModelChoice`, in the order made), ``parameters`` (the fitted latent model's
     parameters by name), ``trajectory`` (an online filter's estimates, a DataFrame with a column per
-    coefficient), ``failure`` (why the fit failed), and the optimiser's record in statsmodels' names:
+    coefficient), ``failure`` (why the fit failed), ``alternatives`` (:class:`Alternative`: models the
+    record cannot tell from the reported one, whose intervals the reported ones hold), ``zero_bounds``
+    (the upper bounds an estimator gives its coefficients estimated as 0 itself: a Series of bounds (SI)
+    at z = 1 and a Series of the powers of z they scale with, :func:`avbench.estimators.uncertainty.interval`), and the
+    optimiser's record in statsmodels' names:
     ``llf`` (the maximised log-likelihood, of the standardised record the estimator fits: the same in
     every unit of the record), ``aic``, ``bic``, ``converged`` and ``n_iter`` (None / NaN where the
     method has none)."""
@@ -188,6 +206,8 @@ class FitParts:
     parameters: dict[str, float] | None = None
     trajectory: Any = None
     failure: str | None = None
+    alternatives: tuple[Alternative, ...] = ()
+    zero_bounds: tuple[Any, Any] | None = None
     llf: float = math.nan
     aic: float = math.nan
     bic: float = math.nan
@@ -205,8 +225,10 @@ class FitParts:
             for c in COEFFICIENTS:
                 if c in traj:
                     traj[c] = op(traj[c], 1)
-        return replace(self, evidence=ev, unresolved={c: op(v, 1) for c, v in self.unresolved.items()},
-                       choices=tuple(ch.converted(op) for ch in self.choices), parameters=params, trajectory=traj)
+        zb = None if self.zero_bounds is None else (op(self.zero_bounds[0], 1), self.zero_bounds[1])
+        return replace(self, evidence=ev, unresolved={c: op(v, 1) for c, v in self.unresolved.items()}, zero_bounds=zb,
+                       choices=tuple(ch.converted(op) for ch in self.choices), parameters=params, trajectory=traj,
+                       alternatives=tuple(a.converted(op) for a in self.alternatives))
 
     def times(self, unit: float) -> "FitParts":
         """The parts of a fit of the record divided by ``unit``, in the record's own unit."""

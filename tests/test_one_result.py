@@ -51,8 +51,9 @@ RESULT_PARTS = {"FitResult", "FitParts", "FitCheck", "Evidence", "ModelChoice", 
 
 
 def _keys_of_diagnostics_read_to_build(path: Path) -> list[int]:
-    """Lines where a function that makes a result or a typed part of one reads into ``diagnostics_`` (a key,
-    a method such as ``.get``, a membership test, or an alias of it); handing it on whole is allowed."""
+    """Lines where a function that makes a result or a typed part of one, or an estimator's intervals
+    (``conf_int``, which the result's are), reads into ``diagnostics_`` (a key, a method such as ``.get``, a
+    membership test, or an alias of it); handing it on whole is allowed."""
     tree = ast.parse(path.read_text(), str(path))
     parent = {child: node for node in ast.walk(tree) for child in ast.iter_child_nodes(node)}
     found = []
@@ -60,7 +61,7 @@ def _keys_of_diagnostics_read_to_build(path: Path) -> list[int]:
         if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
             continue
         calls = {getattr(n.func, "id", getattr(n.func, "attr", None)) for n in ast.walk(fn) if isinstance(n, ast.Call)}
-        if not calls & RESULT_PARTS:
+        if not calls & RESULT_PARTS and fn.name != "conf_int":
             continue
         for node in ast.walk(fn):
             if isinstance(node, ast.Attribute) and node.attr == "diagnostics_" and isinstance(node.ctx, ast.Load):
@@ -85,6 +86,7 @@ def test_no_result_is_built_from_keys_of_diagnostics():
     ("def f(est):\n    return FitParts(failure=est.diagnostics_.get('failure'))\n", [2]),
     ("def f(est):\n    return FitResult(extras=dict(est.diagnostics_))\n", []),
     ("def f(est):\n    return est.diagnostics_['poor_fit']\n", []),
+    ("def conf_int(self):\n    return self.diagnostics_.get('zero_upper')\n", [2]),
 ])
 def test_the_rule_finds_a_result_built_from_diagnostics(tmp_path, body, lines):
     bad = tmp_path / "m.py"

@@ -73,7 +73,7 @@ bias instability (``bias_evidence``, :mod:`~avbench.estimators.selection.bias_mo
 of coefficients the fit does not resolve (:mod:`~avbench.estimators.selection.bounds`). With ``min_m="adequate"`` the
 shortest scale is never beyond the record's white region (:func:`~avbench.estimators.selection.scales.white_reach`); where that
 region is short (an accelerometer's, between its filter and the set-up's 0.5 Hz line) the intervals hold each
-cut-off within it the record accepts (``diagnostics_["scale_alternatives"]``, :meth:`GMWM.conf_int`).
+cut-off within it the record accepts (``diagnostics_["scale_alternatives"]``, :meth:`Estimator.conf_int`).
 
 Solver
 ------
@@ -102,7 +102,7 @@ from scipy.linalg import cho_factor
 
 from avbench.estimators.allan.covariance import av_covariance
 from avbench.estimators.allan.fit_check import as_fit_check, assess_fit
-from avbench.estimators.results import FitCheck, FitParts
+from avbench.estimators.results import Alternative, FitCheck, FitParts
 from avbench.estimators.selection import choices
 from avbench.estimators.allan.variance import _noise_codes_from_slope, allan_variance
 from avbench.estimators.base import Estimator, register
@@ -459,43 +459,15 @@ class GMWM(Estimator):
             made.append(choices.bias_evidence(evidence))
         made.append(choices.first_scale(diag["min_m"]))
         failure = diag.get("failure")
+        others = list((diag.get("scale_alternatives") or {}).values())
+        undecided = bias_model.undecided_alternative(evidence)
+        others += [undecided] if undecided is not None else []
         return FitParts(fit_check=FitCheck(None) if check is None else as_fit_check(check),
+                        alternatives=tuple(Alternative(dict(a["coefficients"]), dict(a["std_err"])) for a in others),
                         unresolved={c: float(b[1]) if b[1] is not None else math.nan
                                     for c, b in (unresolved or {}).items()},
                         choices=tuple(made), parameters=dict(diag["params"]), failure=failure,
                         converged=failure is None)
-
-    def conf_int(self, level=0.95, conservative=False):
-        """The intervals of :meth:`Estimator.conf_int`, each widened to hold the same coefficient's interval
-        (and value) under the other bias-instability model where the record cannot choose between them
-        (``bias_evidence`` not decisive: the other model's Akaike weight is at least 1 -
-        :data:`~avbench.estimators.selection.bias_model.BIAS_EVIDENCE_WEIGHT`), and under each longer cut-off
-        within the white reach that Hansen's J accepts (``scale_alternatives``: where the record's white region is
-        short, which octaves of the sensor's front end a fit keeps moves N, through the filter term, by more than
-        its standard error, and the record accepts several).
-
-        The reported value stays this model's; the interval is the union of the models' intervals
-        (model uncertainty kept in the interval, as model-averaged intervals do, Buckland, Burnham &
-        Augustin 1997, but conservative: it holds the coefficient under each model)."""
-        import pandas as pd
-
-        from avbench.estimators.uncertainty import interval
-
-        ci = super().conf_int(level, conservative)
-        alts = list((self.diagnostics_.get("scale_alternatives") or {}).values())
-        alt = bias_model.undecided_alternative(self.diagnostics_.get("bias_evidence"))
-        for alt in alts + ([alt] if alt is not None else []):
-            coefs = pd.Series(alt["coefficients"], dtype=float)
-            other = interval(coefs, pd.Series(alt["std_err"], dtype=float).reindex(coefs.index), level, conservative)
-            for c in coefs.index:
-                own = self.coefficients_.get(c, math.nan)
-                v = coefs[c]
-                if not (np.isfinite(own) and np.isfinite(v)):
-                    continue
-                lo = np.nanmin([ci.at[c, "lower"], other.at[c, "lower"], v])
-                hi = np.nanmax([ci.at[c, "upper"], other.at[c, "upper"], v])
-                ci.loc[c] = (lo, hi)
-        return ci
 
     @staticmethod
     def _alternatives(latents, fits, dt) -> dict:
@@ -707,7 +679,7 @@ class GMWMFiltered(GMWM):
     shortest cut-off the model fits by Hansen's J; it differs from ``"auto"`` only where the all-scale fit
     is rejected), ``resonance="auto"`` (a band-pass Gauss-Markov term ``RS`` where a band stands out of
     the spectrum and lets the model keep shorter scales), ``bias_evidence=True`` (the record's weights
-    for a Gauss-Markov against a flicker B; where they are not decisive, :meth:`GMWM.conf_int` widens each
+    for a Gauss-Markov against a flicker B; where they are not decisive, :meth:`Estimator.conf_int` widens each
     interval to hold the flicker fit's too) and ``fit_covariance="record"`` (the poor-fit check and the standard
     errors take each AV value's variance from the record where it is larger than the stationary model's: a real
     sensor's noise level may move during the record).

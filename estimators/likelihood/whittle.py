@@ -336,6 +336,7 @@ class Whittle(Estimator):
             full_coefs, full_se = coefs, se
         else:
             full_coefs, full_se, _, _ = self._report(wf, full, full_kept, terms, select=False, k_drift=k_full)
+        zeros = zero_bounds(wf, chosen, kept, terms, coefs, se)
         diag = {
             "terms": "".join(("B" if c == "GM" else c) for c in kept) + ("R" if tr else ""),
             "loglik": float(chosen["loglik"]),
@@ -347,7 +348,7 @@ class Whittle(Estimator):
             "std_err": se,
             "full_std_err": full_se,
             "full_coefficients": pd.Series(full_coefs, dtype=float).reindex(list(COEFFICIENTS)),
-            **zero_bounds(wf, chosen, kept, terms, coefs, se),
+            **zeros,
             "selection": {"".join(k): float(bic(v)) for k, v in fits.items()},
             "ramp_z2": ramp_z2,
             "bias_model": shape,
@@ -374,6 +375,7 @@ class Whittle(Estimator):
             made.append(choices.term_weights({"penalty": averaging.PENALTY, "models": weights}))
         llf, k = float(chosen["loglik"]), n_par(chosen)
         parts = FitParts(fit_check=as_fit_check(check), evidence=evidence, choices=tuple(made), failure=failure,
+                         zero_bounds=(zeros["zero_upper"], zeros["zero_upper_power"]),
                          llf=llf, aic=penalised(llf, k, 2.0), bic=penalised(llf, k, math.log(n)),
                          converged=bool(chosen["converged"]), n_iter=int(chosen["n_iter"]))
         return coefs, {}, diag, parts
