@@ -385,7 +385,7 @@ def build(est, level: float = 0.95) -> FitResult:
     ``coefficients_``, ``nonphysical_``, ``std_err_``, ``conf_int(level)`` and the typed parts its fit
     reported (``parts_``, :class:`FitParts`)."""
     est._check_fitted()
-    parts: FitParts = est.parts_
+    parts: FitParts = getattr(est, "parts_", None) or FitParts()  # an estimator storing its fit without _set_results
     failure = parts.failure or None
     coefs, nonphys, se = est.coefficients_, est.nonphysical_, est.std_err_
     unresolved, evidence = parts.unresolved, parts.evidence
