@@ -607,7 +607,10 @@ def _answer(est, tau, n, dt):
     AV at ``tau``, and each term's share of that AV, the statistic the floor rule decides "not
     resolved" on (:meth:`Estimator.term_shares`, for a record of ``n`` samples every ``dt``)."""
     c = est.coefficients_.astype(float)
-    unresolved = dict(est.parts_.unresolved)
+    from avbench.estimators.results import FitParts
+
+    parts = getattr(est, "parts_", None) or FitParts()
+    unresolved = dict(parts.unresolved)
     se = getattr(est, "std_err_", None)
     # a failure is the fit's, not a term's: a term the model does not carry stays "not modelled" in a
     # failed fit (gmwm_despiked's Q and R read "failed" in the units where its solve reported a failure)
@@ -617,7 +620,7 @@ def _answer(est, tau, n, dt):
             "not modelled" if not np.isfinite(c[k]) else "zero" if c[k] == 0 else "estimated")
         for k in _INDEX
     }
-    status[_FIT] = "failed" if est.parts_.failure else "converged"
+    status[_FIT] = "failed" if parts.failure else "converged"
     numbers = {f"coefficient {k}": float(c[k]) for k in _INDEX if status[k] == "estimated"}
     if isinstance(se, pd.Series):
         numbers.update({f"std_err {k}": float(se[k]) for k in _INDEX
