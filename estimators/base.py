@@ -26,10 +26,12 @@ Every estimator, batch or online, follows the scikit-learn contract:
 code outside this package reads results, never ``diagnostics_``.
 
 Subclasses implement ``_fit(rate, dt)`` returning ``(coefficients: dict, nonphysical: dict,
-diagnostics: dict)``; the base class does the input checks and packs the results. Each subclass
+diagnostics: dict, parts: FitParts)`` (:class:`avbench.estimators.results.FitParts`: the fit check,
+term evidence, model choices, optimiser record, in the standardised record's unit; an estimator with
+nothing of these to report may return the first three); the base class does the input checks, packs
+the results and keeps the parts as ``parts_``, from which ``result()`` is built. Each subclass
 declares what its settings accept in ``parameter_constraints`` (:mod:`avbench.estimators.settings`),
-checked by ``get`` and ``fit``; relations between settings go in ``check_settings()`` (raise
-``ValueError`` naming the setting), which study configs call too: no trial fits.
+relations between settings included, checked by ``get``, ``fit`` and study configs alike: no trial fits.
 
 Register a subclass with the decorator ``@register("name")``; ``estimators.get(name, **settings)``
 returns a new configured instance.
@@ -45,7 +47,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from avbench.estimators.results import parameter_power as _parameter_power
-from avbench.estimators.validation import check_common_settings, check_dt, check_not_constant, check_record
+from avbench.estimators.validation import check_dt, check_not_constant, check_record
 from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = [
@@ -197,33 +199,14 @@ def estimator_class(name: str, search=None) -> type["Estimator"]:
 
 
 def get(name, **settings) -> "Estimator":
-    """A new estimator ``name`` (see :func:`estimator_class`; or a class), configured with ``settings``.
-
-    Unknown settings are an error naming the accepted ones.
-    """
-    cls = name if isinstance(name, type) and issubclass(name, Estimator) else estimator_class(name)
-    accepted = cls._param_names()
-    unknown = sorted(set(settings) - set(accepted))
-    if unknown:
-        raise ValueError(
-            f"estimator {cls.name!r}: unknown setting(s) {', '.join(unknown)}; "
-            f"accepted: {', '.join(accepted) or '(none)'}"
-        )
-    _validate(cls, settings)
-    return cls(**settings)
-
-
-def _validate(cls, settings: dict) -> None:
-    """Check ``settings`` of estimator class ``cls``: its declared constraints
-    (:func:`avbench.estimators.settings.validate_settings`) and the settings several estimators share;
-    ``ValueError`` naming the setting (relations between settings: the class's ``check_settings()``)."""
+    """A new estimator ``name`` (see :func:`estimator_class`; or a class), configured with ``settings``,
+    checked against its declaration (:func:`avbench.estimators.settings.validate_settings`: an unknown
+    setting is an error naming the accepted ones)."""
     from avbench.estimators.settings import validate_settings
 
+    cls = name if isinstance(name, type) and issubclass(name, Estimator) else estimator_class(name)
     validate_settings(cls, settings)
-    try:
-        check_common_settings(settings)
-    except ValueError as e:
-        raise ValueError(f"estimator {cls.name!r}: {e}") from None
+    return cls(**settings)
 
 
 def coefficient_series(values: dict[str, float] | None = None, dtype=float, fill=math.nan) -> pd.Series:
@@ -270,10 +253,11 @@ class Estimator:
         return {k: getattr(self, k) for k in self._param_names()}
 
     def set_params(self, **params) -> "Estimator":
-        accepted = self._param_names()
+        """Change settings, checked as ``get`` checks them (:func:`avbench.estimators.settings.validate_settings`)."""
+        from avbench.estimators.settings import validate_settings
+
+        validate_settings(type(self), {**self.get_params(), **params})
         for k, v in params.items():
-            if k not in accepted:
-                raise ValueError(f"{type(self).__name__}: unknown setting {k!r}; accepted: {accepted}")
             setattr(self, k, v)
         return self
 
@@ -306,7 +290,9 @@ class Estimator:
         unit is ``data_scale`` (in the caller's unit). It is exactly 1 for a record already
         standardised (an estimator fitting another inside its ``_fit``) and for a constant one.
         """
-        _validate(type(self), self.get_params())
+        from avbench.estimators.settings import validate_settings
+
+        validate_settings(type(self), self.get_params())
         rate, dt = check_record(rate, dt)
         check_not_constant(rate)
         # an online estimator is handed the record as it is (fit must equal partial_fit over chunks,
@@ -315,23 +301,29 @@ class Estimator:
         # its magnitude would over- or underflow float64 arithmetic (_extreme_unit: a power of two)
         unit = _extreme_unit(rate) if self.online else data_scale(rate)
         if unit == 1.0:
-            coefs, nonphys, diag = self._fit(rate, dt)
+            coefs, nonphys, diag, parts = _with_parts(self._fit(rate, dt))
             diag = {**(diag or {}), "data_scale": 1.0}
         else:
-            saved = {name: getattr(self, name) for name in self._rate_settings() if getattr(self, name) is not None}
+            given = {name: getattr(self, name) for name in self._rate_settings() if getattr(self, name) is not None}
             scaled = _standardised(rate, unit)
-            try:
-                for name, value in saved.items():
-                    setattr(self, name, _scale_coefficients(name, value, 1.0 / unit))
-                with _same_gaps(rate, scaled):
-                    coefs, nonphys, diag = self._fit(scaled, dt)
-            finally:
-                for name, value in saved.items():
-                    setattr(self, name, value)
+            # settings holding rates are handed to _fit in the standardised unit, on a copy: fit changes no setting
+            worker = self
+            if given:
+                import copy
+
+                worker = copy.copy(self)
+                for name, value in given.items():
+                    setattr(worker, name, _scale_coefficients(name, value, 1.0 / unit))
+            with _same_gaps(rate, scaled):
+                coefs, nonphys, diag, parts = _with_parts(worker._fit(scaled, dt))
+            if worker is not self:  # what the fit learned (its state, not its settings) is this estimator's
+                settings = set(self._param_names())
+                self.__dict__.update({k: v for k, v in worker.__dict__.items() if k not in settings})
             coefs = {c: float(v) * unit for c, v in coefs.items()}
             diag = rescale_diagnostics(diag or {}, unit, {**DIAGNOSTIC_UNITS, **self.diagnostic_units})
             diag["data_scale"] = unit
-        self._set_results(coefs, nonphys, diag)
+            parts = parts.times(unit)
+        self._set_results(coefs, nonphys, diag, parts)
         self._mark_unseen_terms(rate.size, dt)
         return self
 
@@ -352,12 +344,14 @@ class Estimator:
         peaking early), so that the term reads the same in every unit. The coefficient keeps its value.
         A coefficient of exactly 0 (a term at the fit's lower bound: GMWM, nnls_rel) is such a term
         too, so that a floor reached in one unit and missed by a hair in another reads the same,
-        unless the estimator bounds its zeros itself (``diagnostics_["zero_upper"]``: whittle).
+        unless the estimator bounds its zeros itself (``parts_.zero_bounds``: whittle).
         """
+        from dataclasses import replace
+
         from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER
 
         c = self.coefficients_
-        own = self.diagnostics_.get("zero_upper")  # bounds an estimator gives its zeros itself (whittle)
+        own = None if self.parts_.zero_bounds is None else self.parts_.zero_bounds[0]  # whittle bounds its zeros
         own = set() if own is None else {k for k in getattr(own, "index", own) if math.isfinite(float(own[k]))}
         shares = self.term_shares(n, dt)
         judged = [k for k, s in shares.items() if s < UNSEEN_SHARE and (float(c[k]) > 0.0 or k not in own)]
@@ -369,10 +363,11 @@ class Estimator:
         m = tau / dt
         dof = np.floor(n / m) - 1
         upper_av = model * dof / (2 * gammaincinv(dof / 2, 0.025))
-        unresolved = dict(self.diagnostics_.get("unresolved") or {})
+        unresolved = dict(self.parts_.unresolved)
         for k in judged:
-            unresolved[k] = (0.0, float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k])))))
-        self.diagnostics_["unresolved"] = unresolved
+            unresolved[k] = float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k]))))
+        self.parts_ = replace(self.parts_, unresolved=unresolved)
+        self.diagnostics_["unresolved"] = {k: (0.0, v) for k, v in unresolved.items()}
 
     def _octave_model(self, n: int, dt: float):
         """``(tau, model AV)`` at the octave taus of a record of ``n`` samples with at least 8 clusters,
@@ -414,15 +409,21 @@ class Estimator:
     def _fit(self, rate: np.ndarray, dt: float):  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def _set_results(self, coefs: dict, nonphys: dict | None, diag: dict | None) -> None:
+    def _set_results(self, coefs: dict, nonphys: dict | None, diag: dict | None, parts=None) -> None:
+        """Store a fit: coefficients, non-physical flags, the free-form diagnostics and the typed parts
+        (:class:`avbench.estimators.results.FitParts`; none given: nothing typed to report)."""
+        from avbench.estimators.results import FitParts
+
+        self.parts_ = FitParts() if parts is None else parts
         c = coefficient_series(coefs)
         flags = coefficient_series(nonphys or {}, dtype=bool, fill=False)
         if flags.to_numpy().any():  # (an ndarray key, and only when needed: a boolean Series key costs pandas ~0.3 ms)
             c[flags.to_numpy()] = math.nan
         self.coefficients_ = c
         self.nonphysical_ = flags
-        self.diagnostics_ = dict(diag or {})
-        se = self.diagnostics_.get("std_err")
+        diag = dict(diag or {})
+        self.diagnostics_ = diag
+        se = diag.get("std_err")
         se = coefficient_series({} if se is None else {k: float(v) for k, v in dict(se).items()})
         unset = ~np.isfinite(c.to_numpy())
         if unset.any():
@@ -469,16 +470,38 @@ class Estimator:
         Log-scale normal intervals from ``std_err_`` (NaN where there is none); with
         ``conservative=True`` one-sided upper bounds holding jointly with probability ``level``
         (an overbound; lower = 0). See :mod:`avbench.estimators.uncertainty`.
+
+        Where the fit reports models the record cannot tell from this one (``parts_.alternatives``:
+        GMWM's other bias-instability model when the evidence is not decisive, its longer cut-offs within
+        the white reach that Hansen's J accepts), each interval is widened to hold the same coefficient's
+        interval (and value) under each of them: the reported value stays this model's, the interval is
+        the union of the models' intervals (model uncertainty kept in the interval, as model-averaged
+        intervals do, Buckland, Burnham & Augustin 1997, but conservative: it holds the coefficient under
+        each model).
         """
+        import pandas as pd
+
         from avbench.estimators.uncertainty import interval, zero_quantile
 
         self._check_fitted()
         upper0 = None
-        zu = self.diagnostics_.get("zero_upper")
-        if zu is not None and len(zu):  # e.g. whittle: the bound of a term estimated as 0
+        if self.parts_.zero_bounds is not None and len(self.parts_.zero_bounds[0]):  # whittle: its zeros' bounds
+            zu, power = self.parts_.zero_bounds
             z = zero_quantile(level, conservative, self.std_err_, self.coefficients_)
-            upper0 = zu * z ** self.diagnostics_["zero_upper_power"]
-        return interval(self.coefficients_, self.std_err_, level, conservative, upper_if_zero=upper0)
+            upper0 = zu * z ** power
+        ci = interval(self.coefficients_, self.std_err_, level, conservative, upper_if_zero=upper0)
+        for alt in self.parts_.alternatives:
+            coefs = pd.Series(alt.coefficients, dtype=float)
+            other = interval(coefs, pd.Series(alt.std_err, dtype=float).reindex(coefs.index), level, conservative)
+            for c in coefs.index:
+                own = self.coefficients_.get(c, math.nan)
+                v = coefs[c]
+                if not (np.isfinite(own) and np.isfinite(v)):
+                    continue
+                lo = np.nanmin([ci.at[c, "lower"], other.at[c, "lower"], v])
+                hi = np.nanmax([ci.at[c, "upper"], other.at[c, "upper"], v])
+                ci.loc[c] = (lo, hi)
+        return ci
 
     def bootstrap(self, n_samples: int, dt, n_draws: int = 20, seed=0) -> "Estimator":
         """Replace ``std_err_`` by a parametric bootstrap: ``n_draws`` records of ``n_samples``
@@ -659,6 +682,17 @@ def _rescale(value, power, unit):
         if isinstance(value, (float, np.floating)):
             return type(value)(np.float64(value) * f)
     return value  # ints (counts), objects: not a measured value in the rate's unit
+
+
+def _with_parts(fitted):
+    """``(coefficients, nonphysical, diagnostics, parts)`` of what ``_fit`` returned: the four, or the
+    first three of an estimator with nothing typed to report (empty :class:`~avbench.estimators.results.FitParts`)."""
+    from avbench.estimators.results import FitParts
+
+    if len(fitted) == 4:
+        return fitted
+    coefs, nonphys, diag = fitted
+    return coefs, nonphys, diag, FitParts()
 
 
 def _standardised(rate, unit):

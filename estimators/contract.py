@@ -37,7 +37,7 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
     the answer does not depend on the unit of the record (:func:`equivariance`): the shorter record
     fitted in units :data:`EQUIVARIANCE_SCALES` times rad/s (about 1.7e-6 and 5.7e5, neither a power
     of two) and scaled back reports every term the same way (modelled or not, non-physical, not
-    resolved) and the fit the same way (converged, or failed: ``diagnostics_["failure"]``) and gives
+    resolved) and the fit the same way (converged, or failed: ``parts_.failure``) and gives
     the same coefficients, standard errors, bounds of unresolved terms and model AV, to 1e-8
     relative or, for a fit whose answer moves more than that when the last bit of its input does
     (an optimiser stopping on a flat direction, a filter that amplifies round-off), to
@@ -607,7 +607,10 @@ def _answer(est, tau, n, dt):
     AV at ``tau``, and each term's share of that AV, the statistic the floor rule decides "not
     resolved" on (:meth:`Estimator.term_shares`, for a record of ``n`` samples every ``dt``)."""
     c = est.coefficients_.astype(float)
-    unresolved = dict(est.diagnostics_.get("unresolved") or {})
+    from avbench.estimators.results import FitParts
+
+    parts = getattr(est, "parts_", None) or FitParts()
+    unresolved = dict(parts.unresolved)
     se = getattr(est, "std_err_", None)
     # a failure is the fit's, not a term's: a term the model does not carry stays "not modelled" in a
     # failed fit (gmwm_despiked's Q and R read "failed" in the units where its solve reported a failure)
@@ -617,12 +620,12 @@ def _answer(est, tau, n, dt):
             "not modelled" if not np.isfinite(c[k]) else "zero" if c[k] == 0 else "estimated")
         for k in _INDEX
     }
-    status[_FIT] = "failed" if est.diagnostics_.get("failure") else "converged"
+    status[_FIT] = "failed" if parts.failure else "converged"
     numbers = {f"coefficient {k}": float(c[k]) for k in _INDEX if status[k] == "estimated"}
     if isinstance(se, pd.Series):
         numbers.update({f"std_err {k}": float(se[k]) for k in _INDEX
                         if status[k] == "estimated" and np.isfinite(se[k]) and se[k] > 0})
-    numbers.update({f"bound of unresolved {k}": float(unresolved[k][1]) for k in unresolved})
+    numbers.update({f"bound of unresolved {k}": float(unresolved[k]) for k in unresolved})
     try:
         model = np.asarray(est.model_avar(tau), dtype=float)
     except Exception:

@@ -50,7 +50,8 @@ import numpy as np
 
 from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["STATUSES", "REASONS", "BOUND_REASONS", "jsonable", "Coefficient", "Evidence", "FitCheck", "FitResult", "MODEL_CHOICES", "build", "failed"]
+__all__ = ["STATUSES", "REASONS", "BOUND_REASONS", "jsonable", "Coefficient", "Evidence", "FitCheck", "ModelChoice",
+           "Alternative", "FitParts", "FitResult", "build", "failed"]
 
 #: the statuses of a coefficient (module docstring)
 STATUSES = ("ok", "not resolved", "not modelled", "non-physical", "failed")
@@ -63,19 +64,6 @@ REASONS = {"record": "the record does not resolve it", "evidence": "its evidence
 #: why a filter file takes a bound and not the estimate (:meth:`Coefficient.estimate_or_bound`): the
 #: :data:`REASONS` a coefficient is not resolved, its interval reaching zero, or a poor fit
 BOUND_REASONS = (*REASONS, "reaches zero", "poor fit")
-
-#: the model choices an estimator reports (its ``diagnostics_`` entries of these names): the
-#: spectral-line test, the sensor filter entered on evidence or held at a given time constant, the
-#: resonance test, the evidence between a Gauss-Markov and a flicker bias instability, the first AV
-#: scale fitted, and the weights of the models averaged over; each a JSON-able mapping (``min_m`` an
-#: integer). Parts in the record's unit, by name (power of the unit); :meth:`FitResult.rescaled`
-#: converts them.
-MODEL_CHOICES = ("line_test", "filter_test", "filter_held", "resonance_test", "bias_evidence", "min_m",
-                 "term_weights")
-_CHOICE_UNITS = {"line_test": {"amplitude": 1}, "resonance_test": {"sigma": 1},
-                 "bias_evidence": {"GM": {"B": 1, "coefficients": 1, "std_err": 1},
-                                   "FL": {"B": 1, "coefficients": 1, "std_err": 1}}}
-
 
 def _f(v) -> float:
     try:
@@ -174,24 +162,136 @@ class FitCheck:
     reading: str | None = None  #: the check in words (:func:`avbench.estimators.allan.fit_check.reading`)
 
 
+def _times(unit: float):
+    """The conversion of a value of unit power ``p`` from the standardised record to the caller's unit:
+    multiplied by ``unit ** p`` (the product :meth:`avbench.estimators.Estimator.fit` applies to its
+    diagnostics, so that a part and its diagnostics entry hold the same number)."""
+    def op(v, p):
+        with np.errstate(over="ignore", invalid="ignore"):
+            return v * float(np.float64(unit) ** p)
+    return op
+
+
+def _divided(factor: float):
+    """The conversion of :meth:`FitResult.rescaled`: a value of unit power ``p`` divided by ``factor ** p``."""
+    def op(v, p):
+        return v / factor if p == 1 else v / factor ** p
+    return op
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """One model choice a fit made, as the selection component that made it reports it: ``key`` names
+    the choice (``"line_test"``, ``"bias_evidence"``, ...), ``detail`` is what was chosen and why (a
+    JSON-able mapping, or a number), and ``units`` says which parts of ``detail`` carry the record's
+    unit (part -> power of the unit, or a nested spec of the same form; 0: none), so that a result
+    converts its choices with its coefficients."""
+
+    key: str
+    detail: Any
+    units: Any = 0
+
+    def __post_init__(self):
+        object.__setattr__(self, "detail", jsonable(self.detail))
+
+    def converted(self, op) -> "ModelChoice":
+        """The same choice with each part named in ``units`` converted by ``op(value, power)``."""
+        return replace(self, detail=_scale_parts(self.detail, self.units, op))
+
+
+@dataclass(frozen=True)
+class Alternative:
+    """Another model the record cannot tell from the reported one: its coefficients and their standard
+    errors (SI, by coefficient). The reported intervals hold each alternative's too
+    (:meth:`avbench.estimators.Estimator.conf_int`)."""
+
+    coefficients: dict[str, float]
+    std_err: dict[str, float]
+
+    def converted(self, op) -> "Alternative":
+        return Alternative({c: op(v, 1) for c, v in self.coefficients.items()},
+                           {c: op(v, 1) for c, v in self.std_err.items()})
+
+
+@dataclass(frozen=True)
+class FitParts:
+    """What a fit reports besides its coefficients, typed: what an estimator's ``_fit`` returns after
+    ``(coefficients, nonphysical, diagnostics)``, and from which :func:`build` assembles the
+    :class:`FitResult` (with the coefficients, standard errors and intervals).
+
+    ``fit_check`` (:class:`FitCheck`), ``evidence`` (coefficient -> :class:`Evidence`), ``unresolved``
+    (coefficient -> the upper bound the record allows a term it does not resolve; NaN: none known),
+    ``choices`` (:class:`ModelChoice`, in the order made), ``parameters`` (the fitted latent model's
+    parameters by name), ``trajectory`` (an online filter's estimates, a DataFrame with a column per
+    coefficient), ``failure`` (why the fit failed), ``alternatives`` (:class:`Alternative`: models the
+    record cannot tell from the reported one, whose intervals the reported ones hold), ``zero_bounds``
+    (the upper bounds an estimator gives its coefficients estimated as 0 itself: a Series of bounds (SI)
+    at z = 1 and a Series of the powers of z they scale with, :func:`avbench.estimators.uncertainty.interval`), and the
+    optimiser's record in statsmodels' names:
+    ``llf`` (the maximised log-likelihood, of the standardised record the estimator fits: the same in
+    every unit of the record), ``aic``, ``bic``, ``converged`` and ``n_iter`` (None / NaN where the
+    method has none)."""
+
+    fit_check: FitCheck = field(default_factory=lambda: FitCheck(None))
+    evidence: dict[str, Evidence] = field(default_factory=dict)
+    unresolved: dict[str, float] = field(default_factory=dict)
+    choices: tuple[ModelChoice, ...] = ()
+    parameters: dict[str, float] | None = None
+    trajectory: Any = None
+    failure: str | None = None
+    alternatives: tuple[Alternative, ...] = ()
+    zero_bounds: tuple[Any, Any] | None = None
+    llf: float = math.nan
+    aic: float = math.nan
+    bic: float = math.nan
+    converged: bool | None = None
+    n_iter: int | None = None
+
+    def converted(self, op) -> "FitParts":
+        """The parts with every quantity in the record's unit converted by ``op(value, power)``."""
+        ev = {c: replace(e, lower=op(e.lower, 1), upper=op(e.upper, 1)) for c, e in self.evidence.items()}
+        params = None if self.parameters is None else {
+            k: (op(v, parameter_power(k)) if parameter_power(k) else v) for k, v in self.parameters.items()}
+        traj = self.trajectory
+        if traj is not None:
+            traj = traj.copy()
+            for c in COEFFICIENTS:
+                if c in traj:
+                    traj[c] = op(traj[c], 1)
+        zb = None if self.zero_bounds is None else (op(self.zero_bounds[0], 1), self.zero_bounds[1])
+        return replace(self, evidence=ev, unresolved={c: op(v, 1) for c, v in self.unresolved.items()}, zero_bounds=zb,
+                       choices=tuple(ch.converted(op) for ch in self.choices), parameters=params, trajectory=traj,
+                       alternatives=tuple(a.converted(op) for a in self.alternatives))
+
+    def times(self, unit: float) -> "FitParts":
+        """The parts of a fit of the record divided by ``unit``, in the record's own unit."""
+        return self if unit == 1.0 else self.converted(_times(unit))
+
+
 @dataclass(frozen=True)
 class FitResult:
     """One fit of one method to one record: per coefficient its :class:`Coefficient`, the fit check,
-    the model choices made (:data:`MODEL_CHOICES`, JSON-able), the fitted model's parameters by name
-    (latent models), the failure and warnings (``interval_error``: why ``conf_int`` gave no intervals,
-    if it raised), and ``extras``: the method's other details (its
+    the model choices made (:class:`ModelChoice`, each with its units), the fitted model's parameters
+    by name (latent models), the optimiser's record (``llf``, ``aic``, ``bic``, ``converged``,
+    ``n_iter``: :class:`FitParts`), the failure and warnings (``interval_error``: why ``conf_int``
+    gave no intervals, if it raised), and ``extras``: the method's other details (its
     ``diagnostics_``, in the unit of the record it was fitted to; documented by each estimator)."""
 
     method: str
     coefficients: dict[str, Coefficient]
     level: float = 0.95
     fit_check: FitCheck = field(default_factory=lambda: FitCheck(None))
-    model_choice: dict[str, Any] = field(default_factory=dict)
+    choices: tuple[ModelChoice, ...] = ()
     parameters: dict[str, float] | None = None
     trajectory: Any = None
     failure: str | None = None
     warnings: tuple[str, ...] = ()
     interval_error: str | None = None
+    llf: float = math.nan
+    aic: float = math.nan
+    bic: float = math.nan
+    converged: bool | None = None
+    n_iter: int | None = None
     extras: dict = field(default_factory=dict, repr=False, compare=False)
     scale: float = 1.0
     _model: Any = field(default=None, repr=False, compare=False)
@@ -199,6 +299,11 @@ class FitResult:
     @property
     def failed(self) -> bool:
         return self.failure is not None
+
+    @property
+    def model_choice(self) -> dict[str, Any]:
+        """The model choices by key: each choice's JSON-able ``detail``."""
+        return {c.key: c.detail for c in self.choices}
 
     def value(self, name: str) -> float:
         """The resolved value of coefficient ``name`` (NaN unless its status is "ok")."""
@@ -236,17 +341,10 @@ class FitResult:
                 ev = replace(ev, lower=ev.lower / factor, upper=ev.upper / factor)
             coefs[c] = replace(e, value=e.value / factor, fitted=e.fitted / factor, std_err=e.std_err / factor,
                                interval=iv(e.interval), estimate_interval=iv(e.estimate_interval), evidence=ev)
-        params = None if self.parameters is None else {
-            k: (v / factor if parameter_power(k) else v) for k, v in self.parameters.items()}
-        traj = self.trajectory
-        if traj is not None:
-            traj = traj.copy()
-            for c in COEFFICIENTS:
-                if c in traj:
-                    traj[c] = traj[c] / factor
-        choice = {k: _scale_parts(v, _CHOICE_UNITS.get(k, 0), factor) for k, v in self.model_choice.items()}
-        return replace(self, coefficients=coefs, parameters=params, trajectory=traj, model_choice=choice,
-                       scale=self.scale * factor)
+        parts = FitParts(choices=self.choices, parameters=self.parameters,
+                         trajectory=self.trajectory).converted(_divided(factor))
+        return replace(self, coefficients=coefs, parameters=parts.parameters, trajectory=parts.trajectory,
+                       choices=parts.choices, scale=self.scale * factor)
 
     def with_warnings(self, messages) -> "FitResult":
         """The same result with ``messages`` (the warnings its fit raised) added to its own."""
@@ -260,19 +358,20 @@ def parameter_power(key) -> int:
     return 0 if str(key).rsplit(".", 1)[-1] in ("tc", "tf", "f0", "omega0", "T") else 1
 
 
-def _scale_parts(value, spec, factor):
-    """``value`` with its parts named in ``spec`` (power 1, or a nested spec) divided by ``factor``."""
+def _scale_parts(value, spec, op):
+    """``value`` (JSON-able) with its parts named in ``spec`` (a power of the unit, or a nested spec)
+    converted by ``op(value, power)``; integers (counts) and non-numbers keep their value."""
     if spec == 0 or value is None:
         return value
     if isinstance(spec, dict):
         if not isinstance(value, dict):
             return value
-        return {k: (_scale_parts(v, spec[k], factor) if k in spec else v) for k, v in value.items()}
+        return {k: (_scale_parts(v, spec[k], op) if k in spec else v) for k, v in value.items()}
     if isinstance(value, dict):
-        return {k: _scale_parts(v, spec, factor) for k, v in value.items()}
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        return {k: _scale_parts(v, spec, op) for k, v in value.items()}
+    if not isinstance(value, float):
         return value
-    return float(value) / factor
+    return jsonable(op(value, spec))
 
 
 def jsonable(v):
@@ -292,43 +391,6 @@ def jsonable(v):
     if v is None or isinstance(v, str):
         return v
     return str(v)
-
-
-def _fit_check(diag: dict) -> FitCheck:
-    pf = diag.get("poor_fit")
-    detail = None
-    if isinstance(pf, dict):
-        flag = pf.get("poor_fit", pf.get("flag"))
-        poor = bool(flag) if flag is not None else None
-        detail = jsonable(pf)
-    elif pf is None:
-        poor = None
-    else:
-        try:
-            poor = bool(pf)
-        except (TypeError, ValueError):
-            poor, detail = None, {"value": jsonable(pf)}
-    check = diag.get("fit_check")
-    residuals = None
-    if isinstance(check, dict) and "z" in check and "tau" in check:
-        tau, z = np.asarray(check["tau"], float), np.asarray(check["z"], float)
-        ok = np.isfinite(z)
-        if ok.any():
-            residuals = (tau[ok], z[ok])
-    dof = diag.get("fit_dof")
-    return FitCheck(poor_fit=poor, stat=_f(diag.get("fit_stat")), dof=None if dof is None else int(dof),
-                    pvalue=_f(diag.get("fit_pvalue")), reference=diag.get("fit_reference"), residuals=residuals,
-                    detail=detail, reading=diag.get("fit_reading"))
-
-
-def _evidence(diag: dict) -> dict[str, Evidence]:
-    ev = diag.get("evidence")
-    if ev is None:
-        return {}
-    level = float(diag.get("evidence_level", 0.95))
-    return {c: Evidence(lr=_f(ev.loc[c, "lr"]), p_value=_f(ev.loc[c, "p_value"]), present=bool(ev.loc[c, "present"]),
-                        lower=_f(ev.loc[c, "lower"]), upper=_f(ev.loc[c, "upper"]), level=level)
-            for c in ev.index}
 
 
 def _intervals(est, level) -> tuple[dict, str | None]:
@@ -352,14 +414,14 @@ def _finite_pair(pair):
 
 
 def build(est, level: float = 0.95) -> FitResult:
-    """The :class:`FitResult` of the fitted estimator ``est`` at interval level ``level`` (from its
-    ``coefficients_``, ``nonphysical_``, ``std_err_``, ``conf_int(level)`` and ``diagnostics_``)."""
+    """The :class:`FitResult` of the fitted estimator ``est`` at interval level ``level``: its
+    ``coefficients_``, ``nonphysical_``, ``std_err_``, ``conf_int(level)`` and the typed parts its fit
+    reported (``parts_``, :class:`FitParts`)."""
     est._check_fitted()
-    diag = est.diagnostics_
-    failure = diag.get("failure") or None
+    parts: FitParts = getattr(est, "parts_", None) or FitParts()  # an estimator storing its fit without _set_results
+    failure = parts.failure or None
     coefs, nonphys, se = est.coefficients_, est.nonphysical_, est.std_err_
-    unresolved = diag.get("unresolved") or {}
-    evidence = _evidence(diag)
+    unresolved, evidence = parts.unresolved, parts.evidence
     intervals, interval_error = _intervals(est, level)
     out = {}
     for c in COEFFICIENTS:
@@ -370,7 +432,7 @@ def build(est, level: float = 0.95) -> FitResult:
         ci = _finite_pair(raw)
         common = dict(name=c, fitted=fitted, std_err=s, estimate_interval=raw, evidence=ev)
         if c in unresolved:
-            hi = _f(unresolved[c][1])
+            hi = _f(unresolved[c])
             out[c] = Coefficient(status="not resolved", interval=(0.0, hi) if math.isfinite(hi) else None,
                                  reason="record", **common)
         elif math.isfinite(fitted):
@@ -389,15 +451,13 @@ def build(est, level: float = 0.95) -> FitResult:
             out[c] = Coefficient(status="failed", **common)
         else:
             out[c] = Coefficient(status="not modelled", **common)
-    choice = {k: jsonable(diag[k]) for k in MODEL_CHOICES if k in diag}
-    params = diag.get("params")
-    params = None if not isinstance(params, dict) else {str(k): _f(v) for k, v in params.items()}
-    extras = {k: v for k, v in diag.items()}
+    params = None if parts.parameters is None else {str(k): _f(v) for k, v in parts.parameters.items()}
     warnings = (interval_error,) if interval_error else ()
-    return FitResult(interval_error=interval_error, method=getattr(est, "name", type(est).__name__), coefficients=out, level=float(level),
-                     fit_check=_fit_check(diag), model_choice=choice, parameters=params,
-                     trajectory=diag.get("trajectory"), failure=str(failure) if failure else None,
-                     warnings=warnings, extras=extras, _model=est.model_avar)
+    return FitResult(interval_error=interval_error, method=getattr(est, "name", type(est).__name__), coefficients=out,
+                     level=float(level), fit_check=parts.fit_check, choices=parts.choices, parameters=params,
+                     trajectory=parts.trajectory, failure=str(failure) if failure else None, warnings=warnings,
+                     llf=_f(parts.llf), aic=_f(parts.aic), bic=_f(parts.bic), converged=parts.converged,
+                     n_iter=parts.n_iter, extras=dict(est.diagnostics_), _model=est.model_avar)
 
 
 def failed(method: str, message: str, modelled=COEFFICIENTS, level: float = 0.95) -> FitResult:

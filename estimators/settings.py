@@ -2,17 +2,26 @@
 
 An estimator class declares ``parameter_constraints``, a mapping from each ``__init__`` setting to a
 list of constraints; a value is accepted when it satisfies any of them (the shape of scikit-learn's
-``_parameter_constraints``). :func:`validate_settings` checks a set of values against the declaration
-and raises a ``ValueError`` naming the setting, what it accepts and what it was given -- before any
-data is seen, so a study config is checked without trial fits. Relations between settings (a
-filter time constant that needs a filter term, say) stay in the class's ``check_settings()``, which
-runs after the declared checks.
+``_parameter_constraints``), and ``setting_relations``, the :class:`Relation` s between settings (a
+filter time constant that needs a filter term, say). :func:`validate_settings` checks a set of values
+against both and raises a ``ValueError`` naming the setting, what it accepts and what it was given --
+before any data is seen. It is the one check: ``estimators.get``, ``Estimator.fit``, a study config
+and ``avbench estimate --set`` call it, so a setting is refused by each with the same message; a
+setting the class does not declare is refused naming the declared ones (a class that declares nothing,
+a plugin say, accepts the settings of its ``__init__`` unchecked).
 
+>>> from avbench.estimators import Estimator
 >>> from avbench.estimators.settings import Interval, Options, validate_settings
->>> class Demo:
+>>> class Demo(Estimator):
 ...     name = "demo"
 ...     parameter_constraints = {"n_starts": [Interval(int, 1, None)], "weighting": [Options("model", "diagonal")]}
+...     def __init__(self, *, n_starts=4, weighting="model"):
+...         self.n_starts, self.weighting = n_starts, weighting
 >>> validate_settings(Demo, {"n_starts": 3, "weighting": "model"})
+>>> validate_settings(Demo, {"colour": "red"})
+Traceback (most recent call last):
+...
+ValueError: estimator 'demo': unknown setting(s) colour; accepted: n_starts, weighting
 >>> validate_settings(Demo, {"n_starts": 0, "weighting": "model"})
 Traceback (most recent call last):
 ...
@@ -29,7 +38,7 @@ from collections.abc import Mapping
 import numpy as np
 
 __all__ = ["Constraint", "Interval", "Options", "Boolean", "NoneValue", "Instance", "Terms", "Taus",
-           "Coefficients", "Check", "validate_settings", "undeclared"]
+           "Coefficients", "Check", "Relation", "validate_settings", "undeclared"]
 
 
 class Constraint:
@@ -221,6 +230,25 @@ class Coefficients(Check):
                          explain=True)
 
 
+class Relation:
+    """A relation between settings ``names`` of one estimator: ``check(estimator)`` raises ``ValueError``
+    naming the setting when a configured (unfitted) estimator breaks it; ``description`` says what holds."""
+
+    def __init__(self, names, check: _Callable, description: str):
+        self.names, self.check, self.description = tuple(names), check, description
+
+    def __repr__(self) -> str:
+        return f"<{', '.join(self.names)}: {self.description}>"
+
+
+def allowed(cls) -> list[str]:
+    """The settings ``cls`` accepts: those it declares, in its ``__init__`` order (all of its ``__init__``
+    settings where it declares none)."""
+    names = cls._param_names()
+    declared = getattr(cls, "parameter_constraints", None)
+    return names if declared is None else [p for p in names if p in declared]
+
+
 def undeclared(cls) -> list[str]:
     """The settings of ``cls`` (its ``__init__`` keywords) that its ``parameter_constraints`` does not declare."""
     declared = getattr(cls, "parameter_constraints", None) or {}
@@ -228,12 +256,17 @@ def undeclared(cls) -> list[str]:
 
 
 def validate_settings(cls, params: dict) -> None:
-    """Check ``params`` (setting -> value) against ``cls.parameter_constraints``; raise ``ValueError``
-    naming the estimator, the first bad setting, what it accepts and what it was given. Settings the
-    class does not declare are not checked here (:func:`undeclared` lists them; the contract check and
-    the test suite require every built-in to declare all of its settings)."""
+    """Check ``params`` (setting -> value; the settings not given take their defaults) of estimator class
+    ``cls``: each is one it accepts (:func:`allowed`), each value passes its ``parameter_constraints``, and
+    the settings keep the class's ``setting_relations``. A ``ValueError`` names the estimator and the
+    first bad setting with what it accepts (for an unknown one: the accepted settings)."""
     declared = getattr(cls, "parameter_constraints", None) or {}
     name = getattr(cls, "name", cls.__name__)
+    accepted = allowed(cls)
+    unknown = sorted(set(params) - set(accepted))
+    if unknown:
+        raise ValueError(f"estimator {name!r}: unknown setting(s) {', '.join(unknown)}; "
+                         f"accepted: {', '.join(accepted) or '(none)'}")
     for key, value in params.items():
         constraints = declared.get(key)
         if constraints is None:
@@ -244,6 +277,14 @@ def validate_settings(cls, params: dict) -> None:
         why = [w for w in (c.explain(value) for c in constraints) if w]
         reason = f" ({'; '.join(why)})" if why else ""
         raise ValueError(f"estimator {name!r}: {key}={_short(value)}: expected {expected}{reason}")
+    relations = getattr(cls, "setting_relations", ())
+    if relations:
+        est = cls(**params)
+        for relation in relations:
+            try:
+                relation.check(est)
+            except (ValueError, TypeError) as e:
+                raise ValueError(f"estimator {name!r}: {e}") from None
 
 
 def _short(value, limit: int = 80) -> str:

@@ -26,8 +26,8 @@ Where the relative standard error exceeds 0.5 (``MAX_LOG_REL_SE``; the data then
 log-scale bound :math:`e^{z\\,\\mathrm{se}/c}` would explode) the interval is
 :math:`[\\max(0, c - z\\,\\mathrm{se}),\\ c + z\\,\\mathrm{se}]`.
 A coefficient estimated as 0 (a term dropped by model selection, or a scale run to its floor) has
-lower bound 0 and the upper bound the estimator supplies (``diagnostics_["zero_upper"]`` times
-:math:`z^{p}`, p = ``diagnostics_["zero_upper_power"]``; ``whittle`` gives the boundary bound of a
+lower bound 0 and the upper bound the estimator supplies (``parts_.zero_bounds``: a bound times
+:math:`z^{p}`, with its power p; ``whittle`` gives the boundary bound of a
 variance, :math:`c^2 \\le z\\,\\mathrm{se}(c^2)`), else NaN. Intervals ignore any bias of the estimator: coverage is
 what the coverage study measures.
 

@@ -1,5 +1,6 @@
-"""Checks of what an estimator is handed: its record (:func:`check_record`) and the settings several
-estimators share (:func:`check_common_settings`: ``terms``, ``taus``, ``overlapping``).
+"""Checks of what an estimator is handed: its record (:func:`check_record`) and the grammars of the
+settings several estimators share (:func:`check_terms`, :func:`check_taus`), which their declarations
+use (:mod:`avbench.estimators.settings`).
 
 A leaf of the estimators package: the contract (:mod:`avbench.estimators.base`), the Allan-variance
 engine and every family import these checks from here, so that each is written once and none of
@@ -13,8 +14,7 @@ import numpy as np
 from avbench.noise_models.terms import _check_dt as check_dt
 from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["DT_RANGE", "TAU_GRIDS", "check_common_settings", "check_dt", "check_record", "check_not_constant", "check_taus",
-           "check_terms"]
+__all__ = ["DT_RANGE", "TAU_GRIDS", "check_dt", "check_record", "check_not_constant", "check_taus", "check_terms"]
 
 
 #: sample intervals an estimator accepts (1 ns .. ~11.6 days): beyond them tau**2 and tau**-2 in the
@@ -92,17 +92,3 @@ def check_terms(terms) -> tuple[str, ...]:
             f"terms: expected a non-empty subset of {', '.join(COEFFICIENTS)} without repeats, got {given!r}"
         )
     return tuple(c for c in COEFFICIENTS if c in terms)
-
-
-def check_common_settings(params: dict) -> None:
-    """Validate the settings several estimators share, wherever they appear.
-
-    ``terms``: a non-empty subset of QNBKR; ``taus``: "octave", "decade", "all" or a list of
-    positive seconds; ``overlapping``: a bool (a string such as "maybe" is refused, not read as true).
-    """
-    if "terms" in params:
-        check_terms(params["terms"])
-    if "taus" in params:
-        check_taus(params["taus"])
-    if "overlapping" in params and not isinstance(params["overlapping"], bool | np.bool_):
-        raise ValueError(f"overlapping: expected true or false, got {params['overlapping']!r}")

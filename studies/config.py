@@ -10,10 +10,10 @@ process (:mod:`avbench.noise_models.plugins`).
 Errors name the file, the key and what was expected (:class:`ConfigError`), and are raised before any
 work starts and before anything is written. Besides types and ranges, every gyro is simulated for a
 few samples, and every estimator's settings are checked per gyro without fitting anything
-(:func:`settings_problem`): against what the estimator class declares (``parameter_constraints``,
-:func:`avbench.estimators.settings.validate_settings`), by its ``check_settings()`` (relations
-between settings) if it has one, and against the study's record (``terms`` a subset of QNBKR, a
-``taus`` within half the record: rejected here, not on every replicate).
+(:func:`settings_problem`): against what the estimator class declares (its settings, their
+constraints and relations: :func:`avbench.estimators.settings.validate_settings`, the check
+``estimators.get`` and ``Estimator.fit`` make, with the same message), and against the study's record
+(a ``taus`` within half the record: rejected here, not on every replicate).
 """
 
 from __future__ import annotations
@@ -432,7 +432,6 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         for g in gyros:
             where = f"{key}.gyro_settings.{g.label}" if g.label in gs else f"{key}.settings"
             try:
-                validate_settings(cls, spec.settings_for(g))
                 est = spec.make(g)
             except Exception as err:
                 ctx.fail(where, f"(gyro {g.label}) {err}")
@@ -509,19 +508,15 @@ def _check_simulation(ctx: _Ctx, key: str, g: GyroSpec) -> None:
 def settings_problem(est, gyro: GyroSpec) -> str | None:
     """Why ``est`` (configured for ``gyro``) cannot run in the study, or None if it can; nothing is fitted.
 
-    1. the settings against what the estimator's class declares (its ``parameter_constraints``,
-       :func:`avbench.estimators.settings.validate_settings`): a setting the class does not declare is
-       not checked here, so a plugin estimator that declares nothing has only 2 and 3;
-    2. the estimator's own ``check_settings()``, if it has one (relations between settings, e.g. ``x0``
-       naming exactly the modelled ``terms``);
-    3. generic checks against the study's real record: a ``terms`` setting must be a subset of
-       QNBKR, a ``taus`` setting must give Allan-variance cluster sizes within half the record.
+    1. the settings against what the estimator's class declares (its settings, their constraints and
+       relations: :func:`avbench.estimators.settings.validate_settings`, the check of ``get`` and ``fit``);
+    2. against the study's record: a ``taus`` setting must give Allan-variance cluster sizes within
+       half the record.
 
     What can only go wrong on data (a divergence, a record too short for the method) is recorded per
     replicate when the study runs, never a configuration error.
     """
     from avbench.estimators.allan.variance import cluster_sizes
-    from avbench.estimators.validation import check_terms
 
     dt, n = gyro.gyro.dt, gyro.n_samples
     params = est.get_params()
@@ -529,12 +524,7 @@ def settings_problem(est, gyro: GyroSpec) -> str | None:
         validate_settings(type(est), params)
     except ValueError as e:
         return str(e).splitlines()[0][:300]
-    check = getattr(est, "check_settings", None)
     try:
-        if callable(check):
-            check()
-        if "terms" in params and params["terms"] is not None:
-            check_terms(params["terms"])
         if "taus" in params and params["taus"] is not None:
             cluster_sizes(params["taus"], n, dt)
     except Exception as e:

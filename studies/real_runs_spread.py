@@ -83,7 +83,7 @@ N_SAMPLES = 1_000_000  #: samples per simulated run (the ADIS16405 runs' length)
 DT = 0.01  #: s (100 Hz, as the runs)
 SEED = 24_2026  #: the study's seed (replicates and bootstrap)
 BOOT = 2000  #: bootstrap resamples of the replicates for standard errors
-COEFS = ("N", "B")  #: the coefficients whose run-to-run CV the issue compares (K is written too)
+COEFS = ("N", "B")  #: the coefficients whose run-to-run CV is compared (K is written too)
 _PRE24 = {"model": "WN+GM+RW", "min_m": "auto", "lines": "model", "resonance": "model", "bias_evidence": False}
 #: label -> (estimator name, settings): the default methods, ``nnls_rel``, and the plain-model configuration
 FITS = {

@@ -165,7 +165,7 @@ def test_partial_fit_chunks_equal_one_call():
     np.testing.assert_array_equal(a.coefficients_.to_numpy(), b.coefficients_.to_numpy())
 
 
-# --- numerical robustness (issue: divergence at sample 2791 of the test above) ----------------------
+# --- numerical robustness (a divergence at sample 2791 of the test above) -------------------------
 _GYRO_NBK = dict(N=1e-3, sigma=3e-4 / 0.9294, tc=5.0, K=1e-5)
 
 

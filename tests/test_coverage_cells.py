@@ -1,4 +1,4 @@
-"""Issue 23's cell count of a coverage study (``studies/summaries/coverage_cells.py``)."""
+"""The cell count of a coverage study (``studies/summaries/coverage_cells.py``)."""
 
 import math
 from pathlib import Path
@@ -46,7 +46,7 @@ def test_rule_constants_are_the_issues():
 
 def test_committed_coverage_defaults_count():
     """The committed study's cells.csv is what the rule gives on its tidy.csv and scores.csv, 30 cells
-    (10 presets x Q, N, B), and issue 23's Done-when item: at least 27 of them meet the target."""
+    (10 presets x Q, N, B), and at least 27 of them meet the target."""
     d = ROOT / "results" / "coverage_defaults"
     tidy = pd.read_csv(d / "tidy.csv")
     t = cells(tidy, pd.read_csv(d / "scores.csv"))

@@ -138,7 +138,7 @@ def test_values_refused_at_fit_time_are_refused_by_the_declaration(name, key, va
 @pytest.mark.parametrize("name, params", [
     ("ols", {"taus": [0.1, 0.2], "overlapping": True}), ("ols_trimmed", {"max_error_pct": 30}),
     ("slope_lines", {"terms": ["N", "B"], "min_clusters": 8}), ("nnls_rel", {"filter": "fit", "lines": "auto"}),
-    ("shakf", {"x0": {"N": (1.5, "deg/sqrt(h)"), "B": 1e-5}, "P0": [0.25, 0.5], "Q0": [[1e-8, 0], [0, 1e-8]],
+    ("shakf", {"terms": "NB", "x0": {"N": (1.5, "deg/sqrt(h)"), "B": 1e-5}, "P0": [0.25, 0.5], "Q0": [[1e-8, 0], [0, 1e-8]],
                "R0": 2, "adapt": "", "b": 1}),
     ("shakf_multitau", {"m": [1, 4, 2], "R0": [1.0, 2.0, 3.0]}), ("nekf", {"seed": 2**40, "weights_Q0": 0}),
     ("arma_em", {"terms": "NK", "x0": {"N": [1.5, "deg/sqrt(h)"], "K": [50.0, "deg/h^1.5"]}, "tc0": 10}),
@@ -154,11 +154,98 @@ def test_values_accepted_at_fit_time_pass(name, params):
 @pytest.mark.parametrize("path", STUDIES, ids=[p.stem for p in STUDIES])
 def test_every_setting_of_the_packaged_studies_passes(path):
     """Each estimator's settings for each gyro of a packaged study (``x0`` from ``x0_truth_scale``
-    included) pass its declaration and its ``check_settings()``."""
+    included) pass its declaration (constraints and relations)."""
     cfg = load_config(path)
     for spec in cfg.estimators:
         for g in cfg.gyros:
             est = spec.make(g)
             validate_settings(type(est), spec.settings_for(g))
-            if hasattr(est, "check_settings"):
-                est.check_settings()
+
+
+# -- one check, one message -----------------------------------------------------------------------
+
+@estimators.register("test_undeclared_colour")
+class _UndeclaredColour(estimators.estimator_class("ols")):
+    """Test only: OLS with a setting (``colour``) its declaration does not list."""
+
+    def __init__(self, *, terms="QNBKR", taus="all", overlapping=False, colour="red"):
+        super().__init__(terms=terms, taus=taus, overlapping=overlapping)
+        self.colour = colour
+
+
+def _message_of(action) -> str:
+    with pytest.raises(ValueError) as info:
+        action()
+    return str(info.value)
+
+
+def _config_message(tmp_path, name, settings_toml) -> str:
+    from conftest import study_toml
+
+    path = tmp_path / "study.toml"
+    path.write_text(study_toml(extra_estimators=f'\n[[estimators]]\nname = "{name}"\nsettings = {{ {settings_toml} }}\n'))
+    return _message_of(lambda: load_config(path))
+
+
+@pytest.mark.parametrize("name, given, toml, message", [
+    # a setting the estimator does not take
+    ("ols", {"colour": "blue"}, 'colour = "blue"',
+     "estimator 'ols': unknown setting(s) colour; accepted: terms, taus, overlapping"),
+    # a setting it takes but does not declare: refused by get and a config when given, by fit always
+    ("test_undeclared_colour", {"colour": "blue"}, 'colour = "blue"',
+     "estimator 'test_undeclared_colour': unknown setting(s) colour; accepted: terms, taus, overlapping"),
+])
+def test_an_undeclared_setting_is_refused_alike_by_get_fit_and_a_study_config(tmp_path, name, given, toml, message):
+    """``estimators.get``, ``Estimator.fit`` and a study config check settings in one place
+    (:func:`validate_settings`): an undeclared setting is refused by each with the same message,
+    naming the settings the estimator accepts."""
+    import numpy as np
+
+    assert _message_of(lambda: estimators.get(name, **given)) == message
+    assert _config_message(tmp_path, name, toml).endswith(message)
+    if name == "test_undeclared_colour":
+        est = estimators.estimator_class(name)()  # built without the check: fit refuses it
+        assert _message_of(lambda: est.fit(np.random.default_rng(0).normal(size=256), 0.01)) == message
+
+
+@pytest.mark.parametrize("name, settings, toml, setting", [
+    ("gmwm", {"model": "WN+GM+RW", "filter_tf": 0.005}, 'model = "WN+GM+RW", filter_tf = 0.005', "filter_tf"),
+    ("shakf", {"terms": "NB", "x0": {"N": 1e-4}}, 'terms = "NB", x0 = { N = 1e-4 }', "x0"),
+    ("nnls_rel", {"terms": "QB", "filter": "fit"}, 'terms = "QB", filter = "fit"', "filter"),
+])
+def test_a_broken_relation_is_refused_alike_by_get_fit_and_a_study_config(tmp_path, name, settings, toml, setting):
+    """Relations between settings are declarations too (``setting_relations``), checked in the same place."""
+    import numpy as np
+
+    message = _message_of(lambda: estimators.get(name, **settings))
+    assert message.startswith(f"estimator {name!r}: {setting}")
+    assert _config_message(tmp_path, name, toml).endswith(message)
+    est = estimators.estimator_class(name)(**settings)
+    assert _message_of(lambda: est.fit(np.random.default_rng(0).normal(size=4096), 0.01)) == message
+
+
+def test_fit_changes_no_setting(monkeypatch):
+    """``fit`` hands a setting holding rates (``x0``) to the fit in the standardised unit on a copy: the
+    estimator's own setting is the same object, unchanged, while the fit runs and after it."""
+    import warnings
+
+    import numpy as np
+
+    x0 = {"N": 1e-3}
+    est = estimators.get("shakf", terms="N", x0=x0)
+    fit, during = type(est)._fit, []
+
+    def watched(self, rate, dt):
+        during.append((self.x0, est.x0))
+        return fit(self, rate, dt)
+
+    monkeypatch.setattr(type(est), "_fit", watched)
+    rate = np.random.default_rng(3).normal(0.0, 1e-2, 4096) * 1e30  # an extreme unit: the fit sees x0 rescaled
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        est.fit(rate, 0.01)
+    (handed, own), = during
+    from avbench.estimators.base import _extreme_unit
+
+    assert handed["N"] == pytest.approx(1e-3 / _extreme_unit(rate), rel=1e-12, abs=0) and own is x0
+    assert est.x0 is x0 and x0 == {"N": 1e-3}

@@ -1,7 +1,7 @@
 """The deviation family: allantools and SP1065's published values, Stable32's published bounds and
 bias-corrected values, kernels vs NumPy, exact values.
 
-Tolerances: allantools agreement to 1e-9 relative (the issue's bar; both compute the same sums);
+Tolerances: allantools agreement to 1e-9 relative (both compute the same sums);
 SP1065's 1000-point values are printed to 7 significant digits (half a unit: <= 5e-7 relative, 1e-6
 used); Stable32's to 5 (half a unit of the 5th digit: <= 5e-5 relative; 1e-4 used for the values and 3e-4
 for the bounds, which it also computes with single-precision edf and its own chi^2 quantiles -- the

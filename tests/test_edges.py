@@ -1,4 +1,4 @@
-"""Edges of the commands and the library (issue: "no traceback at the edges").
+"""Edges of the commands and the library: no traceback at the edges.
 
 Every bad input ends in one line ``avbench: error: ...`` naming the file or option and what was
 expected, exit code 2, and nothing written; valid inputs at the numeric extremes give right answers.

@@ -1,4 +1,4 @@
-"""Edges by rule (issue 25): the text-table sniffer and the magnitude check, tested by property.
+"""Edges by rule: the text-table sniffer and the magnitude check, tested by property.
 
 * Any numeric table written with any of the separators the reader accepts (decimal commas where
   ``,`` is not the separator), with or without a header whose names hold spaces, brackets and

@@ -5,7 +5,7 @@ check of ``check-estimator``, :func:`avbench.estimators.contract.equivariance`).
 The default run checks the standardisation itself (noise level, rescaled diagnostics, gaps, the
 floor rule) on short records; ``test_builtin_estimators_keep_the_contract`` (test_estimator_contract)
 runs the ``equivariance`` check on every registered estimator. The slow run sweeps units from 1e-6
-to 1e6 over the whole registry on three gyros, and the real records of the issue (ADIS run 1, the
+to 1e6 over the whole registry on three gyros, and a real record (ADIS run 1, the
 first 30 minutes, deg/s against rad/s) when ``AVBENCH_REAL_DATA`` is set.
 """
 
@@ -194,8 +194,8 @@ def test_a_term_the_record_cannot_see_is_reported_not_resolved_with_the_same_bou
     """gmwm_robust on a white + random-walk record: its Gauss-Markov B runs to the floor of the fit,
     where round-off of the input (let alone the unit) moves it by orders of magnitude; it is reported
     not resolved, with the bound the record's AV allows, the same in every unit. The record's K (3e-5)
-    is found, the same in every unit (with least_squares' forward-difference Jacobian, before issue
-    25, the fit stopped with K at its floor too: criterion J 17.13 against 13.09 at the minimum)."""
+    is found, the same in every unit (with a forward-difference Jacobian instead of the analytic one, the
+    fit stops with K at its floor too: criterion J 17.13 against 13.09 at the minimum)."""
     g, x = _record()
     tau = g.dt * 2.0 ** np.arange(int(math.log2(RECORD // 8)) + 1)
     fits = {}
@@ -262,7 +262,7 @@ REAL = os.environ.get("AVBENCH_REAL_DATA")
 # (no fit here is left to the last bits of this record any more: the MLE's L-BFGS-B end point, a saddle
 # whose place they decided, is polished to the maximum (estimators/likelihood/mle.py _newton_polish);
 # gmwm_despiked and gmwm_robust, whose multi-start fell into one of two near-tied optima on axis z with
-# them, agree to <= 1e-8 since issue 25's analytic Jacobian and issue 24's model for gmwm_despiked;
+# them, agree to <= 1e-8 with the analytic Jacobian and gmwm_despiked's real-sensor model;
 # measured 2026-11-25. On 2026-11-28, another machine (AMD EPYC, AVX-512): gmwm_robust on axis z lands
 # 1.3-2.6e-7 from the reference in 4 of 16 round-off draws and 3 of 12 units alike -- the fit's own
 # round-off, which the check now samples with more draws before it calls a difference the unit's:
@@ -271,10 +271,10 @@ REAL = os.environ.get("AVBENCH_REAL_DATA")
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["nekf_multitau", "gmwm_filtered", "mle", "gmwm_despiked", "gmwm_robust"])
-def test_the_issues_defects_on_adis_run_1_are_gone(name):
-    """Issue 28: the first 30 minutes of ADIS run 1 in deg/s, rad/s and mrad/s gave answers that
-    differed by 3 % of the AV (nekf_multitau), 0.9 % (mle), 85-100 % in B at its floor (GMWM
-    family). Every axis is now reported the same way in the three units, to each fit's own
+def test_adis_run_1_reads_the_same_in_three_units(name):
+    """The first 30 minutes of ADIS run 1 in deg/s, rad/s and mrad/s, where a fit left to the last bits
+    of the record differs by 3 % of the AV (nekf_multitau), 0.9 % (mle), 85-100 % in B at its floor
+    (GMWM family): every axis is reported the same way in the three units, to each fit's own
     round-off (nekf_multitau's model AV moves by up to 1 % when the last bit of the samples does)."""
     if not REAL:
         pytest.skip("AVBENCH_REAL_DATA is not set (the folder of the real recordings)")
@@ -413,13 +413,15 @@ def test_a_solve_stopped_by_its_evaluation_limit_restarts_a_creeping_parameter_o
 
 
 def test_a_failed_fit_labels_the_fit_not_the_terms_its_model_does_not_carry():
+    from dataclasses import replace
+
     from avbench.estimators.contract import _FIT, _answer
 
     g, x = _record()
     est = estimators.get("ols", terms="NK").fit(x, g.dt)
     tau = g.dt * 2.0 ** np.arange(6)
     assert _answer(est, tau, x.size, g.dt).status[_FIT] == "converged"
-    est.diagnostics_["failure"] = "least_squares: The maximum number of function evaluations is exceeded."
+    est.parts_ = replace(est.parts_, failure="least_squares: The maximum number of function evaluations is exceeded.")
     status = _answer(est, tau, x.size, g.dt).status
     assert status[_FIT] == "failed" and status["Q"] == status["B"] == status["R"] == "not modelled"
     assert status["N"] == status["K"] == "estimated"
@@ -447,10 +449,10 @@ def _recovery_b(settings):
 def _gmwm_despiked_in_unit(e, settings):
     """gmwm_despiked on check-estimator's record in unit 10^e x SI: no failure, the stop reason
     recorded, every label as in SI and every number to the contract's bar for a fit whose round-off
-    exceeds EQUIVARIANCE_RTOL (ROUNDOFF_FACTOR times it). Before issue 28's _solve, the filter's time
-    constant crept toward its bound for 2000 evaluations and stopped where the unit's last bits left
-    it: ``failure`` set in some units (Q, R then labelled "failed"), B 2.2e-7 apart with one start;
-    now 1.5e-8 at most, std errors 2e-8."""
+    exceeds EQUIVARIANCE_RTOL (ROUNDOFF_FACTOR times it). A solve that lets the filter's time constant
+    creep toward its bound for 2000 evaluations stops where the unit's last bits leave it: ``failure`` set
+    in some units (Q, R then labelled "failed"), B 2.2e-7 apart with one start; ``_solve`` settles the
+    creeping parameter on its bound: 1.5e-8 at most, std errors 2e-8."""
     from avbench.estimators.contract import EQUIVARIANCE_RTOL, ROUNDOFF_FACTOR, _answer, _differences
 
     g, x, tau, ref, ref_answer = _recovery_b(settings)
@@ -468,7 +470,7 @@ def _gmwm_despiked_in_unit(e, settings):
 
 @settings(max_examples=1, deadline=None, derandomize=True)
 @given(e=st.floats(-6.0, 6.0))
-@example(e=6.0)  # before issue 28's _solve: B 2.2e-7 apart from SI with one start
+@example(e=6.0)  # a solve that lets tf creep: B 2.2e-7 apart from SI with one start
 def test_gmwm_despiked_answers_the_same_in_every_unit_of_the_contract_record(e):
     _gmwm_despiked_in_unit(e, {"n_starts": 1})
 

@@ -1,5 +1,5 @@
 """Derivatives of the terms' exact AV (``NoiseTerm.avar_shape_derivative``), GMWM's analytic Jacobian,
-and the kept Haar gains of the AV covariance (issue 25: GMWM's cost)."""
+and the kept Haar gains of the AV covariance (GMWM's cost)."""
 
 import math
 

@@ -17,7 +17,7 @@ G = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=20.0
 
 def _adis_like():
     """FW+GM+RW at 100 Hz with the ADIS16405 gyro y model of results/real/spread_models.csv (rounded): white
-    noise through a filter of tf = 0.5 dt, the shortest octaves the filter shapes (issue 24, gmwm_filtered)."""
+    noise through a filter of tf = 0.5 dt, the shortest octaves the filter shapes (gmwm_filtered)."""
     from avbench.estimators.likelihood.gmwm import build_gyro
 
     return build_gyro(("FW", "GM", "RW"), [7.6e-4, 5.2e-3, 2.1e-4, 28.0, 1.4e-5], 0.01)
@@ -97,8 +97,8 @@ def test_weighted_chi2_tail_against_its_special_cases_and_simulation():
 
 
 def _imhof_in_python(x, w):
-    """Imhof's integral with the integrand as plain Python (what weighted_chi2_sf integrated before it was
-    compiled): the compiled callback must give the same integral to round-off."""
+    """Imhof's integral with the integrand as plain Python (the reference of weighted_chi2_sf's compiled
+    integrand): the compiled callback must give the same integral to round-off."""
     from scipy import integrate
 
     def phi(u):
@@ -187,7 +187,7 @@ def test_refit_weights_of_an_efficient_linear_fit_are_zeros_and_ones():
 
 @pytest.mark.parametrize("name", ["nnls_rel", "log_fit", "slope_lines"])
 def test_correct_model_not_flagged_small_sample(name):
-    # white noise fitted with the right term set (N): with the plain chi^2 reference nnls_rel was
+    # white noise fitted with the right term set (N): with the plain chi^2 reference nnls_rel is
     # flagged in ~80 % of such records; with its own reference the flag should fire with
     # probability 1 %: at most 2 of 12 (binomial 1 %: P(>= 3 of 12) = 2e-4)
     from avbench.studies.fit_check_calibration import flag_rates
@@ -251,7 +251,7 @@ def test_gmm_statistic_of_the_filtered_model_is_chi2_k_minus_p():
     """The fit check's reference for a GMWM fit of FW+GM+RW, without the optimiser: on 2.78 h records at 100 Hz
     (17 octaves, the first ones shaped by the filter) the efficient-GMM statistic linearised at the truth,
     r' (W - W D (D'W D)^-1 D'W) r with W the inverse model covariance and D the model AV's derivative in the
-    five log-parameters, is chi^2_12 (issue 24: gmwm_filtered flagged 6 of 64 simulated gyro-y records;
+    five log-parameters, is chi^2_12 (gmwm_filtered flagged 6 of 64 simulated gyro-y records;
     4 of those 64 already reach p < 0.01 here, where 400 fresh records give the nominal rate). Binomial 99.9 %
     bounds at 1 % and 10 %, and the mean within 4 standard errors of k - p."""
     from scipy import stats

@@ -142,8 +142,8 @@ def test_auto_scales_recover_n_and_b_through_a_sensor_filter():
     # Plain gmwm drops the octaves the filter bends, but the 2-tap average still lowers the white
     # noise's AV at the shortest scale kept, m, by 3/(4m) (computed below from the filter's weights),
     # N by about half that: on 1e6 samples more than N's standard error (measured 2026-11-28: m = 32,
-    # N -1.19 % with a standard error of 0.30 %; the 3-SE bound this test first asserted never held, at
-    # any commit since it was written). N is held to that residual plus 3 SE ...
+    # N -1.19 % with a standard error of 0.30 %: a bound of 3 SE alone does not hold). N is held to that
+    # residual plus 3 SE ...
     m = auto.diagnostics_["min_m"]
     w = np.r_[-np.ones(m), np.ones(m)] / m
     wx = (np.r_[w, 0.0] + np.r_[0.0, w]) / 2  # the cluster difference's weights on the unfiltered samples

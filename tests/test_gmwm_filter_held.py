@@ -24,12 +24,12 @@ def _fit(x, **settings):
 @pytest.mark.parametrize("bad", [0.0, -0.01, math.inf, math.nan, "5 ms", True])
 def test_bad_filter_tf_is_named(bad):
     with pytest.raises(ValueError, match=r"'gmwm': filter_tf=.*: expected None or a finite number > 0"):
-        estimators.get("gmwm", model="FW+RW", filter_tf=bad).check_settings()
+        estimators.get("gmwm", model="FW+RW", filter_tf=bad)
 
 
 def test_filter_tf_needs_the_filter_latent():
     with pytest.raises(ValueError, match="filter_tf: .*has no FW"):
-        estimators.get("gmwm", model="WN+GM+RW", filter_tf=0.005).check_settings()
+        estimators.get("gmwm", model="WN+GM+RW", filter_tf=0.005)
     for name in ("gmwm_filtered", "gmwm_despiked"):  # the real-sensor defaults take it
         assert estimators.get(name, filter_tf=0.005).get_params()["filter_tf"] == 0.005
 

@@ -1,4 +1,4 @@
-"""Spectral lines in GMWM's default model (issue 24): the test for a hidden periodicity
+"""Spectral lines in GMWM's default model: the test for a hidden periodicity
 (avbench.estimators.selection.lines), GMWM's lines="auto" (a sinusoid SN added on that evidence) and
 min_m="adequate".
 

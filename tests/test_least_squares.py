@@ -115,7 +115,7 @@ def test_lv2015_protocol_slow(gyro):
     _check_lv(gyro, R=30, seed=2016)
 
 
-# -- the compiled normal equations (issue 25) --------------------------------------------------------
+# -- the compiled normal equations -------------------------------------------------------------------
 
 from avbench.estimators.curve_fits import _kernels as lsk  # noqa: E402
 from avbench.estimators.curve_fits import least_squares as ls  # noqa: E402
@@ -149,8 +149,9 @@ def test_power_kernels_equal_their_numpy_references():
         np.testing.assert_allclose(r, r0, rtol=1e-12)
 
 
-def _edf_of_rows_before(av, beta, terms):
-    """wls_edf's row edf as computed before issue 25 (the design built, numpy's argmax, per-row edf)."""
+def _edf_of_rows_reference(av, beta, terms):
+    """wls_edf's row edf the plain way (the design built, numpy's argmax, per-row edf): the reference the
+    compiled normal equations are held to."""
     X = design_matrix(av.tau, terms)
     noise = np.array([ls._NOISE_OF_TERM[t] for t in terms], dtype=object)
     contrib = X * np.maximum(beta, 0)[None, :]
@@ -172,7 +173,7 @@ def test_edf_of_rows_as_before(overlapping):
     for terms in TERM_SETS:
         beta = rng.normal(size=len(terms)) * ls.solve_power_design(av.tau, av.avar, terms)
         level, edf = ls.edf_of_rows(av, beta, terms)
-        level0, edf0 = _edf_of_rows_before(av, beta, terms)
+        level0, edf0 = _edf_of_rows_reference(av, beta, terms)
         np.testing.assert_array_equal(edf, edf0)
         np.testing.assert_allclose(level, level0, rtol=1e-13)
 

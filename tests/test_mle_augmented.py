@@ -1,5 +1,5 @@
 """MLE: the augmented Kalman filter (used with a drift) equals the exact initial one and its NumPy twin,
-and the fit through it reaches the optimum of the fit of before."""
+and the fit through it reaches the optimum of the fit through the exact initial filter."""
 
 import numpy as np
 import pytest
@@ -101,7 +101,7 @@ def _same_optimum(old, new):
     (("WN", "RW", "DR"), 5, 0.1, [AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5), RateRamp(R=2e-6)]),
     _DRIFT_CASES[1],
 ])
-def test_fit_through_the_augmented_filter_equals_the_fit_of_before(latents, m, dt, terms):
+def test_fit_through_the_augmented_filter_equals_the_fit_through_the_exact_initial_one(latents, m, dt, terms):
     # the same optimiser on two filters of the same likelihood reaches the same optimum
     g = Gyro(dt=dt, terms=terms)
     x = g.simulate(60_000, np.random.default_rng(13))
@@ -112,9 +112,9 @@ def test_fit_through_the_augmented_filter_equals_the_fit_of_before(latents, m, d
 @pytest.mark.parametrize("latents, m, dt, terms", [_DRIFT_CASES[1]])
 def test_both_filters_give_the_same_observed_information(latents, m, dt, terms):
     # the observed information from central differences of each filter's analytic score: the two
-    # filters (likelihoods equal to ~1e-14) give the same covariance of the log-parameters. (Issue
-    # 25: with nested central differences of the likelihood, round-off along the flat directions
-    # made them 10-50 % apart at the same point on one machine, 1 % on another.)
+    # filters (likelihoods equal to ~1e-14) give the same covariance of the log-parameters (nested
+    # central differences of the likelihood would not: round-off along the flat directions makes them
+    # 10-50 % apart at the same point on one machine, 1 % on another)
     from avbench.estimators.likelihood.mle import observed_cov
 
     x = Gyro(dt=dt, terms=terms).simulate(60_000, np.random.default_rng(13))
@@ -129,7 +129,7 @@ def test_both_filters_give_the_same_observed_information(latents, m, dt, terms):
 
 
 @pytest.mark.slow
-def test_fit_of_a_preset_through_the_augmented_filter_equals_the_fit_of_before():
+def test_fit_of_a_preset_through_the_augmented_filter_equals_the_fit_through_the_exact_initial_one():
     # ADIS16405 with the full latent model: its quantization term sits at ~0, a flat direction of
     # the likelihood whose Hessian entry is below the finite differences' resolution in either
     # path, so only the estimates (not the standard errors) are compared

@@ -1,4 +1,4 @@
-"""The MLE's end point is the maximum, not where a quasi-Newton run happened to stop (issue 28).
+"""The MLE's end point is the maximum, not where a quasi-Newton run happened to stop.
 
 L-BFGS-B's end point is polished by trust-region Newton steps (``mle._newton_polish``); a variance
 the likelihood drives to zero is set to zero (the boundary rule). Checked here on short simulated
@@ -62,8 +62,8 @@ def _stall_record():
 
 
 def test_a_gain_round_off_hides_is_finished_by_the_score():
-    """The trust region cannot confirm a gain below the values' round-off: it used to stop there after
-    21 iterations with ``converged`` False and nothing said. The score's Newton steps finish it."""
+    """The trust region cannot confirm a gain below the values' round-off: alone it stops there after 21
+    iterations with ``converged`` False and nothing said. The score's Newton steps finish it."""
     rate, dt = _stall_record()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -92,6 +92,57 @@ def test_the_payload_rule_finds_a_read(tmp_path):
                                                              "recordings/m.py:3 payload()"]
 
 
+#: the calls that make a result or a typed part of one (:mod:`avbench.estimators.results`,
+#: :mod:`avbench.estimators.selection.choices`)
+RESULT_PARTS = {"FitResult", "FitParts", "FitCheck", "Evidence", "ModelChoice", "Coefficient", "build",
+                "as_fit_check", "line_test", "filter_test", "filter_held", "resonance_test", "bias_evidence",
+                "first_scale", "term_weights", "bias_model", "criteria"}
+
+
+def _keys_of_diagnostics_read_to_build(path: Path) -> list[int]:
+    """Lines where a function that makes a result or a typed part of one, or an estimator's intervals
+    (``conf_int``, which the result's are), reads into ``diagnostics_`` (a key, a method such as ``.get``, a
+    membership test, or an alias of it); handing it on whole is allowed."""
+    tree = ast.parse(path.read_text(), str(path))
+    parent = {child: node for node in ast.walk(tree) for child in ast.iter_child_nodes(node)}
+    found = []
+    for fn in ast.walk(tree):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        calls = {getattr(n.func, "id", getattr(n.func, "attr", None)) for n in ast.walk(fn) if isinstance(n, ast.Call)}
+        if not calls & RESULT_PARTS and fn.name != "conf_int":
+            continue
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Attribute) and node.attr == "diagnostics_" and isinstance(node.ctx, ast.Load):
+                up = parent[node]
+                handed_on = isinstance(up, ast.Call) and node in up.args
+                if not handed_on:
+                    found.append(node.lineno)
+    return found
+
+
+def test_no_result_is_built_from_keys_of_diagnostics():
+    """Results are assembled from the typed parts an estimator's fit returns (``FitParts``), never by
+    reading keys out of the free-form ``diagnostics_``: in every module of the package."""
+    found = [f"{p.relative_to(ROOT)}:{line}" for folder in OUTSIDE + ("estimators",)
+             for p in sorted((ROOT / folder).rglob("*.py")) for line in _keys_of_diagnostics_read_to_build(p)]
+    assert not found, "build results from FitParts, not from keys of diagnostics_: " + ", ".join(found)
+
+
+@pytest.mark.parametrize("body, lines", [
+    ("def f(est):\n    return FitCheck(est.diagnostics_['poor_fit'])\n", [2]),
+    ("def f(est):\n    d = est.diagnostics_\n    return FitParts(failure=d.get('failure'))\n", [2]),
+    ("def f(est):\n    return FitParts(failure=est.diagnostics_.get('failure'))\n", [2]),
+    ("def f(est):\n    return FitResult(extras=dict(est.diagnostics_))\n", []),
+    ("def f(est):\n    return est.diagnostics_['poor_fit']\n", []),
+    ("def conf_int(self):\n    return self.diagnostics_.get('zero_upper')\n", [2]),
+])
+def test_the_rule_finds_a_result_built_from_diagnostics(tmp_path, body, lines):
+    bad = tmp_path / "m.py"
+    bad.write_text(body)
+    assert _keys_of_diagnostics_read_to_build(bad) == lines
+
+
 # -- the surfaces ---------------------------------------------------------------------------------------
 def _record(seed, unit, n, quantized):
     rng = np.random.default_rng(seed)
@@ -383,3 +434,23 @@ def test_estimate_on_a_six_axis_record_prints_within_100_columns(tmp_path, capsy
                 for c, e in md["coefficients"].items():
                     if e["flag"] == "not resolved" and e.get("interval_si"):
                         assert e["value"] is None
+
+
+def test_every_model_choice_reaches_the_result_in_its_units():
+    """The choices an estimator makes reach its FitResult as typed ModelChoices (Whittle's bias model and
+    criteria, GMWM's line test among them), and a rescaled result converts exactly the parts each choice
+    declares in the record's unit (the line's amplitude, not its frequency)."""
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5)])
+    x = g.simulate(8192, np.random.default_rng(4))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whittle = estimators.get("whittle", bias="select").fit(x, g.dt).result()
+        gmwm = estimators.get("gmwm_filtered").fit(x, g.dt).result()
+    assert {"bias_model", "selection"} <= set(whittle.model_choice)
+    assert set(whittle.model_choice["bias_model"]["criteria"]) == {"flicker", "gauss_markov"}
+    assert {"line_test", "min_m"} <= set(gmwm.model_choice)
+    line = gmwm.model_choice["line_test"]
+    moved = gmwm.rescaled(1e3).model_choice["line_test"]
+    assert moved["amplitude"] == pytest.approx(line["amplitude"] / 1e3, rel=1e-15)
+    assert moved["f0"] == line["f0"] and moved["p_value"] == line["p_value"]
+    assert whittle.rescaled(1e3).model_choice == whittle.model_choice  # no part in the record's unit

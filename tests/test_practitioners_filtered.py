@@ -1,4 +1,4 @@
-"""nnls_rel with the sensor's filter and a spectral line (issue 24): ``filter="auto"``, ``lines="auto"``
+"""nnls_rel with the sensor's filter and a spectral line: ``filter="auto"``, ``lines="auto"``
 (``nnls_rel_filtered``). The terms enter on evidence, the fit check stays calibrated, ``model_avar`` is the
 curve fitted, and the defaults of ``nnls_rel`` are the five-term fit."""
 

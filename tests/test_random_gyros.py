@@ -70,7 +70,7 @@ def _hits(n_gyros, seed, record_s):
 
 
 def _check(out):
-    """Present terms: coverage >= 0.90 (the issue's target), absent terms' intervals hold 0 >= 0.95 of
+    """Present terms: coverage >= 0.90 (the target), absent terms' intervals hold 0 >= 0.95 of
     the time; each at the 99.9 % point of the binomial law of the misses."""
     from scipy import stats
 

@@ -44,9 +44,9 @@ def _fit(x):
 @pytest.mark.slow
 @_needs_adis
 def test_accelerometer_noise_density_is_resolved_and_steady_with_record_length():
-    """ADIS run 1, whose accelerometer N was read off the bias region before the scale choice kept the white
-    region (full run, fitted from 0.32-2.56 s: x 0.317, y 0.278 [0, 3.08], z 0.311 m/s/sqrt(h), 1.16-1.31 times
-    the white level below): on the full run, its first 10 and 30 minutes and a 30-minute slice from its middle,
+    """ADIS run 1, whose accelerometer N read off the bias region (a fit from 0.32-2.56 s: x 0.317, y 0.278
+    [0, 3.08], z 0.311 m/s/sqrt(h), 1.16-1.31 times the white level below) is not the white level the scale
+    choice keeps: on the full run, its first 10 and 30 minutes and a 30-minute slice from its middle,
     every accelerometer axis's N is an estimate with an interval above 0, the full run's within 15 % of the white
     level the AV shows at 0.08 s (sqrt(tau AV): the sensor's filter lowers it there by ~1.5 tf / tau, up to 10 %
     with tf ~ 5-10 ms, the other terms raise it by a few per cent; measured 1.05-1.09), and each slice's N within

@@ -82,11 +82,11 @@ def test_defaults_on_real_accelerometers_plausible_or_flagged(name):
 def test_defaults_on_short_real_records_plausible_or_flagged(minutes):
     """The records robotics users make: the first 30 / 60 minutes of ADIS run 1. Every default
     method gives N in 1.9-3.0 deg/sqrt(h) and B in 15-80 deg/h, or flags what is outside (B "not
-    resolved" with its interval, or a poor fit). The issue's target is in range on >= 90 % of the
+    resolved" with its interval, or a poor fit). The target is in range on >= 90 % of the
     slices: on the three axes of one record that is all three, which the 60-minute slice is held to
     (at 30 minutes run 1 z is the one exception over the six runs, and it is flagged; the share over
-    all six runs is ``real_runs --slices``, results/real/slices.md). Before issue 24's third round
-    ``gmwm_despiked`` kept the plain ``WN+GM+RW`` model and said "B not resolved" on x."""
+    all six runs is ``real_runs --slices``, results/real/slices.md). ``gmwm_despiked`` with the plain
+    ``WN+GM+RW`` model says "B not resolved" on x; its default model is the real sensor's."""
     from avbench.recordings.fit import fit_axis
     from avbench.recordings.report import coefficient_flags
     from avbench.studies.real_runs import SLICE_B_RANGE, SLICE_N_RANGE
@@ -111,7 +111,7 @@ ADIS2, _needs_adis2 = real_recording("adis16405-calgary/adis_16405_imu2.npz")
 
 @_needs_adis2
 def test_gyro_z_hump_is_a_resonance_the_default_models():
-    """ADIS16405 run 2, gyro z (results/real/README.md, fourth round): a band near 20 Hz stands out of
+    """ADIS16405 run 2, gyro z (results/real/README.md): a band near 20 Hz stands out of
     the spectrum, gmwm_filtered adds a resonance there and fits every octave, and the fit passes the
     check; on gyro x (no band) nothing is added. The rule can say no: x's band test is reported."""
     import warnings

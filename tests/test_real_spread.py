@@ -1,5 +1,5 @@
 """avbench.studies.real_runs_spread: the run-to-run spread of N and B on simulated ADIS16405 gyros, today's
-default methods against the configuration before issue 24 (results/real/spread.md). No real data needed:
+default methods against the plain-model configuration (results/real/spread.md). No real data needed:
 the simulation reads the committed axis models (results/real/spread_models.csv)."""
 
 import math

@@ -1,5 +1,5 @@
 """The static-record check (recordings/static.py): no alarm on records at rest, the alarm and where on
-records that move (issue 28)."""
+records that move."""
 
 from __future__ import annotations
 

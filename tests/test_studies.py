@@ -24,6 +24,7 @@ from conftest import STUDY_COLS as COLS
 from conftest import study_toml
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.curve_fits.least_squares import OLS
+from avbench.estimators.results import FitParts
 from avbench.studies.config import load_config, parse_config
 from avbench.studies.report import summarize
 from avbench.studies.runner import (
@@ -53,7 +54,8 @@ class Flaky(Estimator):
             if self.mode == "raise":
                 raise RuntimeError("deliberate failure (rate[0] > 0)")
             if self.mode == "report":
-                return {c: math.nan for c in self.terms}, {}, {"failure": "diverged at sample 7 (deliberate)"}
+                failure = "diverged at sample 7 (deliberate)"
+                return {c: math.nan for c in self.terms}, {}, {"failure": failure}, FitParts(failure=failure)
             if self.mode == "nonfinite":
                 return {c: math.inf for c in self.terms}, {}, {}
             if self.mode == "exit" and os.getpid() != self.parent_pid:  # never in the test process
@@ -181,14 +183,14 @@ def test_impossible_setting_is_a_config_error(tmp_path):
     ("nekf_multitau", "m = [1, 1]", "distinct"),
     ("arma_em", 'terms = "QNBK"', "quantization"),
     ("wls_edf_hadamard", 'terms = "NBKR"', "rate ramp"),
-    # relations between settings (the class's check_settings)
+    # relations between settings (the class's setting_relations)
     ("shakf", 'terms = "NB", x0 = { N = 1e-4 }', "x0: expected exactly the modelled terms NB, missing"),
     ("shakf_multitau", 'terms = "N", m = 3, R0 = [1.0, 2.0]', "R0: expected a positive number or 3"),
     ("nnls_rel", 'terms = "QB", filter = "fit"', "expected N in terms"),
-    ("arma_em", 'x0 = { N = 1e-3 }', "x0: expected exactly the modelled coefficients"),
+    ("arma_em", 'x0 = { N = 1e-3 }', "x0: expected exactly the modelled terms NBK, missing"),
 ])
 def test_settings_are_checked_without_trial_fits(tmp_path, monkeypatch, name, bad, match):
-    """A config's estimator settings are checked by the class's declaration, its ``check_settings()``
+    """A config's estimator settings are checked by the class's declaration (constraints and relations)
     and against the record, never by fitting (trial fits of GMWM made loading a 16-gyro config take
     minutes): nothing is fitted for valid settings, and bad settings are a config error naming the
     setting."""
@@ -207,14 +209,15 @@ def test_settings_are_checked_without_trial_fits(tmp_path, monkeypatch, name, ba
 
 def test_plugin_settings_are_checked_only_by_what_it_declares(tmp_path, monkeypatch):
     """An estimator that declares nothing (``test_flaky``, a plugin of this module) is not fitted when
-    the config is read: any value of its settings passes, and the checks of the settings several
-    estimators share still apply (``terms``)."""
+    the config is read: any value of its settings passes (no setting is checked by its name alone), and
+    a setting its ``__init__`` does not take is refused naming those it does."""
     fitted = []
     monkeypatch.setattr(Flaky, "_fit", lambda self, rate, dt: fitted.append(rate.size))
-    load_config(write(tmp_path, study_toml(extra_estimators=flaky_toml("no such mode", marker=3))))
+    load_config(write(tmp_path, study_toml(extra_estimators=flaky_toml("no such mode", marker=3, terms="QX"))))
     assert fitted == []
-    with pytest.raises(ValueError, match=r"estimators\[2\]\.settings: \(gyro g1\) .*terms: expected a non-empty subset"):
-        load_config(write(tmp_path, study_toml(extra_estimators=flaky_toml("raise", terms="QX"))))
+    with pytest.raises(ValueError, match=r"estimators\[2\]\.settings: \(gyro g1\) .*unknown setting\(s\) "
+                                         r"colour; accepted: mode, terms, parent_pid, marker"):
+        load_config(write(tmp_path, study_toml(extra_estimators=flaky_toml("raise", colour="red"))))
 
 
 def test_worker_death_retried_once_then_study_completes(tmp_path):

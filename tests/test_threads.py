@@ -35,7 +35,7 @@ def test_a_fit_runs_on_one_blas_thread(monkeypatch):
         return inner
 
     # the solvers a least-squares fit may call: the normal equations' eigenvalues and Cholesky factor
-    # (issue 25), the SVD fallback
+    # the SVD fallback
     for module, name in ((np.linalg, "lstsq"), (np.linalg, "eigvalsh"), (scipy.linalg, "cho_factor")):
         monkeypatch.setattr(module, name, spy(getattr(module, name)))
     x = np.random.default_rng(0).standard_normal(20_000) * 1e-3

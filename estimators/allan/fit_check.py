@@ -175,6 +175,7 @@ no variance).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import warnings
@@ -625,6 +626,32 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
     return out
 
 
+def as_fit_check(entries: dict):
+    """The :class:`~avbench.estimators.results.FitCheck` of the entries :func:`assess_fit` (or another
+    check of the same form, the Whittle spectral check) returns: the flag, statistic, degrees of
+    freedom, p-value, reference, the check in words (``fit_reading``) and, where the check is made per AV
+    scale, the finite residuals ``(tau, z)``."""
+    from avbench.estimators.results import FitCheck
+
+    check = entries.get("fit_check")
+    residuals = None
+    if isinstance(check, dict) and "z" in check and "tau" in check:
+        tau, z = np.asarray(check["tau"], float), np.asarray(check["z"], float)
+        ok = np.isfinite(z)
+        if ok.any():
+            residuals = (tau[ok], z[ok])
+    dof = entries.get("fit_dof")
+    pf = entries.get("poor_fit")
+    return FitCheck(poor_fit=None if pf is None else bool(pf), stat=_float(entries.get("fit_stat")),
+                    dof=None if dof is None else int(dof), pvalue=_float(entries.get("fit_pvalue")),
+                    reference=entries.get("fit_reference"), residuals=residuals,
+                    reading=entries.get("fit_reading"))
+
+
+def _float(v) -> float:
+    return math.nan if v is None else float(v)
+
+
 def assess_five_term(rate, dt, coefs, n_params, tau_range=None, *, alpha=ALPHA, refit=None) -> dict:
     """:func:`assess_fit` for coefficients of the five-term model (NaN / missing terms omitted).
 
@@ -668,21 +695,23 @@ def bootstrap_fit_check(estimator, n_samples: int, dt: float, n_draws: int = 199
     if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 19:
         raise ValueError(f"n_draws: expected an integer >= 19 (p-values down to 0.05), got {n_draws!r}")
     d = estimator.diagnostics_
-    T = d.get("fit_stat")
-    if T is None or not np.isfinite(T):
+    T = estimator.parts_.fit_check.stat
+    if not np.isfinite(T):
         return estimator
     from avbench.estimators.uncertainty import refits
 
     stats_ = []
     for e in refits(estimator, int(n_samples), dt, n_draws, seed):
-        t = e.diagnostics_.get("fit_stat")
-        if t is not None and not np.isnan(t):
+        t = e.parts_.fit_check.stat
+        if not np.isnan(t):
             stats_.append(float(t))
     if not stats_:
         return estimator
     b = np.array(stats_)
     p = float((1 + np.sum(b >= T)) / (b.size + 1))
-    ref = f"parametric bootstrap, {b.size} draws"
-    d.update(fit_pvalue=p, poor_fit=bool(p < d.get("fit_check", {}).get("alpha", ALPHA)), fit_reference=ref,
-             fit_boot_stats=b, fit_reading=reading(T, d.get("fit_dof"), p, ref, float(np.mean(b))))
+    poor, reference = bool(p < d.get("fit_check", {}).get("alpha", ALPHA)), f"parametric bootstrap, {b.size} draws"
+    read = reading(T, d.get("fit_dof"), p, reference, float(np.mean(b)))
+    d.update(fit_pvalue=p, poor_fit=poor, fit_reference=reference, fit_boot_stats=b, fit_reading=read)
+    estimator.parts_ = dataclasses.replace(estimator.parts_, fit_check=dataclasses.replace(
+        estimator.parts_.fit_check, poor_fit=poor, pvalue=p, reference=reference, reading=read))
     return estimator

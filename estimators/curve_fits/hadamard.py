@@ -31,7 +31,8 @@ import math
 import numpy as np
 
 from avbench.estimators.allan.deviations import deviation, edf_quadratic
-from avbench.estimators.allan.fit_check import assess_five_term
+from avbench.estimators.allan.fit_check import as_fit_check, assess_five_term
+from avbench.estimators.results import FitParts
 from avbench.estimators.allan.model import PLATEAU, TAU_POWER
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
@@ -99,7 +100,8 @@ class HadamardEDFWeightedLS(Estimator):
         hv = deviation(rate, dt, "ohvar", self.taus, edf=False)
         X = hadamard_design_matrix(hv.tau, terms)
         if len(hv.tau) < len(terms):
-            return {c: np.nan for c in terms}, {}, {"failure": f"only {len(hv.tau)} Hadamard values for {len(terms)} coefficients"}
+            failure = f"only {len(hv.tau)} Hadamard values for {len(terms)} coefficients"
+            return {c: np.nan for c in terms}, {}, {"failure": failure}, FitParts(failure=failure)
         noise_of_column = np.array([_NOISE_OF_TERM[t] for t in terms], dtype=object)
         K = hv.J
         beta = solve_scaled(X, hv.avar, K.astype(float))
@@ -123,5 +125,6 @@ class HadamardEDFWeightedLS(Estimator):
             "row_scale": scale,
             "edf": edf,
         }
-        diag.update(assess_five_term(rate, dt, coefs, len(terms), (hv.tau.min(), hv.tau.max())))
-        return coefs, nonphys, diag
+        check = assess_five_term(rate, dt, coefs, len(terms), (hv.tau.min(), hv.tau.max()))
+        diag.update(check)
+        return coefs, nonphys, diag, FitParts(fit_check=as_fit_check(check))

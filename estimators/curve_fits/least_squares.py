@@ -34,7 +34,8 @@ from avbench.estimators.validation import check_terms
 from avbench.noise_models.units import COEFFICIENTS
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
-from avbench.estimators.allan.fit_check import assess_five_term
+from avbench.estimators.allan.fit_check import as_fit_check, assess_five_term
+from avbench.estimators.results import FitParts
 
 __all__ = ["OLS", "TrimmedOLS", "WLS", "EDFWeightedLS", "solve_scaled", "solve_normal", "solve_power_design",
            "edf_table", "edf_of_rows", "ls_std_err", "MAX_GRAM_COND"]
@@ -151,10 +152,8 @@ class _AVCurveFit(Estimator):
         mask, scale, extra, sums = self._weights(av, terms)
         if mask.sum() < len(terms):
             coefs = {c: np.nan for c in terms}
-            return coefs, {}, {
-                "failure": f"only {int(mask.sum())} AV values usable for {len(terms)} coefficients",
-                "allan": av,
-            }
+            failure = f"only {int(mask.sum())} AV values usable for {len(terms)} coefficients"
+            return coefs, {}, {"failure": failure, "allan": av}, FitParts(failure=failure)
         rs = None if scale is None else scale[mask]
         if mask.all():
             beta = solve_power_design(av.tau, av.avar, terms, rs, sums=sums)
@@ -172,8 +171,9 @@ class _AVCurveFit(Estimator):
             "residuals": av.avar - fitted,
             **extra,
         }
-        diag.update(assess_five_term(rate, dt, coefs, len(terms), (av.tau[mask].min(), av.tau[mask].max())))
-        return coefs, nonphys, diag
+        check = assess_five_term(rate, dt, coefs, len(terms), (av.tau[mask].min(), av.tau[mask].max()))
+        diag.update(check)
+        return coefs, nonphys, diag, FitParts(fit_check=as_fit_check(check))
 
 
 @register("ols")

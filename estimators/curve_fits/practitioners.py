@@ -33,8 +33,10 @@ from avbench.estimators.allan.model import (
 )
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
-from avbench.estimators.allan.fit_check import assess_five_term
-from avbench.estimators.settings import Boolean, Interval, Options, Taus, Terms
+from avbench.estimators.allan.fit_check import as_fit_check, assess_five_term
+from avbench.estimators.results import FitParts
+from avbench.estimators.selection import choices
+from avbench.estimators.settings import Boolean, Interval, Options, Relation, Taus, Terms
 from avbench.estimators.validation import check_terms
 
 __all__ = [
@@ -225,8 +227,16 @@ class SlopeLines(_AVBaseline):
         diag = {"tau": tau, "avar": avar, "tau_used": {c: float(tau[i]) for c, i in used.items()}}
         refit = self._refit(tau, avar,
                             lambda a: slope_line_coefficients(tau, np.sqrt(a), terms, ordered=bool(self.ordered))[0])
-        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit))
-        return coefs, {}, diag
+        check = assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit)
+        diag.update(check)
+        return coefs, {}, diag, FitParts(fit_check=as_fit_check(check))
+
+
+def _filter_needs_n(filter, terms) -> None:
+    """A filter (``filter`` "auto" or "fit") filters the white noise: N must be in ``terms``."""
+    terms = check_terms(terms)
+    if filter != "none" and "N" not in terms:
+        raise ValueError(f"filter={filter!r} filters the white noise N: expected N in terms, got {terms!r}")
 
 
 @register("log_fit")
@@ -269,13 +279,16 @@ class LogFit(_AVBaseline):
         coefs, nonphys = coefficients_from_beta(beta, terms)
         diag = {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": design_matrix(tau, terms) @ beta,
                 "cost": float(sol.cost), "success": bool(sol.success)}
-        if not sol.success:
-            diag["failure"] = f"least_squares: {sol.message}"
+        failure = None if sol.success else f"least_squares: {sol.message}"
+        if failure:
+            diag["failure"] = failure
         sens = log_fit_sensitivity(tau, avar, terms, beta, sol) if sol.success else None
         refit = self._refit(tau, avar, lambda a: coefficients_from_beta(log_fit_beta(tau, a, terms)[0], terms)[0],
                             None if sens is None else (lambda t: design_matrix(t, terms) @ sens))
-        diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit))
-        return coefs, nonphys, diag
+        check = assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit)
+        diag.update(check)
+        return coefs, nonphys, diag, FitParts(fit_check=as_fit_check(check), failure=failure,
+                                              converged=bool(sol.success))
 
 
 def log_fit_beta(tau, avar, terms):
@@ -507,13 +520,15 @@ class NNLSRel(_AVBaseline):
     """
 
     #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
-    diagnostic_units = {"line_test": {"amplitude": 1}}
+    diagnostic_units = {"line_test": choices.UNITS["line_test"]}
 
     parameter_constraints = {
         **_AVBaseline.parameter_constraints,
         "filter": [Options("none", "auto", "fit")],
         "lines": [Options("none", "auto")],
     }
+    setting_relations = (Relation(("filter", "terms"), lambda est: _filter_needs_n(est.filter, est.terms),
+                                  "a filter filters the white noise: N in terms"),)
 
     def __init__(self, *, terms="QNBKR", taus="octave", overlapping=True, min_clusters=2, filter="none",
                  lines="none"):
@@ -524,16 +539,8 @@ class NNLSRel(_AVBaseline):
         self.filter = filter
         self.lines = lines
 
-    def check_settings(self):
-        """The relation between settings: a filter (``filter`` "auto" or "fit") filters the white noise,
-        so N must be in ``terms``."""
-        terms = check_terms(self.terms)
-        if self.filter != "none" and "N" not in terms:
-            raise ValueError(f"filter={self.filter!r} filters the white noise N: expected N in terms, got {terms!r}")
-
     @one_blas_thread()
     def _fit(self, rate, dt):
-        self.check_settings()
         terms, tau, avar = self._prepare(rate, dt)
         if self.filter == "none" and self.lines == "none":
             beta = nnls_rel_beta(tau, avar, terms)
@@ -541,8 +548,9 @@ class NNLSRel(_AVBaseline):
             fitted = design_matrix(tau, terms) @ beta
             diag = {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": fitted}
             refit = self._refit(tau, avar, lambda a: coefficients_from_beta(nnls_rel_beta(tau, a, terms), terms)[0])
-            diag.update(assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit))
-            return coefs, nonphys, diag
+            check = assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit)
+            diag.update(check)
+            return coefs, nonphys, diag, FitParts(fit_check=as_fit_check(check))
         return self._fit_shaped(rate, dt, terms, tau, avar)
 
     def _fit_shaped(self, rate, dt, terms, tau, avar):
@@ -561,7 +569,7 @@ class NNLSRel(_AVBaseline):
             fit = self._shaped(rate, dt, terms, tau, avar, filter_bounds(tau, dt), f0_range)
             if line is not None:
                 fit["diag"]["line_test"] = line
-            return fit["coefs"], fit["nonphys"], fit["diag"]
+            return fit["coefs"], fit["nonphys"], fit["diag"], self._parts(fit, line, None)
         fit = self._shaped(rate, dt, terms, tau, avar, None, f0_range)
         filter_test = None
         if self.filter == "auto":
@@ -575,7 +583,14 @@ class NNLSRel(_AVBaseline):
             diag["line_test"] = line
         if filter_test is not None:
             diag["filter_test"] = filter_test
-        return fit["coefs"], fit["nonphys"], diag
+        return fit["coefs"], fit["nonphys"], diag, self._parts(fit, line, filter_test)
+
+    @staticmethod
+    def _parts(fit, line, filter_test) -> FitParts:
+        """The typed parts of the shaped fit ``fit``: its check, the line and filter tests made, its parameters."""
+        made = ([] if line is None else [choices.line_test(line)]) + \
+            ([] if filter_test is None else [choices.filter_test(filter_test)])
+        return FitParts(fit_check=fit["check"], choices=tuple(made), parameters=dict(fit["params"]))
 
     def _shaped(self, rate, dt, terms, tau, avar, tf_range, f0_range) -> dict:
         """One shaped fit (:func:`profile_shapes`) with its poor-fit check."""
@@ -610,9 +625,11 @@ class NNLSRel(_AVBaseline):
         if self.overlapping:
             refit = (np.rint(tau / dt).astype(np.int64), avar, refit_fn)
         n_params = k + (tf is not None) + 2 * (f0 is not None)
-        diag.update(assess_fit(rate, dt, lambda t: shaped_design(t, dt, terms, tf, f0) @ beta, gyro, n_params,
-                               (tau[0], tau[-1]), refit=refit))
-        return {"coefs": coefs, "nonphys": nonphys, "diag": diag, "tf": tf if tf is not None else math.nan}
+        check = assess_fit(rate, dt, lambda t: shaped_design(t, dt, terms, tf, f0) @ beta, gyro, n_params,
+                           (tau[0], tau[-1]), refit=refit)
+        diag.update(check)
+        return {"coefs": coefs, "nonphys": nonphys, "diag": diag, "tf": tf if tf is not None else math.nan,
+                "check": as_fit_check(check), "params": params}
 
     def model_avar(self, tau) -> np.ndarray:
         """The curve this fit made: the five-term AV of ``coefficients_``, with the filter's and the line's

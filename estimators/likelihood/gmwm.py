@@ -73,7 +73,7 @@ bias instability (``bias_evidence``, :mod:`~avbench.estimators.selection.bias_mo
 of coefficients the fit does not resolve (:mod:`~avbench.estimators.selection.bounds`). With ``min_m="adequate"`` the
 shortest scale is never beyond the record's white region (:func:`~avbench.estimators.selection.scales.white_reach`); where that
 region is short (an accelerometer's, between its filter and the set-up's 0.5 Hz line) the intervals hold each
-cut-off within it the record accepts (``diagnostics_["scale_alternatives"]``, :meth:`GMWM.conf_int`).
+cut-off within it the record accepts (``diagnostics_["scale_alternatives"]``, :meth:`Estimator.conf_int`).
 
 Solver
 ------
@@ -101,7 +101,9 @@ import numpy as np
 from scipy.linalg import cho_factor
 
 from avbench.estimators.allan.covariance import av_covariance
-from avbench.estimators.allan.fit_check import assess_fit
+from avbench.estimators.allan.fit_check import as_fit_check, assess_fit
+from avbench.estimators.results import Alternative, FitCheck, FitParts
+from avbench.estimators.selection import choices
 from avbench.estimators.allan.variance import _noise_codes_from_slope, allan_variance
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.likelihood._gmwm_model import LatentAV, log_bounds, log_starts, report
@@ -112,7 +114,7 @@ from avbench.estimators.selection.lines import choose_line, frequency_at_bound, 
 from avbench.estimators.selection.resonance import band_seen, choose_resonance, resonance_hint
 from avbench.estimators.selection.scales import (ScaleChoice, choose_scales, cutoffs, reach_binds, shorter_adequate,
                                                  white_reach)
-from avbench.estimators.settings import Boolean, Check, Interval, NoneValue, Options
+from avbench.estimators.settings import Boolean, Check, Interval, NoneValue, Options, Relation
 from avbench.estimators.threads import one_blas_thread
 from avbench.noise_models.latents import (  # noqa: F401  (LATENTS, build_gyro: importable from here)
     LATENT_TERMS,
@@ -189,6 +191,13 @@ def _alternative_units(min_m) -> dict:
 #: ``model``'s grammar, as a declared setting reads it
 _MODEL = (f"a latent model: names from {', '.join(LATENT_TERMS)} joined by '+' (e.g. 'WN+GM+RW') or a list of "
           "them, without repeats, at most one term per coefficient")
+
+
+def _held_filter_in_model(filter_tf, model) -> None:
+    """``filter_tf`` holds the time constant of ``FW``, which the model must have (a ValueError naming it)."""
+    if filter_tf is not None and "FW" not in parse_model(model):
+        raise ValueError(f"filter_tf: holds the filter latent FW's time constant, but model {model!r} "
+                         f"has no FW (e.g. model='FW+GM+RW')")
 
 
 @register("gmwm")
@@ -310,8 +319,7 @@ class GMWM(Estimator):
 
     uses_allan_variance = True
 
-    #: what each setting accepts (:mod:`avbench.estimators.settings`); :meth:`check_settings` adds the
-    #: relation between them
+    #: what each setting accepts (:mod:`avbench.estimators.settings`), and the relation between them
     parameter_constraints = {
         "model": [Check(parse_model, _MODEL)],
         "min_clusters": [Interval(int, 2, None)],
@@ -324,11 +332,11 @@ class GMWM(Estimator):
         "filter_tf": [NoneValue(), Interval(float, 0, None, closed="neither")],
         "fit_covariance": [Options("model", "record")],
     }
+    setting_relations = (Relation(("filter_tf", "model"), lambda est: _held_filter_in_model(est.filter_tf, est.model),
+                                  "filter_tf holds the time constant of the model's FW"),)
 
     #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
-    diagnostic_units = {"line_test": {"amplitude": 1}, "resonance_test": {"sigma": 1},
-                        "bias_evidence": {m: {"B": 1, "coefficients": 1, "std_err": 1} for m in ("GM", "FL")},
-                        "scale_alternatives": _alternative_units}
+    diagnostic_units = {**choices.UNITS, "scale_alternatives": _alternative_units}
 
     #: run the poor-fit check (:func:`avbench.estimators.allan.fit_check.assess_fit`); not a setting: an estimator
     #: that uses the GMWM fit only as its start sets it False on its instance
@@ -346,17 +354,6 @@ class GMWM(Estimator):
         self.bias_evidence = bias_evidence
         self.filter_tf = filter_tf
         self.fit_covariance = fit_covariance
-
-    # -- settings --------------------------------------------------------------------------------
-    def check_settings(self):
-        """The relation between settings, after each setting is checked against :attr:`parameter_constraints`
-        (``get``, ``fit`` and study configs do that): ``filter_tf`` holds the time constant of ``FW``, which the
-        model must have; a ValueError naming it otherwise. Returns the parsed latents."""
-        latents = parse_model(self.model)
-        if self.filter_tf is not None and "FW" not in latents:
-            raise ValueError(f"filter_tf: holds the filter latent FW's time constant, but model {self.model!r} "
-                             f"has no FW (e.g. model='FW+GM+RW')")
-        return latents
 
     def _n_free(self, latents) -> int:
         """The number of parameters the fit of ``latents`` estimates (a tf held at ``filter_tf`` is not one)."""
@@ -389,11 +386,11 @@ class GMWM(Estimator):
         wv = self._wavelet_variance(rate, dt)
         kept = shared.current()
         if kept is None:
-            coefs, diag = self._fit_curve(rate, dt, wv)
+            coefs, diag, parts = self._fit_curve(rate, dt, wv)
         else:
-            coefs, diag = kept.outcome(self._choice_key(rate, dt, wv), lambda: self._fit_curve(rate, dt, wv))
+            coefs, diag, parts = kept.outcome(self._choice_key(rate, dt, wv), lambda: self._fit_curve(rate, dt, wv))
         diag.update(wv.diagnostics or {})
-        return coefs, {}, diag
+        return coefs, {}, diag, parts
 
     #: the settings of :class:`GMWM` that shape its fit of the curve (the key of :meth:`_choice_key`)
     _CHOICE_SETTINGS = ("model", "min_clusters", "min_m", "weighting", "n_starts", "lines", "resonance",
@@ -412,9 +409,9 @@ class GMWM(Estimator):
         return shared.choice_key(rate, dt, [wv.tau, wv.avar, wv.m, wv.edf, wv.white_gain], settings, code)
 
     def _fit_curve(self, rate, dt, wv):
-        """``(coefficients, diagnostics)``: the model choices and the fit of the wavelet variance ``wv`` of
-        ``rate``."""
-        latents = self.check_settings()
+        """``(coefficients, diagnostics, typed parts)``: the model choices and the fit of the wavelet variance
+        ``wv`` of ``rate``."""
+        latents = parse_model(self.model)
         n = rate.size
         usable = (n // wv.m >= self.min_clusters) & (wv.avar > 0)
         line = None
@@ -462,7 +459,7 @@ class GMWM(Estimator):
             diag["resonance_test"] = resonance_test or {"included": "RS" in latents, "reason": "in the model"}
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
             diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
-            return best["coefs"], diag
+            return best["coefs"], diag, self._parts(diag, line, resonance_test, evidence)
         tau_ok, upper_av = bounds.av_upper_limits(wv.tau, wv.avar, wv.edf, usable)
         unresolved = {}
         if "GM" in latents:
@@ -478,39 +475,29 @@ class GMWM(Estimator):
             self._record_std_err(diag, latents, gyro, check["fit_check"].get("record_factor"), n, wv.cov_scale)
         diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
         diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
-        return best["coefs"], diag
+        return best["coefs"], diag, self._parts(diag, line, resonance_test, evidence, check, unresolved)
 
-    def conf_int(self, level=0.95, conservative=False):
-        """The intervals of :meth:`Estimator.conf_int`, each widened to hold the same coefficient's interval
-        (and value) under the other bias-instability model where the record cannot choose between them
-        (``bias_evidence`` not decisive: the other model's Akaike weight is at least 1 -
-        :data:`~avbench.estimators.selection.bias_model.BIAS_EVIDENCE_WEIGHT`), and under each longer cut-off
-        within the white reach that Hansen's J accepts (``scale_alternatives``: where the record's white region is
-        short, which octaves of the sensor's front end a fit keeps moves N, through the filter term, by more than
-        its standard error, and the record accepts several).
-
-        The reported value stays this model's; the interval is the union of the models' intervals
-        (model uncertainty kept in the interval, as model-averaged intervals do, Buckland, Burnham &
-        Augustin 1997, but conservative: it holds the coefficient under each model)."""
-        import pandas as pd
-
-        from avbench.estimators.uncertainty import interval
-
-        ci = super().conf_int(level, conservative)
-        alts = list((self.diagnostics_.get("scale_alternatives") or {}).values())
-        alt = bias_model.undecided_alternative(self.diagnostics_.get("bias_evidence"))
-        for alt in alts + ([alt] if alt is not None else []):
-            coefs = pd.Series(alt["coefficients"], dtype=float)
-            other = interval(coefs, pd.Series(alt["std_err"], dtype=float).reindex(coefs.index), level, conservative)
-            for c in coefs.index:
-                own = self.coefficients_.get(c, math.nan)
-                v = coefs[c]
-                if not (np.isfinite(own) and np.isfinite(v)):
-                    continue
-                lo = np.nanmin([ci.at[c, "lower"], other.at[c, "lower"], v])
-                hi = np.nanmax([ci.at[c, "upper"], other.at[c, "upper"], v])
-                ci.loc[c] = (lo, hi)
-        return ci
+    def _parts(self, diag, line, resonance_test, evidence, check=None, unresolved=None) -> FitParts:
+        """The typed parts of the fit whose diagnostics are ``diag``: its check, the bounds of the terms it
+        does not resolve, the choices made (in the order line, filter, resonance, bias model, first scale)."""
+        made = [choices.line_test(line)] if line is not None else []
+        if self.filter_tf is not None:
+            made.append(choices.filter_held(self.filter_tf))
+        if self.resonance == "auto":
+            made.append(choices.resonance_test(diag["resonance_test"]))
+        if evidence is not None:
+            made.append(choices.bias_evidence(evidence))
+        made.append(choices.first_scale(diag["min_m"]))
+        failure = diag.get("failure")
+        others = list((diag.get("scale_alternatives") or {}).values())
+        undecided = bias_model.undecided_alternative(evidence)
+        others += [undecided] if undecided is not None else []
+        return FitParts(fit_check=FitCheck(None) if check is None else as_fit_check(check),
+                        alternatives=tuple(Alternative(dict(a["coefficients"]), dict(a["std_err"])) for a in others),
+                        unresolved={c: float(b[1]) if b[1] is not None else math.nan
+                                    for c, b in (unresolved or {}).items()},
+                        choices=tuple(made), parameters=dict(diag["params"]), failure=failure,
+                        converged=failure is None)
 
     @staticmethod
     def _alternatives(latents, fits, dt) -> dict:
@@ -722,7 +709,7 @@ class GMWMFiltered(GMWM):
     shortest cut-off the model fits by Hansen's J; it differs from ``"auto"`` only where the all-scale fit
     is rejected), ``resonance="auto"`` (a band-pass Gauss-Markov term ``RS`` where a band stands out of
     the spectrum and lets the model keep shorter scales), ``bias_evidence=True`` (the record's weights
-    for a Gauss-Markov against a flicker B; where they are not decisive, :meth:`GMWM.conf_int` widens each
+    for a Gauss-Markov against a flicker B; where they are not decisive, :meth:`Estimator.conf_int` widens each
     interval to hold the flicker fit's too) and ``fit_covariance="record"`` (the poor-fit check and the standard
     errors take each AV value's variance from the record where it is larger than the stationary model's: a real
     sensor's noise level may move during the record).

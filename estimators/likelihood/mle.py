@@ -97,7 +97,8 @@ import pandas as pd
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.settings import Check, Interval, Options
 from avbench.estimators.threads import one_blas_thread
-from avbench.estimators.allan.fit_check import assess_fit
+from avbench.estimators.allan.fit_check import as_fit_check, assess_fit
+from avbench.estimators.results import FitCheck, FitParts
 from avbench.estimators.likelihood.gmwm import GMWM, build_gyro, parse_model
 from avbench.noise_models.latents import LATENT_TERMS
 from avbench.noise_models.units import COEFFICIENTS
@@ -263,6 +264,7 @@ class MLE(Estimator):
         elif not fit["converged"]:  # values at a point that is not the maximum: reported, not trusted
             diag["failure"] = (f"the likelihood's maximum was not reached ({fit['polish_iterations']} Newton "
                                "iterations after L-BFGS-B; the values are where they stopped)")
+        check, k = None, len(system.names) + ("DR" in latents)
         if np.isfinite(llf):
             p = diag["params"]
             # the likelihood's parameters: each stochastic term's fit parameters (the drift is a state)
@@ -274,9 +276,15 @@ class MLE(Estimator):
                 values.append(coefs[LATENT_TERMS[drift].coefficient])
             n_par = sum(len(LATENT_TERMS[lat].fit_parameters) for lat in latents)
             gyro = build_gyro(kept, values, dt)
-            diag.update(assess_fit(rate, dt, gyro.avar, gyro, n_par, (m * dt, math.inf)))
+            check = assess_fit(rate, dt, gyro.avar, gyro, n_par, (m * dt, math.inf))
+            diag.update(check)
             diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
-        return coefs, {}, diag
+        ll = diag["loglike"]
+        parts = FitParts(fit_check=FitCheck(None) if check is None else as_fit_check(check),
+                         parameters=dict(diag["params"]), failure=diag.get("failure"), llf=ll,
+                         aic=-2.0 * ll + 2.0 * k, bic=-2.0 * ll + k * math.log(y.size),
+                         converged=bool(fit["converged"]), n_iter=int(fit["polish_iterations"]))
+        return coefs, {}, diag, parts
 
 
 #: GM correlation times the GMWM start tries (GMWM's default is 6; the likelihood refines the start)

@@ -146,12 +146,14 @@ import math
 import numpy as np
 import pandas as pd
 
+from avbench.estimators.allan.fit_check import as_fit_check
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.likelihood.whittle_intervals import evidence_table, profile_evidence, zero_bounds
 from avbench.estimators.likelihood.whittle_likelihood import WhittleFit, spectral_fit_check, whittle_fit
 from avbench.estimators.likelihood.whittle_spectra import (component, component_of, components, is_shaped, trend,
                                                            walk)
-from avbench.estimators.selection import averaging
+from avbench.estimators.results import Evidence, FitParts
+from avbench.estimators.selection import averaging, choices
 from avbench.estimators.selection.elimination import (PENALTY, SLOPE_PENALTY, backward_elimination,
                                                       choose_by_criterion, penalised, wald_drop_candidates)
 from avbench.estimators.selection.profile import steeper_negative_neighbours
@@ -181,6 +183,17 @@ def _n_par(comps) -> int:
 def _label(c) -> str:
     """The coefficient component ``c`` reports (a Gauss-Markov term reports B)."""
     return component(c).coefficient
+
+
+def _typed_evidence(table: pd.DataFrame, level: float) -> dict:
+    """Each row of the evidence table (:func:`~avbench.estimators.likelihood.whittle_intervals.evidence_table`)
+    as an :class:`~avbench.estimators.results.Evidence`."""
+    def num(v):
+        return math.nan if v is None else float(v)
+
+    return {c: Evidence(lr=num(r["lr"]), p_value=num(r["p_value"]), present=bool(r["present"]),
+                        lower=num(r["lower"]), upper=num(r["upper"]), level=float(level))
+            for c, r in table.iterrows()}
 
 
 def _check_whittle_terms(terms) -> None:
@@ -289,14 +302,10 @@ class Whittle(Estimator):
         self.interval_domain = interval_domain
         self.averaging = averaging
 
-    def check_settings(self):
-        """The parsed ``terms``. Every setting is declared in :attr:`parameter_constraints` and none
-        depends on another: a setting that applies only with another (``interval_domain`` with
-        ``intervals="profile"`` and ``domain="spectrum"``) is without effect otherwise."""
-        return check_terms(self.terms)
-
     def _fit(self, rate, dt):
-        terms = self.check_settings()
+        # every setting is declared and none depends on another: a setting that applies only with another
+        # (interval_domain with intervals="profile" and domain="spectrum") is without effect otherwise
+        terms = check_terms(self.terms)
         wf = WhittleFit(rate, dt, reml=self.reml, debiased=self.spectrum == "debiased")
         signed = self.domain == "spectrum"
         n = rate.size
@@ -349,6 +358,7 @@ class Whittle(Estimator):
             full_coefs, full_se = coefs, se
         else:
             full_coefs, full_se, _, _ = self._report(wf, full, full_kept, terms, select=False, k_drift=k_full)
+        zeros = zero_bounds(wf, chosen, kept, terms, coefs, se)
         diag = {
             "terms": "".join(_label(c) for c in kept) + (trend() if tr else ""),
             "loglik": float(chosen["loglik"]),
@@ -360,7 +370,7 @@ class Whittle(Estimator):
             "std_err": se,
             "full_std_err": full_se,
             "full_coefficients": pd.Series(full_coefs, dtype=float).reindex(list(COEFFICIENTS)),
-            **zero_bounds(wf, chosen, kept, terms, coefs, se),
+            **zeros,
             "selection": {"".join(k): float(bic(v)) for k, v in fits.items()},
             "ramp_z2": ramp_z2,
             "bias_model": shape,
@@ -371,12 +381,26 @@ class Whittle(Estimator):
         if bias_choice.weights is not None:  # bias="select": the full models' weights exp(-criterion/2), normalised
             diag["bias_weights"] = bias_choice.weights
         n_params = _n_par(kept) + 1
-        diag.update(spectral_fit_check(wf, chosen, n_params))
+        check = spectral_fit_check(wf, chosen, n_params)
+        diag.update(check)
+        evidence = {}
         if self.intervals == "profile":
-            diag.update(self._evidence(wf, full, coefs, se, ramp_z2, trend() in terms))
+            found = self._evidence(wf, full, coefs, se, ramp_z2, trend() in terms)
+            diag.update(found)
+            evidence = _typed_evidence(found["evidence"], found["evidence_level"])
+        failure = None
         if not chosen["converged"]:
-            diag["failure"] = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
-        return coefs, {}, diag
+            failure = diag["failure"] = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
+        made = [choices.bias_model(shape, bias_choice.criteria if len(fulls) > 1 else None, bias_choice.weights),
+                choices.criteria({"".join(k): float(bic(v)) for k, v in fits.items()})]
+        if weights is not None:
+            made.append(choices.term_weights({"penalty": averaging.PENALTY, "models": weights}))
+        llf, k = float(chosen["loglik"]), n_par(chosen)
+        parts = FitParts(fit_check=as_fit_check(check), evidence=evidence, choices=tuple(made), failure=failure,
+                         zero_bounds=(zeros["zero_upper"], zeros["zero_upper_power"]),
+                         llf=llf, aic=penalised(llf, k, 2.0), bic=penalised(llf, k, math.log(n)),
+                         converged=bool(chosen["converged"]), n_iter=int(chosen["n_iter"]))
+        return coefs, {}, diag, parts
 
     def _averaged(self, wf, full, n_par, signed):
         """The full fit with its variances replaced by their Akaike-weighted average over the
@@ -428,19 +452,17 @@ class Whittle(Estimator):
 
     def conf_int(self, level=0.95, conservative=False) -> pd.DataFrame:
         """With ``intervals="profile"`` and the default two-sided 95 % level: the profile-likelihood
-        intervals of ``diagnostics_["evidence"]`` (every candidate term, valid without knowing the
+        intervals of the terms' evidence (``parts_.evidence``: every candidate term, valid without knowing the
         true set); otherwise the base class's Wald intervals, nested with the profile ones so that
         intervals widen with the level: at a higher level each holds the 95 % profile interval, at a
         lower one it lies within it (the profile interval can be the wider where Wald is not valid: a
         term at its boundary, the ramp with the random walk at its bound)."""
         out = super().conf_int(level, conservative)
-        ev = self.diagnostics_.get("evidence")
-        if ev is None or conservative:
+        if not self.parts_.evidence or conservative:
             return out
-        at = self.diagnostics_["evidence_level"]
-        for c in ev.index:
+        for c, ev in self.parts_.evidence.items():
             if np.isfinite(self.coefficients_[c]):
-                lo, hi = ev.loc[c, ["lower", "upper"]].to_numpy(dtype=float)
+                lo, hi, at = ev.lower, ev.upper, ev.level
                 if math.isclose(level, at):
                     out.loc[c, ["lower", "upper"]] = lo, hi
                 elif level > at:

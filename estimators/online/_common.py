@@ -51,7 +51,8 @@ import warnings
 import numpy as np
 
 from avbench.estimators.online._kernels import FAILURES
-from avbench.estimators.settings import Check, Coefficients, Interval, NoneValue, Terms, validate_settings
+from avbench.estimators.results import FitParts
+from avbench.estimators.settings import Check, Coefficients, Interval, NoneValue, Relation, Terms, validate_settings
 from avbench.estimators.allan.model import BETA_SCALE, TAU_POWER, design_matrix
 from avbench.estimators.validation import check_terms
 from avbench.estimators.base import (
@@ -166,6 +167,17 @@ def _positive(name, value, *, integer=False, allow_zero=False):
     return int(value) if integer else float(value)
 
 
+def x0_gives_the_terms(x0, terms) -> None:
+    """``x0`` (None, or a mapping) names exactly the modelled ``terms``; a ValueError naming x0 otherwise."""
+    if x0 is None:
+        return
+    missing = [c for c in terms if c not in x0]
+    extra = [c for c in x0 if c not in terms]
+    if missing or extra:
+        raise ValueError(f"x0: expected exactly the modelled terms {''.join(terms)}, "
+                         f"missing {missing or 'none'}, extra {extra or 'none'}")
+
+
 def _published(name: str) -> property:
     """A result attribute of an online filter, built from the filter's state when first read after
     a ``partial_fit`` (its pandas Series and diagnostics are not rebuilt for every chunk: a stream
@@ -202,10 +214,20 @@ class OnlineAVFilter(Estimator):
         "trajectory_every": [Interval(int, 0, None)],
         "pd_check_every": [Interval(int, 0, None)],
     }
+    #: the relations between settings: ``x0`` gives exactly the modelled ``terms``, and ``P0``, ``Q0`` have
+    #: their sizes (a filter adds its own per-state or per-cluster-size settings)
+    setting_relations = (
+        Relation(("x0", "terms"), lambda est: x0_gives_the_terms(est.x0, check_terms(est.terms)),
+                 "x0 gives exactly the modelled terms"),
+        Relation(("P0", "Q0", "terms"), lambda est: [_matrix(k, getattr(est, k), len(check_terms(est.terms)))
+                                                     for k in ("P0", "Q0")],
+                 "P0 and Q0 have one row per modelled term"),
+    )
     coefficients_ = _published("coefficients_")
     nonphysical_ = _published("nonphysical_")
     std_err_ = _published("std_err_")
     diagnostics_ = _published("diagnostics_")
+    parts_ = _published("parts_")
 
     # -- hooks for subclasses ------------------------------------------------------------------
     def _filter_settings(self, nq: int) -> dict:  # pragma: no cover - abstract
@@ -229,25 +251,9 @@ class OnlineAVFilter(Estimator):
             return octave_m(int(m))
         return np.sort(np.asarray(m)).astype(np.int64)
 
-    def check_settings(self) -> None:
-        """The relations between settings: ``x0`` gives exactly the modelled ``terms``, and ``P0``,
-        ``Q0`` (and a filter's own per-state or per-cluster-size settings) have their sizes."""
-        terms = check_terms(self.terms)
-        if self.x0 is not None:
-            missing = [c for c in terms if c not in self.x0]
-            extra = [c for c in self.x0 if c not in terms]
-            if missing or extra:
-                raise ValueError(
-                    f"x0: expected exactly the modelled terms {''.join(terms)}, "
-                    f"missing {missing or 'none'}, extra {extra or 'none'}"
-                )
-        _matrix("P0", self.P0, len(terms))
-        _matrix("Q0", self.Q0, len(terms))
-
     def _validate(self, dt: float) -> dict:
         # partial_fit starts here without Estimator.fit: the declared settings are checked here too
         validate_settings(type(self), self.get_params())
-        self.check_settings()
         terms = check_terms(self.terms)
         nq = len(terms)
         x0 = None if self.x0 is None else {c: as_si(c, self.x0[c]) for c in terms}
@@ -424,7 +430,7 @@ class OnlineAVFilter(Estimator):
                 last = np.abs(self._scales()) * self._c_ref
                 diag["last_good"] = coefficient_series(dict(zip(self._cfg["terms"], last)))
             diag.update(self._filter_diagnostics())
-        self._set_results(coefs.to_dict(), None, diag)
+        self._set_results(coefs.to_dict(), None, diag, FitParts(failure=failure, trajectory=diag["trajectory"]))
         self._warn_if_diverged(stacklevel=5)
 
     def _warn_if_diverged(self, stacklevel=4) -> None:
@@ -442,4 +448,4 @@ class OnlineAVFilter(Estimator):
         self._reset(dt)
         self._feed(rate)
         self.flush()
-        return self.coefficients_.to_dict(), None, self.diagnostics_
+        return self.coefficients_.to_dict(), None, self.diagnostics_, self.parts_

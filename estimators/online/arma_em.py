@@ -123,7 +123,10 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.online import _arma_em_kernels as _k
-from avbench.estimators.settings import Boolean, Check, Coefficients, Interval, NoneValue, Options, validate_settings
+from avbench.estimators.results import FitParts
+from avbench.estimators.online._common import x0_gives_the_terms
+from avbench.estimators.settings import (Boolean, Check, Coefficients, Interval, NoneValue, Options, Relation,
+                                         validate_settings)
 from avbench.estimators.validation import check_terms
 from avbench.estimators.base import DivergenceWarning, Estimator, register, warn
 from avbench.noise_models.terms import B_EQUIV_OVER_SIGMA, GM_PEAK_TAU_OVER_TC
@@ -443,6 +446,8 @@ class ArmaEM(Estimator):
         "trace_every": [Interval(int, 0, None)],
         "engine": [Options(*_ENGINES)],
     }
+    setting_relations = (Relation(("x0", "terms"), lambda est: x0_gives_the_terms(est.x0, _check_supported(est.terms)),
+                                  "x0 gives exactly the modelled terms"),)
 
     def __init__(self, *, terms="NBK", x0=None, tc0=None, init_form="eq63", passes=1, recursive=True,
                  warmup=100, update_every=1, exact_q=False, trace_every=1000, engine="numba"):
@@ -459,21 +464,9 @@ class ArmaEM(Estimator):
         self.engine = engine
 
     # -- settings ---------------------------------------------------------------------------------
-    def check_settings(self) -> None:
-        """The relation between settings: ``x0`` gives exactly the modelled ``terms``."""
-        terms = _check_supported(self.terms)
-        if self.x0 is not None:
-            missing = [c for c in terms if c not in self.x0]
-            extra = [c for c in self.x0 if c not in terms]
-            if missing or extra:
-                raise ValueError(
-                    f"x0: expected exactly the modelled coefficients {list(terms)}, got {list(self.x0)}"
-                )
-
     def _settings(self) -> dict:
         # partial_fit starts here without Estimator.fit: the declared settings are checked here too
         validate_settings(type(self), self.get_params())
-        self.check_settings()
         terms = _check_supported(self.terms)
         return {
             "terms": terms,
@@ -618,7 +611,10 @@ class ArmaEM(Estimator):
             **extra,
             "trajectory": self._trajectory(),
         }
-        return coefs, bad, diag
+        loglik = diag["loglik"]
+        parts = FitParts(failure=failure, trajectory=diag["trajectory"], llf=float(loglik[-1]) if loglik else math.nan,
+                         n_iter=int(self._pass))
+        return coefs, bad, diag, parts
 
     def _trace_coefficients(self, rows: np.ndarray) -> np.ndarray:
         """Rows [sample, coefficients (SI)...] from traced kernel rows [k, A, C, Q, R]."""

@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 
 from avbench.estimators.online._common import CLUSTER_SIZES, OnlineAVFilter, _matrix, _numbers
-from avbench.estimators.settings import Check, Interval
+from avbench.estimators.settings import Check, Interval, Relation
 from avbench.estimators.online._kernels import shakf_run
 from avbench.estimators.base import register
 
@@ -65,7 +65,7 @@ def _adapt_flags(adapt) -> int:
 
 def _check_r0(value) -> None:
     """R0 on its own: a finite number > 0, or a non-empty list of them (its length is checked against the
-    cluster sizes by :meth:`_ShakfBase.check_settings`)."""
+    cluster sizes by a relation of :class:`_ShakfBase`)."""
     r0 = _numbers(value)
     if r0.ndim > 1 or r0.size == 0 or not np.all(np.isfinite(r0)) or not np.all(r0 > 0):
         raise ValueError(f"expected a positive number or a list of them, got {value!r}")
@@ -84,14 +84,16 @@ class _ShakfBase(OnlineAVFilter):
                                       "Sage-Husa rules adapt, Miao et al. 2014, eqs 3.16-3.19)")],
     }
 
-    def check_settings(self) -> None:
-        """As :meth:`OnlineAVFilter.check_settings`, and a list ``R0`` has one value per cluster size."""
-        super().check_settings()
+    def _r0_per_cluster_size(self) -> None:
+        """A list ``R0`` has one value per cluster size."""
         nm = len(self._cluster_sizes())
         r0 = np.asarray(self.R0, dtype=float)
         if r0.ndim == 1 and r0.shape != (nm,):
             raise ValueError(f"R0: expected a positive number or {nm} positive numbers (one per cluster size), "
                              f"got {self.R0!r}")
+
+    setting_relations = OnlineAVFilter.setting_relations + (
+        Relation(("R0", "m"), _r0_per_cluster_size, "a list R0 has one value per cluster size"),)
 
     def _filter_settings(self, nq):
         return dict(

@@ -16,7 +16,9 @@
 * :mod:`~avbench.estimators.selection.bias_model` -- Gauss-Markov or flicker bias instability, by
   the models' AIC weights;
 * :mod:`~avbench.estimators.selection.bounds` -- the upper bounds the record's AV allows a term it
-  does not resolve.
+  does not resolve;
+* :mod:`~avbench.estimators.selection.choices` -- each choice as the typed ``ModelChoice`` a fit
+  reports, with the parts that carry the record's unit;
 * :mod:`~avbench.estimators.selection.shared` -- the choices made once per axis and taken by every method
   that would make them alike on the same values.
 
