@@ -230,7 +230,7 @@ class GaussMarkov(NoiseTerm):
         dT, dQ = -phi_log * dT, -phi_log * dQ
         t0, dt0 = block.T[:, 0], dT[:, 0]
         dP0 = sigma**2 * (np.outer(dt0, t0) + np.outer(t0, dt0)) + dQ
-        return [*super().block_mean_derivatives(values, m, dt, block), StateBlock(dT, dQ, block.Z, dP0)]
+        return [*super().block_mean_derivatives(values, m, dt, block), StateBlock(dT, dQ, np.zeros(2), dP0)]
 
     @classmethod
     def block_mean_memory(cls, values):

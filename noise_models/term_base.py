@@ -276,7 +276,6 @@ class NoiseTerm(abc.ABC):
         fitter starts from every combination of its terms' starts."""
         raise NotImplementedError(f"{cls.__name__}: not a latent of the fits")
 
-
     # -- in the exact block-mean state-space likelihood (:mod:`avbench.estimators.likelihood.mle`) ------------
     #: how many states of its own the term adds to the block-mean state space (0: it acts on the observation
     #: or on the shared level only), or None where that likelihood does not model it. A deterministic term's
@@ -293,11 +292,10 @@ class NoiseTerm(abc.ABC):
     @classmethod
     def block_mean_derivatives(cls, values, m: int, dt: float, block: "StateBlock") -> list["StateBlock"]:
         """The derivatives of :meth:`block_mean_block` (``block``, at ``values``) in the logarithm of each fit
-        parameter, in their order. Default: the amplitude only, every covariance of the term being its
-        square times a matrix set by the others (twice itself; the transition does not move); a term with
-        shape parameters overrides it."""
-        zero = np.zeros_like(block.T)
-        return [StateBlock(zero, 2.0 * block.Q, block.Z, 2.0 * block.P0, 2.0 * block.H,
+        parameter, in their order (the observation row depends on m and dt only: its derivative is zero).
+        Default: the amplitude only, every covariance of the term being its square times a matrix set by the
+        others (twice itself; the transition does not move); a term with shape parameters overrides it."""
+        return [StateBlock(np.zeros_like(block.T), 2.0 * block.Q, np.zeros_like(block.Z), 2.0 * block.P0, 2.0 * block.H,
                            None if block.level is None else 2.0 * block.level,
                            None if block.level_input is None else np.zeros_like(block.level_input))]
 
