@@ -22,8 +22,8 @@ import numpy as np
 from avbench.noise_models._term_kernels import (_ar1_kernel, _gm_central_kernel, _gm_rows_kernel, _gm_shape_kernel,
                                                 _sogm_kernel)
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
-from avbench.noise_models.term_base import (PLATEAU, NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt,
-                                            _positive)
+from avbench.noise_models.term_base import (PLATEAU, NoiseTerm, StateBlock, TermStream, _check_dt, _grid_value,
+                                            _omega_dt, _positive)
 from avbench.noise_models.units import as_si
 
 __all__ = ["GaussMarkov", "SecondOrderGaussMarkov", "GM_PEAK_TAU_OVER_TC", "GM_PEAK_ADEV_OVER_SIGMA",
@@ -38,6 +38,39 @@ B_EQUIV_OVER_SIGMA = GM_PEAK_ADEV_OVER_SIGMA / math.sqrt(PLATEAU)
 
 
 # --- first-order Gauss-Markov ----------------------------------------------------------------
+
+
+def block_mean_ar1(phi_log, sigma, m):
+    """Transition and disturbance covariance of ``(s, xbar)``, the AR(1) value at the end of a block of
+    ``m`` samples and the block's mean, for log(phi) = ``phi_log`` and stationary std ``sigma``: with
+    :math:`c_i = (1-\\phi^i)/(1-\\phi)`, :math:`s_{j+1} = \\phi^m s_j + \\sum_i \\phi^{i-1} e_{(i)}`,
+    :math:`\\bar x_{j+1} = a s_j + \\tfrac1m\\sum_i c_i e_{(i)}`, :math:`a = \\tfrac1m\\sum_i \\phi^i`
+    (var e = sigma^2 (1 - phi^2); (i) counts innovations from the end of the block)."""
+    j = np.arange(1, m + 1, dtype=float)
+    phi = math.exp(phi_log)
+    c = np.expm1(j * phi_log) / math.expm1(phi_log)  # (1 - phi^j) / (1 - phi), stable as phi -> 1
+    pw = np.exp((j - 1) * phi_log)  # phi^(j-1)
+    q = sigma**2 * -math.expm1(2 * phi_log)  # sigma^2 (1 - phi^2)
+    a = float(np.exp(j * phi_log).sum()) / m
+    cov = q * np.array([[pw @ pw, pw @ c / m], [pw @ c / m, c @ c / m**2]])
+    T = np.array([[phi**m, 0.0], [a, 0.0]])
+    return T, cov
+
+
+def block_mean_ar1_dphi(phi_log, sigma, m):
+    r"""Derivatives of :func:`block_mean_ar1`'s ``(T, cov)`` with respect to ``phi_log`` (analytic:
+    :math:`c_j = \\sum_{i<j}\\phi^i`, so :math:`dc_j/d\\log\\phi = \\sum_{i<j} i\\phi^i`)."""
+    j = np.arange(1, m + 1, dtype=float)
+    c = np.expm1(j * phi_log) / math.expm1(phi_log)
+    pw = np.exp((j - 1) * phi_log)
+    dpw = (j - 1) * pw
+    dc = np.cumsum(dpw)
+    q = sigma**2 * -math.expm1(2 * phi_log)
+    dq = -2.0 * sigma**2 * math.exp(2 * phi_log)
+    S = np.array([[pw @ pw, pw @ c / m], [pw @ c / m, c @ c / m**2]])
+    dS = np.array([[2 * (pw @ dpw), (dpw @ c + pw @ dc) / m], [(dpw @ c + pw @ dc) / m, 2 * (c @ dc) / m**2]])
+    dT = np.array([[m * math.exp(m * phi_log), 0.0], [float((j * np.exp(j * phi_log)).sum()) / m, 0.0]])
+    return dT, dq * S + q * dS
 
 
 class _AR1Stream(TermStream):
@@ -176,6 +209,33 @@ class GaussMarkov(NoiseTerm):
     latent = "GM"
     fit_parameters = ("sigma", "tc")
     coefficient_per_amplitude = B_EQUIV_OVER_SIGMA
+    block_mean_states = 2
+
+    @classmethod
+    def block_mean_block(cls, values, m, dt):
+        """States ``(s, xbar)`` (:func:`block_mean_ar1`), observed through xbar; the first from a stationary
+        s_0."""
+        sigma, tc = values
+        T, Q = block_mean_ar1(-dt / tc, sigma, m)
+        P0 = sigma**2 * np.outer(T[:, 0], T[:, 0]) + Q
+        return StateBlock(T, Q, np.array([0.0, 1.0]), P0)
+
+    @classmethod
+    def block_mean_derivatives(cls, values, m, dt, block):
+        """In log sigma twice the covariances; in log Tc by :func:`block_mean_ar1_dphi`, with
+        :math:`d\\log\\phi/d\\log T_c = -\\log\\phi`."""
+        sigma, tc = values
+        phi_log = -dt / tc
+        dT, dQ = block_mean_ar1_dphi(phi_log, sigma, m)
+        dT, dQ = -phi_log * dT, -phi_log * dQ
+        t0, dt0 = block.T[:, 0], dT[:, 0]
+        dP0 = sigma**2 * (np.outer(dt0, t0) + np.outer(t0, dt0)) + dQ
+        return [*super().block_mean_derivatives(values, m, dt, block), StateBlock(dT, dQ, np.zeros(2), dP0)]
+
+    @classmethod
+    def block_mean_memory(cls, values):
+        """The correlation time Tc."""
+        return values[1]
 
     @classmethod
     def from_fit(cls, values, *, tau_max=None):

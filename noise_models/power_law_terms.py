@@ -25,8 +25,8 @@ import numpy as np
 
 from avbench.noise_models._term_kernels import _diff_kernel, _walk_kernel
 from avbench.noise_models.exact_avar import avar_from_autocovariance, check_m
-from avbench.noise_models.term_base import (PLATEAU, NoiseTerm, TermStream, _check_dt, _grid_value, _omega_dt,
-                                            _positive)
+from avbench.noise_models.term_base import (PLATEAU, NoiseTerm, StateBlock, TermStream, _check_dt, _grid_value,
+                                            _omega_dt, _positive)
 from avbench.noise_models.units import as_si
 
 __all__ = ["Quantization", "AngleRandomWalk", "BiasInstability", "RateRandomWalk", "RateRamp"]
@@ -65,6 +65,18 @@ class AngleRandomWalk(NoiseTerm):
     coefficient = "N"
     latent = "WN"
     fit_parameters = ("N",)
+    block_mean_states = 0
+
+    @classmethod
+    def block_mean_block(cls, values, m, dt):
+        """No state: the block mean of white noise is white, of variance N^2 / (m dt)."""
+        none = np.zeros((0, 0))
+        return StateBlock(none, none, np.zeros(0), none, H=values[0] ** 2 / (m * dt))
+
+    @classmethod
+    def likelihood_start(cls, values, tau, avar):
+        """The fitted N, or 1 % of the white line through the shortest tau's AV where the fit found none."""
+        return (values[0] if values[0] > 0 else 0.01 * math.sqrt(avar[0] * tau[0]),)
 
     @classmethod
     def from_fit(cls, values, *, tau_max=None):
@@ -139,6 +151,21 @@ class Quantization(NoiseTerm):
     coefficient = "Q"
     latent = "QN"
     fit_parameters = ("Q",)
+    block_mean_states = 2
+
+    @classmethod
+    def block_mean_block(cls, values, m, dt):
+        """States ``(theta_j, theta_{j-1})``, the angle errors at the ends of blocks j and j - 1 (white, of
+        std Q): the block mean of the quantization rate telescopes to their difference over m dt."""
+        Q2 = values[0] ** 2
+        return StateBlock(np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([[Q2, 0.0], [0.0, 0.0]]),
+                          np.array([1.0 / (m * dt), -1.0 / (m * dt)]), np.array([[Q2, 0.0], [0.0, Q2]]))
+
+    @classmethod
+    def likelihood_start(cls, values, tau, avar):
+        """The fitted Q, or 1 % of the quantization line through the shortest tau's AV where the fit found
+        none."""
+        return (values[0] if values[0] > 0 else 0.01 * math.sqrt(avar[0] * tau[0] ** 2 / 3),)
 
     @classmethod
     def from_fit(cls, values, *, tau_max=None):
@@ -216,6 +243,23 @@ class RateRandomWalk(NoiseTerm):
     stationary = False
     latent = "RW"
     fit_parameters = ("K",)
+    block_mean_states = 0
+
+    @classmethod
+    def block_mean_block(cls, values, m, dt):
+        """No state of its own: it moves the shared level, :math:`L_{j+1} = L_j + \\sum_{i=1}^m w_{(i)}`,
+        :math:`\\bar L_{j+1} = L_j + \\tfrac1m\\sum_{i=1}^m i\\,w_{(i)}` (var w = K^2 dt), whose disturbance
+        covariance this is."""
+        K2dt = values[0] ** 2 * dt
+        j = np.arange(1, m + 1, dtype=float)
+        level = K2dt * np.array([[m, j.sum() / m], [j.sum() / m, (j @ j) / m**2]])
+        none = np.zeros((0, 0))
+        return StateBlock(none, none, np.zeros(0), none, level=level)
+
+    @classmethod
+    def likelihood_start(cls, values, tau, avar):
+        """The fitted K, at least 1 % of :meth:`fit_amplitude_top`."""
+        return (max(values[0], 0.01 * cls.fit_amplitude_top(tau, avar)),)
 
     @classmethod
     def from_fit(cls, values, *, tau_max=None):
@@ -290,6 +334,19 @@ class RateRamp(NoiseTerm):
     deterministic = True
     latent = "DR"
     fit_parameters = ("R",)
+    block_mean_states = 1
+
+    @classmethod
+    def block_mean_block(cls, values, m, dt):
+        """The slope r, a diffuse constant state, entering the level as :math:`L_{j+1} = L_j + r\\,m\\Delta t`,
+        :math:`\\bar L_{j+1} = L_j + r\\Delta t\\,\\tfrac{m+1}2`."""
+        return StateBlock(np.ones((1, 1)), np.zeros((1, 1)), np.zeros(1), np.zeros((1, 1)),
+                          level_input=np.array([[m * dt], [dt * (m + 1) / 2]]))
+
+    @classmethod
+    def block_mean_derivatives(cls, values, m, dt, block):
+        """None: the slope is a state, not a parameter."""
+        return []
 
     @classmethod
     def from_fit(cls, values, *, tau_max=None):

@@ -42,7 +42,7 @@ import numpy as np
 
 from avbench.noise_models.exact_variances import gcov_from_autocovariance
 
-__all__ = ["NoiseTerm", "TermStream", "FitHint", "PLATEAU"]
+__all__ = ["NoiseTerm", "TermStream", "FitHint", "StateBlock", "PLATEAU"]
 
 #: the flicker plateau of the AV, (2 ln 2 / pi) B^2 (IEEE Std 952-1997, Annex C)
 PLATEAU = 2.0 * math.log(2.0) / math.pi
@@ -275,6 +275,57 @@ class NoiseTerm(abc.ABC):
         ``n_starts``: how many values of a shape parameter to try; ``hint``: a :class:`FitHint` or None. A
         fitter starts from every combination of its terms' starts."""
         raise NotImplementedError(f"{cls.__name__}: not a latent of the fits")
+
+    # -- in the exact block-mean state-space likelihood (:mod:`avbench.estimators.likelihood.mle`) ------------
+    #: how many states of its own the term adds to the block-mean state space (0: it acts on the observation
+    #: or on the shared level only), or None where that likelihood does not model it. A deterministic term's
+    #: states are diffuse (unknown constants), the others' start from their stationary distribution
+    block_mean_states: ClassVar[int | None] = None
+
+    @classmethod
+    def block_mean_block(cls, values, m: int, dt: float) -> "StateBlock":
+        """The term's part of the state space of the means of blocks of ``m`` samples (a
+        :class:`StateBlock`), at the values of its stochastic :attr:`fit_parameters` (the amplitude in the
+        unit of the data the filter runs on, the others SI; none for a deterministic term)."""
+        raise NotImplementedError(f"{cls.__name__}: not a term of the block-mean likelihood")
+
+    @classmethod
+    def block_mean_derivatives(cls, values, m: int, dt: float, block: "StateBlock") -> list["StateBlock"]:
+        """The derivatives of :meth:`block_mean_block` (``block``, at ``values``) in the logarithm of each fit
+        parameter, in their order (the observation row depends on m and dt only: its derivative is zero).
+        Default: the amplitude only, every covariance of the term being its square times a matrix set by the
+        others (twice itself; the transition does not move); a term with shape parameters overrides it."""
+        return [StateBlock(np.zeros_like(block.T), 2.0 * block.Q, np.zeros_like(block.Z), 2.0 * block.P0, 2.0 * block.H,
+                           None if block.level is None else 2.0 * block.level,
+                           None if block.level_input is None else np.zeros_like(block.level_input))]
+
+    @classmethod
+    def likelihood_start(cls, values, tau, avar) -> tuple[float, ...]:
+        """Where the block-mean likelihood starts the term: from ``values``, its :attr:`fit_parameters` as a
+        fit of the AV curve ``avar`` at ``tau`` found them (SI). Default: those values."""
+        return tuple(values)
+
+    @classmethod
+    def block_mean_memory(cls, values) -> float | None:
+        """The time (s) the block means must resolve for the term at ``values`` (its correlation time), or
+        None (default: no time scale of its own)."""
+        return None
+
+
+class StateBlock(NamedTuple):
+    """A term's part of the block-mean state space (:meth:`NoiseTerm.block_mean_block`): over its own s
+    states the transition ``T`` (s x s), disturbance covariance ``Q``, observation row ``Z`` (s,) and
+    covariance ``P0`` of the first state (zero for diffuse states); ``H`` the variance it adds to the
+    observation; ``level`` the disturbance covariance (2 x 2) it adds to the shared level and block-mean
+    level ``(L, Lbar)``, or None; ``level_input`` (2 x s) how its states enter ``(L, Lbar)``, or None."""
+
+    T: np.ndarray
+    Q: np.ndarray
+    Z: np.ndarray
+    P0: np.ndarray
+    H: float = 0.0
+    level: np.ndarray | None = None
+    level_input: np.ndarray | None = None
 
 
 class FitHint(NamedTuple):

@@ -8,7 +8,7 @@ from scipy.linalg import solve_discrete_lyapunov
 
 from avbench import estimators
 from conftest import check_monte_carlo_recovery
-from avbench.estimators.likelihood.mle import BlockMeanModel, _gm_block, _level_block, block_means
+from avbench.estimators.likelihood.mle import BlockMeanModel, block_means
 from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, Quantization, RateRamp, RateRandomWalk
 
 
@@ -17,7 +17,7 @@ def test_gm_block_means_have_the_exact_autocovariance(m, tc):
     # stationary autocovariance of the block mean from (T, Q) against the double sum of the AR(1)
     # autocovariance sigma^2 phi^|k| over the two blocks
     dt, sigma = 0.01, 2.0
-    T, Q = _gm_block(-dt / tc, sigma, m)
+    T, Q = GaussMarkov.block_mean_block((sigma, tc), m, dt)[:2]
     P = solve_discrete_lyapunov(T, Q)
     z = np.array([0.0, 1.0])
     phi = math.exp(-dt / tc)
@@ -33,7 +33,7 @@ def test_gm_block_means_have_the_exact_autocovariance(m, tc):
 def test_random_walk_block_means_have_the_exact_allan_variance(m):
     # E[(Lbar_{j+1} - Lbar_j)^2] / 2 is the AV of the sampled walk at cluster size m: (2m^2+1) q/(6m)
     q, dt = 3.0, 0.1
-    T, Q = _level_block(q, m, dt, drift=False)
+    Q = RateRandomWalk.block_mean_block((math.sqrt(q / dt),), m, dt).level
     # Lbar_{j+1} - Lbar_j = e_L(j) + u(j+1) - u(j), with Cov(e_L(j), u(j)) = Q[0, 1]
     var_diff = Q[0, 0] + 2 * Q[1, 1] - 2 * Q[0, 1]
     assert var_diff / 2 == pytest.approx((2 * m * m + 1) * q / (6 * m), rel=1e-12)

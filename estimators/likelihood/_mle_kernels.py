@@ -26,85 +26,77 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["BlockMeanSystem", "diffuse_loglike", "diffuse_filter", "augmented_loglike", "augmented_filter", "_gm_block", "_level_block"]
+__all__ = ["BlockMeanSystem", "diffuse_loglike", "diffuse_filter", "augmented_loglike", "augmented_filter"]
 
 #: statsmodels' thresholds (``KalmanFilter``): diffuse F_inf, and the steady-state test on P
 TOL_DIFFUSE = 1e-10
 TOL_CONVERGED = 1e-19
 
 
-def _gm_block(phi_log, sigma, m):
-    """Transition and disturbance covariance of (s, xbar) for a GM with log(phi) = phi_log."""
-    j = np.arange(1, m + 1, dtype=float)
-    phi = math.exp(phi_log)
-    c = np.expm1(j * phi_log) / math.expm1(phi_log)  # (1 - phi^j) / (1 - phi), stable as phi -> 1
-    pw = np.exp((j - 1) * phi_log)  # phi^(j-1)
-    q = sigma**2 * -math.expm1(2 * phi_log)  # sigma^2 (1 - phi^2)
-    a = float(np.exp(j * phi_log).sum()) / m
-    cov = q * np.array([[pw @ pw, pw @ c / m], [pw @ c / m, c @ c / m**2]])
-    T = np.array([[phi**m, 0.0], [a, 0.0]])
-    return T, cov
-
-
-def _level_block(K2dt, m, dt, drift):
-    j = np.arange(1, m + 1, dtype=float)
-    cov = K2dt * np.array([[m, j.sum() / m], [j.sum() / m, (j @ j) / m**2]])
-    T = np.array([[1.0, 0.0], [1.0, 0.0]])
-    if drift:
-        T = np.hstack([T, [[m * dt], [dt * (m + 1) / 2]]])
-        T = np.vstack([T, [0.0, 0.0, 1.0]])
-        cov = np.pad(cov, ((0, 1), (0, 1)))
-    return T, cov
-
-
-def _gm_block_dphi(phi_log, sigma, m):
-    r"""Derivatives of :func:`_gm_block`'s ``(T, cov)`` with respect to ``phi_log`` (analytic:
-    :math:`c_j = \\sum_{i<j}\\phi^i`, so :math:`dc_j/d\\log\\phi = \\sum_{i<j} i\\phi^i`)."""
-    j = np.arange(1, m + 1, dtype=float)
-    c = np.expm1(j * phi_log) / math.expm1(phi_log)
-    pw = np.exp((j - 1) * phi_log)
-    dpw = (j - 1) * pw
-    dc = np.cumsum(dpw)
-    q = sigma**2 * -math.expm1(2 * phi_log)
-    dq = -2.0 * sigma**2 * math.exp(2 * phi_log)
-    S = np.array([[pw @ pw, pw @ c / m], [pw @ c / m, c @ c / m**2]])
-    dS = np.array([[2 * (pw @ dpw), (dpw @ c + pw @ dc) / m], [(dpw @ c + pw @ dc) / m, 2 * (c @ dc) / m**2]])
-    dT = np.array([[m * math.exp(m * phi_log), 0.0], [float((j * np.exp(j * phi_log)).sum()) / m, 0.0]])
-    return dT, dq * S + q * dS
-
-
 class BlockMeanSystem:
-    """Layout and system matrices of the block-mean model (see :mod:`avbench.estimators.likelihood.mle`).
+    """Layout and system matrices of the block-mean model (see :mod:`avbench.estimators.likelihood.mle`),
+    assembled from the terms' own parts (:meth:`avbench.noise_models.NoiseTerm.block_mean_block`).
 
-    State: ``(s, xbar)`` if "GM", ``(theta_j, theta_{j-1})`` if "QN", then ``(L, Lbar[, r])``; the
-    level (and slope) are diffuse. Parameters are the natural logarithms of, in order, Q (if
-    "QN"), N (if "WN"), sigma and Tc (if "GM"), K (if "RW").
+    State: the states of each stochastic term, from the last of the model to the first (``(s, xbar)`` of
+    a Gauss-Markov term, ``(theta_j, theta_{j-1})`` of quantization), then the shared level
+    ``(L, Lbar)``, then the deterministic terms' states (the drift's slope); the level and those are
+    diffuse. Parameters are the natural logarithms of each stochastic term's fit parameters, in the
+    model's order. The observation row depends on m and dt only (the terms' rows at unit parameters).
     """
 
     def __init__(self, latents, m: int, dt: float):
-        self.latents = tuple(latents)
-        self.m, self.dt = int(m), float(dt)
-        self.has_gm = "GM" in self.latents
-        self.has_q = "QN" in self.latents
-        self.drift = "DR" in self.latents
-        self.q0 = 2 if self.has_gm else 0  # first state of the quantization block
-        self.lev = self.q0 + (2 if self.has_q else 0)
-        self.k = self.lev + 2 + (1 if self.drift else 0)
-        Z = np.zeros(self.k)
-        Z[self.lev + 1] = 1.0
-        if self.has_gm:
-            Z[1] = 1.0
-        if self.has_q:  # block mean of theta-differences telescopes: (theta_j - theta_{j-1}) / (m dt)
-            Z[self.q0], Z[self.q0 + 1] = 1.0 / (m * dt), -1.0 / (m * dt)
-        self.Z = Z
         from avbench.noise_models.latents import LATENT_TERMS
 
+        self.latents = tuple(latents)
+        self.m, self.dt = int(m), float(dt)
+        terms = [LATENT_TERMS[lat] for lat in self.latents]
+        stochastic = [cls for cls in terms if not cls.deterministic]
+        # the stochastic terms' states in the reverse of the model's order: the layout whose summation
+        # order the filters' round-off is fixed with (another order moves the likelihood by ~1e-16
+        # relative, which the Hessian's differences carry into the standard errors at ~1e-7)
+        states, i = {}, 0
+        for cls in reversed(stochastic):
+            states[cls] = slice(i, i + cls.block_mean_states)
+            i += cls.block_mean_states
+        #: (term class, its states, indices of its log-parameters) per term: stochastic ones, then the others
+        self.parts, n = [], 0
+        for cls in stochastic:
+            self.parts.append((cls, states[cls], list(range(n, n + len(cls.fit_parameters)))))
+            n += len(cls.fit_parameters)
+        self.lev = i
+        i += 2
+        for cls in terms:
+            if cls.deterministic:
+                self.parts.append((cls, slice(i, i + cls.block_mean_states), []))
+                i += cls.block_mean_states
+        self.k = i
+        #: each stochastic term's parameter indices, its amplitude first
+        self.groups = [idx for _, _, idx in self.parts if idx]
+        #: a diffuse state beside the level (a drift): the augmented filter's case
+        self.drift = self.k > self.lev + 2
+        #: the states that start from their stationary distribution, one (start, stop) per term
+        self.stationary = [(sl.start, sl.stop) for cls, sl, _ in self.parts if sl.stop > sl.start
+                           and not cls.deterministic]
         # the log of each stochastic term's fit parameters, in the model's order (the drift is a state)
-        self.names = [f"log_{p}" for lat in self.latents if not LATENT_TERMS[lat].deterministic
-                      for p in LATENT_TERMS[lat].fit_parameters]
+        self.names = [f"log_{p}" for cls in stochastic for p in cls.fit_parameters]
+        Z = np.zeros(self.k)
+        Z[self.lev + 1] = 1.0
+        for cls, sl, idx in self.parts:
+            Z[sl] = cls.block_mean_block(np.ones(len(idx)), self.m, self.dt).Z
+        self.Z = Z
 
     def values(self, params) -> dict:
         return dict(zip(self.names, np.exp(np.asarray(params, dtype=float))))
+
+    def _blocks(self, params, scale):
+        """Each term's ``(class, states, parameter indices, values, StateBlock)``: the amplitude (the first
+        fit parameter) in the unit of the scaled data, the shape parameters as they are."""
+        v = np.exp(np.asarray(params, dtype=float))
+        out = []
+        for cls, sl, idx in self.parts:
+            vals = [v[i] * scale if k == 0 else v[i] for k, i in enumerate(idx)]
+            out.append((cls, sl, idx, vals, cls.block_mean_block(vals, self.m, self.dt)))
+        return out
 
     def matrices(self, params, scale: float = 1.0):
         """``(T, Qc, H, P0, Pinf0)`` for log-parameters ``params``, data multiplied by ``scale``.
@@ -112,57 +104,37 @@ class BlockMeanSystem:
         ``P0`` is the covariance of the first state from its stationary distribution (GM,
         quantization); ``Pinf0`` is the identity on the diffuse block (level, drift).
         """
-        v = {key: (val if key == "log_tc" else val * scale) for key, val in self.values(params).items()}
-        m, dt, k = self.m, self.dt, self.k
+        return self._matrices(self._blocks(params, scale))
+
+    def _matrices(self, blocks):
+        k, lev = self.k, self.lev
         T, Qc, P0, Pinf0 = np.zeros((k, k)), np.zeros((k, k)), np.zeros((k, k)), np.zeros((k, k))
-        if self.has_gm:
-            sigma, tc = v["log_sigma"], v["log_tc"]
-            Tg, Qg = _gm_block(-dt / tc, sigma, m)
-            T[:2, :2], Qc[:2, :2] = Tg, Qg
-            P0[:2, :2] = sigma**2 * np.outer(Tg[:, 0], Tg[:, 0]) + Qg  # (s_1, xbar_1) from a stationary s_0
-        if self.has_q:
-            q, Q2 = self.q0, v["log_Q"] ** 2
-            T[q + 1, q] = 1.0
-            Qc[q, q] = Q2
-            P0[q, q] = P0[q + 1, q + 1] = Q2
-        K2dt = v.get("log_K", 0.0) ** 2 * dt
-        Tl, Ql = _level_block(K2dt, m, dt, self.drift)
-        T[self.lev :, self.lev :], Qc[self.lev :, self.lev :] = Tl, Ql
-        for i in range(self.lev, k):
+        H = 0.0
+        T[lev, lev] = T[lev + 1, lev] = 1.0
+        for _, sl, _, _, b in blocks:
+            T[sl, sl], Qc[sl, sl], P0[sl, sl] = b.T, b.Q, b.P0
+            H += b.H
+            if b.level is not None:
+                Qc[lev : lev + 2, lev : lev + 2] += b.level
+            if b.level_input is not None:
+                T[lev : lev + 2, sl] = b.level_input
+        for i in range(lev, k):
             Pinf0[i, i] = 1.0
-        H = v.get("log_N", 0.0) ** 2 / (m * dt)
         return T, Qc, H, P0, Pinf0
 
     def derivatives(self, params, scale: float = 1.0):
         """Derivatives of :meth:`matrices`' ``(T, Qc, H, P0)`` with respect to each log-parameter:
         arrays ``(dT, dQc, dH, dP0)`` of shapes (p, k, k), (p, k, k), (p,), (p, k, k), in the order
-        of :attr:`names` (analytic: every variance is a squared coefficient, so its derivative in
-        the log-coefficient is twice itself; the GM block's in log Tc by :func:`_gm_block_dphi`,
-        with :math:`d\\log\\phi/d\\log T_c = -\\log\\phi`)."""
-        T, Qc, H, P0, _ = self.matrices(params, scale)
-        v = {key: (val if key == "log_tc" else val * scale) for key, val in self.values(params).items()}
-        p, k, m, dt = len(self.names), self.k, self.m, self.dt
+        of :attr:`names` (each term's :meth:`~avbench.noise_models.NoiseTerm.block_mean_derivatives`)."""
+        p, k, lev = len(self.names), self.k, self.lev
         dT, dQc, dH, dP0 = np.zeros((p, k, k)), np.zeros((p, k, k)), np.zeros(p), np.zeros((p, k, k))
-        lev = self.lev
-        for i, name in enumerate(self.names):
-            if name == "log_N":
-                dH[i] = 2.0 * H
-            elif name == "log_K":
-                dQc[i, lev:, lev:] = 2.0 * Qc[lev:, lev:]
-            elif name == "log_Q":
-                q = self.q0
-                dQc[i, q, q] = 2.0 * Qc[q, q]
-                dP0[i, q, q] = dP0[i, q + 1, q + 1] = 2.0 * P0[q, q]
-            elif name == "log_sigma":
-                dQc[i, :2, :2] = 2.0 * Qc[:2, :2]
-                dP0[i, :2, :2] = 2.0 * P0[:2, :2]
-            elif name == "log_tc":
-                phi_log = -dt / v["log_tc"]
-                dTg, dQg = _gm_block_dphi(phi_log, v["log_sigma"], m)
-                dTg, dQg = -phi_log * dTg, -phi_log * dQg  # d/dlog Tc = -log(phi) d/dlog(phi)
-                dT[i, :2, :2], dQc[i, :2, :2] = dTg, dQg
-                t0, dt0 = T[:2, 0], dTg[:, 0]
-                dP0[i, :2, :2] = v["log_sigma"] ** 2 * (np.outer(dt0, t0) + np.outer(t0, dt0)) + dQg
+        for cls, sl, idx, vals, b in self._blocks(params, scale):
+            for i, d in zip(idx, cls.block_mean_derivatives(vals, self.m, self.dt, b)):
+                dT[i, sl, sl], dQc[i, sl, sl], dP0[i, sl, sl], dH[i] = d.T, d.Q, d.P0, d.H
+                if d.level is not None:
+                    dQc[i, lev : lev + 2, lev : lev + 2] = d.level
+                if d.level_input is not None:
+                    dT[i, lev : lev + 2, sl] = d.level_input
         return dT, dQc, dH, dP0
 
     def score(self, y, params, scale: float = 1.0, method: str = "auto") -> tuple:

@@ -12,7 +12,7 @@ import numpy as np
 from statsmodels.tsa.statespace.initialization import Initialization
 from statsmodels.tsa.statespace.mlemodel import MLEModel
 
-from avbench.estimators.likelihood._mle_kernels import BlockMeanSystem, _gm_block, _level_block  # noqa: F401 (re-exported)
+from avbench.estimators.likelihood._mle_kernels import BlockMeanSystem
 
 __all__ = ["BlockMeanModel"]
 
@@ -22,8 +22,8 @@ class BlockMeanModel(MLEModel):
 
     See the module docstring for the block algebra.
 
-    Parameters (``params``) are the natural logarithms of, in order, Q (if "QN"), N (if "WN"),
-    sigma and Tc (if "GM"), K (if "RW"). The level (and the drift slope, if "DR") are diffuse states.
+    Parameters (``params``) are the natural logarithms of the stochastic terms' fit parameters, in the
+    model's order (:class:`BlockMeanSystem`). The level (and the drift slope, if "DR") are diffuse states.
 
     The filter runs on ``endog * scale`` (default: 1 / std of the block means), with the noise
     parameters scaled to match: statsmodels declares the filter converged (steady state) once the
@@ -61,11 +61,8 @@ class BlockMeanModel(MLEModel):
         T, Qc, H, P0, _ = sysm.matrices(params, self.scale)
         k = sysm.k
         init = Initialization(k)
-        if sysm.has_gm:
-            init.set((0, 2), "known", constant=np.zeros(2), stationary_cov=P0[:2, :2])
-        if sysm.has_q:
-            q = sysm.q0
-            init.set((q, q + 2), "known", constant=np.zeros(2), stationary_cov=P0[q : q + 2, q : q + 2])
+        for a, b in sysm.stationary:
+            init.set((a, b), "known", constant=np.zeros(b - a), stationary_cov=P0[a:b, a:b])
         init.set((sysm.lev, k), "diffuse")
         self["transition"] = T
         self["state_cov"] = Qc

@@ -105,20 +105,28 @@ from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = ["MLE", "block_means"]
 
-_ALLOWED = ("QN", "WN", "GM", "RW", "DR")
+def _allowed() -> list[str]:
+    """The latents whose terms declare their part of the block-mean state space
+    (:attr:`~avbench.noise_models.NoiseTerm.block_mean_states`), in the canonical order."""
+    return [lat for lat, cls in LATENT_TERMS.items() if cls.block_mean_states is not None]
 
 
 def _check_model(model) -> None:
     """A latent model the MLE can fit: :func:`~avbench.estimators.likelihood.gmwm.parse_model`'s grammar,
-    latents from :data:`_ALLOWED` only, at least one of them stochastic."""
+    latents from :func:`_allowed` only, at least one of them stochastic."""
     latents = parse_model(model)
-    bad = [lat for lat in latents if lat not in _ALLOWED]
+    allowed = _allowed()
+    bad = [lat for lat in latents if lat not in allowed]
     if bad:
-        raise ValueError(f"model: the MLE supports latents {', '.join(_ALLOWED)}; got {', '.join(bad)}")
+        raise ValueError(f"model: the MLE supports latents {', '.join(allowed)}; got {', '.join(bad)}")
     if all(LATENT_TERMS[lat].deterministic for lat in latents):
-        stochastic = [lat for lat in _ALLOWED if not LATENT_TERMS[lat].deterministic]
-        raise ValueError(f"model: expected at least one stochastic latent ({', '.join(stochastic[:-1])} or "
-                         f"{stochastic[-1]})")
+        raise ValueError(f"model: expected at least one stochastic latent ({_stochastic()})")
+
+
+def _stochastic() -> str:
+    """'QN, WN, GM or RW': the latents of :func:`_allowed` with a random part."""
+    stochastic = [lat for lat in _allowed() if not LATENT_TERMS[lat].deterministic]
+    return f"{', '.join(stochastic[:-1])} or {stochastic[-1]}"
 
 
 def _deterministic(latents) -> str | None:
@@ -133,7 +141,7 @@ def __getattr__(name):
         from avbench.estimators.likelihood import _mle_model
 
         return getattr(_mle_model, name)
-    if name in ("BlockMeanSystem", "_gm_block", "_level_block"):
+    if name == "BlockMeanSystem":
         from avbench.estimators.likelihood import _mle_kernels
 
         return getattr(_mle_kernels, name)
@@ -190,8 +198,8 @@ class MLE(Estimator):
     _loglike_method = "auto"
 
     parameter_constraints = {
-        "model": [Check(_check_model, f"latents from {', '.join(_ALLOWED)} joined by '+' (e.g. 'WN+GM+RW') or a "
-                                      "list of them, without repeats, at least one stochastic (QN, WN, GM or RW)",
+        "model": [Check(_check_model, f"latents from {', '.join(_allowed())} joined by '+' (e.g. 'WN+GM+RW') or "
+                                      f"a list of them, without repeats, at least one stochastic ({_stochastic()})",
                         explain=True)],
         "block": [Options("auto"), Interval(int, 1, None)],
         "max_blocks": [Interval(int, 1, None)],
@@ -296,26 +304,20 @@ def _pow2_at_least(m: int) -> int:
 
 
 def gmwm_start_values(start, latents, dt) -> tuple[np.ndarray, float | None]:
-    """The likelihood's starting log-parameters from a fitted GMWM ``start`` (:func:`_start_values`) and
-    that fit's Gauss-Markov correlation time (None without a Gauss-Markov latent)."""
-    sp = start.diagnostics_["params"]
-    return _start_values(latents, sp, start.diagnostics_, dt), (sp["GM.tc"] if "GM" in latents else None)
-
-
-def _start_values(latents, sp, gdiag, dt):
-    """log-parameters from the GMWM fit; a term GMWM set to 0 starts at 1 % of its largest value."""
-    avar, tau = gdiag["avar"], gdiag["tau"]
-    out = []
-    if "QN" in latents:
-        out.append(sp["QN.Q"] if sp["QN.Q"] > 0 else 0.01 * math.sqrt(avar[0] * tau[0] ** 2 / 3))
-    if "WN" in latents:
-        out.append(sp["WN.N"] if sp["WN.N"] > 0 else 0.01 * math.sqrt(avar[0] * tau[0]))
-    if "GM" in latents:
-        out += [sp["GM.sigma"], sp["GM.tc"]]
-    if "RW" in latents:
-        top = math.sqrt(np.max(3 * avar / tau))
-        out.append(max(sp["RW.K"], 0.01 * top))
-    return np.log(np.maximum(np.array(out, dtype=float), 1e-300))
+    """The likelihood's starting log-parameters from a fitted GMWM ``start``: each stochastic term's
+    :meth:`~avbench.noise_models.NoiseTerm.likelihood_start` from its GMWM values and the AV that fit saw
+    (at least 1e-300); and the shortest time the block means must resolve
+    (:meth:`~avbench.noise_models.NoiseTerm.block_mean_memory`, None if no term has one)."""
+    sp, avar, tau = start.diagnostics_["params"], start.diagnostics_["avar"], start.diagnostics_["tau"]
+    out, memory = [], []
+    for lat in latents:
+        cls = LATENT_TERMS[lat]
+        if not cls.deterministic:
+            values = [sp[f"{lat}.{p}"] for p in cls.fit_parameters]
+            out += cls.likelihood_start(values, tau, avar)
+            memory.append(cls.block_mean_memory(values))
+    memory = [t for t in memory if t is not None]
+    return np.log(np.maximum(np.array(out, dtype=float), 1e-300)), (min(memory) if memory else None)
 
 
 #: relative step of the central-difference score of the Hessian (statsmodels' ``_get_epsilon(x, 3)``)
@@ -420,7 +422,7 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
 
     res = minimize(objective_and_score, np.asarray(x0, dtype=float), jac=True, method="L-BFGS-B",
                    options={"maxiter": int(maxiter), "gtol": 1e-8, "ftol": 1e-14})
-    p, polish = _newton_polish(objective_and_score, res.x, list(system.names), nobs)
+    p, polish = _newton_polish(objective_and_score, res.x, list(system.names), system.groups, nobs)
     converged = polish["converged"]
     free = polish["free"]
     cov = np.full((p.size, p.size), np.nan)  # a pinned term has no standard error
@@ -434,7 +436,7 @@ def maximize_loglike(system, y, scale, x0, maxiter, method="auto") -> dict:
             "finished_by_score": polish["by_score"]}
 
 
-def _newton_polish(objective_and_score, p, names, nobs):
+def _newton_polish(objective_and_score, p, names, groups, nobs):
     """Take the quasi-Newton end point ``p`` to the maximum: trust-region Newton steps
     (``scipy.optimize.minimize(method="trust-exact")``, More & Sorensen 1983) on ``objective_and_score``
     (minus the log-likelihood per observation and its analytic score) with the Hessian by central
@@ -455,10 +457,11 @@ def _newton_polish(objective_and_score, p, names, nobs):
     Boundary rule: the maximum may lie at a variance of zero (log-parameter -inf: on that record the
     white noise, whose share the Gauss-Markov term with a correlation time under one sample takes
     over), which Newton steps approach by 0.5 in the log-parameter per iteration, forever. After each
-    iteration, a noise scale (``log_Q``, ``log_N``, ``log_sigma``, ``log_K``) whose gradient still
-    pushes it down and whose removal lowers the log-likelihood by at most :data:`PIN_LOGLIKE` is set
-    to zero (log-parameter -inf; with ``log_sigma`` its ``log_tc`` is frozen too; a term whose score is
-    within the round-off of zero counts as pushed down: random3 of the grand comparison, replicate 0,
+    iteration, a noise scale (a term's amplitude, the first of its ``groups`` of parameter indices:
+    ``log_Q``, ``log_N``, ``log_sigma``, ``log_K``) whose gradient still pushes it down and whose
+    removal lowers the log-likelihood by at most :data:`PIN_LOGLIKE` is set to zero (log-parameter
+    -inf; the term's other parameters are frozen with it, ``log_tc`` with ``log_sigma``; a term whose
+    score is within the round-off of zero counts as pushed down: random3 of the grand comparison, replicate 0,
     ended with Q = 3e-33, a score of -9e-60 and no curvature, where the trust region could not move and
     the fit ended unconverged) and the rest are
     maximised again. The answer is the maximum over the remaining terms, which does not depend on
@@ -483,7 +486,8 @@ def _newton_polish(objective_and_score, p, names, nobs):
     start = np.array(p, dtype=float)
     p = start.copy()
     free = np.ones(p.size, dtype=bool)
-    scales = [i for i, k in enumerate(names) if k in ("log_Q", "log_N", "log_sigma", "log_K")]
+    scales = [group[0] for group in groups]
+    shapes = {group[0]: group[1:] for group in groups}
     pinned, iterations, converged, by_score = [], 0, False, False
     f0 = objective_and_score(p)[0]
     cache = {}
@@ -585,8 +589,7 @@ def _newton_polish(objective_and_score, p, names, nobs):
             p[i] = -np.inf
             free[i] = False
             pinned.append(names[i])
-            if names[i] == "log_sigma" and "log_tc" in names:
-                free[names.index("log_tc")] = False
+            free[shapes[i]] = False
         if not free.any():
             converged = True
             break
