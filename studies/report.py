@@ -424,6 +424,9 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path, executor=None) -> pd.DataFr
         "gyros": {g.label: {"n_samples": g.n_samples, "dt": g.gyro.dt, **_truth_curve(g.gyro)} for g in cfg.gyros},
         "paper_table": os.path.basename(str(cfg.paper_table)) if cfg.paper_table else None,
     }
+    from avbench.studies.provenance import provenance
+
+    meta["provenance"] = provenance(cfg)  # the code, versions and resolved config behind the rows
     atomic_write_text(out / "table.csv", summary.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
     atomic_write_text(out / "table.md", render_markdown(summary, meta))
     written += [out / "table.csv", out / "table.md"]
@@ -459,8 +462,9 @@ def _draw_figure(cfg, tidy: pd.DataFrame, kind: str, gi: int, path: Path) -> Pat
 def _start_figures(cfg, tidy: pd.DataFrame, out: Path, executor) -> list:
     """Submit every figure of the report to ``executor``, each with its gyro's rows only."""
     from avbench.studies.figure_files import figure_jobs
+    from avbench.studies.workers import submit
 
-    return [executor.submit(_draw_figure, cfg, tidy[tidy["gyro"] == cfg.gyros[gi].label], kind, gi, path)
+    return [submit(executor, _draw_figure, cfg, tidy[tidy["gyro"] == cfg.gyros[gi].label], kind, gi, path)
             for kind, gi, path in figure_jobs(cfg, tidy, out)]
 
 
