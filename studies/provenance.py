@@ -298,5 +298,8 @@ def provenance(cfg) -> dict:
         "libraries": {d: _version(d) for d in LIBRARIES},
         "plugin_versions": plugin,
         "shadowed": shadowed(cfg),
+        # where the rows come from: this code, from the config and the seed (a committed study whose
+        # report was re-rendered from its tidy.csv says so instead)
+        "rows": "computed by this code from the config and the seed",
         "config": resolved_config(cfg),
     }
