@@ -318,13 +318,27 @@ def _local_pool_wanted(args) -> bool:
 def cmd_table(args) -> int:
     from avbench.studies.report import read_summary, render_latex, render_markdown
 
+    from avbench.outputs import TABLE_DIGITS
+
     summary, meta = read_summary(args.dir)  # ValueError for a foreign, corrupt or incomplete folder
     if args.latex:
-        print(render_latex(summary, meta))
-    elif args.csv:
-        print(summary.to_csv(index=False))
-    else:
-        print(render_markdown(summary, meta))
+        sys.stdout.write(render_latex(summary, meta))
+    elif args.csv:  # as table.csv
+        sys.stdout.write(summary.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
+    else:  # as table.md, byte for byte
+        sys.stdout.write(render_markdown(summary, meta))
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from avbench.studies.compare import compare_study, render_comparison, write_comparison
+
+    if not 0 < args.level < 1:
+        raise ValueError(f"--level: expected a number in (0, 1), got {args.level}")
+    cmp = compare_study(args.dir, args.a, args.b, level=args.level)  # ValueError: a foreign folder, an unknown label
+    sys.stdout.write(render_comparison(cmp, args.a, args.b, args.level))
+    if args.csv:
+        write_comparison(cmp, Path(args.csv))
     return 0
 
 
@@ -607,6 +621,14 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     g.add_argument("--latex", action="store_true", help="LaTeX")
     g.add_argument("--csv", action="store_true", help="CSV")
     s.set_defaults(func=cmd_table)
+
+    s = sub.add_parser("compare", help="compare two estimators of a finished study, paired over its replicates")
+    s.add_argument("dir", help="a study's output folder")
+    s.add_argument("a", help="an estimator label of the study (A)")
+    s.add_argument("b", help="another estimator label (B)")
+    s.add_argument("--level", type=float, default=0.05, help="family-wise level of the verdicts (default 0.05)")
+    s.add_argument("--csv", help="also write the comparison as CSV to this file")
+    s.set_defaults(func=cmd_compare)
 
     if argv is None or _command(argv) == "estimate":
         from avbench.recordings import estimate  # imports numpy and pandas: only when its parser is needed

@@ -15,7 +15,7 @@ import pandas as pd  # noqa: E402
 
 from avbench.estimators.allan.variance import allan_variance  # noqa: E402
 from avbench.estimators.allan.model import model_avar  # noqa: E402
-from avbench.noise_models.units import COEFFICIENTS  # noqa: E402
+from avbench.noise_models.units import COEFFICIENTS, PAPER_UNITS, from_si  # noqa: E402
 from avbench.studies.seeding import replicate_rng  # noqa: E402
 
 __all__ = ["av_figure", "spread_figure", "render_figure", "study_figures", "series_style"]
@@ -44,21 +44,25 @@ def _finite_positive(y) -> np.ndarray:
     return np.where(np.isfinite(y) & (y > 0), y, np.nan)
 
 
-def av_figure(rate, gyro, fits: dict, title: str):
-    """Empirical overlapping ADEV (octave, 68 % chi^2 bars), the exact truth, and each fit."""
+def av_figure(rate, gyro, fits: dict, title: str, unit: str = "deg/h"):
+    """Empirical overlapping ADEV (octave, 68 % chi^2 bars), the exact truth, and each fit, in ``unit``
+    (a rate unit: the tables' unit of B)."""
     av = allan_variance(rate, gyro.dt, "octave", overlapping=True)
-    fig, ax = plt.subplots(figsize=(9.5, 5))
-    fig.subplots_adjust(left=0.09, right=0.68, bottom=0.11, top=0.92)  # the legend sits right of the axes
+    scale = float(from_si("B", 1.0, unit))
+    fig, ax = plt.subplots(figsize=(9.0, 4.6))
+    fig.subplots_adjust(left=0.09, right=0.7, bottom=0.12, top=0.92)  # the legend sits right of the axes
     with np.errstate(all="ignore"):  # absurd magnitudes overflow to inf: drawn as gaps, never an error
-        adev = _finite_positive(av.adev)
-        lo, hi = np.sqrt(_finite_positive(av.ci_low)), np.sqrt(_finite_positive(av.ci_high))
+        adev = _finite_positive(av.adev * scale)
+        lo = np.sqrt(_finite_positive(av.ci_low)) * scale
+        hi = np.sqrt(_finite_positive(av.ci_high)) * scale
         yerr = np.nan_to_num(np.vstack([adev - lo, hi - adev]), nan=0.0, posinf=0.0).clip(min=0)
         if np.isfinite(adev).any():
-            ax.errorbar(av.tau, adev, yerr=yerr, fmt="o", ms=3, color="k", label="replicate 0 (overlapping AV)")
+            ax.errorbar(av.tau, adev, yerr=yerr, fmt="o", ms=3, color="k",
+                        label="replicate 0 (overlapping AV,\n68 % χ² interval)")
         tau = np.unique(np.rint(np.logspace(0, np.log10(av.m.max()), 80)).astype(int)) * gyro.dt
         try:
             if getattr(gyro, "has_exact_avar", True):
-                truth = np.sqrt(_finite_positive(gyro.avar(tau)))
+                truth = np.sqrt(_finite_positive(gyro.avar(tau))) * scale
             else:  # a term declares no exact AV
                 truth = np.full(tau.shape, np.nan)
                 ax.plot([], [], " ", label="exact AV unavailable (a term declares none)")
@@ -67,13 +71,13 @@ def av_figure(rate, gyro, fits: dict, title: str):
         if np.isfinite(truth).any():
             ax.plot(tau, truth, "k-", lw=2, alpha=0.4, label="exact AV of the generator")
         for i, (label, coefs) in enumerate(fits.items()):
-            model = np.sqrt(_finite_positive(model_avar(coefs, tau)))
+            model = np.sqrt(_finite_positive(model_avar(coefs, tau))) * scale
             if np.isfinite(model).any():
                 ax.plot(tau, model, lw=1.4, label=label, **series_style(i))
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("τ (s)")
-    ax.set_ylabel("Allan deviation (rad/s)")
+    ax.set_ylabel(f"Allan deviation ({unit})")
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
     if ax.get_legend_handles_labels()[0]:
@@ -112,11 +116,26 @@ def spread_figure(tidy: pd.DataFrame, gyro_label: str):
         ax.set_title(f"{c}: estimate / true")
         allv = np.concatenate([x for x in data if x.size]) if pos else np.ones(1)
         allv = allv[allv > 0]
-        if allv.size and allv.max() / allv.min() > 5:  # wide spread: log scale, no minor labels
-            ax.set_yscale("log")
+        if allv.size and allv.max() / allv.min() > 5:  # wide spread: log scale, ticks at 1, 2, 5 x 10^k
+            ax.set_yscale("log")  # (at 10^k alone beyond three decades, where 1-2-5 would crowd)
+            subs = (1.0, 2.0, 5.0) if allv.max() / allv.min() <= 1e3 else (1.0,)
+            ax.yaxis.set_major_locator(matplotlib.ticker.LogLocator(subs=subs, numticks=12))
+            ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
             ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+            bottom = ax.get_ylim()[0]
+            for i, x in enumerate(data):  # zero estimates have no place on a log axis: marked at its foot
+                zeros = int(np.sum(x == 0))
+                if zeros:
+                    ax.plot([i], [bottom], "v", color="C3", ms=7, clip_on=False)
+                    ax.annotate(f"{zeros}×0", (i, bottom), xytext=(0, 6), textcoords="offset points",
+                                ha="center", fontsize=7, color="C3")
+        for i, x in enumerate(data):  # an estimator that does not model the term: said, not a bare gap
+            if not x.size and not ((dg["coefficient"] == c) & (dg["estimator"] == ests[i])).any():
+                ax.annotate("not modelled", (i, 0.5), xycoords=("data", "axes fraction"), rotation=90,
+                            ha="center", va="center", fontsize=7, color="0.4")
         ax.grid(True, axis="y", which="both", alpha=0.3)
-    fig.suptitle(f"{gyro_label}  (tick labels: replicates without a physical estimate / all)")
+    fig.suptitle(f"{gyro_label}  (tick labels: replicates without a physical estimate / all; "
+                 "red ▼: zero estimates, below a log axis)")
     fig.tight_layout()
     return fig
 
@@ -130,7 +149,8 @@ def render_figure(cfg, tidy: pd.DataFrame, kind: str, gi: int, path: Path) -> Pa
     d0 = tidy[(tidy["gyro"] == g.label) & (tidy["replicate"] == 0)]
     fits = {e: dict(zip(de["coefficient"], de["estimate"])) for e, de in d0.groupby("estimator", sort=False)}
     rate = g.gyro.simulate(g.n_samples, replicate_rng(cfg.seed, gi, 0))
-    return _save(av_figure(rate, g.gyro, fits, f"{cfg.name}: {g.label}"), path)
+    unit = {**PAPER_UNITS, **(getattr(cfg, "units", None) or {})}["B"]
+    return _save(av_figure(rate, g.gyro, fits, f"{cfg.name}: {g.label}", unit), path)
 
 
 def study_figures(cfg, tidy: pd.DataFrame, out: Path) -> list[Path]:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
-__all__ = ["load_paper_table", "add_paper"]
+__all__ = ["load_paper_table", "add_paper", "paper_notes"]
 
 
 def load_paper_table(path: Path) -> pd.DataFrame:
@@ -48,6 +48,13 @@ def load_paper_table(path: Path) -> pd.DataFrame:
         for method, vals in entries.items():
             rows.append({"gyro": str(r[gcol]), "method": method, "coefficient": r["coefficient"], **vals})
     return pd.DataFrame(rows)
+
+
+def paper_notes(path: Path) -> list[str]:
+    """The known departures from the paper a table file explains in ``# Departure: ...`` lines,
+    printed beside the numbers in ``table.md``."""
+    lines = Path(path).read_text(encoding="utf-8").splitlines()
+    return [ln[1:].strip() for ln in lines if ln.startswith("#") and ln[1:].strip().startswith("Departure:")]
 
 
 def add_paper(summary: pd.DataFrame, paper: pd.DataFrame, gyro_map: dict, method_map: dict) -> pd.DataFrame:

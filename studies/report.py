@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -35,16 +36,20 @@ UNIT_LABEL = {
 }
 
 
-def summarize(tidy: pd.DataFrame, units: dict | None = None) -> pd.DataFrame:
-    """One row per gyro x estimator x coefficient (see the module docstring); absurd magnitudes give inf."""
+def summarize(tidy: pd.DataFrame, units: dict | None = None, order: tuple | None = None) -> pd.DataFrame:
+    """One row per gyro x estimator x coefficient (see the module docstring); absurd magnitudes give inf.
+
+    ``order``: (gyro labels, estimator labels) as the config lists them; rows follow it (gyros and
+    estimators not in it after, in the order they first appear). None: the order of appearance.
+    """
     with np.errstate(over="ignore", invalid="ignore"):
-        return _summarize(tidy, units)
+        return _summarize(tidy, units, order)
 
 
-def _summarize(tidy: pd.DataFrame, units: dict | None) -> pd.DataFrame:
+def _summarize(tidy: pd.DataFrame, units: dict | None, order: tuple | None = None) -> pd.DataFrame:
     units = {**PAPER_UNITS, **(units or {})}
     rows = []
-    order = {c: i for i, c in enumerate(COEFFICIENTS)}
+    corder = {c: i for i, c in enumerate(COEFFICIENTS)}
     for (g, e, c), d in tidy.groupby(["gyro", "estimator", "coefficient"], sort=False):
         u = units[c]
         true = from_si(c, float(d["true"].iloc[0]), u)
@@ -69,14 +74,15 @@ def _summarize(tidy: pd.DataFrame, units: dict | None) -> pd.DataFrame:
                 "n_ok": int(est.size),
                 "n_nonphysical": int(d["nonphysical"].sum()),
                 "n_failed": int((d["failure"] != "").sum()),
-                "_o": order[c],
+                "_o": corder[c],
             }
         )
     out = pd.DataFrame(rows)
     if out.empty:
         return out
-    gorder = {g: i for i, g in enumerate(dict.fromkeys(tidy["gyro"]))}
-    eorder = {e: i for i, e in enumerate(dict.fromkeys(tidy["estimator"]))}
+    gyros, ests = order or ((), ())
+    gorder = {g: i for i, g in enumerate(dict.fromkeys([*gyros, *tidy["gyro"]]))}
+    eorder = {e: i for i, e in enumerate(dict.fromkeys([*ests, *tidy["estimator"]]))}
     out["_g"] = out["gyro"].map(gorder)
     out["_e"] = out["estimator"].map(eorder)
     out = out.sort_values(["_g", "_e", "_o"]).drop(columns=["_g", "_e", "_o"]).reset_index(drop=True)
@@ -174,39 +180,129 @@ def render_markdown(summary: pd.DataFrame, meta: dict | None = None) -> str:
                 label = label.replace("paper ", "*paper* ", 1)
             out.append(f"| {markdown_cell(label)} | " + " | ".join(map(markdown_cell, cells)) + " |")
         out.append("")
+    out += _against_paper(summary, meta)
     out.append(_NOTE + " Fit times: `timings.md` beside this file (measured on the machine that ran the study; "
                "not part of the compared results).")
     return "\n".join(out) + "\n"
 
 
+#: a unit as LaTeX (text mode; exponents as math superscripts)
+UNIT_TEX = {
+    "urad": r"$\mu$rad",
+    "deg/sqrt(h)": r"deg/$\sqrt{\mathrm{h}}$",
+    "deg/h^1.5": r"deg/h$^{1.5}$",
+    "deg/h^2": r"deg/h$^{2}$",
+}
+
+
+def _against_paper(summary: pd.DataFrame, meta: dict) -> list[str]:
+    """The spreads against the paper's (the range of paper std / our std over the cells both give)
+    and the departures the paper table explains, as lines of ``table.md``."""
+    if "paper_std" not in summary.columns:
+        return []
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = (summary["paper_std"].astype(float) / summary["std"].astype(float)).to_numpy()
+    r = r[np.isfinite(r) & (r > 0)]
+    out = []
+    if r.size:
+        out.append(f"**Against the paper.** Over the {r.size} cells where both give a standard deviation, the "
+                   f"paper's is {r.min():.3g}–{r.max():.3g}× ours (median {np.median(r):.3g}×).")
+    notes = [n.removeprefix("Departure:").strip() for n in meta.get("paper_notes", [])]
+    out += [n[:1].upper() + n[1:] for n in notes if n]
+    return [" ".join(out) + "\n"] if out else []
+
+
 def _tex(text: str) -> str:
     repl = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
             "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\^{}", "µ": r"$\mu$", "√": r"$\surd$",
-            "²": r"$^2$", "–": "--", "−": "-"}
+            "²": r"$^{2}$", "–": "--", "−": "$-$", "×": r"$\times$"}
     return "".join(repl.get(ch, ch) for ch in str(text))
 
 
+def _tex_cell(text: str) -> str:
+    """A table cell as LaTeX: 8.587e-05 as $8.587\\times 10^{-5}$."""
+    return re.sub(r"(-?\d(?:\.\d+)?)e([+-]\d+)", lambda m: f"${m[1]}\\times 10^{{{int(m[2])}}}$", _tex(text))
+
+
+def _tex_unit(unit: str) -> str:
+    return UNIT_TEX.get(unit) or _tex(UNIT_LABEL.get(unit, unit))
+
+
+def _tex_record(n: int, dt: float) -> str:
+    return f"{n:,} samples at $\\Delta t = {dt:g}$~s ({n * dt / 3600:.3g}~h)"
+
+
+def _tex_caption(summary: pd.DataFrame, meta: dict) -> str:
+    """The caption: the study, its replicates, seed and records, and what each row means."""
+    parts = [_tex(meta.get("title") or "Study") + "."]
+    if meta.get("description"):
+        parts.append(_tex(meta["description"].strip().rstrip(".")) + ".")
+    reps = int(summary["n"].max()) if len(summary) else 0
+    groups: dict = {}  # (samples, dt) -> gyros
+    for g, info in meta.get("gyros", {}).items():
+        if info.get("n_samples") and info.get("dt"):
+            groups.setdefault((info["n_samples"], info["dt"]), []).append(_tex(g))
+    if len(groups) == 1:
+        records = "records: " + _tex_record(*next(iter(groups)))
+    elif groups and len(groups) <= 3:
+        records = "records: " + "; ".join(f"{', '.join(gs)}: {_tex_record(*k)}" for k, gs in groups.items())
+    else:
+        records = "each gyro's record in its heading" if groups else ""
+    parts.append(f"{reps} replicates" + (f" (seed {meta['seed']})" if meta.get("seed") is not None else "")
+                 + (f"; {records}" if records else "") + ".")
+    parts.append("Mean and std over the replicates with a physical estimate; error "
+                 "$= |\\bar{x} - x_0| / x_0 \\times 100$; CRLB std: the Cram\\'er-Rao bound on the standard deviation "
+                 "of an unbiased estimator for the record length; non-physical / failed: replicates whose fit gave "
+                 "no physical value or failed; paper rows in italics.")
+    return " ".join(parts)
+
+
+#: gyros per LaTeX ``table`` float (a float taller than a page cannot be set)
+LATEX_GYROS_PER_TABLE = 6
+
+
 def render_latex(summary: pd.DataFrame, meta: dict | None = None) -> str:
-    """The tables of :func:`render_markdown` as LaTeX ``tabular``s (booktabs), paper rows in italics."""
-    out = []
-    for _, head, cols, rows in paper_layout(summary, meta):
-        out.append(f"% {_tex(head)}")
+    """One captioned ``table`` (booktabs) holding :func:`render_markdown`'s tables, one ``tabular`` per
+    gyro headed by its name; the caption states the replicates, the seed, each record's length and
+    sampling interval, and the rows' definitions. The cells are :func:`paper_layout`'s, so the numbers
+    equal ``table.md``'s. Needs ``\\usepackage{booktabs}``. A float cannot break across pages, so a study
+    of more than :data:`LATEX_GYROS_PER_TABLE` gyros continues in further ``table`` floats, each
+    captioned "(continued)"."""
+    meta = meta or {}
+    units = dict(zip(summary["coefficient"], summary["unit"])) if len(summary) else {}
+    name = re.sub(r"[^A-Za-z0-9]+", "-", str(meta.get("title", "study")).removeprefix("Study ")).strip("-")
+    out = ["% needs \\usepackage{booktabs}", "\\begin{table}", "\\centering", "\\small",
+           f"\\caption{{{_tex_caption(summary, meta)}}}", f"\\label{{tab:{name or 'study'}}}"]
+    for i, (g, _, cols, rows) in enumerate(paper_layout(summary, meta)):
+        coefs = [c.split(" ", 1)[0] for c in cols]
+        if i and i % LATEX_GYROS_PER_TABLE == 0:
+            part = i // LATEX_GYROS_PER_TABLE + 1
+            out += ["\\end{table}", "", "\\begin{table}", "\\centering", "\\small",
+                    f"\\caption{{{_tex(meta.get('title') or 'Study')} (continued).}}",
+                    f"\\label{{tab:{name or 'study'}-{part}}}"]
+        elif i:
+            out.append("\\par\\medskip")
         out.append("\\begin{tabular}{l" + "r" * len(cols) + "}")
         out.append("\\toprule")
-        out.append(" & " + " & ".join(_tex(c) for c in cols) + r" \\")
+        info = meta.get("gyros", {}).get(g, {})
+        record = f" ({_tex_record(info['n_samples'], info['dt'])})" if info.get("n_samples") and info.get("dt") else ""
+        out.append(f"\\multicolumn{{{len(cols) + 1}}}{{l}}{{\\textbf{{{_tex(g)}}}{record}}} \\\\")
+        out.append("\\midrule")
+        out.append(" & " + " & ".join(f"{c} ({_tex_unit(units.get(c, ''))})" for c in coefs) + r" \\")
         out.append("\\midrule")
         for kind, label, cells in rows:
             if kind.startswith("paper"):
-                line = f"\\textit{{{_tex(label)}}} & " + " & ".join(f"\\textit{{{_tex(x)}}}" if x else "" for x in cells)
+                line = f"\\textit{{{_tex(label)}}} & " + " & ".join(f"\\textit{{{_tex_cell(x)}}}" if x else ""
+                                                                  for x in cells)
             elif kind == "mean":
-                line = f"\\textbf{{{_tex(label)}}} & " + " & ".join(_tex(x) for x in cells)
+                line = f"\\textbf{{{_tex(label)}}} & " + " & ".join(_tex_cell(x) for x in cells)
             else:
-                line = f"{_tex(label)} & " + " & ".join(_tex(x) for x in cells)
+                line = f"{_tex(label)} & " + " & ".join(_tex_cell(x) for x in cells)
             out.append(line + r" \\")
         out.append("\\bottomrule")
         out.append("\\end{tabular}")
-        out.append("")
-    return "\n".join(out)
+    out.append("\\end{table}")
+    return "\n".join(out) + "\n"
 
 
 def leaderboard(summary: pd.DataFrame, wins: pd.DataFrame | None = None) -> str:
@@ -353,7 +449,7 @@ def timings(tidy: pd.DataFrame) -> pd.DataFrame:
     """Fit time per replicate of each gyro x estimator (median, mean, max seconds)."""
     per = tidy.groupby(["gyro", "estimator", "replicate"], sort=False)["seconds"].first().reset_index()
     t = per.groupby(["gyro", "estimator"], sort=False)["seconds"].agg(["median", "mean", "max", "count"])
-    return t.rename(columns={"count": "replicates"}).reset_index()
+    return t.rename(columns={"count": "replicates"}).assign(unit="s").reset_index()
 
 
 def render_timings(t: pd.DataFrame, meta: dict) -> str:
@@ -407,10 +503,13 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path, executor=None) -> pd.DataFr
     tidy = stored
     drawing = _start_figures(cfg, tidy, out, executor) if executor is not None else None
 
-    bounds = crlb_table(cfg)  # computed once, for the tables and the scores
-    summary = _crlb_column(bounds, summarize(tidy, getattr(cfg, "units", None)))
+    # computed once, for the tables and the scores, at the 12 digits meta.json keeps (the digits a
+    # machine's linear algebra decides; the tables re-rendered from meta.json then equal these)
+    bounds = {k: float(f"{b:.12g}") for k, b in crlb_table(cfg).items()}
+    order = ([g.label for g in cfg.gyros], [e.label for e in cfg.estimators])
+    summary = _crlb_column(bounds, summarize(tidy, getattr(cfg, "units", None), order))
     if cfg.paper_table is not None:  # validated by the config: a missing table is a ConfigError there
-        from avbench.studies.papers import add_paper, load_paper_table
+        from avbench.studies.papers import add_paper, load_paper_table, paper_notes
 
         paper = load_paper_table(cfg.paper_table)
         gmap = {g.label: g.paper_gyro for g in cfg.gyros if g.paper_gyro}
@@ -424,7 +523,16 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path, executor=None) -> pd.DataFr
         "result_key": cfg.result_key(),
         "gyros": {g.label: {"n_samples": g.n_samples, "dt": g.gyro.dt, **_truth_curve(g.gyro)} for g in cfg.gyros},
         "paper_table": os.path.basename(str(cfg.paper_table)) if cfg.paper_table else None,
+        "estimators": order[1],
+        "units": dict(getattr(cfg, "units", None) or {}),
+        # the Cramer-Rao std bounds in SI at full precision: the tables re-rendered from tidy.csv need them
+        "crlb": {g: {c: b for (gg, c), b in bounds.items() if gg == g and np.isfinite(b)} for g in order[0]},
     }
+    if cfg.paper_table is not None:
+        meta["paper_notes"] = paper_notes(cfg.paper_table)
+    from avbench.studies.provenance import provenance
+
+    meta["provenance"] = provenance(cfg)  # the code, versions and resolved config behind the rows
     atomic_write_text(out / "table.csv", summary.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
     summary.attrs["table.md"] = render_markdown(summary, meta)  # what the command prints: this run's own table
     atomic_write_text(out / "table.md", summary.attrs["table.md"])
@@ -461,8 +569,9 @@ def _draw_figure(cfg, tidy: pd.DataFrame, kind: str, gi: int, path: Path) -> Pat
 def _start_figures(cfg, tidy: pd.DataFrame, out: Path, executor) -> list:
     """Submit every figure of the report to ``executor``, each with its gyro's rows only."""
     from avbench.studies.figure_files import figure_jobs
+    from avbench.studies.workers import submit
 
-    return [executor.submit(_draw_figure, cfg, tidy[tidy["gyro"] == cfg.gyros[gi].label], kind, gi, path)
+    return [submit(executor, _draw_figure, cfg, tidy[tidy["gyro"] == cfg.gyros[gi].label], kind, gi, path)
             for kind, gi, path in figure_jobs(cfg, tidy, out)]
 
 
@@ -505,7 +614,25 @@ def check_report(folder) -> dict:
 
 
 def read_summary(folder) -> tuple[pd.DataFrame, dict]:
-    """(table.csv, meta) of a complete report; ValueError naming the file and what was expected."""
+    """(summary, meta) of a complete report, at full precision: the summary recomputed from ``tidy.csv``
+    as :func:`write_report` computed it (the bounds from ``meta.json``, the paper's figures from
+    ``table.csv``), so that every table rendered from it equals ``table.md``. A report without the
+    bounds in its ``meta.json`` gives ``table.csv`` as it is. ValueError naming the file and what was
+    expected."""
+    summary, meta = _read_table_csv(folder)
+    if "crlb" not in meta or not (Path(folder) / TIDY_FILE).is_file():
+        return summary, meta
+    full = summarize(read_tidy(folder), meta.get("units"), (list(meta.get("gyros", {})), meta.get("estimators", [])))
+    bounds = {(g, c): b for g, d in meta["crlb"].items() for c, b in d.items()}
+    full = _crlb_column(bounds, full)
+    paper = [c for c in ("paper_mean", "paper_error_pct", "paper_std") if c in summary.columns]
+    if paper:
+        key = ["gyro", "estimator", "coefficient"]
+        full = full.merge(summary[key + paper].astype({"gyro": str, "estimator": str}), on=key, how="left")
+    return full, meta
+
+
+def _read_table_csv(folder) -> tuple[pd.DataFrame, dict]:
     meta = check_report(folder)
     path = Path(folder) / "table.csv"
     try:

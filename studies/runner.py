@@ -19,7 +19,6 @@ replicate is recorded in the tidy table (column ``failure``) and the study goes 
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 import sys
@@ -83,34 +82,19 @@ class Task:
         return f"g{self.gyro_index:02d}_r{self.start:06d}-{self.stop:06d}.parquet"
 
 
-#: the modules whose code computes a study's rows: shards computed by other code are not resumed
-_CODE_PACKAGES = ("avbench.noise_models", "avbench.estimators")
-_CODE_MODULES = ("avbench.studies.runner", "avbench.studies.config", "avbench.studies.seeding")
+def code_key(cfg: StudyConfig) -> str:
+    """Hash of the source that computes ``cfg``'s rows: its estimators' and terms' code, a plugin's
+    files, and the runner (:func:`avbench.studies.provenance.code_hashes` states the rule). Shards live
+    under ``_shards/<config key>-<code key>/``: a study rerun after its code changed starts afresh
+    instead of mixing blocks of two versions (the config key alone cannot see an edit)."""
+    from avbench.studies.provenance import code_key as key
 
-
-def code_key() -> str:
-    """Hash of the source of every module that computes a study's rows (the simulators, the
-    estimators, this runner, the config and the seeding). Shards live under
-    ``_shards/<config key>-<code key>/``: a study resumed after the code changed starts afresh
-    instead of mixing blocks of two versions (the config key alone cannot see that)."""
-    import importlib
-
-    h = hashlib.sha256()
-    files = []
-    for name in _CODE_PACKAGES:
-        root = Path(importlib.import_module(name).__file__).parent
-        files += [(f"{name}/{q.relative_to(root).as_posix()}", q) for q in root.rglob("*.py")]
-    for name in _CODE_MODULES:
-        files.append((name, Path(importlib.import_module(name).__file__)))
-    for label, path in sorted(files):
-        h.update(label.encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()[:12]
+    return key(cfg)
 
 
 def shard_folder(out, cfg: StudyConfig) -> Path:
     """Where the blocks of ``cfg`` computed by this code are saved under the output folder ``out``."""
-    return Path(out) / "_shards" / f"{cfg.result_key()}-{code_key()}"
+    return Path(out) / "_shards" / f"{cfg.result_key()}-{code_key(cfg)}"
 
 
 def tasks_of(cfg: StudyConfig) -> list[Task]:
@@ -383,6 +367,10 @@ def _run_study(cfg, out, n_jobs, backend, scheduler, progress, max_retries, make
     about = shard_dir / "config.json"
     if not about.exists():  # which config these shards belong to (for people, not read back)
         _atomic_write_text(json.dumps(cfg.result_payload(), indent=2, sort_keys=True, default=str), about)
+    from avbench.studies.provenance import shadowed
+
+    for msg in shadowed(cfg):  # said before any work: the study runs the module that was imported
+        warnings.warn(f"study {cfg.name}: {msg}", stacklevel=2)
     tasks = tasks_of(cfg)
     todo = [t for t in tasks if not (shard_dir / t.shard_name).exists()]
     if backend == "loky" and n_jobs != 1:  # no more processes than cores and blocks, said
@@ -502,7 +490,8 @@ def _local_runner(n_jobs: int):
     def run(cfg, tasks):
         from concurrent.futures import FIRST_COMPLETED, wait
 
-        from avbench.studies.workers import local_workers, warm_parent_report_imports, warm_report_imports, worker_count
+        from avbench.studies.workers import (local_workers, submit, warm_parent_report_imports, warm_report_imports,
+                                             worker_count)
 
         executor = local_workers(n_jobs)
         workers = worker_count(n_jobs)
@@ -512,7 +501,7 @@ def _local_runner(n_jobs: int):
             while True:
                 exhausted = True
                 for t in todo:
-                    running.add(executor.submit(_compute_block, cfg, t))
+                    running.add(submit(executor, _compute_block, cfg, t))
                     if len(running) >= window:
                         exhausted = False
                         break

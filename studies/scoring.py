@@ -4,12 +4,15 @@ From a study's tidy table (one row per gyro x replicate x estimator x coefficien
 ``lower`` / ``upper`` bounds the runner records from each estimator's ``conf_int``):
 
 ``scores(tidy, crlb)``
-    one row per gyro x estimator x coefficient (SI): ``rmse``, ``bias``, ``std``, ``crlb`` (the
-    Cramér-Rao std bound), ``rmse_over_crlb``, ``bias_over_se`` (the bias over its own Monte Carlo
+    one row per gyro x estimator x coefficient, in SI (``unit`` names it): ``rmse``, ``bias`` (signed:
+    mean - true; ``bias_pct`` the same over true, in %), ``std``, ``crlb`` (the
+    Cramér-Rao std bound), ``rmse_over_crlb`` with its percentile bootstrap 95 % interval
+    ``rmse_over_crlb_lo``/``_hi`` (the physical replicates resampled), ``bias_over_se`` (the bias over its own Monte Carlo
     standard error std/sqrt(M): |value| > 2 says the bias is real), ``bias_over_crlb``,
     ``coverage`` (share of replicates whose 95 % interval holds the truth, among those with an
     interval), ``coverage_lo``/``coverage_hi`` (Clopper-Pearson 95 % interval of that share),
-    ``n_intervals``. std/CRLB alone is no score: a biased estimator can sit below the bound.
+    ``n_intervals``. std/CRLB alone is no score: a biased estimator can sit below the bound, which
+    limits unbiased estimators only; ``note`` says so on every row with RMSE/CRLB below 1.
 ``paired_rmse_ratio(tidy, gyro, coefficient, a, b)``
     RMSE_a / RMSE_b on the replicates both have, with a bootstrap 95 % interval that resamples
     replicates (pairs kept together, Efron & Tibshirani 1993, Ch. 13).
@@ -70,9 +73,29 @@ def _clopper_pearson(k: int, n: int, level=0.95):
     return float(lo), float(hi)
 
 
+def _below_bound_note(rmse_over_crlb: float, bias_over_se: float) -> str:
+    if not rmse_over_crlb < 1:
+        return ""
+    return (f"below the Cramér-Rao bound (bias/SE {bias_over_se:.2g}): the bound limits unbiased estimators "
+            "only, so this is no efficiency beyond it")
+
+
+def _rmse_ratio_interval(x: np.ndarray, true: float, bound: float, n_boot=N_BOOT, seed=0, level=0.95):
+    """Percentile bootstrap interval of RMSE / bound over the replicates ``x`` (resampled)."""
+    if x.size < 3 or not bound > 0 or not np.isfinite(true):
+        return math.nan, math.nan
+    idx = np.random.default_rng(seed).integers(0, x.size, size=(n_boot, x.size))
+    r = np.sqrt(np.mean((x[idx] - true) ** 2, axis=1)) / bound
+    lo, hi = np.quantile(r, [(1 - level) / 2, (1 + level) / 2])
+    return float(lo), float(hi)
+
+
 def scores(tidy: pd.DataFrame, crlb: dict | None = None) -> pd.DataFrame:
     """Per gyro x estimator x coefficient scores in SI (module docstring)."""
+    from avbench.noise_models.units import si_units
+
     crlb = crlb or {}
+    si = si_units()
     rows = []
     for (g, e, c), d in tidy.groupby(["gyro", "estimator", "coefficient"], sort=False):
         true = float(d["true"].iloc[0])
@@ -89,14 +112,18 @@ def scores(tidy: pd.DataFrame, crlb: dict | None = None) -> pd.DataFrame:
             cov_n = len(iv)
             cov_k = int(((iv["lower"] <= true) & (true <= iv["upper"])).sum())
         lo, hi = _clopper_pearson(cov_k, cov_n)
+        r_lo, r_hi = _rmse_ratio_interval(x, true, bound)
+        ratio = rmse / bound if bound > 0 else math.nan
+        bias_se = bias / (std / math.sqrt(M)) if M > 1 and std > 0 else math.nan
         rows.append({
-            "gyro": g, "estimator": e, "coefficient": c, "true": true, "n": int(d["replicate"].nunique()),
-            "n_ok": M, "bias": bias, "std": std, "rmse": rmse, "crlb": bound,
-            "rmse_over_crlb": rmse / bound if bound > 0 else math.nan,
-            "bias_over_se": bias / (std / math.sqrt(M)) if M > 1 and std > 0 else math.nan,
+            "gyro": g, "estimator": e, "coefficient": c, "unit": si[c], "true": true,
+            "n": int(d["replicate"].nunique()), "n_ok": M, "bias": bias,
+            "bias_pct": bias / true * 100 if true > 0 else math.nan, "std": std, "rmse": rmse, "crlb": bound,
+            "rmse_over_crlb": ratio, "rmse_over_crlb_lo": r_lo, "rmse_over_crlb_hi": r_hi,
+            "bias_over_se": bias_se,
             "bias_over_crlb": bias / bound if bound > 0 else math.nan,
             "coverage": cov_k / cov_n if cov_n else math.nan, "coverage_lo": lo, "coverage_hi": hi,
-            "n_intervals": cov_n,
+            "n_intervals": cov_n, "note": _below_bound_note(ratio, bias_se),
         })
     return pd.DataFrame(rows)
 
@@ -162,13 +189,22 @@ def _md_table(df: pd.DataFrame) -> list[str]:
 def render_scores(sc: pd.DataFrame, w: pd.DataFrame) -> str:
     """Markdown: coverage and efficiency per gyro x estimator x coefficient, and tested wins."""
     out = ["# Scores with uncertainty", "",
-           "RMSE/CRLB and bias/SE (bias over its Monte Carlo standard error; |bias/SE| > 2: a real bias); "
+           "RMSE/CRLB with its bootstrap 95 % interval (lo, hi), and bias/SE (the signed bias over its Monte "
+           "Carlo standard error; |bias/SE| > 2: a real bias). The Cramér-Rao bound limits unbiased estimators "
+           "only: a row below it says so ('below_bound') and is listed under the table. "
            "coverage = share of replicates whose 95 % interval (the estimator's `conf_int`) holds the truth, "
            "with its Clopper-Pearson 95 % interval; '–' where the estimator gives no interval.", ""]
-    s = sc[np.isfinite(sc["true"]) & (sc["true"] > 0)]
-    cols = ["gyro", "estimator", "coefficient", "rmse_over_crlb", "bias_over_se", "bias_over_crlb",
-            "coverage", "coverage_lo", "coverage_hi", "n_intervals"]
+    s = sc[np.isfinite(sc["true"]) & (sc["true"] > 0)].copy()
+    below = s["note"] != ""
+    s["below_bound"] = np.where(below, "yes", "")
+    cols = ["gyro", "estimator", "coefficient", "rmse_over_crlb", "rmse_over_crlb_lo", "rmse_over_crlb_hi", "below_bound",
+            "bias_over_se", "bias_over_crlb", "coverage", "coverage_lo", "coverage_hi", "n_intervals"]
     out += _md_table(s[cols])
+    if below.any():
+        out += ["", "Below the Cramér-Rao bound: the bound limits unbiased estimators only, so a biased "
+                "estimator can sit below it; these rows show bias, not efficiency beyond the bound:", ""]
+        out += [f"- {r['gyro']} / {r['estimator']} / {r['coefficient']}: RMSE/CRLB {r['rmse_over_crlb']:.3g}, "
+                f"bias/SE {r['bias_over_se']:.3g}" for _, r in s[below].iterrows()]
     out += ["", "## Wins (paired bootstrap of the RMSE ratio on the same replicates)", "",
             "A win is counted only when the 95 % interval of RMSE(best)/RMSE(runner-up) lies below 1.", ""]
     if len(w):

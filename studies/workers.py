@@ -19,10 +19,12 @@ from __future__ import annotations
 import contextlib
 import importlib
 import os
+import pickle
+import sys
 import threading
 import time
 
-__all__ = ["local_workers", "started_early", "worker_count", "workers_note", "one_numba_thread", "warm_report_imports",
+__all__ = ["local_workers", "started_early", "worker_count", "workers_note", "submit", "one_numba_thread", "warm_report_imports",
            "warm_parent_report_imports",
            "PARENT_POLL_S", "IDLE_WORKER_TIMEOUT_S"]
 
@@ -144,3 +146,21 @@ def one_numba_thread() -> None:
         numba.set_num_threads(1)
     except (ImportError, ValueError):  # pragma: no cover
         pass
+
+
+def submit(executor, fn, *args):
+    """``executor.submit(fn, *args)`` for a local worker that may have started before this process put a
+    folder on ``sys.path`` (``avbench run`` starts its workers before it reads the config, whose
+    estimator may be a module beside it): the call travels pickled and is unpickled in the worker after
+    :func:`_on_parent_path` adds the entries the worker lacks."""
+    return executor.submit(_on_parent_path, list(sys.path), pickle.dumps((fn, args), protocol=pickle.HIGHEST_PROTOCOL))
+
+
+def _on_parent_path(paths: list, call: bytes):
+    """In a local worker: put first on ``sys.path`` the parent's entries it lacks, then run the call."""
+    missing = [p for p in paths if p not in sys.path]
+    if missing:
+        sys.path[:0] = missing
+        importlib.invalidate_caches()
+    fn, args = pickle.loads(call)
+    return fn(*args)

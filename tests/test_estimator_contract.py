@@ -77,6 +77,14 @@ class DegreesPerHour(_WhiteN):
         return {"N": coefs["N"] * 180 / math.pi * 60}, nonphys, diag
 
 
+class BiasTimes66(estimators.estimator_class("ols")):
+    """OLS with B in a wrong unit (66 times too large): the first record has no bias instability."""
+
+    def _fit(self, rate, dt):
+        coefs, nonphys, diag = super()._fit(rate, dt)
+        return {**coefs, "B": coefs["B"] * 66}, nonphys, diag
+
+
 class WrongIndex(_WhiteN):
     def fit(self, rate, dt):
         super().fit(rate, dt)
@@ -155,6 +163,7 @@ BROKEN = [
     (VarArgs, "init", "__init__ takes *extra"),
     (FitReturnsNone, "fit", "fit() returned None, expected self"),
     (DegreesPerHour, "recovery", "off by"),
+    (BiasTimes66, "recovery", "on the recovery_all record: off by"),
     (AbsoluteFloor, "equivariance", "coefficient N moves by"),
     (WrongIndex, "attributes", "coefficients_ index ['N', 'K'], expected ['Q', 'N', 'B', 'K', 'R']"),
     (Unseeded, "determinism", "a fresh copy fitted on the same record gave other coefficients"),
@@ -170,6 +179,13 @@ BROKEN = [
 def test_a_correct_minimal_estimator_passes():
     report = check_estimator(_WhiteN)
     assert report.ok and "N recovered" in str(report)
+    assert "std_err_ and conf_int: not provided" in str(report)  # never "checked" for what it lacks
+
+
+def test_every_coefficient_an_estimator_returns_is_recovered():
+    report = check_estimator("ols", raise_on_failure=False)
+    recovery = next(r for r in report.results if r.check == "recovery")
+    assert recovery.passed and "B" in recovery.reason.split("recovered")[0], str(report)
 
 
 @pytest.mark.parametrize("cls, check, reason", BROKEN, ids=[b[0].__name__ for b in BROKEN])

@@ -159,6 +159,16 @@ def _check_report(study: str, tmp_path: Path) -> None:
         write_report(cfg, read_tidy(committed), out)
     new, old = (json.loads((d / "meta.json").read_text()) for d in (out, committed))
     outputs, old_outputs = new.pop("outputs"), old.pop("outputs")
+    # the code and the environment are recorded as they are where the report is written; the resolved
+    # config is a function of the config alone
+    prov, old_prov = new.pop("provenance"), old.pop("provenance", {})
+    assert set(prov) == set(old_prov) and prov["config"] == old_prov["config"], f"{study}/meta.json: provenance"
+    # the bounds' last digits are the machine's linear algebra (12 kept): the tables show 4
+    bounds, old_bounds = new.pop("crlb", {}), old.pop("crlb", {})
+    assert bounds.keys() == old_bounds.keys() and all(
+        bounds[g].keys() == old_bounds[g].keys()
+        and np.allclose([bounds[g][c] for c in bounds[g]], [old_bounds[g][c] for c in bounds[g]], rtol=1e-9, atol=0)
+        for g in bounds), f"{study}/meta.json: crlb"
     assert new == old, f"{study}/meta.json differs"
     assert set(outputs) == set(old_outputs), f"{study}: the report's files differ"
     for name in sorted(k for k in outputs if not k.endswith(".png")):

@@ -27,6 +27,27 @@ def test_scores_coverage_bias_and_crlb():
     np.testing.assert_allclose(sc["bias_over_se"], err.mean() / (err.std(ddof=1) / np.sqrt(8)))
 
 
+def test_rmse_over_crlb_interval_covers_and_a_biased_estimator_below_the_bound_is_said():
+    """The bootstrap interval of RMSE/CRLB holds the true ratio in 90-95 % of studies (binomial 99.9 %
+    range over 300 simulated studies of 30 replicates: a percentile interval of a spread under-covers a
+    little at 30 replicates, ~92 % here, Efron & Tibshirani 1993, Ch. 14), and a biased estimator with
+    RMSE below the bound carries the note."""
+    from scipy.stats import binom
+
+    rng = np.random.default_rng(5)
+    hits, n = 0, 300
+    for _ in range(n):
+        sc = scores(_tidy({"a": 0.1 * rng.standard_normal(30)}), {("g", "N"): 0.2}).iloc[0]
+        hits += sc["rmse_over_crlb_lo"] <= 0.5 <= sc["rmse_over_crlb_hi"]
+    assert binom.ppf(5e-4, n, 0.90) <= hits <= binom.isf(5e-4, n, 0.95), hits
+    biased = scores(_tidy({"a": 0.05 + 0.001 * rng.standard_normal(30)}), {("g", "N"): 0.1}).iloc[0]
+    assert biased["rmse_over_crlb"] < 1 and "limits unbiased estimators only" in biased["note"]
+    assert biased["bias"] > 0 and biased["bias_pct"] > 0 and biased["unit"] == "rad/sqrt(s)"
+    md = render_scores(scores(_tidy({"a": 0.05 + 0.001 * rng.standard_normal(30)}), {("g", "N"): 0.1}), wins(
+        _tidy({"a": np.zeros(3)})))
+    assert "Below the Cramér-Rao bound: the bound limits unbiased estimators only" in md and "| yes |" in md
+
+
 def test_paired_ratio_win_and_tie():
     rng = np.random.default_rng(0)
     e = rng.standard_normal(40)

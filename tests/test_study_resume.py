@@ -112,15 +112,16 @@ def test_changed_code_gets_its_own_shards(tmp_path, count_blocks, monkeypatch):
     assert len(count_blocks) == 3
     run_study(cfg, tmp_path / "out", progress=False, make_report=False)
     assert len(count_blocks) == 3  # same code: resumed, nothing computed
-    monkeypatch.setattr(runner, "code_key", lambda: "other-code")
+    monkeypatch.setattr(runner, "code_key", lambda cfg: "other-code")
     run_study(cfg, tmp_path / "out", progress=False, make_report=False)
     assert len(count_blocks) == 6  # other code: computed afresh, in its own folder
     assert len(list((tmp_path / "out" / "_shards").iterdir())) == 2
 
 
-def test_code_key_reads_the_estimators_source():
-    key = runner.code_key()
-    assert len(key) == 12 and key == runner.code_key()
+def test_code_key_reads_the_estimators_source(tmp_path):
+    cfg = cfg_of(tmp_path, toml())
+    key = runner.code_key(cfg)
+    assert len(key) == 12 and key == runner.code_key(cfg)
 
 
 def test_changed_config_gets_its_own_shards(tmp_path, count_blocks):

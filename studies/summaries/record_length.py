@@ -178,7 +178,9 @@ def crossover_figure(table: pd.DataFrame, curves: dict, grid, compared: list[str
              if ((table["gyro"] == g) & (table["coefficient"] == c)).any()]
     ncol = min(4, len(cells))
     nrow = math.ceil(len(cells) / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(2.9 * ncol, 2.5 * nrow + 0.9), sharex=True, squeeze=False)
+    # at least 7 in wide: the title and the legend below the panels fit however few panels there are
+    fig, axes = plt.subplots(nrow, ncol, figsize=(max(2.9 * ncol, 7.0), 2.5 * nrow + (0.9 if ncol > 2 else 1.4)),
+                             sharex=True, squeeze=False)
     hours = sorted(table["hours"].unique())
     col = {"K": 3, "R": 4}
     for ax, (g, c) in zip(axes.flat, cells):
@@ -212,8 +214,9 @@ def crossover_figure(table: pd.DataFrame, curves: dict, grid, compared: list[str
         ax.set_ylabel("RMSE / true value", fontsize=8)
     handles, labels = axes.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=7, frameon=False)
-    fig.suptitle("Where K and R become estimable: relative RMSE against record length "
-                 "(dashed 30 %, dotted 100 %; curve: Cramér-Rao bound)", fontsize=9)
+    title = ("Where K and R become estimable: relative RMSE against record length "
+             "(dashed 30 %, dotted 100 %; curve: Cramér-Rao bound)")
+    fig.suptitle(title if ncol > 2 else title.replace(" against", "\nagainst"), fontsize=9)
     fig.tight_layout(rect=(0, 0.09 if nrow < 3 else 0.06, 1, 1))
     return fig
 
