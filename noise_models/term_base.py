@@ -85,6 +85,16 @@ class TermStream:
     def next(self, n: int) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
+def _no_exact_statistic(name: str):
+    """The method ``name`` of a term without exact statistics: a ValueError naming the term."""
+
+    def method(self, *args, **kwargs):
+        raise ValueError(f"{type(self).__name__}: no exact {name} (the term declares has_exact_avar = False)")
+
+    method.__name__ = name
+    return method
+
+
 class NoiseTerm(abc.ABC):
     """Abstract base of the noise terms: every term declares its parameters (:meth:`_params`), its exact
     AV (:meth:`avar`), spectrum (:meth:`psd`), autocovariance (:meth:`autocovariance`) and generator
@@ -102,6 +112,20 @@ class NoiseTerm(abc.ABC):
     #: True for a term without a random part (the ramp: a mean, no covariance); a spectral likelihood
     #: models it as a trend, not a spectrum
     deterministic: ClassVar[bool] = False
+
+    #: the exact statistics a term declares unless it says it has none (``has_exact_avar = False``)
+    _EXACT_STATISTICS: ClassVar[tuple[str, ...]] = ("avar", "psd", "autocovariance")
+
+    def __init_subclass__(cls, **kwargs):
+        """A term that declares no exact Allan variance (``has_exact_avar = False``: a user's term whose truth
+        is not derived) is not asked for its exact statistics: each left out answers with an error naming
+        the term, so that the abstract base does not refuse to make it. Every other term must declare them."""
+        super().__init_subclass__(**kwargs)
+        if cls.has_exact_avar:
+            return
+        for name in cls._EXACT_STATISTICS:
+            if getattr(getattr(cls, name, None), "__isabstractmethod__", False):
+                setattr(cls, name, _no_exact_statistic(name))
 
     def coefficients(self) -> dict[str, float]:
         """The IEEE coefficient(s) the term stands for, in SI (none by default)."""

@@ -267,9 +267,10 @@ def estimate_file(path, methods=None, settings=None, fit_not_static=False, jobs=
     _check_settings(settings, "settings")
     _, timing, sensors = load_recording(path, **reader_options)
     if not fit_not_static:
+        from avbench.recordings.quality import judge_record
         from avbench.recordings.static import NotStaticError, static_check, verdict, what_to_do
 
-        still = static_check(sensors, timing.dt)
+        still = static_check(sensors, timing.dt, spikes=judge_record(sensors, timing.dt).spikes)
         if not still["static"]:
             raise NotStaticError(f"{path}: {verdict(still)}; "
                                  f"{what_to_do(still, timing.n_samples * timing.dt, 'fit_not_static=True')}", still)
@@ -347,10 +348,11 @@ def run(args) -> int:
 
     # the AV engine, asked once per axis: the static check, the yaml's bounds, the AV table and the figure use it
     all_avs = {s.sensor: {a: scaled_allan(x, dt, timing.starts) for a, x in s.axes.items()} for s in sensors}
-    still = static_check(sensors, dt, all_avs)  # said before any fit
     from avbench.recordings.quality import judge_record
 
-    quality = judge_record(sensors, dt).to_dict()  # what the record is, judged before the fits
+    judged = judge_record(sensors, dt)  # what the record is, judged before the fits
+    quality = judged.to_dict()
+    still = static_check(sensors, dt, all_avs, judged.spikes)  # said before any fit; a spike is no motion
     fitting = still["static"] or args.fit_not_static
     if not still["static"]:
         advice = what_to_do(still, timing.n_samples * dt)

@@ -60,7 +60,7 @@ Examples
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -109,6 +109,8 @@ class RecordQuality:
     checked: tuple[str, ...] = NAMES
     family_level: float = FAMILY_LEVEL
     stationarity_level: float = STATIONARITY_LEVEL
+    #: per channel ("gyro x") with spikes, the samples that are spikes (the static check leaves them out)
+    spikes: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def names(self) -> list[str]:
@@ -301,6 +303,7 @@ def judge_record(sensors, dt: float) -> RecordQuality:
     """The checks of the module docstring on SI ``sensors``
     (:class:`~avbench.recordings.sensors.SensorRecord` each), sampled every ``dt`` seconds."""
     flags: list[Flag] = []
+    spikes: dict = {}
     for s in sensors:
         for axis, x in s.axes.items():
             x = np.asarray(x, dtype=np.float64)
@@ -308,6 +311,8 @@ def judge_record(sensors, dt: float) -> RecordQuality:
                 continue
             channel = f"{s.sensor} {axis}"
             spike, mask = _spikes(x, channel, dt)
+            if spike is not None:
+                spikes[channel] = mask
             u, c = np.unique(x, return_counts=True)
             q = _lattice(u, x.size)
             clip = _clipping(u, c, channel, q)
@@ -319,7 +324,7 @@ def judge_record(sensors, dt: float) -> RecordQuality:
             flags += [f for f in found if f is not None]
         flags += _mean_flags(s)
     order = {n: i for i, n in enumerate(NAMES)}
-    return RecordQuality(tuple(sorted(flags, key=lambda f: order[f.name])))
+    return RecordQuality(tuple(sorted(flags, key=lambda f: order[f.name])), spikes=spikes)
 
 
 def screen_lines(rq: dict | None) -> list[str]:

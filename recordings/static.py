@@ -99,24 +99,40 @@ def _spans(windows, T) -> list[tuple[float, float]]:
     return out
 
 
-def static_check(sensors, dt: float, avs=None) -> dict:
+def _without_spikes(x, mask):
+    """``x`` with the samples of ``mask`` replaced by the line between their unflagged neighbours."""
+    x = np.array(x, dtype=np.float64)
+    keep = np.flatnonzero(~mask)
+    x[mask] = np.interp(np.flatnonzero(mask), keep, x[keep])
+    return x
+
+
+def static_check(sensors, dt: float, avs=None, spikes=None) -> dict:
     """The check of the module docstring on SI channels (``sensors``: list of
     :class:`~avbench.recordings.sensors.SensorRecord`), as a JSON-ready dict: ``static`` (bool),
     ``reasons`` (sentences), per channel the spread ratio, the largest level z and its threshold, and
     ``moved`` (time spans, s, where a level changed). ``avs``: ``{sensor: {axis: (AllanResult, scale)}}``
-    already computed by the pipeline (:func:`~avbench.recordings.fit.scaled_allan`), reused here."""
+    already computed by the pipeline (:func:`~avbench.recordings.fit.scaled_allan`), reused here.
+    ``spikes``: per channel ("gyro x") the samples the record's quality check found to be spikes
+    (:func:`avbench.recordings.quality.judge_record`): a spike is no motion, so the check reads the
+    channel with them bridged (``spikes_left_out`` counts them)."""
     n_w = max(MIN_WINDOW, int(round(WINDOW_S / dt)))
     T = n_w * dt
-    channels, given = {}, {}
+    channels, given, spikes = {}, {}, spikes or {}
     for s in sensors:
+        axes = {}
         for axis, x in s.axes.items():
-            channels[f"{s.sensor} {axis}"] = x
-            given[f"{s.sensor} {axis}"] = ((avs or {}).get(s.sensor, {}).get(axis) or (None,))[0]
+            name, mask = f"{s.sensor} {axis}", spikes.get(f"{s.sensor} {axis}")
+            bridged = mask is not None and 0 < mask.sum() < mask.size
+            axes[axis] = _without_spikes(x, mask) if bridged else x
+            channels[name] = axes[axis]
+            given[name] = None if bridged else ((avs or {}).get(s.sensor, {}).get(axis) or (None,))[0]
         if s.sensor == "accel" and len(s.axes) == 3:
-            a = np.sqrt(sum(np.asarray(v, dtype=np.float64) ** 2 for v in s.axes.values()))
+            a = np.sqrt(sum(np.asarray(v, dtype=np.float64) ** 2 for v in axes.values()))
             channels["accel magnitude"] = a
     out = {"static": True, "window_s": T, "spread_limit": SPREAD_LIMIT, "family_level": FAMILY_LEVEL,
-           "channels": {}, "reasons": [], "moved": []}
+           "channels": {}, "reasons": [], "moved": [],
+           "spikes_left_out": {name: int(m.sum()) for name, m in spikes.items() if 0 < m.sum() < m.size}}
     spans_all = []
     for name, x in channels.items():
         r = _channel(np.asarray(x), dt, n_w, given.get(name))

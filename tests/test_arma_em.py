@@ -372,8 +372,9 @@ def test_failure_reported_with_sample_index():
     # the batch M-step on a constant record (which fit refuses before any filter runs: the filter's own
     # check is reached through _fit) gives R = 0 and must be refused
     with pytest.warns(DivergenceWarning, match="sample"):
-        coefs, _, diag = ArmaEM(terms="NK", x0={"N": 1e-3, "K": 1e-5}, recursive=False)._fit(np.full(200, 0.25), 0.01)
-    assert "M-step" in diag["failure"] and "sample 199" in diag["failure"]
+        coefs, _, diag, parts = ArmaEM(terms="NK", x0={"N": 1e-3, "K": 1e-5}, recursive=False)._fit(np.full(200, 0.25),
+                                                                                                     0.01)
+    assert "M-step" in parts.failure and "sample 199" in parts.failure
     assert all(np.isnan(coefs[c]) for c in "NK")
     # a singular predicted covariance inside the kernel: reported, not raised
     f = EKFilter(np.zeros((1, 1)), np.ones(1), np.zeros((1, 1)), np.ones(1))

@@ -164,7 +164,6 @@ def test_every_setting_of_the_packaged_studies_passes(path):
 
 # -- one check, one message -----------------------------------------------------------------------
 
-@estimators.register("test_undeclared_colour")
 class _UndeclaredColour(estimators.estimator_class("ols")):
     """Test only: OLS with a setting (``colour``) its declaration does not list."""
 
@@ -195,11 +194,18 @@ def _config_message(tmp_path, name, settings_toml) -> str:
     ("test_undeclared_colour", {"colour": "blue"}, 'colour = "blue"',
      "estimator 'test_undeclared_colour': unknown setting(s) colour; accepted: terms, taus, overlapping"),
 ])
-def test_an_undeclared_setting_is_refused_alike_by_get_fit_and_a_study_config(tmp_path, name, given, toml, message):
+def test_an_undeclared_setting_is_refused_alike_by_get_fit_and_a_study_config(tmp_path, monkeypatch, name, given, toml,
+                                                                             message):
     """``estimators.get``, ``Estimator.fit`` and a study config check settings in one place
     (:func:`validate_settings`): an undeclared setting is refused by each with the same message,
-    naming the settings the estimator accepts."""
+    naming the settings the estimator accepts. (The test-only estimator is registered for this test
+    only: the registry's other tests see the estimators a user has.)"""
     import numpy as np
+
+    from avbench.estimators import base
+
+    monkeypatch.setitem(base._REGISTRY, "test_undeclared_colour", _UndeclaredColour)
+    monkeypatch.setattr(_UndeclaredColour, "name", "test_undeclared_colour")
 
     assert _message_of(lambda: estimators.get(name, **given)) == message
     assert _config_message(tmp_path, name, toml).endswith(message)

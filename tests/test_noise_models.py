@@ -227,6 +227,18 @@ def test_noise_term_is_an_abstract_base_every_term_fills():
 
     with pytest.raises(TypeError, match="autocovariance"):
         NoAutocovariance()
+
+    class NoTruth(NoiseTerm):  # a user's term that says it has no exact statistics is made, and says so when asked
+        has_exact_avar = False
+
+        def _params(self):
+            return {}
+
+        def stream(self, dt, rng):
+            raise AssertionError
+
+    with pytest.raises(ValueError, match="NoTruth: no exact psd"):
+        NoTruth().psd(np.ones(2), 0.1)
     assert {type(t).__name__ for t in _every_builtin_term()} == set(TERM_TYPES)
 
 

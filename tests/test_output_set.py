@@ -201,7 +201,7 @@ def test_estimate_refusals_come_before_the_fits(tmp_path, imu):
     out = tmp_path / "out"
     cases = [(["--kalibr", imu], "is the input recording"),
              (["--kalibr", "/proc/avbench-nope/imu.yaml"], "--kalibr '/proc/avbench-nope/imu.yaml'"),
-             (["--method", "gmwm", "--set", "gmwm.filter_tf=0.01"], "--set: filter_tf"),
+             (["--method", "gmwm", "--set", "gmwm.filter_tf=0.01"], "--set: estimator 'gmwm': filter_tf"),
              (["--title", "$\\frac{1}{$"], "--title")]
     for extra, words in cases:
         r = _estimate([imu, "--units", "rad/s", "--method", "wls", "--out", out, *extra])

@@ -77,7 +77,7 @@ def test_readme_robotics_section_runs_as_written(tmp_path):
     import sys
 
     text = (ROOT / "README.md").read_text()
-    section = text[text.index("**From a recording to your filter (robotics).**"):]
+    section = text[text.index("## From a recording at rest to your filter (robotics)"):]
     block = re.search(r"```bash\n(.*?)```", section, re.S).group(1)
     env = dict(os.environ, MPLBACKEND="Agg", PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     run = subprocess.run(["bash", "-euo", "pipefail", "-c", block], cwd=tmp_path, env=env, capture_output=True,

@@ -272,7 +272,7 @@ class MLE(Estimator):
         elif not fit["converged"]:  # values at a point that is not the maximum: reported, not trusted
             diag["failure"] = (f"the likelihood's maximum was not reached ({fit['polish_iterations']} Newton "
                                "iterations after L-BFGS-B; the values are where they stopped)")
-        check, k = None, len(system.names) + ("DR" in latents)
+        check, k = None, len(system.names) + (drift is not None)
         if np.isfinite(llf):
             p = diag["params"]
             # the likelihood's parameters: each stochastic term's fit parameters (the drift is a state)
