@@ -124,7 +124,18 @@ def _root_of(module: str) -> tuple[Path, list[Path]] | None:
         files = sorted({q for p in paths for q in Path(p).rglob("*.py") if "__pycache__" not in q.parts})
         return Path(paths[0]).resolve().parent, files
     f = getattr(m, "__file__", None)
-    return (Path(f).resolve().parent, [Path(f)]) if f and Path(f).is_file() else None
+    return (Path(f).resolve().parent, [Path(f)]) if f and f.endswith(".py") and Path(f).is_file() else None
+
+
+@functools.lru_cache(maxsize=None)
+def _installed_roots() -> frozenset[Path]:
+    """The folders packages are installed into (site-packages): a module found there beside a plugin is an
+    installed dependency, not a part of the plugin."""
+    import site
+    import sysconfig
+
+    folders = [*site.getsitepackages(), site.getusersitepackages(), *sysconfig.get_paths().values()]
+    return frozenset(Path(f).resolve() for f in folders if f)
 
 
 def _plugin_files(module: str) -> dict[str, Path]:
@@ -145,7 +156,7 @@ def _plugin_files(module: str) -> dict[str, Path]:
                 other = name.split(".")[0]
                 if other != "avbench" and other not in seen:
                     o = _root_of(other)
-                    if o is not None and o[0] == root:  # beside it, not an installed dependency
+                    if o is not None and o[0] == root and root not in _installed_roots():  # beside it
                         todo.append(other)
     return files
 
@@ -281,8 +292,18 @@ def _plain(v):
         return repr(v)
 
 
+def environment() -> dict:
+    """The machine's side of a study's provenance, written to ``environment.json`` beside ``meta.json``: the
+    git commit of the avbench checkout (``+dirty`` with uncommitted edits), the Python and library versions.
+    It is not committed with a study's results (``.gitignore``): a committed ``meta.json`` must be what any
+    machine regenerates from the same code, and a commit cannot name itself."""
+    return {"git_commit": _git_commit(), "python": platform.python_version(),
+            "libraries": {d: _version(d) for d in LIBRARIES}}
+
+
 def provenance(cfg) -> dict:
-    """What ``meta.json`` records of the code and the environment that computed the rows."""
+    """What ``meta.json`` records of the code that computed the rows (the hashes of its source, avbench's
+    version, plugins' versions, the resolved config); the machine's side is :func:`environment`'s."""
     from avbench.noise_models.plugins import version_of
 
     plugin = {}
@@ -293,9 +314,8 @@ def provenance(cfg) -> dict:
         "code_key": code_key(cfg),
         "code": code_hashes(cfg),
         "avbench": _version("avbench"),
-        "git_commit": _git_commit(),
-        "python": platform.python_version(),
-        "libraries": {d: _version(d) for d in LIBRARIES},
+        "environment": "environment.json beside this file: git commit, Python and library versions of the "
+                       "machine that wrote it (not committed)",
         "plugin_versions": plugin,
         "shadowed": shadowed(cfg),
         # where the rows come from: this code, from the config and the seed (a committed study whose

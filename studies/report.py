@@ -530,9 +530,10 @@ def write_report(cfg, tidy: pd.DataFrame, out: Path, executor=None) -> pd.DataFr
     }
     if cfg.paper_table is not None:
         meta["paper_notes"] = paper_notes(cfg.paper_table)
-    from avbench.studies.provenance import provenance
+    from avbench.studies.provenance import environment, provenance
 
     meta["provenance"] = provenance(cfg)  # the code, versions and resolved config behind the rows
+    atomic_write_text(out / "environment.json", json.dumps(environment(), indent=2) + "\n")
     atomic_write_text(out / "table.csv", summary.to_csv(index=False, float_format=f"%.{TABLE_DIGITS}g"))
     summary.attrs["table.md"] = render_markdown(summary, meta)  # what the command prints: this run's own table
     atomic_write_text(out / "table.md", summary.attrs["table.md"])

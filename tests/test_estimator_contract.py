@@ -81,8 +81,8 @@ class BiasTimes66(estimators.estimator_class("ols")):
     """OLS with B in a wrong unit (66 times too large): the first record has no bias instability."""
 
     def _fit(self, rate, dt):
-        coefs, nonphys, diag = super()._fit(rate, dt)
-        return {**coefs, "B": coefs["B"] * 66}, nonphys, diag
+        coefs, nonphys, diag, *parts = super()._fit(rate, dt)
+        return {**coefs, "B": coefs["B"] * 66}, nonphys, diag, *parts
 
 
 class WrongIndex(_WhiteN):

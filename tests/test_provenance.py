@@ -38,10 +38,10 @@ class Scaled(OLS):
     """OLS, N times FACTOR."""
 
     def _fit(self, rate, dt):
-        coefs, flags, diag = super()._fit(rate, dt)
+        coefs, flags, diag, *parts = super()._fit(rate, dt)
         coefs = dict(coefs)
         coefs["N"] = coefs["N"] * FACTOR
-        return coefs, flags, diag
+        return (coefs, flags, diag, *parts)
 '''
 
 
@@ -113,6 +113,8 @@ def test_an_edited_file_estimator_gives_its_new_numbers(tmp_path):
     pd.testing.assert_frame_equal(again[STUDY_COLS], fresh[STUDY_COLS])
     assert len(list((tmp_path / "out" / "_shards").iterdir())) == 2  # the old blocks kept, not reused
     meta = json.loads((tmp_path / "out" / "meta.json").read_text())["provenance"]
+    env = json.loads((tmp_path / "out" / "environment.json").read_text())
+    assert env["python"] and env["libraries"]["numpy"] and "git_commit" in env
     assert meta["config"]["estimators"][0]["class"] == "scaled_est:Scaled"
     assert meta["code_key"] == (tmp_path / "out" / "_shards").glob(f"*-{meta['code_key']}").__next__().name[-12:]
 
