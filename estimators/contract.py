@@ -603,12 +603,7 @@ class _Checker:
             if not np.isfinite(v):
                 continue  # not modelled
             checked.append(k)
-            tol = Z_RECOVERY * EFFICIENCY_ALLOWANCE * float(bound[k])
-            if abs(v - truth[k]) > tol:
-                problems.append(
-                    f"{k} = {v:.4g}, true {truth[k]:.4g} (SI): off by {abs(v - truth[k]) / bound[k]:.1f} CRLB std, "
-                    f"expected within {Z_RECOVERY:g} x {EFFICIENCY_ALLOWANCE:g} = {tol:.3g}"
-                )
+            problems += _off(k, v, truth[k], bound[k], "")
         others = [k for k in _INDEX if not np.isfinite(truth[k]) and (np.isfinite(self.first[k])
                                                                       or bool(est.nonphysical_[k]))]
         if others:  # coefficients the first gyro lacks: judged on a gyro that has them
@@ -647,12 +642,7 @@ class _Checker:
             if not np.isfinite(v):
                 continue
             done.append(k)
-            tol = Z_RECOVERY * EFFICIENCY_ALLOWANCE * float(bound[k])
-            if abs(v - truth[k]) > tol:
-                problems.append(
-                    f"{k} = {v:.4g}, true {truth[k]:.4g} (SI) on the {g.name} record: off by "
-                    f"{abs(v - truth[k]) / bound[k]:.1f} CRLB std, expected within {Z_RECOVERY:g} x "
-                    f"{EFFICIENCY_ALLOWANCE:g} = {tol:.3g}")
+            problems += _off(k, v, truth[k], bound[k], f" on the {g.name} record")
         return problems, done, skipped
 
 
@@ -849,3 +839,13 @@ def equivariance(new, rate, dt, scales=EQUIVARIANCE_SCALES, rtol=EQUIVARIANCE_RT
         notes.append(f"equal to {rtol:g} relative except where the fit's own round-off is larger: "
                      f"{k} moves by {over[k]:.2g} between units, {noise.get(k, 0.0):.2g} under round-off of the input")
     return [], "; ".join(notes)
+
+
+def _off(k, v, true, bound, where: str) -> list[str]:
+    """The recovery problem of coefficient ``k`` (estimate ``v``, truth ``true``, CRLB std ``bound``, SI) when it
+    lies beyond ``Z_RECOVERY x EFFICIENCY_ALLOWANCE`` CRLB std of the truth, else none; ``where``: the record."""
+    tol = Z_RECOVERY * EFFICIENCY_ALLOWANCE * float(bound)
+    if abs(v - true) <= tol:
+        return []
+    return [f"{k} = {v:.4g}, true {true:.4g} (SI){where}: off by {abs(v - true) / bound:.1f} CRLB std, "
+            f"expected within {Z_RECOVERY:g} x {EFFICIENCY_ALLOWANCE:g} = {tol:.3g}"]
