@@ -14,21 +14,30 @@ Every estimator, batch or online, follows the scikit-learn contract:
   ``nonphysical_``
       ``pandas.Series`` of bools, same index: True where the fit produced a value without physical
       meaning (e.g. a negative element of beta in Lv et al. 2015, eq. 7); the coefficient is NaN there;
+  ``parts_``
+      what the fit reports besides its coefficients, typed (:class:`avbench.estimators.results.FitParts`);
+  ``extras_``
+      ``dict`` of the method's own details, none of them held by its result (AV used, residuals,
+      internal states...);
   ``diagnostics_``
-      ``dict`` of method-specific details (AV used, residuals, trajectories, divergence reports...);
+      a read-only mapping for callers of the free-form details: ``extras_`` and what the result holds
+      under the names of :data:`avbench.estimators.results.RESULT_ENTRIES`
+      (:func:`avbench.estimators.results.diagnostics_view`);
   ``std_err_``
       ``pandas.Series`` like ``coefficients_``: standard errors (SI) where the method gives them
-      (``diagnostics_["std_err"]``), NaN elsewhere; ``bootstrap(...)`` fills them for any method.
+      (``parts_.std_err``), NaN elsewhere; ``bootstrap(...)`` fills them for any method.
       ``conf_int(level=0.95, conservative=False)`` gives intervals (:mod:`avbench.estimators.uncertainty`).
 
 ``result(level=0.95)`` gives all of it as one typed :class:`avbench.estimators.results.FitResult`
 (per coefficient its value, standard error, interval and status), the object every surface renders;
-code outside this package reads results, never ``diagnostics_``.
+no code in avbench reads ``diagnostics_``.
 
 Subclasses implement ``_fit(rate, dt)`` returning ``(coefficients: dict, nonphysical: dict,
-diagnostics: dict, parts: FitParts)`` (:class:`avbench.estimators.results.FitParts`: the fit check,
-term evidence, model choices, optimiser record, in the standardised record's unit; an estimator with
-nothing of these to report may return the first three); the base class does the input checks, packs
+extras: dict, parts: FitParts)`` (:class:`avbench.estimators.results.FitParts`: the fit check,
+term evidence, model choices, standard errors, optimiser record, in the standardised record's unit;
+``extras`` the method's own details, none of them an entry the result provides,
+:data:`avbench.estimators.results.RESULT_ENTRIES`; an estimator with nothing typed to report may
+return the first three); the base class does the input checks, packs
 the results and keeps the parts as ``parts_``, from which ``result()`` is built. Each subclass
 declares what its settings accept in ``parameter_constraints`` (:mod:`avbench.estimators.settings`),
 relations between settings included, checked by ``get``, ``fit`` and study configs alike: no trial fits.
@@ -46,7 +55,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from avbench.estimators.results import parameter_power as _parameter_power
 from avbench.estimators.validation import check_dt, check_not_constant, check_record
 from avbench.noise_models.units import COEFFICIENTS
 
@@ -282,10 +290,10 @@ class Estimator:
         in rad/s are therefore the same numbers, to rounding, when the estimator works on them:
         absolute tolerances, floors and starting values inside an estimator cannot make its answer
         depend on the unit it was handed. The results are scaled back to the caller's unit:
-        coefficients (linear in the rate), ``std_err_``, ``conf_int``, ``model_avar`` and the
-        diagnostics that carry the rate's unit (:data:`DIAGNOSTIC_UNITS` and the class's own
-        :attr:`diagnostic_units`). The entries not listed
-        there (an online filter's internal states, a likelihood's value, ``diagnostics_["model"]``,
+        coefficients (linear in the rate), ``std_err_``, ``conf_int``, ``model_avar``, the typed parts
+        and the extras that carry the rate's unit (:data:`DIAGNOSTIC_UNITS` and the class's own
+        :attr:`diagnostic_units`). The extras not listed
+        there (an online filter's internal states, ``extras_["model"]``,
         the fitted :class:`~avbench.noise_models.Gyro`) are those of the standardised record, whose
         unit is ``data_scale`` (in the caller's unit). It is exactly 1 for a record already
         standardised (an estimator fitting another inside its ``_fit``) and for a constant one.
@@ -301,8 +309,8 @@ class Estimator:
         # its magnitude would over- or underflow float64 arithmetic (_extreme_unit: a power of two)
         unit = _extreme_unit(rate) if self.online else data_scale(rate)
         if unit == 1.0:
-            coefs, nonphys, diag, parts = _with_parts(self._fit(rate, dt))
-            diag = {**(diag or {}), "data_scale": 1.0}
+            coefs, nonphys, extras, parts = _with_parts(self._fit(rate, dt))
+            extras = {**(extras or {}), "data_scale": 1.0}
         else:
             given = {name: getattr(self, name) for name in self._rate_settings() if getattr(self, name) is not None}
             scaled = _standardised(rate, unit)
@@ -315,15 +323,15 @@ class Estimator:
                 for name, value in given.items():
                     setattr(worker, name, _scale_coefficients(name, value, 1.0 / unit))
             with _same_gaps(rate, scaled):
-                coefs, nonphys, diag, parts = _with_parts(worker._fit(scaled, dt))
+                coefs, nonphys, extras, parts = _with_parts(worker._fit(scaled, dt))
             if worker is not self:  # what the fit learned (its state, not its settings) is this estimator's
                 settings = set(self._param_names())
                 self.__dict__.update({k: v for k, v in worker.__dict__.items() if k not in settings})
             coefs = {c: float(v) * unit for c, v in coefs.items()}
-            diag = rescale_diagnostics(diag or {}, unit, {**DIAGNOSTIC_UNITS, **self.diagnostic_units})
-            diag["data_scale"] = unit
+            extras = rescale_diagnostics(extras or {}, unit, {**DIAGNOSTIC_UNITS, **self.diagnostic_units})
+            extras["data_scale"] = unit
             parts = parts.times(unit)
-        self._set_results(coefs, nonphys, diag, parts)
+        self._set_results(coefs, nonphys, extras, parts)
         self._mark_unseen_terms(rate.size, dt)
         return self
 
@@ -335,7 +343,7 @@ class Estimator:
         below anything the record resolves: its value is where the fit's floor or round-off left it
         (GMWM's Gauss-Markov sigma a few decades under the curve, say), and such values differ
         between fits of the same record in two units by orders of magnitude while meaning the same.
-        It goes into ``diagnostics_["unresolved"]`` as ``(0, upper)``, the upper bound any such term
+        It goes into ``parts_.unresolved`` with ``upper``, the upper bound any such term
         obeys: its AV is at most the AV's 97.5 % chi^2 upper limit at every tau (J - 1 degrees of
         freedom, J = floor(n / m) clusters, the non-overlapping AV's, fewer than the overlapping
         AV's), ``upper = min_tau sqrt(AV_97.5%(tau) / (beta_scale tau^p))``, with the fitted model
@@ -367,7 +375,6 @@ class Estimator:
         for k in judged:
             unresolved[k] = float(np.sqrt(np.min(upper_av / (BETA_SCALE[k] * tau ** TAU_POWER[k]))))
         self.parts_ = replace(self.parts_, unresolved=unresolved)
-        self.diagnostics_["unresolved"] = {k: (0.0, v) for k, v in unresolved.items()}
 
     def _octave_model(self, n: int, dt: float):
         """``(tau, model AV)`` at the octave taus of a record of ``n`` samples with at least 8 clusters,
@@ -409,21 +416,28 @@ class Estimator:
     def _fit(self, rate: np.ndarray, dt: float):  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def _set_results(self, coefs: dict, nonphys: dict | None, diag: dict | None, parts=None) -> None:
-        """Store a fit: coefficients, non-physical flags, the free-form diagnostics and the typed parts
-        (:class:`avbench.estimators.results.FitParts`; none given: nothing typed to report)."""
-        from avbench.estimators.results import FitParts
+    def _set_results(self, coefs: dict, nonphys: dict | None, extras: dict | None, parts=None) -> None:
+        """Store a fit: coefficients, non-physical flags, the method's own details (``extras_``) and the
+        typed parts (:class:`avbench.estimators.results.FitParts`; none given: nothing typed to report).
+        An extra that the result provides (:data:`~avbench.estimators.results.RESULT_ENTRIES`, a model
+        choice's key) is refused: the result is its one source."""
+        from avbench.estimators.results import RESULT_ENTRIES, FitParts
 
-        self.parts_ = FitParts() if parts is None else parts
+        parts = FitParts() if parts is None else parts
+        extras = dict(extras or {})
+        twice = sorted(set(extras) & {*RESULT_ENTRIES, *(c.key for c in parts.choices)})
+        if twice:
+            raise TypeError(f"{type(self).__name__}._fit: the extras {', '.join(twice)} are the result's "
+                            "(report them in its FitParts)")
+        self.parts_ = parts
         c = coefficient_series(coefs)
         flags = coefficient_series(nonphys or {}, dtype=bool, fill=False)
         if flags.to_numpy().any():  # (an ndarray key, and only when needed: a boolean Series key costs pandas ~0.3 ms)
             c[flags.to_numpy()] = math.nan
         self.coefficients_ = c
         self.nonphysical_ = flags
-        diag = dict(diag or {})
-        self.diagnostics_ = diag
-        se = diag.get("std_err")
+        self.extras_ = extras
+        se = parts.std_err
         se = coefficient_series({} if se is None else {k: float(v) for k, v in dict(se).items()})
         unset = ~np.isfinite(c.to_numpy())
         if unset.any():
@@ -437,7 +451,7 @@ class Estimator:
 
         An estimator whose model is a sum of noise terms other than the five-term curve (a Gauss-Markov
         bias instability, a flicker with its filter memory, ...) keeps that model as a
-        :class:`avbench.noise_models.Gyro` in ``diagnostics_["model"]`` (in the units it was fitted in,
+        :class:`avbench.noise_models.Gyro` in ``extras_["model"]`` (in the units it was fitted in,
         see ``data_scale``): its exact discrete AV is returned. Otherwise the five-term curve of
         ``coefficients_`` (IEEE 952 / Lv et al. 2015, :func:`avbench.estimators.allan.model.model_avar`;
         terms without a finite value left out). A subclass may override this method.
@@ -446,11 +460,22 @@ class Estimator:
 
         self._check_fitted()
         tau = np.asarray(tau, dtype=float)
-        gyro = self.diagnostics_.get("model")
+        gyro = self.extras_.get("model")
         if gyro is not None:
-            return gyro.avar(tau) * float(self.diagnostics_.get("data_scale", 1.0)) ** 2
+            return gyro.avar(tau) * float(self.extras_.get("data_scale", 1.0)) ** 2
         c = self.coefficients_
         return model_avar({k: float(v) for k, v in c.items() if np.isfinite(v)}, tau)
+
+    @property
+    def diagnostics_(self):
+        """The fit's details as one read-only mapping, for callers of the free-form form: ``extras_`` and
+        what :meth:`result` holds under the names of :data:`~avbench.estimators.results.RESULT_ENTRIES`
+        (:func:`avbench.estimators.results.diagnostics_view`).
+        Built from the result on each read; code in avbench reads the result instead."""
+        from avbench.estimators.results import diagnostics_view
+
+        extras = self.extras_  # AttributeError before a fit, as for every fitted attribute
+        return diagnostics_view(self.result(), extras)
 
     def result(self, level: float = 0.95):
         """The fit as one typed :class:`avbench.estimators.results.FitResult` with intervals at ``level``
@@ -514,7 +539,7 @@ class Estimator:
         se = parametric_bootstrap(self, int(n_samples), check_dt(dt), n_draws, seed)
         se[~np.isfinite(self.coefficients_)] = math.nan
         self.std_err_ = se
-        self.diagnostics_["std_err_method"] = f"parametric bootstrap, {n_draws} draws"
+        self.extras_["std_err_method"] = f"parametric bootstrap, {n_draws} draws"
         return self
 
     # -- presentation --------------------------------------------------------------------------
@@ -601,42 +626,28 @@ def data_scale(rate: np.ndarray) -> float:
 
 
 
-#: How the diagnostics every estimator may hold scale with the unit of the record: key -> power p
+#: How the extras every estimator may hold scale with the unit of the record: key -> power p
 #: of the unit (the value, a number, array, Series, DataFrame, tuple, list or a mapping of such, is
 #: multiplied by ``data_scale ** p``), or a mapping for entries with parts of different powers (keys
 #: of a dict, columns of a DataFrame, attributes of a dataclass such as ``AllanResult``; parts not
-#: named keep their value), or a function of the key for mappings keyed by parameter names, or the
-#: name of such a mapping for an array holding its values in order (GMWM's ``values``). A class adds
-#: its own in :attr:`Estimator.diagnostic_units`.
+#: named keep their value), or a function of the key for mappings keyed by names. A class adds
+#: its own in :attr:`Estimator.diagnostic_units`; the typed parts convert themselves
+#: (:meth:`avbench.estimators.results.FitParts.times`).
 _ALLAN = {"avar": 2}  # AllanResult: adev, ci_low, ci_high follow from avar and edf
 DIAGNOSTIC_UNITS: dict = {
     # coefficient-like (each entry is a coefficient in SI)
-    "std_err": 1, "zero_upper": 1, "full_coefficients": 1, "full_std_err": 1, "start": 1, "x0": 1,
-    "last_good": 1, "unresolved": 1, "trajectory": {c: 1 for c in COEFFICIENTS},  # its sample column: no unit
-    "evidence": {"lower": 1, "upper": 1},
+    "full_coefficients": 1, "full_std_err": 1, "start": 1, "x0": 1, "last_good": 1,
     # Allan-variance-like (rad^2/s^2)
     "avar": 2, "fitted_avar": 2, "fitted_hvar": 2, "residuals": 2, "beta": 2,
     "fit_check": {"avar": 2, "model": 2},
     "allan": _ALLAN, "hadamard": _ALLAN,
-    # latent parameters by name, and the same values as an array in that order (GMWM)
-    "params": _parameter_power, "values": "params",
 }
 
 
 def rescale_diagnostics(diag: dict, unit: float, units: dict) -> dict:
     """``diag`` with each entry named in ``units`` (see :data:`DIAGNOSTIC_UNITS`) multiplied by
     ``unit ** power``; the other entries unchanged (a new dict; values are not modified in place)."""
-    out = {}
-    for k, v in diag.items():
-        spec = units.get(k, 0)
-        if isinstance(spec, str):  # the values of the mapping diag[spec], in order
-            names = list(diag.get(spec) or ())
-            if isinstance(v, np.ndarray) and v.shape == (len(names),) and callable(units.get(spec)):
-                v = v * unit ** np.array([units[spec](n) for n in names], dtype=float)
-            out[k] = v
-        else:
-            out[k] = _rescale(v, spec, unit)
-    return out
+    return {k: _rescale(v, units.get(k, 0), unit) for k, v in diag.items()}
 
 
 def _rescale(value, power, unit):

@@ -16,8 +16,9 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
     ``fit(rate, dt)`` returns ``self``;
 ``attributes``
     ``coefficients_`` is a float ``pandas.Series`` indexed exactly Q, N, B, K, R (SI units),
-    ``nonphysical_`` a bool Series with that index, ``diagnostics_`` a dict; a flagged coefficient
-    is NaN and finite coefficients are non-negative;
+    ``nonphysical_`` a bool Series with that index, ``extras_`` a dict holding none of the result's
+    entries (:data:`~avbench.estimators.results.RESULT_ENTRIES`); a flagged coefficient is NaN and finite
+    coefficients are non-negative;
 ``uncertainty``
     if provided: ``std_err_`` a float Series indexed Q..R, finite only where the coefficient is,
     non-negative; ``conf_int()`` a two-column DataFrame indexed Q..R with lower <= estimate <= upper
@@ -92,6 +93,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.base import Estimator, estimator_class, get
+from avbench.estimators.results import RESULT_ENTRIES
 from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = [
@@ -467,8 +469,12 @@ class _Checker:
             problems.append(f"nonphysical_ is not a bool Series indexed {_INDEX}")
         elif list(c.index) == _INDEX and not np.all(np.isnan(c[f].astype(float))):
             problems.append(f"coefficients {list(c[f & c.notna()].index)} flagged non-physical but not NaN")
-        if not isinstance(getattr(est, "diagnostics_", None), dict):
-            problems.append("diagnostics_ is not a dict")
+        extras = getattr(est, "extras_", None)
+        if not isinstance(extras, dict):
+            problems.append("extras_ is not a dict")
+        elif set(extras) & set(RESULT_ENTRIES):
+            problems.append(f"extras_ holds {sorted(set(extras) & set(RESULT_ENTRIES))}: the result's entries "
+                            "(report them in the fit's FitParts)")
         if not problems:
             neg = [k for k, v in c.items() if np.isfinite(v) and v < 0]
             if neg:
@@ -522,7 +528,7 @@ class _Checker:
         bad = ~(np.isfinite(curve) & (curve >= 0))
         if bad.any():
             return [f"model_avar is not finite and non-negative at tau = {tau[bad][:3].tolist()} s"]
-        own = type(est).model_avar is not Estimator.model_avar or "model" in est.diagnostics_
+        own = type(est).model_avar is not Estimator.model_avar or "model" in est.extras_
         return [], "its own model" if own else "the five-term curve of its coefficients (default)"
 
     def check_determinism(self):

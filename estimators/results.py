@@ -1,8 +1,9 @@
 """The typed result of one fit: what every surface (screen, JSON, CSV, filter yaml, study rows, figures) renders.
 
-:meth:`avbench.estimators.Estimator.result` builds a :class:`FitResult` from a fitted estimator; no
-module outside the estimators package reads an estimator's ``diagnostics_`` (a test greps for it), so
-the screen, the files and the studies cannot disagree about a coefficient.
+:meth:`avbench.estimators.Estimator.result` builds a :class:`FitResult` from a fitted estimator's
+coefficients and the typed parts its fit reported (:class:`FitParts`); an estimator's ``diagnostics_``
+is a read-only view built from the result (:func:`diagnostics_view`) that no module reads (a test walks
+them all), so the screen, the files and the studies cannot disagree about a coefficient.
 
 Each coefficient (:class:`Coefficient`) has one **status**:
 
@@ -43,7 +44,9 @@ True
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -51,7 +54,7 @@ import numpy as np
 from avbench.noise_models.units import COEFFICIENTS
 
 __all__ = ["STATUSES", "REASONS", "BOUND_REASONS", "jsonable", "Coefficient", "Evidence", "FitCheck", "ModelChoice",
-           "Alternative", "FitParts", "FitResult", "build", "failed"]
+           "Alternative", "FitParts", "FitResult", "RESULT_ENTRIES", "build", "diagnostics_view", "extras_of", "failed"]
 
 #: the statuses of a coefficient (module docstring)
 STATUSES = ("ok", "not resolved", "not modelled", "non-physical", "failed")
@@ -226,8 +229,9 @@ class FitParts:
     coefficient), ``failure`` (why the fit failed), ``alternatives`` (:class:`Alternative`: models the
     record cannot tell from the reported one, whose intervals the reported ones hold), ``zero_bounds``
     (the upper bounds an estimator gives its coefficients estimated as 0 itself: a Series of bounds (SI)
-    at z = 1 and a Series of the powers of z they scale with, :func:`avbench.estimators.uncertainty.interval`), and the
-    optimiser's record in statsmodels' names:
+    at z = 1 and a Series of the powers of z they scale with, :func:`avbench.estimators.uncertainty.interval`),
+    ``std_err`` (coefficient -> standard error, SI, where the method gives them; the estimator's
+    ``std_err_``), and the optimiser's record in statsmodels' names:
     ``llf`` (the maximised log-likelihood, of the standardised record the estimator fits: the same in
     every unit of the record), ``aic``, ``bic``, ``converged`` and ``n_iter`` (None / NaN where the
     method has none)."""
@@ -241,6 +245,7 @@ class FitParts:
     failure: str | None = None
     alternatives: tuple[Alternative, ...] = ()
     zero_bounds: tuple[Any, Any] | None = None
+    std_err: Any = None
     llf: float = math.nan
     aic: float = math.nan
     bic: float = math.nan
@@ -259,7 +264,10 @@ class FitParts:
                 if c in traj:
                     traj[c] = op(traj[c], 1)
         zb = None if self.zero_bounds is None else (op(self.zero_bounds[0], 1), self.zero_bounds[1])
-        return replace(self, evidence=ev, unresolved={c: op(v, 1) for c, v in self.unresolved.items()}, zero_bounds=zb,
+        se = self.std_err
+        if se is not None:
+            se = op(se, 1) if hasattr(se, "index") else {c: op(v, 1) for c, v in dict(se).items()}
+        return replace(self, evidence=ev, std_err=se, unresolved={c: op(v, 1) for c, v in self.unresolved.items()}, zero_bounds=zb,
                        choices=tuple(ch.converted(op) for ch in self.choices), parameters=params, trajectory=traj,
                        alternatives=tuple(a.converted(op) for a in self.alternatives))
 
@@ -274,8 +282,8 @@ class FitResult:
     the model choices made (:class:`ModelChoice`, each with its units), the fitted model's parameters
     by name (latent models), the optimiser's record (``llf``, ``aic``, ``bic``, ``converged``,
     ``n_iter``: :class:`FitParts`), the failure and warnings (``interval_error``: why ``conf_int``
-    gave no intervals, if it raised), and ``extras``: the method's other details (its
-    ``diagnostics_``, in the unit of the record it was fitted to; documented by each estimator)."""
+    gave no intervals, if it raised), and ``extras``: the method's other details (the estimator's
+    ``extras_``, in the unit of the record it was fitted to; documented by each estimator)."""
 
     method: str
     coefficients: dict[str, Coefficient]
@@ -457,7 +465,79 @@ def build(est, level: float = 0.95) -> FitResult:
                      level=float(level), fit_check=parts.fit_check, choices=parts.choices, parameters=params,
                      trajectory=parts.trajectory, failure=str(failure) if failure else None, warnings=warnings,
                      llf=_f(parts.llf), aic=_f(parts.aic), bic=_f(parts.bic), converged=parts.converged,
-                     n_iter=parts.n_iter, extras=dict(est.diagnostics_), _model=est.model_avar)
+                     n_iter=parts.n_iter, extras=dict(est.extras_), _model=est.model_avar)
+
+
+#: the entries of an estimator's ``diagnostics_`` that its :class:`FitResult` provides
+#: (:func:`diagnostics_view`); neither these nor the keys of its model choices are in its ``extras_``
+RESULT_ENTRIES = ("poor_fit", "fit_stat", "fit_dof", "fit_pvalue", "fit_reference", "fit_reading", "evidence",
+                  "unresolved", "params", "std_err", "failure", "trajectory", "llf", "aic", "bic", "converged",
+                  "n_iter")
+
+
+def extras_of(details: dict, parts: FitParts) -> dict:
+    """The entries of a fit's working ``details`` that are its own (an estimator's ``extras``): those its
+    result does not provide (:data:`RESULT_ENTRIES`, the keys of ``parts.choices``)."""
+    held = {*RESULT_ENTRIES, *(c.key for c in parts.choices)}
+    return {k: v for k, v in details.items() if k not in held}
+
+
+def diagnostics_view(result: FitResult, extras: dict) -> Mapping:
+    """The read-only ``diagnostics_`` of a fit, for callers of the free-form mapping: the estimator's
+    own details ``extras`` (its ``extras_``) and what its ``result`` holds under the names of
+    :data:`RESULT_ENTRIES`: the fit check (``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``,
+    ``fit_reference``, ``fit_reading``; where the method makes one), ``evidence`` (a DataFrame by
+    coefficient: ``lr``, ``p_value``, ``lower``, ``upper``, ``present``), ``unresolved`` (coefficient ->
+    ``(0, upper)``, where the record decided), ``params``, ``std_err`` (a Series by coefficient),
+    ``failure`` and ``trajectory`` (where there is one), the optimiser's record (``llf``, ``aic``, ``bic``, ``converged``,
+    ``n_iter``, where known) and each model choice's detail under its key. Nothing in avbench reads it:
+    code reads the :class:`FitResult` (a test walks every module for it).
+
+    >>> import numpy as np
+    >>> from avbench import estimators
+    >>> est = estimators.get("wls", terms="NK").fit(np.random.default_rng(2).normal(0, 1e-3, 4096), 0.01)
+    >>> d = est.diagnostics_
+    >>> d["poor_fit"] == est.result().fit_check.poor_fit, "allan" in d
+    (True, True)
+    >>> d["poor_fit"] = True
+    Traceback (most recent call last):
+    ...
+    TypeError: 'mappingproxy' object does not support item assignment
+    """
+    import pandas as pd
+
+    out = dict(extras)
+    check = result.fit_check
+    if check.poor_fit is not None or math.isfinite(check.stat) or check.reference is not None:
+        out.update(poor_fit=check.poor_fit, fit_stat=check.stat, fit_dof=check.dof, fit_pvalue=check.pvalue,
+                   fit_reference=check.reference)
+        if check.reading is not None:
+            out["fit_reading"] = check.reading
+    coefs = result.coefficients
+    evidence = {c: e.evidence for c, e in coefs.items() if e.evidence is not None}
+    if evidence:
+        out["evidence"] = pd.DataFrame.from_dict(
+            {c: dict(lr=ev.lr, p_value=ev.p_value, lower=ev.lower, upper=ev.upper, present=ev.present)
+             for c, ev in evidence.items()}, orient="index")
+    unresolved = {c: (0.0, e.upper if e.upper is not None else math.nan)
+                  for c, e in coefs.items() if e.status == "not resolved" and e.reason == "record"}
+    if unresolved:
+        out["unresolved"] = unresolved
+    if result.parameters is not None:
+        out["params"] = dict(result.parameters)
+    out["std_err"] = pd.Series({c: e.std_err for c, e in coefs.items()}, dtype=float)
+    if result.failure is not None:
+        out["failure"] = result.failure
+    if result.trajectory is not None:
+        out["trajectory"] = result.trajectory
+    for key in ("llf", "aic", "bic"):
+        if math.isfinite(getattr(result, key)):
+            out[key] = getattr(result, key)
+    for key in ("converged", "n_iter"):
+        if getattr(result, key) is not None:
+            out[key] = getattr(result, key)
+    out.update(result.model_choice)
+    return MappingProxyType(out)
 
 
 def failed(method: str, message: str, modelled=COEFFICIENTS, level: float = 0.95) -> FitResult:

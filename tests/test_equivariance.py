@@ -25,6 +25,7 @@ from avbench import estimators
 from avbench.estimators import Estimator
 from avbench.estimators.base import STANDARD_LEVEL, UNSEEN_SHARE, data_scale, noise_level, rescale_diagnostics
 from avbench.estimators.contract import equivariance, recovery_gyro
+from avbench.estimators.results import Evidence, FitCheck, FitParts
 
 RECORD = 1 << 12
 
@@ -65,7 +66,7 @@ def test_a_standardised_record_is_fitted_as_it_is():
 
 
 class _Seen(Estimator):
-    """Keeps what its _fit saw, and diagnostics of every kind the contract rescales."""
+    """Keeps what its _fit saw, and reports parts and extras of every kind the contract rescales."""
 
     def __init__(self, *, x0=None):
         self.x0 = x0
@@ -76,17 +77,16 @@ class _Seen(Estimator):
         self.seen_ = (noise_level(rate), self.x0)
         n = float(np.sqrt(np.var(rate) * dt))
         av = np.array([n**2 / dt, n**2 / (2 * dt)])
-        diag = {
-            "std_err": pd.Series({"N": 0.01 * n}),
+        extras = {
             "avar": av,
             "fit_check": {"tau": np.array([dt, 2 * dt]), "avar": av, "model": av, "z": np.zeros(2)},
-            "evidence": pd.DataFrame({"lr": [3.0], "lower": [0.9 * n], "upper": [1.1 * n]}, index=["N"]),
-            "params": {"WN.N": n, "GM.tc": 7.0},
-            "values": np.array([n, 7.0]),
-            "fit_stat": 1.5,
             "n_evaluations": 12,
         }
-        return {"N": n}, {}, diag
+        parts = FitParts(std_err=pd.Series({"N": 0.01 * n}), fit_check=FitCheck(False, stat=1.5),
+                         evidence={"N": Evidence(lr=3.0, p_value=0.01, present=True, lower=0.9 * n, upper=1.1 * n,
+                                                 level=0.95)},
+                         parameters={"WN.N": n, "GM.tc": 7.0})
+        return {"N": n}, {}, extras, parts
 
 
 def test_fit_sees_the_standardised_record_and_reports_in_the_callers_unit():
@@ -110,7 +110,6 @@ def test_fit_sees_the_standardised_record_and_reports_in_the_callers_unit():
     assert db["evidence"]["lr"].to_numpy() == pytest.approx(da["evidence"]["lr"].to_numpy(), **close)
     assert db["params"]["WN.N"] == pytest.approx(c * da["params"]["WN.N"], **close)
     assert db["params"]["GM.tc"] == pytest.approx(da["params"]["GM.tc"], **close)
-    assert db["values"] == pytest.approx([c * da["values"][0], da["values"][1]], **close)
     assert db["fit_stat"] == da["fit_stat"] and db["n_evaluations"] == da["n_evaluations"] == 12
     tau = g.dt * 2.0 ** np.arange(8)
     assert b.model_avar(tau) == pytest.approx(c**2 * a.model_avar(tau), **close)
@@ -122,11 +121,11 @@ def test_fit_sees_the_standardised_record_and_reports_in_the_callers_unit():
 
 def test_rescale_diagnostics_leaves_unnamed_entries_and_does_not_modify_its_input():
     av = np.array([1.0, 2.0])
-    diag = {"avar": av, "internal_state": np.array([5.0]), "unresolved": {"B": (0.0, 3.0)}}
-    out = rescale_diagnostics(diag, 2.0, {"avar": 2, "unresolved": 1})
+    extras = {"avar": av, "internal_state": np.array([5.0]), "last_good": {"B": 3.0}}
+    out = rescale_diagnostics(extras, 2.0, {"avar": 2, "last_good": 1})
     assert out["avar"].tolist() == [4.0, 8.0] and av.tolist() == [1.0, 2.0]
-    assert out["internal_state"] is diag["internal_state"]
-    assert out["unresolved"] == {"B": (0.0, 6.0)}
+    assert out["internal_state"] is extras["internal_state"]
+    assert out["last_good"] == {"B": 6.0}
 
 
 def test_gaps_follow_the_standardised_record():
@@ -144,21 +143,26 @@ def test_gaps_follow_the_standardised_record():
     assert est.diagnostics_["data_scale"] != 1.0
 
 
-def test_diagnostics_are_in_the_callers_unit():
-    """Every number in the diagnostics of estimators whose arithmetic is exactly equivariant equals
-    that of their ``_fit`` run on the record as it is (nothing is left in the standardised unit
-    unannounced; an online filter's internal states and a fitted Gyro are the documented exceptions)."""
+def test_parts_and_extras_are_in_the_callers_unit():
+    """Every number in the typed parts and the extras of estimators whose arithmetic is exactly
+    equivariant equals that of their ``_fit`` run on the record as it is (nothing is left in the
+    standardised unit unannounced; an online filter's internal states and a fitted Gyro are the
+    documented exceptions)."""
     g, x = _record()
     for name in ("ols", "wls_edf", "wls_edf_hadamard", "nnls_rel", "slope_lines", "log_fit", "whittle_debiased"):
         est = estimators.get(name)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             est.fit(x, g.dt)
-            raw = estimators.get(name)._fit(x, g.dt)[2]
-        got = dict(_leaves(est.diagnostics_))
-        for k, v in _leaves(raw):
-            assert k in got, (name, k)
-            assert np.asarray(got[k], float) == pytest.approx(np.asarray(v, float), rel=1e-6, nan_ok=True), (name, k)
+            raw = estimators.get(name)._fit(x, g.dt)
+        for fitted, own in ((est.extras_, raw[2]), (est.parts_, raw[3])):
+            got = dict(_leaves(fitted))
+            leaves = list(_leaves(own))
+            assert leaves, name
+            for k, v in leaves:
+                assert k in got, (name, k)
+                assert np.asarray(got[k], float) == pytest.approx(np.asarray(v, float), rel=1e-6, nan_ok=True), \
+                    (name, k)
 
 
 def _leaves(v, path=""):

@@ -1,7 +1,7 @@
 """One result per fit, every surface renders it: the JSON payload, the CSV, the screen, the page and the
 filter yaml of ``avbench estimate`` give each coefficient the value, the interval and the status of the
 fit's :class:`avbench.estimators.results.FitResult`, each in one unit per sensor; no surface reads the
-JSON payload, and no module outside the estimators package reads an estimator's ``diagnostics_``."""
+JSON payload, and no module reads an estimator's ``diagnostics_`` (a read-only view built from the result)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from avbench import estimators
-from avbench.estimators.results import STATUSES, Coefficient, FitResult, build
+from avbench.estimators.results import RESULT_ENTRIES, STATUSES, Coefficient, FitResult, build
 from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, Quantization, RateRandomWalk
 from avbench.noise_models.units import COEFFICIENTS, DISPLAY_UNITS, from_si, si_units
 
@@ -33,16 +33,65 @@ def _reads_of_diagnostics(path: Path) -> list[int]:
     return [node.lineno for node in ast.walk(tree) if isinstance(node, ast.Attribute) and node.attr == "diagnostics_"]
 
 
-def test_no_module_outside_the_estimators_reads_diagnostics():
-    found = [f"{p.relative_to(ROOT)}:{line}" for folder in OUTSIDE for p in sorted((ROOT / folder).rglob("*.py"))
-             for line in _reads_of_diagnostics(p)]
-    assert not found, "read the fit's result (Estimator.result()), not diagnostics_: " + ", ".join(found)
+def test_no_module_reads_diagnostics():
+    """``diagnostics_`` is a view built from the result for callers of the free-form mapping: no module
+    of the package reads it (results are assembled from an estimator's typed parts, its own details are
+    its ``extras_``)."""
+    found = [f"{p.relative_to(ROOT)}:{line}" for folder in (*OUTSIDE, "estimators")
+             for p in sorted((ROOT / folder).rglob("*.py")) for line in _reads_of_diagnostics(p)]
+    assert not found, "read the fit's result (Estimator.result()) or its parts_, not diagnostics_: " + ", ".join(found)
 
 
-def test_the_rule_finds_a_read(tmp_path):
+@pytest.mark.parametrize("body", ["def f(est):\n    d = est.diagnostics_\n    return d['poor_fit']\n",
+                                  "def f(est):\n    return FitParts(failure=est.diagnostics_.get('failure'))\n",
+                                  "def conf_int(self):\n    return dict(self.diagnostics_)\n"])
+def test_the_rule_finds_a_read(tmp_path, body):
     bad = tmp_path / "m.py"
-    bad.write_text("def f(est):\n    d = est.diagnostics_\n    return d['poor_fit']\n")
+    bad.write_text(body)
     assert _reads_of_diagnostics(bad) == [2]
+
+
+def _builtin_fits():
+    """One fit of every built-in estimator but the slow MLE, on one record with a bias instability."""
+    g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1e-3), BiasInstability(B=5e-5, tau_max=100.0), RateRandomWalk(K=1e-5)])
+    x = g.simulate(8192, np.random.default_rng(8)) * 57.3
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return {m: estimators.get(m).fit(x, g.dt) for m in _BUILTIN if m not in _SLOW}
+
+
+def test_diagnostics_is_a_read_only_view_of_the_result():
+    """Every built-in estimator's ``diagnostics_`` says what its FitResult says under each of the result's
+    entries (the fit check, parameters, standard errors, failure, unresolved bounds, model choices), adds
+    only its ``extras_`` (none of them an entry of the result) and refuses to be written."""
+    for m, est in _builtin_fits().items():
+        r, d = est.result(), est.diagnostics_
+        assert not set(est.extras_) & set(RESULT_ENTRIES), m
+        assert set(d) == set(est.extras_) | (set(d) & set(RESULT_ENTRIES)) | set(r.model_choice), m
+        assert d.get("poor_fit") == r.fit_check.poor_fit and d.get("failure") == r.failure, m
+        assert d.get("params") == r.parameters, m
+        assert d["std_err"].equals(est.std_err_), m
+        for key, detail in r.model_choice.items():
+            assert d[key] == detail, (m, key)
+        for c, e in r.coefficients.items():
+            if e.status == "not resolved" and e.reason == "record":
+                assert d["unresolved"][c][0] == 0.0 and _close(d["unresolved"][c][1], e.upper), (m, c)
+            else:
+                assert c not in d.get("unresolved", {}), (m, c)
+        with pytest.raises(TypeError):
+            d["poor_fit"] = True
+
+
+def test_an_extra_the_result_holds_is_refused():
+    """An estimator's ``_fit`` that hands back an entry of the result among its extras (here the
+    failure, which belongs in its FitParts) is refused, naming the entry."""
+
+    class Twice(estimators.Estimator):
+        def _fit(self, rate, dt):
+            return {"N": 1.0}, {}, {"failure": "no", "own": 1}
+
+    with pytest.raises(TypeError, match="failure"):
+        Twice().fit(np.random.default_rng(0).normal(size=256), 0.01)
 
 
 # -- no surface reads another's output ---------------------------------------------------------------------
@@ -90,57 +139,6 @@ def test_the_payload_rule_finds_a_read(tmp_path):
     bad.write_text("def yaml(data):\n    e = data['sensors']['gyro']\n    return e['interval_si'], payload(data)\n")
     assert _reads_of_the_payload(bad, "recordings/m.py") == ["recordings/m.py:3 ['interval_si']",
                                                              "recordings/m.py:3 payload()"]
-
-
-#: the calls that make a result or a typed part of one (:mod:`avbench.estimators.results`,
-#: :mod:`avbench.estimators.selection.choices`)
-RESULT_PARTS = {"FitResult", "FitParts", "FitCheck", "Evidence", "ModelChoice", "Coefficient", "build",
-                "as_fit_check", "line_test", "filter_test", "filter_held", "resonance_test", "bias_evidence",
-                "first_scale", "term_weights", "bias_model", "criteria"}
-
-
-def _keys_of_diagnostics_read_to_build(path: Path) -> list[int]:
-    """Lines where a function that makes a result or a typed part of one, or an estimator's intervals
-    (``conf_int``, which the result's are), reads into ``diagnostics_`` (a key, a method such as ``.get``, a
-    membership test, or an alias of it); handing it on whole is allowed."""
-    tree = ast.parse(path.read_text(), str(path))
-    parent = {child: node for node in ast.walk(tree) for child in ast.iter_child_nodes(node)}
-    found = []
-    for fn in ast.walk(tree):
-        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
-            continue
-        calls = {getattr(n.func, "id", getattr(n.func, "attr", None)) for n in ast.walk(fn) if isinstance(n, ast.Call)}
-        if not calls & RESULT_PARTS and fn.name != "conf_int":
-            continue
-        for node in ast.walk(fn):
-            if isinstance(node, ast.Attribute) and node.attr == "diagnostics_" and isinstance(node.ctx, ast.Load):
-                up = parent[node]
-                handed_on = isinstance(up, ast.Call) and node in up.args
-                if not handed_on:
-                    found.append(node.lineno)
-    return found
-
-
-def test_no_result_is_built_from_keys_of_diagnostics():
-    """Results are assembled from the typed parts an estimator's fit returns (``FitParts``), never by
-    reading keys out of the free-form ``diagnostics_``: in every module of the package."""
-    found = [f"{p.relative_to(ROOT)}:{line}" for folder in OUTSIDE + ("estimators",)
-             for p in sorted((ROOT / folder).rglob("*.py")) for line in _keys_of_diagnostics_read_to_build(p)]
-    assert not found, "build results from FitParts, not from keys of diagnostics_: " + ", ".join(found)
-
-
-@pytest.mark.parametrize("body, lines", [
-    ("def f(est):\n    return FitCheck(est.diagnostics_['poor_fit'])\n", [2]),
-    ("def f(est):\n    d = est.diagnostics_\n    return FitParts(failure=d.get('failure'))\n", [2]),
-    ("def f(est):\n    return FitParts(failure=est.diagnostics_.get('failure'))\n", [2]),
-    ("def f(est):\n    return FitResult(extras=dict(est.diagnostics_))\n", []),
-    ("def f(est):\n    return est.diagnostics_['poor_fit']\n", []),
-    ("def conf_int(self):\n    return self.diagnostics_.get('zero_upper')\n", [2]),
-])
-def test_the_rule_finds_a_result_built_from_diagnostics(tmp_path, body, lines):
-    bad = tmp_path / "m.py"
-    bad.write_text(body)
-    assert _keys_of_diagnostics_read_to_build(bad) == lines
 
 
 # -- the surfaces ---------------------------------------------------------------------------------------

@@ -55,7 +55,7 @@ def test_shakf_kernel_matches_reference(m, adapt):
         rate, est._zinv, est._A, cfg["m"], np.ones(3), cfg["P0"], cfg["Q0"],
         np.full(len(cfg["m"]), 1.0), cfg["b"], cfg["adapt_flags"],
     )
-    assert code == 0 and est.diagnostics_["failure"] == ""
+    assert code == 0 and est.result().failure is None
     got = est.diagnostics_["trajectory"].to_numpy() / est._c_ref
     np.testing.assert_allclose(got, traj, rtol=1e-9, atol=0)
 
@@ -146,7 +146,7 @@ def test_streaming_waits_for_x0_window_and_flush_starts_it():
 def test_trajectory_off_and_decimated():
     rate = white(1000, 6)
     off = estimators.get("nekf", terms="N", x0={"N": N_TRUE}, trajectory_every=0).fit(rate, DT)
-    assert off.diagnostics_["trajectory"] is None
+    assert off.result().trajectory is None
     default = estimators.get("shakf", terms="N", x0={"N": N_TRUE}).fit(white(2500, 8), DT)
     assert list(default.diagnostics_["trajectory"].index) == [999, 1999]  # decimated by default
     dec = estimators.get("nekf", terms="N", x0={"N": N_TRUE}, trajectory_every=100).fit(rate, DT)

@@ -55,7 +55,7 @@ class Flaky(Estimator):
                 raise RuntimeError("deliberate failure (rate[0] > 0)")
             if self.mode == "report":
                 failure = "diverged at sample 7 (deliberate)"
-                return {c: math.nan for c in self.terms}, {}, {"failure": failure}, FitParts(failure=failure)
+                return {c: math.nan for c in self.terms}, {}, {}, FitParts(failure=failure)
             if self.mode == "nonfinite":
                 return {c: math.inf for c in self.terms}, {}, {}
             if self.mode == "exit" and os.getpid() != self.parent_pid:  # never in the test process

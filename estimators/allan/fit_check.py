@@ -1,7 +1,8 @@
 """Poor-fit check: does a fitted model reproduce the record's Allan-variance curve within its errors?
 
 Every estimator that fits (or reads) the Allan-variance curve calls :func:`assess_fit` once at the
-end of its fit; the result goes into ``diagnostics_`` as
+end of its fit; it returns the entries below, which go into the fit's typed check
+(:func:`as_fit_check`; the arrays of ``fit_check`` stay among the estimator's ``extras_``):
 
 ``poor_fit``    bool: the model misses the AV curve beyond its statistical uncertainty;
 ``fit_stat``    the chi^2-type statistic below; ``fit_dof`` its degrees of freedom;
@@ -688,14 +689,14 @@ def bootstrap_fit_check(estimator, n_samples: int, dt: float, n_draws: int = 199
     (the least-squares family on the non-overlapping AV at every cluster size, whose covariance
     with the check's octave AV is not modelled). The five-term model is what is simulated, so it
     suits the five-term fits, not GMWM or the MLE (whose chi^2 reference is their own). Updates
-    ``diagnostics_`` (``fit_pvalue``, ``poor_fit``, ``fit_reference``, ``fit_boot_stats``) and
-    returns the estimator.
+    the fit check of ``parts_`` (p-value, flag, reference, reading) and ``extras_["fit_boot_stats"]``,
+    and returns the estimator.
     """
 
     if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 19:
         raise ValueError(f"n_draws: expected an integer >= 19 (p-values down to 0.05), got {n_draws!r}")
-    d = estimator.diagnostics_
-    T = estimator.parts_.fit_check.stat
+    check = estimator.parts_.fit_check
+    T = check.stat
     if not np.isfinite(T):
         return estimator
     from avbench.estimators.uncertainty import refits
@@ -709,9 +710,10 @@ def bootstrap_fit_check(estimator, n_samples: int, dt: float, n_draws: int = 199
         return estimator
     b = np.array(stats_)
     p = float((1 + np.sum(b >= T)) / (b.size + 1))
-    poor, reference = bool(p < d.get("fit_check", {}).get("alpha", ALPHA)), f"parametric bootstrap, {b.size} draws"
-    read = reading(T, d.get("fit_dof"), p, reference, float(np.mean(b)))
-    d.update(fit_pvalue=p, poor_fit=poor, fit_reference=reference, fit_boot_stats=b, fit_reading=read)
+    alpha = (estimator.extras_.get("fit_check") or {}).get("alpha", ALPHA)
+    poor, reference = bool(p < alpha), f"parametric bootstrap, {b.size} draws"
+    read = reading(T, check.dof, p, reference, float(np.mean(b)))
+    estimator.extras_["fit_boot_stats"] = b
     estimator.parts_ = dataclasses.replace(estimator.parts_, fit_check=dataclasses.replace(
-        estimator.parts_.fit_check, poor_fit=poor, pvalue=p, reference=reference, reading=read))
+        check, poor_fit=poor, pvalue=p, reference=reference, reading=read))
     return estimator

@@ -101,7 +101,7 @@ class HadamardEDFWeightedLS(Estimator):
         X = hadamard_design_matrix(hv.tau, terms)
         if len(hv.tau) < len(terms):
             failure = f"only {len(hv.tau)} Hadamard values for {len(terms)} coefficients"
-            return {c: np.nan for c in terms}, {}, {"failure": failure}, FitParts(failure=failure)
+            return {c: np.nan for c in terms}, {}, {}, FitParts(failure=failure)
         noise_of_column = np.array([_NOISE_OF_TERM[t] for t in terms], dtype=object)
         K = hv.J
         beta = solve_scaled(X, hv.avar, K.astype(float))
@@ -117,8 +117,8 @@ class HadamardEDFWeightedLS(Estimator):
         coefs = {c: math.sqrt(b / scales[c]) if g else math.nan for c, b, g in zip(terms, beta, ok)}
         nonphys = {c: not g for c, g in zip(terms, ok)}
         mask = np.ones(len(hv.tau), dtype=bool)
-        diag = {
-            "std_err": ls_std_err(beta, terms, X, scale, hv, mask, level_edf=(level, edf), beta_scale=scales),
+        se = ls_std_err(beta, terms, X, scale, hv, mask, level_edf=(level, edf), beta_scale=scales)
+        extras = {
             "hadamard": hv,
             "beta": dict(zip(terms, beta)),
             "fitted_hvar": X @ beta,
@@ -126,5 +126,5 @@ class HadamardEDFWeightedLS(Estimator):
             "edf": edf,
         }
         check = assess_five_term(rate, dt, coefs, len(terms), (hv.tau.min(), hv.tau.max()))
-        diag.update(check)
-        return coefs, nonphys, diag, FitParts(fit_check=as_fit_check(check))
+        extras["fit_check"] = check["fit_check"]
+        return coefs, nonphys, extras, FitParts(fit_check=as_fit_check(check), std_err=se)

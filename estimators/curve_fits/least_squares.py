@@ -153,7 +153,7 @@ class _AVCurveFit(Estimator):
         if mask.sum() < len(terms):
             coefs = {c: np.nan for c in terms}
             failure = f"only {int(mask.sum())} AV values usable for {len(terms)} coefficients"
-            return coefs, {}, {"failure": failure, "allan": av}, FitParts(failure=failure)
+            return coefs, {}, {"allan": av}, FitParts(failure=failure)
         rs = None if scale is None else scale[mask]
         if mask.all():
             beta = solve_power_design(av.tau, av.avar, terms, rs, sums=sums)
@@ -162,8 +162,7 @@ class _AVCurveFit(Estimator):
         coefs, nonphys = coefficients_from_beta(beta, terms)
         fitted = power_curve(np.ascontiguousarray(av.tau, dtype=float), _powers(terms), beta)
 
-        diag = {
-            "std_err": ls_std_err(beta, terms, None, rs, av, mask),
+        extras = {
             "allan": av,
             "used": mask,
             "beta": dict(zip(terms, beta)),
@@ -172,8 +171,9 @@ class _AVCurveFit(Estimator):
             **extra,
         }
         check = assess_five_term(rate, dt, coefs, len(terms), (av.tau[mask].min(), av.tau[mask].max()))
-        diag.update(check)
-        return coefs, nonphys, diag, FitParts(fit_check=as_fit_check(check))
+        extras["fit_check"] = check["fit_check"]
+        return coefs, nonphys, extras, FitParts(fit_check=as_fit_check(check),
+                                                std_err=ls_std_err(beta, terms, None, rs, av, mask))
 
 
 @register("ols")

@@ -34,7 +34,7 @@ from avbench.estimators.allan.model import (
 from avbench.estimators.base import Estimator, register
 from avbench.estimators.threads import one_blas_thread
 from avbench.estimators.allan.fit_check import as_fit_check, assess_five_term
-from avbench.estimators.results import FitParts
+from avbench.estimators.results import FitParts, extras_of
 from avbench.estimators.selection import choices
 from avbench.estimators.settings import Boolean, Interval, Options, Relation, Taus, Terms
 from avbench.estimators.validation import check_terms
@@ -228,7 +228,7 @@ class SlopeLines(_AVBaseline):
         refit = self._refit(tau, avar,
                             lambda a: slope_line_coefficients(tau, np.sqrt(a), terms, ordered=bool(self.ordered))[0])
         check = assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit)
-        diag.update(check)
+        diag["fit_check"] = check["fit_check"]
         return coefs, {}, diag, FitParts(fit_check=as_fit_check(check))
 
 
@@ -280,13 +280,11 @@ class LogFit(_AVBaseline):
         diag = {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": design_matrix(tau, terms) @ beta,
                 "cost": float(sol.cost), "success": bool(sol.success)}
         failure = None if sol.success else f"least_squares: {sol.message}"
-        if failure:
-            diag["failure"] = failure
         sens = log_fit_sensitivity(tau, avar, terms, beta, sol) if sol.success else None
         refit = self._refit(tau, avar, lambda a: coefficients_from_beta(log_fit_beta(tau, a, terms)[0], terms)[0],
                             None if sens is None else (lambda t: design_matrix(t, terms) @ sens))
         check = assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit)
-        diag.update(check)
+        diag["fit_check"] = check["fit_check"]
         return coefs, nonphys, diag, FitParts(fit_check=as_fit_check(check), failure=failure,
                                               converged=bool(sol.success))
 
@@ -500,8 +498,8 @@ class NNLSRel(_AVBaseline):
     so the filter stays out -- with N within 0.5 % of the truth. On 180,000 samples (the tests) and on the
     2.8 h ADIS16405 gyro axes (results/real) it enters.
 
-    ``diagnostics_["line_test"]`` and ``["filter_test"]`` give the evidence (p-values, tf, f0, included);
-    ``["params"]`` the fitted ``FW.tf``, ``SN.A``, ``SN.f0`` of the terms included; the poor-fit check
+    The result's model choices ``line_test`` and ``filter_test`` give the evidence (p-values, tf, f0,
+    included), its ``parameters`` the fitted ``FW.tf``, ``SN.A``, ``SN.f0`` of the terms included; the poor-fit check
     counts each profiled shape parameter as a fitted parameter and re-profiles it in its linearisation;
     :meth:`model_avar` is the curve fitted (exact discrete AV of the filter and line terms, so ``tau`` must
     then be multiples of dt). The defaults (``"none"``) are the five-term fit above.
@@ -518,9 +516,6 @@ class NNLSRel(_AVBaseline):
     lines : {"none", "auto"}
         A sinusoid at the strongest spectral line: never (default) or when the line test passes.
     """
-
-    #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
-    diagnostic_units = {"line_test": choices.UNITS["line_test"]}
 
     parameter_constraints = {
         **_AVBaseline.parameter_constraints,
@@ -549,7 +544,7 @@ class NNLSRel(_AVBaseline):
             diag = {"tau": tau, "avar": avar, "beta": beta, "fitted_avar": fitted}
             refit = self._refit(tau, avar, lambda a: coefficients_from_beta(nnls_rel_beta(tau, a, terms), terms)[0])
             check = assess_five_term(rate, dt, coefs, len(terms), (tau[0], tau[-1]), refit=refit)
-            diag.update(check)
+            diag["fit_check"] = check["fit_check"]
             return coefs, nonphys, diag, FitParts(fit_check=as_fit_check(check))
         return self._fit_shaped(rate, dt, terms, tau, avar)
 
@@ -567,9 +562,8 @@ class NNLSRel(_AVBaseline):
                                 min(line["f0"] * LINE_FREQUENCY_FACTOR, 0.5 / dt))
         if self.filter == "fit":  # the filter as the user says: always in the model, tf fitted
             fit = self._shaped(rate, dt, terms, tau, avar, filter_bounds(tau, dt), f0_range)
-            if line is not None:
-                fit["diag"]["line_test"] = line
-            return fit["coefs"], fit["nonphys"], fit["diag"], self._parts(fit, line, None)
+            parts = self._parts(fit, line, None)
+            return fit["coefs"], fit["nonphys"], extras_of(fit["diag"], parts), parts
         fit = self._shaped(rate, dt, terms, tau, avar, None, f0_range)
         filter_test = None
         if self.filter == "auto":
@@ -578,12 +572,8 @@ class NNLSRel(_AVBaseline):
             if fit["diag"]["poor_fit"]:  # the model without the filter fails: the filter enters (it nests it)
                 fit = self._shaped(rate, dt, terms, tau, avar, filter_bounds(tau, dt), f0_range)
                 filter_test.update(included=True, p_with=fit["diag"]["fit_pvalue"], tf=fit["tf"])
-        diag = fit["diag"]
-        if line is not None:
-            diag["line_test"] = line
-        if filter_test is not None:
-            diag["filter_test"] = filter_test
-        return fit["coefs"], fit["nonphys"], diag, self._parts(fit, line, filter_test)
+        parts = self._parts(fit, line, filter_test)
+        return fit["coefs"], fit["nonphys"], extras_of(fit["diag"], parts), parts
 
     @staticmethod
     def _parts(fit, line, filter_test) -> FitParts:
@@ -635,11 +625,11 @@ class NNLSRel(_AVBaseline):
         """The curve this fit made: the five-term AV of ``coefficients_``, with the filter's and the line's
         exact discrete AV where they entered (:func:`shaped_design`; ``tau`` multiples of dt then)."""
         self._check_fitted()
-        params = self.diagnostics_.get("params") or {}
+        params = self.parts_.parameters or {}
         if not params:
             return super().model_avar(tau)
         tau = np.asarray(tau, dtype=float)
-        dt = float(self.diagnostics_["dt"])
+        dt = float(self.extras_["dt"])
         tf, f0 = params.get("FW.tf"), params.get("SN.f0")
         terms = [c for c in "QNBKR" if np.isfinite(self.coefficients_[c])]
         beta = [BETA_SCALE[c] * float(self.coefficients_[c]) ** 2 for c in terms]

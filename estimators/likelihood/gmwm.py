@@ -73,7 +73,7 @@ bias instability (``bias_evidence``, :mod:`~avbench.estimators.selection.bias_mo
 of coefficients the fit does not resolve (:mod:`~avbench.estimators.selection.bounds`). With ``min_m="adequate"`` the
 shortest scale is never beyond the record's white region (:func:`~avbench.estimators.selection.scales.white_reach`); where that
 region is short (an accelerometer's, between its filter and the set-up's 0.5 Hz line) the intervals hold each
-cut-off within it the record accepts (``diagnostics_["scale_alternatives"]``, :meth:`Estimator.conf_int`).
+cut-off within it the record accepts (``extras_["scale_alternatives"]``, :meth:`Estimator.conf_int`).
 
 Solver
 ------
@@ -88,7 +88,7 @@ last bits rather than by the criterion. A solve still running after a few hundre
 creeping toward a bound along a direction whose effect vanishes (a term the data drive to 0, a filter time
 constant far below dt, a resonance's damping time beyond the record's scales): the parameter is settled on
 that bound, or the solve restarted there at its evaluation limit, and the fit is reported converged when it
-then is (``diagnostics_["stop_reason"]``; ``failure`` only when not).
+then is (``extras_["stop_reason"]``; ``failure`` only when not).
 """
 
 from __future__ import annotations
@@ -102,7 +102,7 @@ from scipy.linalg import cho_factor
 
 from avbench.estimators.allan.covariance import av_covariance
 from avbench.estimators.allan.fit_check import as_fit_check, assess_fit
-from avbench.estimators.results import Alternative, FitCheck, FitParts
+from avbench.estimators.results import Alternative, FitCheck, FitParts, extras_of
 from avbench.estimators.selection import choices
 from avbench.estimators.allan.variance import _noise_codes_from_slope, allan_variance
 from avbench.estimators.base import Estimator, register
@@ -170,7 +170,7 @@ class WaveletVariance(NamedTuple):
     ``(white_gain - 1) N^2 / tau``; for ``FW`` exact beyond the filter, approximate within it, where a
     left-out sample takes less information with it than the gain assumes). ``reference_is_classical``:
     the poor-fit check compares the fit with the classical AV (else with these values). ``diagnostics``:
-    extra entries for ``diagnostics_``.
+    extra entries for the estimator's ``extras_``.
     """
 
     tau: np.ndarray
@@ -184,7 +184,7 @@ class WaveletVariance(NamedTuple):
 
 
 def _alternative_units(min_m) -> dict:
-    """How an entry of ``diagnostics_["scale_alternatives"]`` scales with the record's unit."""
+    """How an entry of ``extras_["scale_alternatives"]`` scales with the record's unit."""
     return {"coefficients": 1, "std_err": 1}
 
 
@@ -249,7 +249,7 @@ class GMWM(Estimator):
         added when the record's strongest spectral line passes the test for a hidden periodicity of
         :mod:`avbench.estimators.selection.lines` at level
         :data:`~avbench.estimators.selection.lines.LINE_TEST_LEVEL` (0.001) at a frequency the usable
-        taus see; ``diagnostics_["line_test"]`` says what was found and chosen. With ``SN`` in the model
+        taus see; the model choice ``line_test`` says what was found and chosen. With ``SN`` in the model
         (given or added) and such a line found, the sinusoid is started at the line (frequency and
         amplitude) instead of at the eight strongest bumps of the AV curve, and its frequency stays
         within :data:`~avbench.estimators.selection.lines.LINE_FREQUENCY_FACTOR` of the line's
@@ -260,14 +260,14 @@ class GMWM(Estimator):
         band of the record's spectrum stands out of its surroundings, and kept at the shortest cut-off
         below the model's own that Hansen's J does not reject keeping the longer half of the scales, that
         sees the band and whose fit passes the poor-fit check; else the model without it
-        (:mod:`avbench.estimators.selection.resonance`). ``diagnostics_["resonance_test"]``: the band
+        (:mod:`avbench.estimators.selection.resonance`). the model choice ``resonance_test``: the band
         (``band_f0``, ``prominence``, ``band_p_value``), each cut-off tried with its fit-check p-value,
         whether RS was included, the fitted ``sigma, f0, tc``, and the two fits' J on the same scales
         with the chi^2(3) p-value of their difference (indicative only: f0 and tc are undefined without
         the term). On a record the model without it fits at every scale nothing is tried.
     bias_evidence : bool
         False (default here). True: the record's evidence between a Gauss-Markov and a flicker bias
-        instability, ``diagnostics_["bias_evidence"]`` (:mod:`avbench.estimators.selection.bias_model`:
+        instability, the model choice ``bias_evidence`` (:mod:`avbench.estimators.selection.bias_model`:
         the same model with GM and FL exchanged, on the same scales, GMM-AIC weights); the reported B is
         the model's own, and where the evidence is not decisive :meth:`conf_int` widens each interval to
         hold the other model's.
@@ -281,29 +281,28 @@ class GMWM(Estimator):
         :math:`H^{-1}G^T\\Omega^{-1}\\Omega_r\\Omega^{-1}GH^{-1}`, :math:`H = G^T\\Omega^{-1}G` (Hansen 1982; with
         the record's long-run covariance as GMWM's asymptotic theory has it, Guerrier et al. 2013), each
         coefficient's standard error (and the alternatives' that :meth:`conf_int` unions) multiplied by the ratio
-        of its sandwich to its model standard error where that exceeds 1 (``diagnostics_["record_se_factor"]``).
+        of its sandwich to its model standard error where that exceeds 1 (``extras_["record_se_factor"]``).
         The fit itself (weights, Hansen's J of the scale choice, the resonance's acceptance) keeps the model
         covariance. Where the record shows no excess the two are the same.
     filter_tf : float or None
         None (default): the filter latent ``FW``'s time constant is fitted. A number (s): the sensor's
         front-end filter is known (a datasheet: a first-order low-pass of -3 dB bandwidth f has
         tf = 1 / (2 pi f)), and ``FW``'s tf is held at it: one parameter fewer (Hansen's J and the fit check
-        count it so), no standard error. Needs ``FW`` in ``model``. ``diagnostics_["filter_held"]`` (``tf``)
+        count it so), no standard error. Needs ``FW`` in ``model``. the model choice ``filter_held`` (``tf``)
         says so, and ``avbench estimate`` prints it.
 
     Attributes
     ----------
-    diagnostics_ : dict
-        ``params`` (fitted latent parameters, SI), ``std_err`` (pandas.Series like
-        ``coefficients_``: GMM asymptotic standard errors, :math:`(D^T\\Omega^{-1}D)^{-1}`),
+    extras_ : dict
         ``tau``, ``avar``, ``fitted_avar``, ``J_stat`` (Hansen's J = the minimised objective, ~
-        chi^2 with ``dof`` degrees of freedom under the model), ``dof``, ``min_m`` (the shortest
-        cluster size used), ``scale_choice`` (for ``min_m="auto"``: each cut-off tried with its J),
-        ``unresolved`` (coefficients the fit does not resolve, with their bounds:
-        :mod:`avbench.estimators.selection.bounds`) and the poor-fit check of
-        :mod:`avbench.estimators.allan.fit_check` (``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``,
-        ``fit_check``; with ``fit_covariance="record"`` also ``fit_check["record_factor"]``, each scale's variance
-        factor, and ``record_se_factor``, the coefficients' standard-error factors where above 1).
+        chi^2 with ``dof`` degrees of freedom under the model), ``dof``, ``scale_choice`` (for
+        ``min_m="auto"``: each cut-off tried with its J) and the arrays of the poor-fit check of
+        :mod:`avbench.estimators.allan.fit_check` (``fit_check``; with ``fit_covariance="record"`` also
+        ``fit_check["record_factor"]``, each scale's variance factor, and ``record_se_factor``, the
+        coefficients' standard-error factors where above 1). The result holds the fitted latent
+        parameters (SI), the GMM asymptotic standard errors (:math:`(D^T\\Omega^{-1}D)^{-1}`), the
+        coefficients the fit does not resolve with their bounds (:mod:`avbench.estimators.selection.bounds`),
+        the fit check and the model choices (``min_m``, the shortest cluster size used, among them).
 
     Examples
     --------
@@ -335,8 +334,8 @@ class GMWM(Estimator):
     setting_relations = (Relation(("filter_tf", "model"), lambda est: _held_filter_in_model(est.filter_tf, est.model),
                                   "filter_tf holds the time constant of the model's FW"),)
 
-    #: the rate-like entries of the model-choice diagnostics (Estimator.diagnostic_units)
-    diagnostic_units = {**choices.UNITS, "scale_alternatives": _alternative_units}
+    #: the rate-like extras (Estimator.diagnostic_units)
+    diagnostic_units = {"scale_alternatives": _alternative_units}
 
     #: run the poor-fit check (:func:`avbench.estimators.allan.fit_check.assess_fit`); not a setting: an estimator
     #: that uses the GMWM fit only as its start sets it False on its instance
@@ -389,8 +388,9 @@ class GMWM(Estimator):
             coefs, diag, parts = self._fit_curve(rate, dt, wv)
         else:
             coefs, diag, parts = kept.outcome(self._choice_key(rate, dt, wv), lambda: self._fit_curve(rate, dt, wv))
-        diag.update(wv.diagnostics or {})
-        return coefs, {}, diag, parts
+        extras = extras_of(diag, parts)
+        extras.pop("values", None)  # the parameters' values in order: the result's ``parameters``
+        return coefs, {}, {**extras, **(wv.diagnostics or {})}, parts
 
     #: the settings of :class:`GMWM` that shape its fit of the curve (the key of :meth:`_choice_key`)
     _CHOICE_SETTINGS = ("model", "min_clusters", "min_m", "weighting", "n_starts", "lines", "resonance",
@@ -496,12 +496,12 @@ class GMWM(Estimator):
                         alternatives=tuple(Alternative(dict(a["coefficients"]), dict(a["std_err"])) for a in others),
                         unresolved={c: float(b[1]) if b[1] is not None else math.nan
                                     for c, b in (unresolved or {}).items()},
-                        choices=tuple(made), parameters=dict(diag["params"]), failure=failure,
+                        choices=tuple(made), parameters=dict(diag["params"]), failure=failure, std_err=diag["std_err"],
                         converged=failure is None)
 
     @staticmethod
     def _alternatives(latents, fits, dt) -> dict:
-        """``diagnostics_["scale_alternatives"]``: for each longer cut-off within the white reach that Hansen's J
+        """``extras_["scale_alternatives"]``: for each longer cut-off within the white reach that Hansen's J
         accepts (:func:`~avbench.estimators.selection.scales.choose_scales`'s ``fit["alternatives"]``), its
         ``coefficients`` and ``std_err`` (SI), keyed by its shortest cluster size. A fit whose Gauss-Markov term
         peaks within three octaves of its shortest tau resolves no B (:mod:`~avbench.estimators.selection.bounds`):
@@ -613,7 +613,7 @@ class GMWM(Estimator):
         return choose_scales(fit_on, lows, m_all, usable, n_par, self.min_m, binds)
 
     def _bias_evidence(self, latents, best, wv, usable, n, dt, line, resonance) -> dict:
-        """``diagnostics_["bias_evidence"]``: the same latents with GM and FL exchanged, fitted on the scales of
+        """the model choice ``bias_evidence``: the same latents with GM and FL exchanged, fitted on the scales of
         ``best``, weighed against it (:func:`~avbench.estimators.selection.bias_model.weigh_bias_models`)."""
         other = bias_model.exchanged(latents)
         m0 = int(best["diag"]["m"][0])

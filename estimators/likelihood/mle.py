@@ -74,7 +74,7 @@ variance in each parameter (Harvey 1989, Sec. 3.4.6), so one compiled pass gives
 its gradient. L-BFGS-B's end point is then polished to the maximum by trust-region Newton steps
 (:func:`_newton_polish`: on 30 minutes of a real ADIS16405 record L-BFGS-B stopped at a
 saddle 2.9e3 below the maximum in log-likelihood, at a place the last bits of the samples decided);
-a variance the likelihood drives to zero is set to exactly zero (``diagnostics_["pinned_to_zero"]``;
+a variance the likelihood drives to zero is set to exactly zero (``extras_["pinned_to_zero"]``;
 the contract's floor rule then reports it not resolved, with its bound). Standard errors are from the
 observed information (the Hessian in the log-parameters by central differences of the analytic
 score) by the delta method; the drift, a diffuse state, gets the filtered GLS estimate and its
@@ -172,9 +172,8 @@ class MLE(Estimator):
 
     Attributes
     ----------
-    diagnostics_ : dict
-        ``std_err`` (pandas.Series like ``coefficients_``), ``params`` (sigma, Tc, ...), ``block``,
-        ``loglike``, ``converged``, ``start`` (the GMWM starting coefficients), ``polish_iterations``
+    extras_ : dict
+        ``block``, ``start`` (the GMWM starting coefficients), ``polish_iterations``
         (trust-region Newton iterations after L-BFGS-B), ``finished_by_score`` (the trust region
         stopped where the log-likelihood's round-off hid the last gain and Newton steps on the score
         reached the maximum: :func:`_newton_polish`), ``pinned_to_zero`` (parameters the likelihood
@@ -188,7 +187,7 @@ class MLE(Estimator):
     >>> g = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=1e-5)])
     >>> x = g.simulate(100_000, np.random.default_rng(3))
     >>> est = MLE(model="WN+RW", block=1).fit(x, 0.1)
-    >>> bool(abs(est.coefficients_["N"] / 1e-3 - 1) < 5 * est.diagnostics_["std_err"]["N"] / 1e-3)
+    >>> bool(abs(est.coefficients_["N"] / 1e-3 - 1) < 5 * est.std_err_["N"] / 1e-3)
     True
     """
     round_off_amplified = True  # an optimiser's end point (Estimator.round_off_amplified)
@@ -256,25 +255,23 @@ class MLE(Estimator):
             coefs[ramp] = abs(float(a[-1]) / scale)
             std[ramp] = float(math.sqrt(max(P[-1, -1], 0.0))) / scale
         llf = fit["loglike"]
+        params = {k[4:]: v for k, v in vals.items()}
+        failure = None
         diag = {
-            "std_err": pd.Series(std, dtype=float).reindex(list(COEFFICIENTS)),
-            "params": {k[4:]: v for k, v in vals.items()},
             "block": m,
-            "loglike": llf + y.size * math.log(scale),
-            "converged": fit["converged"],
             "polish_iterations": fit["polish_iterations"],
             "finished_by_score": fit["finished_by_score"],
             "pinned_to_zero": [k[4:] for k in fit["pinned"]],
             "start": start.coefficients_,
         }
         if not np.isfinite(llf):
-            diag["failure"] = "non-finite log-likelihood at the optimum"
+            failure = "non-finite log-likelihood at the optimum"
         elif not fit["converged"]:  # values at a point that is not the maximum: reported, not trusted
-            diag["failure"] = (f"the likelihood's maximum was not reached ({fit['polish_iterations']} Newton "
+            failure = (f"the likelihood's maximum was not reached ({fit['polish_iterations']} Newton "
                                "iterations after L-BFGS-B; the values are where they stopped)")
         check, k = None, len(system.names) + (drift is not None)
         if np.isfinite(llf):
-            p = diag["params"]
+            p = params
             # the likelihood's parameters: each stochastic term's fit parameters (the drift is a state)
             names = {lat: LATENT_TERMS[lat].fit_parameters for lat in latents if lat != drift}
             # a term the polish set to zero is no term of the fitted model (its parameters still count)
@@ -285,11 +282,12 @@ class MLE(Estimator):
             n_par = sum(len(LATENT_TERMS[lat].fit_parameters) for lat in latents)
             gyro = build_gyro(kept, values, dt)
             check = assess_fit(rate, dt, gyro.avar, gyro, n_par, (m * dt, math.inf))
-            diag.update(check)
+            diag["fit_check"] = check["fit_check"]
             diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
-        ll = diag["loglike"]
+        ll = llf + y.size * math.log(scale)
         parts = FitParts(fit_check=FitCheck(None) if check is None else as_fit_check(check),
-                         parameters=dict(diag["params"]), failure=diag.get("failure"), llf=ll,
+                         std_err=pd.Series(std, dtype=float).reindex(list(COEFFICIENTS)),
+                         parameters=params, failure=failure, llf=ll,
                          aic=-2.0 * ll + 2.0 * k, bic=-2.0 * ll + k * math.log(y.size),
                          converged=bool(fit["converged"]), n_iter=int(fit["polish_iterations"]))
         return coefs, {}, diag, parts
@@ -308,7 +306,7 @@ def gmwm_start_values(start, latents, dt) -> tuple[np.ndarray, float | None]:
     :meth:`~avbench.noise_models.NoiseTerm.likelihood_start` from its GMWM values and the AV that fit saw
     (at least 1e-300); and the shortest time the block means must resolve
     (:meth:`~avbench.noise_models.NoiseTerm.block_mean_memory`, None if no term has one)."""
-    sp, avar, tau = start.diagnostics_["params"], start.diagnostics_["avar"], start.diagnostics_["tau"]
+    sp, avar, tau = start.parts_.parameters, start.extras_["avar"], start.extras_["tau"]
     out, memory = [], []
     for lat in latents:
         cls = LATENT_TERMS[lat]

@@ -103,7 +103,7 @@ its Akaike weight :math:`\\propto e^{-\\mathrm{AIC}/2}`, a dropped term counting
 & Augustin 1997; :mod:`~avbench.estimators.selection.averaging`). The submodels are fitted over the
 same domain; a positive combination of valid spectra is valid. A Gauss-Markov Tc and the trend slope
 stay the full model's. The intervals stay the full model's profile-likelihood intervals (valid
-whatever the true terms); ``diagnostics_["term_weights"]`` gives each model's weight. Measured in
+whatever the true terms); the model choice ``term_weights`` gives each model's weight. Measured in
 ``results/random_gyros``.
 
 Where it is not exact
@@ -231,7 +231,7 @@ class Whittle(Estimator):
         (Sykulski et al. 2019; module docstring).
     intervals : {"wald", "profile"}
         Wald intervals from the standard errors (default), or profile-likelihood intervals and
-        evidence for every candidate term of the full model (``diagnostics_["evidence"]``).
+        evidence for every candidate term of the full model (the result's evidence).
     domain : {"nonnegative", "spectrum"}
         Where the variances are maximised: each >= 0 (default), or wherever the model spectrum is
         positive at every Fourier frequency (Q, N, B, K may go below 0; reported truncated at 0, their
@@ -252,13 +252,14 @@ class Whittle(Estimator):
     ----------
     std_err_ : pandas.Series
         Standard errors (SI) from the Whittle information at the estimate (``avbench.estimators.likelihood.crlb``).
-    diagnostics_ : dict
-        ``terms`` (the terms kept), ``loglik``, ``bic``, ``n_iter``, ``converged``, ``beta`` (trend
-        slope, rad/s per sample), ``tc`` (Gauss-Markov), ``full_std_err`` (the full model's),
-        ``selection`` (the criterion of each model visited), ``ramp_z2`` (the ramp's squared z-statistic,
-        :math:`\\hat\\beta^2/\\mathrm{Var}_0`, NaN without R in ``terms``), ``bias_model`` (the
-        bias-instability spectrum used) and ``bias_models`` (the penalised likelihood of each full
-        model tried); with ``intervals="profile"``, ``evidence`` and ``evidence_level``.
+    extras_ : dict
+        ``terms`` (the terms kept), ``beta`` (trend slope, rad/s per sample), ``tc`` (Gauss-Markov),
+        ``full_coefficients`` and ``full_std_err`` (the full model's), ``ramp_z2`` (the ramp's squared
+        z-statistic, :math:`\\hat\\beta^2/\\mathrm{Var}_0`, NaN without R in ``terms``) and
+        ``bias_models`` (the penalised likelihood of each full model tried). The result holds the
+        rest: ``llf``, ``bic``, ``n_iter``, ``converged``, the model choices ``selection`` (the
+        criterion of each model visited) and ``bias_model`` (the bias-instability spectrum used), and
+        with ``intervals="profile"`` each term's evidence.
 
     Examples
     --------
@@ -359,48 +360,38 @@ class Whittle(Estimator):
         else:
             full_coefs, full_se, _, _ = self._report(wf, full, full_kept, terms, select=False, k_drift=k_full)
         zeros = zero_bounds(wf, chosen, kept, terms, coefs, se)
-        diag = {
+        extras = {
             "terms": "".join(_label(c) for c in kept) + (trend() if tr else ""),
-            "loglik": float(chosen["loglik"]),
-            "bic": float(bic(chosen)),
-            "n_iter": int(chosen["n_iter"]),
-            "converged": bool(chosen["converged"]),
             "beta": float(chosen["detail"]["beta"] * wf.scale),
             "tc": chosen["tc"],
-            "std_err": se,
             "full_std_err": full_se,
             "full_coefficients": pd.Series(full_coefs, dtype=float).reindex(list(COEFFICIENTS)),
-            **zeros,
-            "selection": {"".join(k): float(bic(v)) for k, v in fits.items()},
             "ramp_z2": ramp_z2,
-            "bias_model": shape,
             "bias_models": bias_choice.criteria,
         }
-        if weights is not None:
-            diag["term_weights"] = {"penalty": averaging.PENALTY, "models": weights}
         if bias_choice.weights is not None:  # bias="select": the full models' weights exp(-criterion/2), normalised
-            diag["bias_weights"] = bias_choice.weights
+            extras["bias_weights"] = bias_choice.weights
         n_params = _n_par(kept) + 1
         check = spectral_fit_check(wf, chosen, n_params)
-        diag.update(check)
+        if "fit_check" in check:
+            extras["fit_check"] = check["fit_check"]
         evidence = {}
         if self.intervals == "profile":
             found = self._evidence(wf, full, coefs, se, ramp_z2, trend() in terms)
-            diag.update(found)
             evidence = _typed_evidence(found["evidence"], found["evidence_level"])
         failure = None
         if not chosen["converged"]:
-            failure = diag["failure"] = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
+            failure = f"Fisher scoring did not converge in {chosen['n_iter']} iterations"
         made = [choices.bias_model(shape, bias_choice.criteria if len(fulls) > 1 else None, bias_choice.weights),
                 choices.criteria({"".join(k): float(bic(v)) for k, v in fits.items()})]
         if weights is not None:
             made.append(choices.term_weights({"penalty": averaging.PENALTY, "models": weights}))
         llf, k = float(chosen["loglik"]), n_par(chosen)
         parts = FitParts(fit_check=as_fit_check(check), evidence=evidence, choices=tuple(made), failure=failure,
-                         zero_bounds=(zeros["zero_upper"], zeros["zero_upper_power"]),
+                         zero_bounds=(zeros["zero_upper"], zeros["zero_upper_power"]), std_err=se,
                          llf=llf, aic=penalised(llf, k, 2.0), bic=penalised(llf, k, math.log(n)),
                          converged=bool(chosen["converged"]), n_iter=int(chosen["n_iter"]))
-        return coefs, {}, diag, parts
+        return coefs, {}, extras, parts
 
     def _averaged(self, wf, full, n_par, signed):
         """The full fit with its variances replaced by their Akaike-weighted average over the
@@ -517,7 +508,7 @@ class WhittleDebiased(Whittle):
     intervals: :class:`Whittle` with ``spectrum="debiased"`` (Sykulski et al. 2019, Biometrika
     106(2): the expected periodogram of the record replaces the spectrum), ``select=False`` and
     ``intervals="profile"`` (each term's interval on [0, inf) and its evidence, the likelihood ratio
-    of dropping it with its chi-bar-squared p-value, in ``diagnostics_["evidence"]``),
+    of dropping it with its chi-bar-squared p-value, in the result's evidence),
     ``domain="spectrum"`` (the maximum over variances that may go below 0 while the expected
     periodogram stays positive, each reported truncated at 0: no one-way trade between a term on
     its boundary and its neighbour; module docstring, "Domain of the variances") and

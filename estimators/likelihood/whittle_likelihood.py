@@ -537,7 +537,7 @@ def spectral_fit_check(wf: WhittleFit, fit: dict, n_params: int, alpha: float = 
     shape leaves a run of bins off 1: ``poor_fit`` is ``p < alpha``. The false-alarm rate and power
     are measured in ``tests/test_whittle_debiased.py`` (the binomial tolerance of the level).
 
-    Returns the ``diagnostics_`` entries ``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``,
+    Returns the fit check's entries (:func:`~avbench.estimators.allan.fit_check.as_fit_check`) ``poor_fit``, ``fit_stat``, ``fit_dof``, ``fit_pvalue``,
     ``fit_reference`` and ``fit_check`` (``f`` bin centres (Hz), ``ratio`` the binned means of
     :math:`r_k`, ``z``, ``alpha``)."""
     from scipy import stats

@@ -38,8 +38,8 @@ Divergence
 A non-finite state, a non-positive innovation variance, a non-positive adaptive measurement
 variance, a covariance ``P`` that is not positive definite (diagonal every sample, Cholesky every
 ``pd_check_every`` samples), or an adaptive ``Q`` with a negative diagonal stops the filter at
-that sample. The coefficients are NaN; ``diagnostics_["failure"]`` names the reason and the sample
-index, ``diagnostics_["last_good"]`` holds the estimate before the failing sample, and a
+that sample. The coefficients are NaN; the result's ``failure`` names the reason and the sample
+index, ``extras_["last_good"]`` holds the estimate before the failing sample, and a
 :class:`~avbench.estimators.base.DivergenceWarning` is emitted. Later chunks are ignored.
 """
 
@@ -226,7 +226,7 @@ class OnlineAVFilter(Estimator):
     coefficients_ = _published("coefficients_")
     nonphysical_ = _published("nonphysical_")
     std_err_ = _published("std_err_")
-    diagnostics_ = _published("diagnostics_")
+    extras_ = _published("extras_")
     parts_ = _published("parts_")
 
     # -- hooks for subclasses ------------------------------------------------------------------
@@ -418,19 +418,18 @@ class OnlineAVFilter(Estimator):
 
     def _publish(self) -> None:
         coefs, failure = self._estimate()
+        traj = self._trajectory() if self._cfg["every"] > 0 else None
         diag = {
-            "failure": failure,
             "n_samples": self._n_seen,
             "x0": None if self._x0_si is None else coefficient_series(self._x0_si),
             "cluster_sizes": self._cfg["m"].tolist(),
-            "trajectory": self._trajectory() if self._cfg["every"] > 0 else None,
         }
         if self._started:
             if failure:
                 last = np.abs(self._scales()) * self._c_ref
                 diag["last_good"] = coefficient_series(dict(zip(self._cfg["terms"], last)))
             diag.update(self._filter_diagnostics())
-        self._set_results(coefs.to_dict(), None, diag, FitParts(failure=failure, trajectory=diag["trajectory"]))
+        self._set_results(coefs.to_dict(), None, diag, FitParts(failure=failure, trajectory=traj))
         self._warn_if_diverged(stacklevel=5)
 
     def _warn_if_diverged(self, stacklevel=4) -> None:
@@ -448,4 +447,4 @@ class OnlineAVFilter(Estimator):
         self._reset(dt)
         self._feed(rate)
         self.flush()
-        return self.coefficients_.to_dict(), None, self.diagnostics_, self.parts_
+        return self.coefficients_.to_dict(), None, self.extras_, self.parts_

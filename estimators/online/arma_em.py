@@ -51,7 +51,7 @@ well-conditioned variables :math:`\varepsilon_i = 1-\lambda_i`). Then :math:`K^2
 :math:`\sigma^2 = q_G/(1-\phi^2)`, :math:`B = 0.9294\sigma`, :math:`T_c = -dt/\ln\phi`. A negative
 :math:`q_K` or :math:`q_G`, complex eigenvalues or :math:`\phi\notin(0,1)` make the coefficient
 non-physical (NaN, flagged). :math:`K` treats :math:`\lambda_1` as 1 (eq. 63 has exactly 1; EM does
-not constrain it), :math:`\lambda_1` is reported in ``diagnostics_``.
+not constrain it), :math:`\lambda_1` is reported in ``extras_``.
 
 Supported coefficient sets (``terms``): ``"NK"`` (Ford & Evans: 1 state, random walk),
 ``"NB"`` (1 state, Gauss-Markov), ``"NBK"`` (2 states, eqs 58-63). The model is driven by white
@@ -82,7 +82,7 @@ An M-step whose :math:`A` has an eigenvalue outside the closed unit disk has tha
 onto it (real eigenvalues clipped to :math:`\pm1` with the eigenvectors kept, a complex pair
 scaled to modulus 1) before :math:`Q` is formed from it (Q's update is the maximiser for any given
 A, so this is a conditional-maximisation step); eq. 63's model has eigenvalues 1 and
-:math:`1-\beta\tau`, none explosive. The count is ``diagnostics_["n_clipped"]``.
+:math:`1-\beta\tau`, none explosive. The count is ``extras_["n_clipped"]``.
 
 Numerics: what keeps the filter stable
 --------------------------------------
@@ -408,19 +408,18 @@ class ArmaEM(Estimator):
         is one term, but Q is a small difference of large sums (Q is tiny beside the state
         variance), so the extra :math:`x_0x_0^T/k` biases Q and hence K and B noticeably.
     trace_every : int
-        Record the coefficient trajectory every so many samples (0: never), in
-        ``diagnostics_["trajectory"]``.
+        Record the coefficient trajectory every so many samples (0: never), in the result's
+        ``trajectory``.
     engine : {"numba", "reference"}
         Compiled kernel or the plain NumPy reference (slow; for tests).
 
     Attributes
     ----------
-    coefficients_, nonphysical_, diagnostics_
-        See :class:`avbench.estimators.base.Estimator`. ``diagnostics_`` holds ``A, C, Q, R`` (scaled
+    coefficients_, nonphysical_, parts_, extras_
+        See :class:`avbench.estimators.base.Estimator`. ``extras_`` holds ``A, C, Q, R`` (scaled
         units, see ``scale``), ``scale``, ``offset``, ``tc``, ``lambda_rrw``, ``loglik`` (per pass),
-        ``n_updates``, ``n_rejected``, ``n_clipped``, ``failure`` (None or a message with the
-        sample index) and
-        ``trajectory`` (DataFrame: sample, N, B, K in SI).
+        ``n_updates``, ``n_rejected``, ``n_clipped``; the result its ``failure`` (None or a message
+        with the sample index) and ``trajectory`` (DataFrame: sample, N, B, K in SI).
     """
 
     round_off_amplified = True  # an iterative EM's end point (last digits of K move between kernels) (Estimator.round_off_amplified)
@@ -597,8 +596,8 @@ class ArmaEM(Estimator):
             extra = {"tc": math.nan, "lambda_rrw": math.nan, "sigma_gm": math.nan}
         else:
             coefs, bad, extra = coefficients_from_model(f.A, f.C * s, f.Q, f.R * s**2, dt, terms)
+        traj = self._trajectory()
         diag = {
-            "failure": failure,
             "stopped": self._stopped,
             "A": f.A.copy(), "C": f.C.copy(), "Q": f.Q.copy(), "R": float(f.R[0]),
             "scale": s, "offset": self._offset, "passes": self._pass,
@@ -609,10 +608,9 @@ class ArmaEM(Estimator):
             "n_clipped": int(f.ic[_k.I_CLIPPED]),
             "first_rejected": int(f.ic[_k.I_FIRST_REJECT]) if f.ic[_k.I_REJECTED] else None,
             **extra,
-            "trajectory": self._trajectory(),
         }
         loglik = diag["loglik"]
-        parts = FitParts(failure=failure, trajectory=diag["trajectory"], llf=float(loglik[-1]) if loglik else math.nan,
+        parts = FitParts(failure=failure, trajectory=traj, llf=float(loglik[-1]) if loglik else math.nan,
                          n_iter=int(self._pass))
         return coefs, bad, diag, parts
 

@@ -162,7 +162,7 @@ class Shakf(_ShakfBase):
     x0_samples : int
         Window of the default initial AV analysis.
     trajectory_every : int
-        Keep the estimate every this many samples in ``diagnostics_["trajectory"]`` (default 1000:
+        Keep the estimate every this many samples in the result's ``trajectory`` (default 1000:
         a decimated trajectory, so that the default run goes at the kernel's speed; 1: every
         sample, the full trajectory; 0: none).
     pd_check_every : int

@@ -445,7 +445,7 @@ class GMWMDespiked(GMWM):
 
     Attributes
     ----------
-    diagnostics_ : dict
+    extras_ : dict
         As :class:`avbench.estimators.likelihood.gmwm.GMWM`, plus ``outlier_fraction`` (the fraction f left out)
         and ``outlier_threshold`` (the threshold t used; inf when no gap was found and nothing
         was left out).
@@ -456,7 +456,7 @@ class GMWMDespiked(GMWM):
     >>> rate = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3)]).simulate(100_000, np.random.default_rng(3))
     >>> spiky = rate + 0.03 * (np.random.default_rng(4).random(rate.size) < 0.05)  # 5 % of 10 sigma
     >>> est = GMWMDespiked(model="WN").fit(spiky, 0.1)
-    >>> round(float(est.coefficients_["N"] / 1e-3), 2), round(est.diagnostics_["outlier_fraction"], 3)
+    >>> round(float(est.coefficients_["N"] / 1e-3), 2), round(est.extras_["outlier_fraction"], 3)
     (1.0, 0.05)
     """
 

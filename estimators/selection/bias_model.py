@@ -33,7 +33,7 @@ BIAS_EVIDENCE_WEIGHT = 0.95
 
 class BiasEvidence(NamedTuple):
     """What :func:`weigh_bias_models` found: ``preferred`` ("GM" or "FL"), its Akaike ``weight``, whether the
-    evidence is ``decisive``, and the ``report`` (``diagnostics_["bias_evidence"]``: ``{"GM": {...}, "FL":
+    evidence is ``decisive``, and the ``report`` (the model choice ``bias_evidence``: ``{"GM": {...}, "FL":
     {...}, "preferred", "weight", "fitted", "decisive", "min_m"}``, each model with ``J_stat``, ``n_par``,
     ``aic``, ``B`` (SI: B_equiv for GM, B for FL), ``coefficients``, ``std_err`` (dicts, SI) and ``weight``;
     ``fitted``: the model whose coefficients are reported)."""

@@ -17,7 +17,7 @@ limit of the record's AV (the engine's edf :math:`\\nu`; :func:`av_upper_limits`
   missing bias instability (:func:`gm_unresolved`).
 
 The coefficient keeps its value (the fitted model); a report flags it ``not resolved`` and shows the
-interval (``diagnostics_["unresolved"]``: coefficient -> (0, upper)).
+interval (``parts_.unresolved``: coefficient -> upper).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The model choices the selection components make, each as the typed
 :class:`~avbench.estimators.results.ModelChoice` a fit reports: its key, what was chosen and why, and
 which parts carry the record's unit (so that a result in another unit converts them with its
-coefficients, and an estimator's ``diagnostic_units`` take them from here: :data:`UNITS`).
+coefficients: :data:`UNITS`).
 
 >>> c = line_test({"f0": 5.0, "amplitude": 2e-3, "p_value": 1e-9, "included": True})
 >>> c.key, c.converted(lambda v, p: v * 10.0 ** p).detail["amplitude"]

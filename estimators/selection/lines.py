@@ -156,7 +156,7 @@ def line_evidence(x, dt, tau, level=LINE_TEST_LEVEL) -> dict | None:
 class LineChoice(NamedTuple):
     """What :func:`choose_line` chose: ``latents`` (the model, with ``SN`` where it was added), ``line`` (the
     line test's dict, :func:`line_evidence`, with ``included``: SN in the model; None where no frequency can
-    be searched; it is ``diagnostics_["line_test"]``) and ``reason`` (a sentence)."""
+    be searched; it is the model choice ``line_test``) and ``reason`` (a sentence)."""
 
     latents: tuple[str, ...]
     line: dict | None

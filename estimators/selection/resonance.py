@@ -139,7 +139,7 @@ def resonance_hint(band: ResonanceBand | None) -> FitHint | None:
 class ResonanceChoice(NamedTuple):
     """What :func:`choose_resonance` chose: ``fit`` (the model's fit, with or without ``RS``), ``tried`` (the
     cut-offs fitted: the model's, then those with RS), ``latents`` (with ``RS`` where it was added) and
-    ``report`` (``diagnostics_["resonance_test"]``: the band, each cut-off tried with its fit-check p-value,
+    ``report`` (the model choice ``resonance_test``: the band, each cut-off tried with its fit-check p-value,
     whether RS was included and why, its ``sigma, f0, tc``, the two fits' J on the same scales)."""
 
     fit: dict

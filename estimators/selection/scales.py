@@ -55,7 +55,7 @@ SCALE_TEST_LEVEL = 0.001
 
 class ScaleChoice(NamedTuple):
     """What a scale rule chose: ``fit`` (the fit on the chosen scales, None where no cut-off was accepted),
-    ``tried`` (``(min_m, J, n_scales)`` for every cut-off fitted, in order: ``diagnostics_["scale_choice"]``)
+    ``tried`` (``(min_m, J, n_scales)`` for every cut-off fitted, in order: ``extras_["scale_choice"]``)
     and ``reason`` (a sentence)."""
 
     fit: dict | None
