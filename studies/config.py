@@ -1,7 +1,8 @@
 """Study configuration: a small TOML file, validated completely before any work starts.
 
-The schema -- every key, its type, default and meaning, with an example -- is in ``docs/CONFIG.md``
-(a test holds it to the keys accepted here: ``_STUDY_KEYS``, ``_GYRO_KEYS``, ``_EST_KEYS``).
+The schema -- every key, its type, default and allowed values -- is declared once in
+:mod:`avbench.studies.config_schema`, which reads each table and words its errors; ``docs/CONFIG.md``
+documents it with an example (a test holds the two together).
 Estimators and noise terms may be plugins: a registry name, an entry point of the groups
 ``avbench.estimators`` / ``avbench.noise_terms``, or an import path ``"module:Class"`` (a module
 beside the config file is found); ``[study] plugins`` lists modules to import first, in every
@@ -20,8 +21,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
-import re
 import tomllib
 import warnings
 from dataclasses import dataclass, field
@@ -34,6 +33,7 @@ from avbench import estimators
 from avbench.estimators.settings import validate_settings
 from avbench.noise_models import TERM_TYPES, Gyro, presets, term_class
 from avbench.noise_models.plugins import PluginError, import_module, version_of
+from avbench.studies.config_schema import ESTIMATOR, GYRO, MAX_SAMPLES, ROOT, STUDY
 
 __all__ = ["ConfigError", "StudyConfig", "GyroSpec", "EstimatorSpec", "load_config", "parse_config",
            "settings_problem"]
@@ -131,44 +131,8 @@ class StudyConfig:
         return hashlib.sha256(blob).hexdigest()[:16]
 
 
-#: upper limits that keep an absurd config from exhausting memory before any useful work
-MAX_REPLICATES = 1_000_000
-MAX_SAMPLES = 1_000_000_000  # 8 GB per record
 MAX_FILTER_TAPS = 100_000_000  # flicker filter memory tau_max / dt
 SIMULATION_CHECK_SAMPLES = 1024  # samples each gyro is simulated for when the config is read
-
-_STUDY_KEYS = {
-    "name": str,
-    "description": str,
-    "seed": int,
-    "replicates": int,
-    "duration_s": (int, float),
-    "n_samples": int,
-    "block_size": int,
-    "backend": str,
-    "scheduler": str,
-    "paper_table": str,
-    "figure_gyros": list,
-    "units": dict,
-    "plugins": list,
-}
-_GYRO_KEYS = {"preset": str, "name": str, "label": str, "dt": (int, float), "terms": list, "paper_gyro": str}
-_EST_KEYS = {
-    "name": str,
-    "label": str,
-    "settings": dict,
-    "gyro_settings": dict,
-    "x0_truth_scale": (int, float),
-    "bootstrap": int,
-    "paper_method": str,
-}
-_TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", list: "an array", dict: "a table"}
-
-
-def _tname(t) -> str:
-    if isinstance(t, tuple):
-        return "a number"
-    return _TYPE_NAMES.get(t, t.__name__)
 
 
 class _Ctx:
@@ -178,56 +142,21 @@ class _Ctx:
     def fail(self, key: str, msg: str):
         raise ConfigError(f"{self.where}: {key}: {msg}")
 
-    def check_keys(self, table: dict, allowed: dict, prefix: str):
-        if not isinstance(table, dict):
-            self.fail(prefix, f"expected a table, got {type(table).__name__}")
-        for k, v in table.items():
-            key = f"{prefix}.{k}" if prefix else k
-            if k not in allowed:
-                self.fail(key, f"unknown key; expected one of {', '.join(sorted(allowed))}")
-            t = allowed[k]
-            ok = isinstance(v, t) and not (isinstance(v, bool) and t in (int, (int, float)))
-            if not ok:
-                self.fail(key, f"expected {_tname(t)}, got {v!r}")
-
-
-def _positive_int(ctx: _Ctx, key: str, v, minimum: int = 1, maximum: int | None = None) -> int:
-    if v < minimum:
-        ctx.fail(key, f"expected an integer >= {minimum}, got {v!r}")
-    if maximum is not None and v > maximum:
-        ctx.fail(key, f"expected an integer <= {maximum:,}, got {v!r}")
-    return int(v)
-
-
-_BAD_NAME_CHARS = re.compile(r"[\x00-\x1f\x7f]")
-
-
-def _check_label(ctx: _Ctx, key: str, v) -> str:
-    if not isinstance(v, str) or not v.strip() or _BAD_NAME_CHARS.search(v) or len(v) > 200:
-        ctx.fail(key, f"expected a non-empty printable name (at most 200 characters), got {v!r}")
-    return v
-
 
 def _builtin(cls) -> bool:
     return cls.__module__.split(".")[0] == "avbench"
 
 
 def _build_gyro(ctx: _Ctx, i: int, g: dict, search: Path | None = None) -> tuple[str, Gyro, float | None]:
+    """The label, the :class:`Gyro` and the paper's record length (a preset's; None) of the gyro entry
+    ``g`` (the values :data:`~avbench.studies.config_schema.GYRO` read, its arrays of pairs as tuples)."""
     key = f"gyros[{i}]"
-    if ("preset" in g) == ("terms" in g):
-        ctx.fail(key, "expected either 'preset' or an explicit gyro ('name', 'dt', 'terms'), not both or neither")
-    if "preset" in g:
-        for k in ("dt", "terms", "name"):
-            if k in g:
-                ctx.fail(f"{key}.{k}", "not allowed with 'preset' (a preset has its own sample rate and terms)")
+    if g["preset"] is not None:
         try:
             info = presets.info(g["preset"])
         except (ValueError, KeyError) as e:
             ctx.fail(f"{key}.preset", str(e).strip("'\""))
-        return g.get("label", info.name), info.gyro(), info.duration_s
-    for k in ("name", "dt"):
-        if k not in g:
-            ctx.fail(f"{key}.{k}", "required for an explicit gyro")
+        return g["label"] or info.name, info.gyro(), info.duration_s
     terms = []
     for j, t in enumerate(g["terms"]):
         tkey = f"{key}.terms[{j}]"
@@ -249,7 +178,7 @@ def _build_gyro(ctx: _Ctx, i: int, g: dict, search: Path | None = None) -> tuple
         gyro = Gyro(dt=g["dt"], terms=terms, name=g["name"])
     except Exception as e:
         ctx.fail(key, str(e))
-    return g.get("label", g["name"]), gyro, None
+    return g["label"] or g["name"], gyro, None
 
 
 def _tuplify(v):
@@ -266,78 +195,45 @@ def _tuplify(v):
 def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -> StudyConfig:
     """Validate a parsed TOML document and build the :class:`StudyConfig`.
 
-    Raises :class:`ConfigError` (naming ``where``, the key and what was expected) for anything
-    invalid; nothing else escapes for any input a TOML file can hold.
+    Each table is read by its declaration (:mod:`avbench.studies.config_schema`: keys, types, defaults,
+    allowed values and their messages); then what joins the tables: presets, term classes and plugins,
+    the record length of each gyro, labels, the paper table, and each estimator's settings per gyro
+    (:func:`settings_problem`). Raises :class:`ConfigError` (naming ``where``, the key and what was
+    expected) for anything invalid; nothing else escapes for any input a TOML file can hold.
     """
     ctx = _Ctx(where)
-    ctx.check_keys(raw, {"study": dict, "gyros": list, "estimators": list}, "")
-    for k in ("study", "gyros", "estimators"):
-        if k not in raw:
-            ctx.fail(k, "required section is missing")
-    study = raw["study"]
-    ctx.check_keys(study, _STUDY_KEYS, "study")
-    for k in ("name", "seed", "replicates"):
-        if k not in study:
-            ctx.fail(f"study.{k}", "required")
-    name = study["name"]
-    if not name or any(c in name for c in "/\\") or name.startswith(".") or _BAD_NAME_CHARS.search(name):
-        ctx.fail("study.name", f"expected a plain folder name, got {name!r}")
-    seed = _positive_int(ctx, "study.seed", study["seed"], 0)
-    replicates = _positive_int(ctx, "study.replicates", study["replicates"], 1, MAX_REPLICATES)
-    block = _positive_int(ctx, "study.block_size", study.get("block_size", 5))
-    if "duration_s" in study and "n_samples" in study:
-        ctx.fail("study.duration_s", "give duration_s or n_samples, not both")
-    if "duration_s" in study and not (math.isfinite(study["duration_s"]) and study["duration_s"] > 0):
-        ctx.fail("study.duration_s", f"expected a positive number of seconds, got {study['duration_s']!r}")
-    if "n_samples" in study:
-        _positive_int(ctx, "study.n_samples", study["n_samples"], 16, MAX_SAMPLES)
-    backend = study.get("backend", "loky")
-    if backend not in ("loky", "dask"):
-        ctx.fail("study.backend", f"expected 'loky' or 'dask', got {backend!r}")
-    scheduler = study.get("scheduler")
-    if scheduler is not None:
-        if backend != "dask":
-            ctx.fail("study.scheduler", 'a scheduler address needs backend = "dask"')
-        if not _SCHEDULER_RE.match(scheduler):
-            ctx.fail("study.scheduler", f"expected a dask scheduler address like tcp://host:8786, got {scheduler!r}")
+    ROOT.read(raw, "", ctx.fail)
+    study = STUDY.read(raw["study"], "study", ctx.fail)
     search = path.parent if path else None
-    plugin_mods = study.get("plugins", [])
     plugin_versions = {}
-    for j, m in enumerate(plugin_mods):
-        if not isinstance(m, str) or not re.fullmatch(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*", m):
-            ctx.fail(f"study.plugins[{j}]", f"expected a module name like 'my_package.my_module', got {m!r}")
+    for j, m in enumerate(study["plugins"]):
         try:
             plugin_versions[m] = version_of(import_module(m, search))
         except PluginError as e:
             ctx.fail(f"study.plugins[{j}]", str(e))
     paper_table = paper = None
-    if "paper_table" in study:
+    if study["paper_table"] is not None:
         base = path.parent if path else Path.cwd()
         paper_table = (base / study["paper_table"]).resolve()
         paper = _read_paper_table(ctx, paper_table)
 
-    if not raw["gyros"]:
-        ctx.fail("gyros", "expected at least one [[gyros]] entry")
     gyros = []
-    for i, g in enumerate(raw["gyros"]):
-        ctx.check_keys(g, _GYRO_KEYS, f"gyros[{i}]")
-        for k in ("label", "name", "paper_gyro"):
-            if k in g:
-                _check_label(ctx, f"gyros[{i}].{k}", g[k])
+    for i, entry in enumerate(raw["gyros"]):
+        g = GYRO.read(entry, f"gyros[{i}]", ctx.fail)
         label, gyro, paper_duration = _build_gyro(ctx, i, _tuplify(g), search)
         for t in gyro.terms:
             if not _builtin(type(t)):
                 plugin_versions[f"{type(t).__module__}:{type(t).__qualname__}"] = version_of(type(t))
-        if "n_samples" in study:
+        if study["n_samples"] is not None:
             n = int(study["n_samples"])
         else:
-            duration = study.get("duration_s", paper_duration)
+            duration = study["duration_s"] if study["duration_s"] is not None else paper_duration
             if duration is None:
                 ctx.fail(f"gyros[{i}]", "an explicit gyro needs study.duration_s or study.n_samples")
             n = duration / gyro.dt
             if not n <= MAX_SAMPLES:
                 ctx.fail(
-                    "study.duration_s" if "duration_s" in study else f"gyros[{i}]",
+                    "study.duration_s" if study["duration_s"] is not None else f"gyros[{i}]",
                     f"the record would have {n:.3g} samples at dt = {gyro.dt} s; expected at most {MAX_SAMPLES:,}",
                 )
             n = int(round(n))
@@ -350,7 +246,7 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
                     f"gyros[{i}].terms[{j}]",
                     f"filter memory of {taps(gyro.dt):,} samples (tau_max / dt); expected at most {MAX_FILTER_TAPS:,}",
                 )
-        spec = GyroSpec(label, gyro, n, g, g.get("paper_gyro"))
+        spec = GyroSpec(label, gyro, n, entry, g["paper_gyro"])
         _check_simulation(ctx, f"gyros[{i}]", spec)
         gyros.append(spec)
     labels = [g.label for g in gyros]
@@ -364,67 +260,53 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
                          f"expected one of {known_gyros}")
     elif any(g.paper_gyro is not None for g in gyros):
         ctx.fail("study.paper_table", "required when a gyro names its paper_gyro")
-    for c, u in study.get("units", {}).items():
+    for c, u in study["units"].items():
         try:
             from avbench.noise_models.units import from_si
 
             from_si(c, 1.0, u)
         except ValueError as e:
             ctx.fail(f"study.units.{c}", str(e))
-    if "figure_gyros" in study:
+    if study["figure_gyros"] is not None:
         unknown = [x for x in study["figure_gyros"] if x not in labels]
         if unknown:
             ctx.fail("study.figure_gyros", f"unknown gyro label(s) {unknown}; expected some of {labels}")
     from avbench.studies.figure_files import figure_name_problem
 
-    problem = figure_name_problem(study.get("figure_gyros", labels))  # the file names, before any work
-    if problem:
-        ctx.fail("study.figure_gyros" if "figure_gyros" in study else "gyros", problem)
+    problem = figure_name_problem(study["figure_gyros"] if study["figure_gyros"] is not None else labels)
+    if problem:  # the file names, before any work
+        ctx.fail("study.figure_gyros" if study["figure_gyros"] is not None else "gyros", problem)
 
-    if not raw["estimators"]:
-        ctx.fail("estimators", "expected at least one [[estimators]] entry")
     ests = []
-    for i, e in enumerate(raw["estimators"]):
+    for i, entry in enumerate(raw["estimators"]):
         key = f"estimators[{i}]"
-        ctx.check_keys(e, _EST_KEYS, key)
-        if "name" not in e:
-            ctx.fail(f"{key}.name", f"required; expected one of {', '.join(estimators.names())}")
+        e = ESTIMATOR.read(entry, key, ctx.fail)
         try:
             cls = estimators.estimator_class(e["name"], search)
         except ValueError as err:
             ctx.fail(f"{key}.name", str(err))
         if not _builtin(cls):
             plugin_versions[f"{cls.__module__}:{cls.__qualname__}"] = version_of(cls)
-        for k in ("label", "paper_method"):
-            if k in e:
-                _check_label(ctx, f"{key}.{k}", e[k])
-        if "paper_method" in e:
+        if e["paper_method"] is not None:
             if paper is None:
                 ctx.fail(f"{key}.paper_method", "needs study.paper_table (the paper's results to print beside ours)")
             methods = sorted(set(paper["method"]))
             if e["paper_method"] not in methods:
                 ctx.fail(f"{key}.paper_method", f"{e['paper_method']!r} is not a method of {paper_table.name}; "
                          f"expected one of {methods}")
-        gs = e.get("gyro_settings", {})
-        for gl, v in gs.items():
+        gs = e["gyro_settings"]
+        for gl in gs:
             if gl not in labels:
                 ctx.fail(f"{key}.gyro_settings.{gl}", f"unknown gyro label; expected one of {labels}")
-            if not isinstance(v, dict):
-                ctx.fail(f"{key}.gyro_settings.{gl}", f"expected a table of settings, got {v!r}")
-        scale = e.get("x0_truth_scale")
-        if scale is not None and not (math.isfinite(scale) and scale > 0):
-            ctx.fail(f"{key}.x0_truth_scale", f"expected a positive factor, got {scale!r}")
-        boot = e.get("bootstrap", 0)
-        if isinstance(boot, bool) or not isinstance(boot, int) or not (boot == 0 or boot >= 3):
-            ctx.fail(f"{key}.bootstrap", f"expected 0 or an integer >= 3 (bootstrap draws), got {boot!r}")
+        scale = e["x0_truth_scale"]
         spec = EstimatorSpec(
-            bootstrap=boot,
-            label=e.get("label", e["name"]),
+            bootstrap=e["bootstrap"],
+            label=e["label"] or e["name"],
             name=e["name"],
-            settings=_tuplify(e.get("settings", {})),
+            settings=_tuplify(e["settings"]),
             gyro_settings=_tuplify(gs),
             x0_truth_scale=None if scale is None else float(scale),
-            paper_method=e.get("paper_method"),
+            paper_method=e["paper_method"],
             cls=cls,
         )
         # check the settings for each gyro and build one estimator per gyro now, so bad settings fail
@@ -444,21 +326,21 @@ def parse_config(raw: dict, where: str = "<config>", path: Path | None = None) -
         ctx.fail("estimators", f"estimator labels must be unique (set 'label'), got {elabels}")
 
     return StudyConfig(
-        name=name,
-        seed=seed,
-        replicates=replicates,
+        name=study["name"],
+        seed=int(study["seed"]),
+        replicates=int(study["replicates"]),
         gyros=tuple(gyros),
         estimators=tuple(ests),
-        description=study.get("description", ""),
-        block_size=block,
-        backend=backend,
-        scheduler=scheduler,
+        description=study["description"],
+        block_size=int(study["block_size"]),
+        backend=study["backend"],
+        scheduler=study["scheduler"],
         paper_table=paper_table,
-        figure_gyros=tuple(study["figure_gyros"]) if "figure_gyros" in study else None,
-        units=dict(study.get("units", {})),
+        figure_gyros=tuple(study["figure_gyros"]) if study["figure_gyros"] is not None else None,
+        units=dict(study["units"]),
         path=path,
         raw=raw,
-        plugins=tuple(plugin_mods),
+        plugins=tuple(study["plugins"]),
         plugin_versions=plugin_versions,
     )
 
@@ -477,7 +359,6 @@ def _read_paper_table(ctx: _Ctx, path: Path):
         ctx.fail("study.paper_table", f"{str(path)!r} is not a paper table: {str(e).splitlines()[0][:200]}")
 
 
-_SCHEDULER_RE = re.compile(r"^([a-z][a-z0-9+.-]*://[^\s/]+|[^\s:/]+:\d+)/?$")
 _SIMULATION_SEED = 20240601
 
 

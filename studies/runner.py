@@ -310,7 +310,7 @@ def resolve_execution(cfg: StudyConfig, n_jobs=1, backend=None, scheduler=None) 
     ``scheduler`` without ``backend`` implies "dask"; the config's scheduler is used only with the
     dask backend. Raises ValueError (before anything is written) for impossible combinations.
     """
-    from avbench.studies.config import _SCHEDULER_RE
+    from avbench.studies.config_schema import STUDY
 
     if isinstance(n_jobs, bool) or not isinstance(n_jobs, int | np.integer) or n_jobs == 0:
         raise ValueError(f"jobs: expected a positive number of workers, or -1 for all cores, got {n_jobs!r}")
@@ -320,14 +320,16 @@ def resolve_execution(cfg: StudyConfig, n_jobs=1, backend=None, scheduler=None) 
         raise ValueError(f"jobs: expected at least -{cpus} (-1 = all {cpus} cores), got {n_jobs}")
     if backend is None:
         backend = "dask" if scheduler else cfg.backend
-    if backend not in ("loky", "dask"):
-        raise ValueError(f"backend: expected 'loky' or 'dask', got {backend!r}")
+    problem = STUDY.keys["backend"].value_problem(backend)
+    if problem:
+        raise ValueError(f"backend: {problem}")
     if scheduler and backend != "dask":
         raise ValueError(f"scheduler: a dask scheduler address ({scheduler}) needs the dask backend, not {backend!r}")
     if backend == "dask" and not scheduler:
         scheduler = cfg.scheduler
-    if scheduler and not _SCHEDULER_RE.match(scheduler):
-        raise ValueError(f"scheduler: expected a dask scheduler address like tcp://host:8786, got {scheduler!r}")
+    problem = STUDY.keys["scheduler"].value_problem(scheduler) if scheduler else None
+    if problem:
+        raise ValueError(f"scheduler: {problem}")
     return n_jobs, backend, scheduler or None
 
 
