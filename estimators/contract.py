@@ -47,27 +47,19 @@ should before it enters a study (scikit-learn's ``check_estimator`` is the model
     :data:`ROUNDOFF_DRAWS`; the note then names the fragility), or a "not resolved" label only where
     its deciding statistic sits on the threshold (:func:`equivariance`). :meth:`Estimator.fit`
     standardises every record, so an estimator inherits this; a plugin that overrides ``fit`` or
-    keeps unit-carrying diagnostics of its own has to keep it;
+    keeps unit-carrying extras of its own has to keep it;
 ``recovery``
-    on a simple simulated gyro (:func:`recovery_gyro`: angle random walk plus rate random walk,
-    2^14 samples at 10 Hz, a fixed seed) every coefficient of the gyro the estimator reports
-    lies within :data:`Z_RECOVERY` standard deviations of an estimator
-    :data:`EFFICIENCY_ALLOWANCE` times less efficient than the Cramér-Rao bound of that record
-    (``avbench.estimators.likelihood.crlb``): :math:`|\\hat\\theta - \\theta| \\le z\\,E\\,\\sigma_{CRLB}`. With
-    z = 4 an unbiased Gaussian estimator that meets the allowance fails by chance with probability
-    below 1e-4 per coefficient. The band is ±22 % of N and ±8.4 K (K shows only in the last
-    octaves of this record): it catches unit slips (deg for rad: 57; hours for seconds: 60; a
-    missing square root) and swapped coefficients, not a factor of 2 in K. Every other coefficient
-    the estimator reports on that record (Q, B, R of a five-term model) is judged the same way on a
-    second record, of :func:`full_recovery_gyro` (quantization, white noise, bias instability and
-    random walk, 2^12 samples), so a B off by a unit factor fails too; R is reported, not judged (the
-    bound does not cover a rate ramp). A coefficient the
-    estimator flags non-physical is reported, not judged (at least one must be recovered), and an
-    estimator that warns, with an ``IdentifiabilityWarning``, that the record cannot determine its
-    coefficients is excused (the report says so). It is a smoke test of the plumbing, not an
-    accuracy benchmark: studies do that. (On this record the built-in curve fits, filters, GMWM and
-    ARMA-EM at their default settings are within 8 CRLB standard deviations of N and K; the
-    single-tau NEKF warns and is excused.)
+    on a simple simulated gyro (angle random walk plus rate random walk, 2^14 samples at 10 Hz, a
+    fixed seed) every coefficient the estimator reports lies within
+    :data:`~avbench.estimators.recovery.Z_RECOVERY` standard deviations of an estimator
+    :data:`~avbench.estimators.recovery.EFFICIENCY_ALLOWANCE` times less efficient than the Cramér-Rao
+    bound of that record, the others it reports on a second record that has them
+    (:mod:`avbench.estimators.recovery`). The band is ±22 % of N and
+    ±8.4 K (K shows only in the last octaves of this record): it catches unit slips (deg for rad: 57;
+    hours for seconds: 60; a missing square root) and swapped coefficients, not a factor of 2 in K. It
+    is a smoke test of the plumbing, not an accuracy benchmark: studies do that. (On this record the
+    built-in curve fits, filters, GMWM and ARMA-EM at their default settings are within 8 CRLB standard
+    deviations of N and K; the single-tau NEKF warns and is excused.)
 
 Examples
 --------
@@ -93,6 +85,7 @@ import numpy as np
 import pandas as pd
 
 from avbench.estimators.base import Estimator, estimator_class, get
+from avbench.estimators.recovery import RECOVERY_SAMPLES, check_recovery, recovery_gyro
 from avbench.estimators.results import RESULT_ENTRIES
 from avbench.noise_models.units import COEFFICIENTS
 
@@ -102,23 +95,13 @@ __all__ = [
     "ContractError",
     "CheckResult",
     "load_estimators",
-    "recovery_gyro",
-    "full_recovery_gyro",
-    "RECOVERY_SAMPLES",
-    "Z_RECOVERY",
-    "EFFICIENCY_ALLOWANCE",
     "equivariance",
     "EQUIVARIANCE_SCALES",
     "EQUIVARIANCE_RTOL",
 ]
 
-#: record length of the recovery check (samples at dt = 0.1 s: about 27 minutes)
-RECOVERY_SAMPLES = 1 << 14
-#: standard deviations allowed in the recovery check
-Z_RECOVERY = 4.0
-#: how many times the CRLB standard deviation an estimator's own may be in the recovery check
-EFFICIENCY_ALLOWANCE = 10.0
-_SEED_A, _SEED_B, _SEED_ALL = 20260101, 20260102, 20260103
+#: the seeds of the two records of the recovery gyro the checks fit
+_SEED_A, _SEED_B = 20260101, 20260102
 #: the units (times rad/s) the equivariance check fits a record in: deg/s-like factors far from 1
 EQUIVARIANCE_SCALES = (math.pi / 180 * 1e-4, 180 / math.pi * 1e4)
 #: relative agreement of an equivariant answer across units (round-off of the standardised record:
@@ -144,34 +127,6 @@ ROUNDOFF_ESCALATION, ROUNDOFF_ESCALATED = 4, 28
 _INDEX = list(COEFFICIENTS)
 #: the key of a fit's own status (failed or converged) beside its terms' in :func:`_answer`
 _FIT = "the fit"
-
-
-def full_recovery_gyro():
-    """The second record of the recovery check, for the coefficients the first gyro lacks:
-    Q = 2e-4 rad, N = 1e-3 rad/√s, B = 3e-4 rad/s, K = 3e-5 rad/s^1.5 at dt = 0.1 s.
-
-    Each term shows on :data:`RECOVERY_SAMPLES` / 4 samples (7 minutes): quantization at the first
-    cluster sizes (3 Q^2 / tau^2 = 1.2 N^2 / tau at tau = 0.1 s), the bias-instability plateau
-    (0.664 B^2 = 6e-8 rad^2/s^2) above white noise from tau = 17 s. No rate ramp: the Cramér-Rao
-    bound does not cover one, so R is reported, not judged.
-    """
-    from avbench.noise_models import AngleRandomWalk, BiasInstability, Gyro, Quantization, RateRandomWalk
-
-    return Gyro(dt=0.1, terms=[Quantization(Q=2e-4), AngleRandomWalk(N=1e-3), BiasInstability(B=3e-4, tau_max=3600.0),
-                               RateRandomWalk(K=3e-5)], name="recovery_all")
-
-
-def recovery_gyro():
-    """The gyro of the recovery check: N = 1e-3 rad/√s, K = 3e-5 rad/s^1.5, dt = 0.1 s.
-
-    On the record of 2^14 samples (27 minutes) the Cramér-Rao standard deviations are 0.55 % of N
-    and 21 % of K: the AV is white-noise dominated, the rate random walk bends its last octaves
-    (crossover 3 N^2 / K^2 = 3300 s). A curve fit of all five terms on all cluster sizes (OLS of
-    Lv et al. 2015) still recovers N here, while a strong random walk would swamp it.
-    """
-    from avbench.noise_models import AngleRandomWalk, Gyro, RateRandomWalk
-
-    return Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), RateRandomWalk(K=3e-5)], name="recovery")
 
 
 class ContractError(AssertionError):
@@ -591,65 +546,11 @@ class _Checker:
         return equivariance(self.new, self.b, self.gyro.dt)
 
     def check_recovery(self):
-        from avbench.estimators.likelihood.crlb import crlb
-
-        est = self._need_fit()
+        self._need_fit()
         if self.first is None:
             raise RuntimeError("not run: coefficients_ unusable")
-        truth = self.gyro.coefficients
-        bound = crlb(self.gyro, RECOVERY_SAMPLES)
-        problems, checked, flagged = [], [], []
-        for k in _INDEX:
-            if not np.isfinite(truth[k]):
-                continue
-            v = self.first[k]
-            if bool(est.nonphysical_[k]):
-                flagged.append(k)  # the estimator says it has no physical value: data, not an error
-                continue
-            if not np.isfinite(v):
-                continue  # not modelled
-            checked.append(k)
-            problems += _off(k, v, truth[k], bound[k], "")
-        others = [k for k in _INDEX if not np.isfinite(truth[k]) and (np.isfinite(self.first[k])
-                                                                      or bool(est.nonphysical_[k]))]
-        if others:  # coefficients the first gyro lacks: judged on a gyro that has them
-            more, done, skipped = self._recover_others(others)
-            problems += more
-            checked += done
-            flagged += skipped
-        if not checked and not problems:
-            problems.append(
-                f"none of the gyro's coefficients ({', '.join(k for k in _INDEX if np.isfinite(truth[k]))}) "
-                f"was estimated{' (flagged non-physical: ' + ', '.join(flagged) + ')' if flagged else ''}"
-            )
-        if problems and self.unidentifiable:
-            # the estimator said, with an IdentifiabilityWarning, that this record cannot determine
-            # its coefficients: it is excused, and the report says so
-            return [], f"not judged: the estimator warned {self.unidentifiable!r} ({'; '.join(problems)})"
-        notes = [f"{', '.join(checked)} recovered"] if checked else []
-        if flagged:
-            notes.append(f"{', '.join(flagged)} flagged non-physical or not judged")
-        return problems, "; ".join(notes)
-
-    def _recover_others(self, coefs):
-        """(problems, recovered, not judged) for ``coefs`` on :func:`full_recovery_gyro`'s record."""
-        from avbench.estimators.likelihood.crlb import crlb
-
-        g = full_recovery_gyro()
-        n = RECOVERY_SAMPLES // 4
-        est = _quiet(self.new().fit, g.simulate(n, np.random.default_rng(_SEED_ALL)), g.dt)
-        truth, bound = g.coefficients, crlb(g, n)
-        problems, done, skipped = [], [], []
-        for k in coefs:
-            v = est.coefficients_[k]
-            if bool(est.nonphysical_[k]) or not np.isfinite(bound[k]) or not np.isfinite(truth[k]):
-                skipped.append(k)
-                continue
-            if not np.isfinite(v):
-                continue
-            done.append(k)
-            problems += _off(k, v, truth[k], bound[k], f" on the {g.name} record")
-        return problems, done, skipped
+        return check_recovery(self.first, self.fitted.nonphysical_, self.gyro,
+                              lambda rate, dt: _quiet(self.new().fit, rate, dt), self.unidentifiable)
 
 
 def _own_conf_int(est) -> bool:
@@ -845,13 +746,3 @@ def equivariance(new, rate, dt, scales=EQUIVARIANCE_SCALES, rtol=EQUIVARIANCE_RT
         notes.append(f"equal to {rtol:g} relative except where the fit's own round-off is larger: "
                      f"{k} moves by {over[k]:.2g} between units, {noise.get(k, 0.0):.2g} under round-off of the input")
     return [], "; ".join(notes)
-
-
-def _off(k, v, true, bound, where: str) -> list[str]:
-    """The recovery problem of coefficient ``k`` (estimate ``v``, truth ``true``, CRLB std ``bound``, SI) when it
-    lies beyond ``Z_RECOVERY x EFFICIENCY_ALLOWANCE`` CRLB std of the truth, else none; ``where``: the record."""
-    tol = Z_RECOVERY * EFFICIENCY_ALLOWANCE * float(bound)
-    if abs(v - true) <= tol:
-        return []
-    return [f"{k} = {v:.4g}, true {true:.4g} (SI){where}: off by {abs(v - true) / bound:.1f} CRLB std, "
-            f"expected within {Z_RECOVERY:g} x {EFFICIENCY_ALLOWANCE:g} = {tol:.3g}"]

@@ -24,7 +24,8 @@ from hypothesis import strategies as st
 from avbench import estimators
 from avbench.estimators import Estimator
 from avbench.estimators.base import STANDARD_LEVEL, UNSEEN_SHARE, data_scale, noise_level, rescale_diagnostics
-from avbench.estimators.contract import equivariance, recovery_gyro
+from avbench.estimators.contract import equivariance
+from avbench.estimators.recovery import RECOVERY_SAMPLES, recovery_gyro
 from avbench.estimators.results import Evidence, FitCheck, FitParts
 
 RECORD = 1 << 12
@@ -438,7 +439,7 @@ def _recovery_b(settings):
     """check-estimator's shorter record (its equivariance check's) and gmwm_despiked's answer on it."""
     key = tuple(sorted(settings.items()))
     if key not in _RECOVERY_B:
-        from avbench.estimators.contract import RECOVERY_SAMPLES, _SEED_B, _answer
+        from avbench.estimators.contract import _SEED_B, _answer
 
         g = recovery_gyro()
         x = g.simulate(RECOVERY_SAMPLES // 4, np.random.default_rng(_SEED_B))
