@@ -192,10 +192,10 @@ def _fit_quietly(est, y, dt, chunks=None):
 def test_no_divergence_over_seeds_short_records(mode):
     """60 short records (3000 samples) of a valid N + GM + K model, starts up to 100x off.
 
-    Before the fix 7 of 50 such records (the start of the test above) diverged: the isotropic
-    prior I/CC' made eq. 29's x_0 x_0'/k term inflate Q by ~1e8, and the M-step then produced an
-    explosive, nearly unobservable mode whose covariance grew like lambda^2k until rounding made
-    A P A' + Q indefinite (see the module docstring of ``avbench.estimators.online.arma_em``).
+    With the isotropic prior I/CC', 7 of 50 such records (the start of the test above) diverge:
+    eq. 29's x_0 x_0'/k term inflates Q by ~1e8, and the M-step then produces an explosive, nearly
+    unobservable mode whose covariance grows like lambda^2k until rounding makes A P A' + Q
+    indefinite (the module docstring of ``avbench.estimators.online.arma_em``).
     """
     g = _gyro_nbk()
     truth = {"N": 1e-3, "B": 3e-4, "K": 1e-5}

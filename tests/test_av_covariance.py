@@ -15,7 +15,7 @@ from avbench.noise_models import (AngleRandomWalk, BiasInstability, GaussMarkov,
 
 
 def direct(gyro, m, n_samples, grid_per_cycle=8, max_grid=1 << 21):
-    """The covariance as computed before the cache: one midpoint sum of |H_j|^2 |H_k|^2 S^2."""
+    """The covariance without the cache: one midpoint sum of |H_j|^2 |H_k|^2 S^2."""
     m = np.asarray(m, dtype=float)
     n_grid = int(min(max(grid_per_cycle * m.max(), 4096), max_grid))
     w = (np.arange(n_grid) + 0.5) * (np.pi / n_grid)

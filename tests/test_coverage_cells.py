@@ -32,7 +32,7 @@ def test_present_cell_needs_the_band_and_a_small_bias(hits, bias, ok):
 
 
 @pytest.mark.parametrize("hits, ok", [(95, True), (99, True), (100, True), (94, False), (80, False)])
-def test_absent_cell_needs_zero_held_at_least_at_the_issues_rate(hits, ok):
+def test_absent_cell_needs_zero_held_at_least_at_the_rules_rate(hits, ok):
     """An absent term's boundary interval holds 0 at 0.975 nominally: above the band is right there."""
     t = cells(_cell("g", "Q", None, 100, hits), pd.DataFrame(columns=["gyro", "estimator", "coefficient",
                                                                        "bias_over_crlb"]))
@@ -40,7 +40,7 @@ def test_absent_cell_needs_zero_held_at_least_at_the_issues_rate(hits, ok):
     assert np.isnan(t["bias_over_crlb"].iloc[0])
 
 
-def test_rule_constants_are_the_issues():
+def test_rule_constants_are_the_targets_of_coverage_defaults():
     assert BAND == (0.93, 0.97) and MAX_ABS_BIAS == 0.5 and ABSENT_HOLDS_ZERO == 0.95
 
 

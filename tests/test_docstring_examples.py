@@ -29,12 +29,9 @@ import avbench  # noqa: E402
 
 FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 
-#: modules whose examples fail today, and the fix: strict xfails, so once an example passes the test
-#: fails until its entry is removed here
-_OLD_NOISE_MODELS = "pre-0.2 name in an example: 'from noise_models import' -> 'from avbench.noise_models import'"
-_OLD_ESTIMATORS = "pre-0.2 name in an example: 'import estimators' -> 'from avbench import estimators'"
-KNOWN_FAILING = {
-}
+#: modules whose examples are known to fail, each with what would mend it: strict xfails, so an example
+#: that passes fails the test until its entry is removed here (none)
+KNOWN_FAILING: dict[str, str] = {}
 
 
 def _module_names() -> tuple[list[str], dict[str, BaseException]]:

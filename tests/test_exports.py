@@ -576,23 +576,23 @@ def test_px4_predicts_at_ekf2s_default_rate_unless_told(record_rate, f):
     assert ("EKF2's default (EKF2_PREDICT_US = 10000 us)" in said.group(2)) == (record_rate >= 100.0)
 
 
-@pytest.mark.parametrize("name, today, match", [
+@pytest.mark.parametrize("name, line, match", [
     ("openvins", "  rostopic: /imu0  # not a bag: Kalibr's default topic", "rostopic as Map"),
     ("orbslam3", "IMU.Frequency: 100.000000  # Hz", r"IMU\.Frequency as Real .* needs int")])
-def test_the_opencv_readers_refuse_what_their_stacks_cannot_take(name, today, match):
-    """The checks fail on the lines these files held before: an unquoted topic with a comment (OpenCV makes a
+def test_the_opencv_readers_refuse_what_their_stacks_cannot_take(name, line, match):
+    """The checks fail on lines a stack's file must not hold: an unquoted topic with a comment (OpenCV makes a
     map of it, and OpenVINS's ``>> std::string`` an empty topic) and ORB-SLAM3's frequency as a real number
     (an older settings file's ``isInt()`` refuses it)."""
     text = _text(name)
-    key = today.split(":")[0].strip()
-    old = re.sub(rf"^(# )?\s*{re.escape(key)}: .*\n", "", text, flags=re.M)
-    old = old.replace("imu0:\n", "imu0:\n" + today + "\n") if name == "openvins" else old + today + "\n"
+    key = line.split(":")[0].strip()
+    bad = re.sub(rf"^(# )?\s*{re.escape(key)}: .*\n", "", text, flags=re.M)
+    bad = bad.replace("imu0:\n", "imu0:\n" + line + "\n") if name == "openvins" else bad + line + "\n"
     _parse(name, text)
     with pytest.raises(AssertionError, match=match if name == "openvins" else "one commented IMU.Frequency line"):
-        _parse(name, old)
-    if name == "orbslam3":  # and with the integer line present but the old real one in use by older files
+        _parse(name, bad)
+    if name == "orbslam3":  # and with the integer line present but a real one, as older files of the stack hold
         with pytest.raises(AssertionError, match=match):
-            _opencv_read(old, ORBSLAM3_LEGACY_NODES, None, "orbslam3 (older settings)")
+            _opencv_read(bad, ORBSLAM3_LEGACY_NODES, None, "orbslam3 (older settings)")
 
 
 def test_matlab_values_follow_the_allan_relations_of_mathworks_example():

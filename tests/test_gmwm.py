@@ -172,7 +172,7 @@ def test_min_m_setting_is_validated():
 
 def test_a_term_estimated_at_zero_leaves_the_others_standard_errors():
     # SRS2000 has no rate random walk or ramp: fitted with RW and DR, those run to 0 (or round-off)
-    # and are held fixed; Q, N, B keep a standard error (before: none at all in half the replicates)
+    # and are held fixed; Q, N, B keep a standard error in every replicate
     from avbench.noise_models import presets
 
     g = presets.get("SRS2000")

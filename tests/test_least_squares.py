@@ -165,7 +165,7 @@ def _edf_of_rows_reference(av, beta, terms):
 
 
 @pytest.mark.parametrize("overlapping", [False, True])
-def test_edf_of_rows_as_before(overlapping):
+def test_edf_of_rows_equals_its_plain_reference(overlapping):
     g = presets.get("VG951")
     x = g.simulate(20_000, np.random.default_rng(3))
     av = allan_variance(x, g.dt, taus="octave" if overlapping else "all", overlapping=overlapping)

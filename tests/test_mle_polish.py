@@ -92,9 +92,9 @@ def test_a_fit_short_of_the_maximum_is_a_failure_not_a_silent_value(monkeypatch)
 def test_a_term_too_small_to_see_is_pinned_and_the_fit_reaches_its_maximum(seed):
     """White noise and a Gauss-Markov term far below it (sigma/N ~ 0.04, tc = 117 s) on 8192 samples,
     fitted with the full latent model: the likelihood drives some variances to ~1e-30, where their score
-    is round-off without a sign (random3, replicate 0 of the grand comparison: -9e-60). With the sign
-    of a round-off score read as a sign they were not pinned, the trust region could not move, and
-    these five seeds ended unconverged (6 of the first 16 seeds); now each reaches its maximum."""
+    is round-off without a sign (random3, replicate 0 of the grand comparison: -9e-60). Read as a sign,
+    such a score leaves them unpinned and the trust region unable to move: these five seeds (6 of the
+    first 16) end unconverged then. Each reaches its maximum."""
     from avbench.noise_models import GaussMarkov
 
     g = Gyro(dt=0.01, terms=[AngleRandomWalk(N=1.8e-4), GaussMarkov(sigma=8e-6, tc=117.0)])

@@ -77,7 +77,7 @@ def test_score_is_the_derivative_of_the_likelihood(latents, m, dt):
 @pytest.mark.parametrize("latents", [("WN", "GM", "RW"), ("QN", "WN", "GM", "RW", "DR")])
 def test_score_after_the_steady_state(latents):
     # a long record: the covariance freezes (steady state; with a drift the augmented filter's
-    # diffuse columns settle too) and the score stays the derivative; central differences now
+    # diffuse columns settle too) and the score stays the derivative; central differences here
     # also see the freezing step move (jumps of ~1e-10 relative in the likelihood, i.e. ~1e-5
     # absolute over steps of 1e-3), so the tolerance is that resolution
     s = BlockMeanSystem(latents, 4, 0.01)

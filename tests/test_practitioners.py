@@ -120,10 +120,10 @@ def test_ordered_reading_equals_independent_one_when_already_ordered():
 
 
 def test_log_fit_converges_when_terms_end_at_their_floor():
-    """Regression: with a finite-difference Jacobian, fits whose absent terms (Q, R on the ADIS
-    gyro) end at their floor crept towards it and hit the 5000-evaluation limit on 4 of these 40
-    noisy exact-AV curves (2 % of the 2 h MEMS records of grand_comparison_2h, reported as
-    failures). With the analytic Jacobian every one converges in a few evaluations."""
+    """Fits whose absent terms (Q, R on the ADIS gyro) end at their floor: with a finite-difference
+    Jacobian they creep towards it and hit the 5000-evaluation limit on 4 of these 40 noisy exact-AV
+    curves (2 % of the 2 h MEMS records of grand_comparison_2h); with the analytic Jacobian every one
+    converges in a few evaluations."""
     from avbench.noise_models import presets
 
     g = presets.get("ADIS16405_X")

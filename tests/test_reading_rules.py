@@ -136,7 +136,7 @@ def test_resolution_invents_no_gap_and_misses_none(per_q, n, at, missing, seed):
 
 
 def test_the_reported_examples():
-    """The shapes that were misread: PX4 ulog2csv (us since boot at 250 Hz, starting past 1e8), a
+    """Shapes of real files' time stamps: PX4 ulog2csv (us since boot at 250 Hz, starting past 1e8), a
     wrapping uint32 us counter, ms since boot, ms-integer stamps at 800 Hz, float32 stamps, whole
     seconds at 1 Hz (refused: 1 Hz in s or 1 kHz in ms), us at 8 kHz (refused; --fs decides)."""
     def read(raw, hint=None, declared=None):

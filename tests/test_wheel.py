@@ -1,8 +1,7 @@
 """A regular (non-editable) install ships every module under one import name: the wheel built from the
 tracked files holds every Python module and data file of the repository's package folders, mapped
-under ``avbench/`` (setup.py), and nothing else at its top level (an explicit package list once
-left out a subpackage, which editable installs hide; the four folders were once four top-level
-import names of their own)."""
+under ``avbench/`` (setup.py), and nothing else at its top level (an explicit package list can
+leave out a subpackage, which editable installs hide)."""
 
 from __future__ import annotations
 
