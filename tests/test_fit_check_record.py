@@ -8,8 +8,8 @@ from scipy import stats
 
 from avbench import estimators
 from avbench.estimators.allan.covariance import av_covariance
-from avbench.estimators.allan.fit_check import (MIN_CLUSTERS, RECORD_BATCHES, RECORD_LEVEL, record_reference_weights,
-                                                record_variance_factor)
+from avbench.estimators.allan.fit_check import (MIN_CLUSTERS, PINNED_LEVERAGE, RECORD_BATCHES, RECORD_LEVEL,
+                                                record_reference_weights, record_residual_sd, record_variance_factor)
 from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
 
 G = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=50.0), RateRandomWalk(K=1e-6)])
@@ -113,3 +113,65 @@ def test_a_missing_term_on_a_record_whose_noise_moves_is_still_flagged_and_the_m
     z, lim = np.asarray(d["fit_check"]["z"]), d["fit_check"]["residual_limit"]
     # the verdict agrees with the residuals the figure draws: a residual beyond its limit, or the whole misfit
     assert np.any(np.abs(z) > lim) or d["fit_pvalue"] < 0.005
+
+
+def test_a_scale_the_fit_pins_is_judged_against_a_share_of_its_own_variance():
+    # a parameter that moves only the first scale (a filter's time constant at the shortest tau), independent
+    # values: the linearised residual variance there is 0, and the per-scale reading takes 1 - PINNED_LEVERAGE of
+    # the value's variance; elsewhere the linearised standard deviation stands
+    rng = np.random.default_rng(3)
+    k = 8
+    omega = np.diag(rng.uniform(1.0, 5.0, k))
+    G = np.c_[np.eye(k)[:, 0], rng.standard_normal(k)]
+    factor = np.ones(k)
+    linear = record_residual_sd(omega, factor, G, pinned=1.0)
+    assert linear[0] < 1e-6 * np.sqrt(omega[0, 0])
+    sd = record_residual_sd(omega, factor, G)
+    assert np.isclose(sd[0], np.sqrt((1 - PINNED_LEVERAGE) * omega[0, 0]))
+    others = linear[1:] ** 2 >= (1 - PINNED_LEVERAGE) * np.diag(omega)[1:]
+    assert np.allclose(sd[1:][others], linear[1:][others])
+
+
+def test_the_per_scale_reading_holds_its_level_where_the_filter_pins_the_first_octave():
+    # white noise through a first-order filter far faster than the sampling (tf = dt / 6: the MTi-G's), a
+    # Gauss-Markov bias, 2e5 samples: gmwm_filtered keeps the first octave, which N and tf pin; the per-scale
+    # reading made on the fit's scales (as assess_fit makes it where the record shows an excess) flags none of
+    # 6 records at its level (alpha / 2 = 0.005: P(>= 1 of 6) = 3 %), while the linearised residual alone put that
+    # octave's residual hundreds of its standard deviations out on every record
+    from avbench.estimators.allan import fit_check as F
+    from avbench.estimators.allan.variance import allan_variance
+    from avbench.estimators.likelihood import gmwm as gmwm_module
+    from avbench.noise_models import FilteredWhiteNoise
+
+    dt, n = 0.01, 200_000
+    g = Gyro(dt=dt, terms=[FilteredWhiteNoise(N=1e-3, tf=dt / 6), GaussMarkov(sigma=4e-4, tc=3.0)])
+    captured = []
+    orig = gmwm_module.assess_fit
+
+    def spy(*args, **kw):
+        if kw.get("record_covariance") and kw.get("jacobian") is not None:
+            captured.append((args, kw))
+        return orig(*args, **kw)
+
+    flagged, pinned_out = 0, 0
+    for s in range(6):
+        captured.clear()
+        gmwm_module.assess_fit = spy
+        try:
+            estimators.get("gmwm_filtered", model="FW+GM", lines="model", resonance="model",
+                           bias_evidence=False).fit(g.simulate(n, np.random.default_rng(40 + s)) * 1e3, dt)
+        finally:
+            gmwm_module.assess_fit = orig
+        (rate, _, model_avar, cov_gyro, *_), kw = captured[-1]
+        tau_j, jac = kw["jacobian"]
+        av = allan_variance(rate, dt, taus="octave")
+        keep = (n // av.m >= MIN_CLUSTERS) & (av.tau >= tau_j[0] * (1 - 1e-9)) & (av.tau <= tau_j[-1] * (1 + 1e-9))
+        assert av.m[keep][0] == 1
+        args = (rate, av.m[keep], av.avar[keep], model_avar(av.tau[keep]), av_covariance(cov_gyro, av.m[keep], n),
+                jac[np.searchsorted(tau_j, av.tau[keep])], n, F.ALPHA / 2)
+        z, lim = F.scale_residuals(*args)
+        flagged += bool(np.any(np.abs(z) > lim))
+        z1, lim1 = F.scale_residuals(*args, pinned=1.0)
+        pinned_out += bool(abs(z1[0]) > 100 * lim1[0])
+    assert flagged == 0
+    assert pinned_out == 6
