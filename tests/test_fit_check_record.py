@@ -78,10 +78,15 @@ def test_the_record_check_on_a_correct_model_is_the_model_check_where_nothing_mo
         mod = estimators.get("gmwm", model="WN+GM+RW", min_m=1).fit(x, 0.1)
         flags += bool(rec.diagnostics_["poor_fit"])
         same += bool(np.isclose(rec.diagnostics_["fit_pvalue"], mod.diagnostics_["fit_pvalue"], rtol=1e-9))
-        if "record_se_factor" not in rec.diagnostics_:
-            assert np.allclose(rec.std_err_.fillna(0), mod.std_err_.fillna(0))
-        else:  # a factor above 1 only widens
-            assert np.all(rec.std_err_.fillna(0) >= mod.std_err_.fillna(0) * (1 - 1e-12))
+        # the record's standard errors: the model's, times the Birge ratio sqrt(T / dof) where the misfit exceeds
+        # its mean (diagnostics_["dispersion"]), and a record factor above 1 only widens
+        d = rec.diagnostics_
+        ratio = d.get("dispersion", 1.0)
+        assert (ratio > 1.0) == (d["fit_stat"] > d["fit_dof"]) or "weights" in d["fit_check"]
+        if "record_se_factor" not in d:
+            assert np.allclose(rec.std_err_.fillna(0), mod.std_err_.fillna(0) * ratio)
+        else:
+            assert np.all(rec.std_err_.fillna(0) >= mod.std_err_.fillna(0) * ratio * (1 - 1e-12))
     assert flags <= stats.binom.ppf(0.999, R, 0.01), flags
     assert same >= R // 2, same
 
@@ -175,3 +180,32 @@ def test_the_per_scale_reading_holds_its_level_where_the_filter_pins_the_first_o
         pinned_out += bool(abs(z1[0]) > 100 * lim1[0])
     assert flagged == 0
     assert pinned_out == 6
+
+
+def test_a_misfit_widens_the_intervals_by_its_birge_ratio():
+    # the Gauss-Markov bump fitted without a bias term: the misfit T far above its reference's mean, so every
+    # standard error is the record check's times sqrt(T / mean), and each interval holds the model covariance's
+    x = G.simulate(200_000, np.random.default_rng(31))
+    rec = estimators.get("gmwm", model="WN+RW", min_m=1, fit_covariance="record").fit(x, 0.1)
+    mod = estimators.get("gmwm", model="WN+RW", min_m=1).fit(x, 0.1)
+    d = rec.diagnostics_
+    weights = d["fit_check"].get("weights")
+    mean = float(np.sum(weights)) if weights is not None else d["fit_dof"]
+    assert d["fit_stat"] > mean and np.isclose(d["dispersion"], np.sqrt(d["fit_stat"] / mean))
+    se_r, se_m = rec.std_err_[["N", "K"]], mod.std_err_[["N", "K"]]
+    assert np.all(se_r >= se_m * d["dispersion"] * (1 - 1e-12)), (se_r, se_m)
+    ci_r, ci_m = rec.conf_int().loc[["N", "K"]], mod.conf_int().loc[["N", "K"]]
+    assert np.all(ci_r["lower"] <= ci_m["lower"]) and np.all(ci_r["upper"] >= ci_m["upper"])
+
+
+def test_the_bounds_read_the_av_with_the_edf_the_record_shows():
+    # edf over the batches' factor (interpolated in log tau between the check's scales, held beyond) and over the
+    # misfit's Birge ratio squared; the engine's where neither shows an excess
+    from avbench.estimators.likelihood.gmwm import GMWM, WaveletVariance
+
+    tau = np.array([0.1, 0.2, 0.4, 0.8, 1.6])
+    wv = WaveletVariance(tau, np.ones(5), np.arange(1, 6), np.full(5, 100.0))
+    check = {"fit_check": {"tau": tau[1:4]}}
+    assert np.array_equal(GMWM._bound_edf(wv, check, np.ones(3)), wv.edf)
+    edf = GMWM._bound_edf(wv, check, np.array([2.0, 4.0, 8.0]), dispersion=2.0)
+    assert np.allclose(edf, 100.0 / 4.0 / np.array([2.0, 2.0, 4.0, 8.0, 8.0]))

@@ -193,7 +193,8 @@ import numpy as np
 from avbench.noise_models.gyro import Gyro
 
 __all__ = ["ALPHA", "MIN_CLUSTERS", "RECORD_BATCHES", "RECORD_LEVEL", "PINNED_LEVERAGE", "record_variance_factor",
-           "record_reference_weights", "record_residual_sd", "scale_residuals", "residual_limit", "reading", "assess_fit", "assess_five_term", "fit_statistic",
+           "record_reference_weights", "record_residual_sd", "scale_residuals", "residual_limit", "reading",
+           "assess_fit", "assess_five_term", "fit_statistic",
            "union_covariance", "refit_weights", "weighted_chi2_sf", "chernoff_bound", "bootstrap_fit_check"]
 
 #: significance level of the poor-fit flag

@@ -45,7 +45,8 @@ def per_scale(captured, pinned):
     rate, dt, model_avar, gyro = a[0], a[1], a[2], a[3]
     tau_j, jac = k["jacobian"]
     av = allan_variance(rate, dt, taus="octave")
-    keep = (av.n_samples // av.m >= F.MIN_CLUSTERS) & (av.tau >= tau_j[0] * (1 - 1e-9)) & (av.tau <= tau_j[-1] * (1 + 1e-9))
+    keep = ((av.n_samples // av.m >= F.MIN_CLUSTERS) & (av.tau >= tau_j[0] * (1 - 1e-9))
+            & (av.tau <= tau_j[-1] * (1 + 1e-9)))
     tau, avar, m = av.tau[keep], av.avar[keep], av.m[keep]
     z, lim = F.scale_residuals(rate, m, avar, model_avar(tau), av_covariance(gyro, m, av.n_samples),
                                jac[np.searchsorted(tau_j, tau)], av.n_samples, F.ALPHA / 2, pinned=pinned)
