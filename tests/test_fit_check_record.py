@@ -8,8 +8,8 @@ from scipy import stats
 
 from avbench import estimators
 from avbench.estimators.allan.covariance import av_covariance
-from avbench.estimators.allan.fit_check import (MIN_CLUSTERS, RECORD_BATCHES, RECORD_LEVEL, record_reference_weights,
-                                                record_variance_factor)
+from avbench.estimators.allan.fit_check import (MIN_CLUSTERS, PINNED_LEVERAGE, RECORD_BATCHES, RECORD_LEVEL,
+                                                record_reference_weights, record_residual_sd, record_variance_factor)
 from avbench.noise_models import AngleRandomWalk, GaussMarkov, Gyro, RateRandomWalk
 
 G = Gyro(dt=0.1, terms=[AngleRandomWalk(N=1e-3), GaussMarkov(sigma=3e-4, tc=50.0), RateRandomWalk(K=1e-6)])
@@ -78,10 +78,15 @@ def test_the_record_check_on_a_correct_model_is_the_model_check_where_nothing_mo
         mod = estimators.get("gmwm", model="WN+GM+RW", min_m=1).fit(x, 0.1)
         flags += bool(rec.diagnostics_["poor_fit"])
         same += bool(np.isclose(rec.diagnostics_["fit_pvalue"], mod.diagnostics_["fit_pvalue"], rtol=1e-9))
-        if "record_se_factor" not in rec.diagnostics_:
-            assert np.allclose(rec.std_err_.fillna(0), mod.std_err_.fillna(0))
-        else:  # a factor above 1 only widens
-            assert np.all(rec.std_err_.fillna(0) >= mod.std_err_.fillna(0) * (1 - 1e-12))
+        # the record's standard errors: the model's, times the Birge ratio sqrt(T / dof) where the misfit exceeds
+        # its mean (diagnostics_["dispersion"]), and a record factor above 1 only widens
+        d = rec.diagnostics_
+        ratio = d.get("dispersion", 1.0)
+        assert (ratio > 1.0) == (d["fit_stat"] > d["fit_dof"]) or "weights" in d["fit_check"]
+        if "record_se_factor" not in d:
+            assert np.allclose(rec.std_err_.fillna(0), mod.std_err_.fillna(0) * ratio)
+        else:
+            assert np.all(rec.std_err_.fillna(0) >= mod.std_err_.fillna(0) * ratio * (1 - 1e-12))
     assert flags <= stats.binom.ppf(0.999, R, 0.01), flags
     assert same >= R // 2, same
 
@@ -113,3 +118,94 @@ def test_a_missing_term_on_a_record_whose_noise_moves_is_still_flagged_and_the_m
     z, lim = np.asarray(d["fit_check"]["z"]), d["fit_check"]["residual_limit"]
     # the verdict agrees with the residuals the figure draws: a residual beyond its limit, or the whole misfit
     assert np.any(np.abs(z) > lim) or d["fit_pvalue"] < 0.005
+
+
+def test_a_scale_the_fit_pins_is_judged_against_a_share_of_its_own_variance():
+    # a parameter that moves only the first scale (a filter's time constant at the shortest tau), independent
+    # values: the linearised residual variance there is 0, and the per-scale reading takes 1 - PINNED_LEVERAGE of
+    # the value's variance; elsewhere the linearised standard deviation stands
+    rng = np.random.default_rng(3)
+    k = 8
+    omega = np.diag(rng.uniform(1.0, 5.0, k))
+    G = np.c_[np.eye(k)[:, 0], rng.standard_normal(k)]
+    factor = np.ones(k)
+    linear = record_residual_sd(omega, factor, G, pinned=1.0)
+    assert linear[0] < 1e-6 * np.sqrt(omega[0, 0])
+    sd = record_residual_sd(omega, factor, G)
+    assert np.isclose(sd[0], np.sqrt((1 - PINNED_LEVERAGE) * omega[0, 0]))
+    others = linear[1:] ** 2 >= (1 - PINNED_LEVERAGE) * np.diag(omega)[1:]
+    assert np.allclose(sd[1:][others], linear[1:][others])
+
+
+def test_the_per_scale_reading_holds_its_level_where_the_filter_pins_the_first_octave():
+    # white noise through a first-order filter far faster than the sampling (tf = dt / 6: the MTi-G's), a
+    # Gauss-Markov bias, 2e5 samples: gmwm_filtered keeps the first octave, which N and tf pin; the per-scale
+    # reading made on the fit's scales (as assess_fit makes it where the record shows an excess) flags none of
+    # 6 records at its level (alpha / 2 = 0.005: P(>= 1 of 6) = 3 %), while the linearised residual alone put that
+    # octave's residual hundreds of its standard deviations out on every record
+    from avbench.estimators.allan import fit_check as F
+    from avbench.estimators.allan.variance import allan_variance
+    from avbench.estimators.likelihood import gmwm as gmwm_module
+    from avbench.noise_models import FilteredWhiteNoise
+
+    dt, n = 0.01, 200_000
+    g = Gyro(dt=dt, terms=[FilteredWhiteNoise(N=1e-3, tf=dt / 6), GaussMarkov(sigma=4e-4, tc=3.0)])
+    captured = []
+    orig = gmwm_module.assess_fit
+
+    def spy(*args, **kw):
+        if kw.get("record_covariance") and kw.get("jacobian") is not None:
+            captured.append((args, kw))
+        return orig(*args, **kw)
+
+    flagged, pinned_out = 0, 0
+    for s in range(6):
+        captured.clear()
+        gmwm_module.assess_fit = spy
+        try:
+            estimators.get("gmwm_filtered", model="FW+GM", lines="model", resonance="model",
+                           bias_evidence=False).fit(g.simulate(n, np.random.default_rng(40 + s)) * 1e3, dt)
+        finally:
+            gmwm_module.assess_fit = orig
+        (rate, _, model_avar, cov_gyro, *_), kw = captured[-1]
+        tau_j, jac = kw["jacobian"]
+        av = allan_variance(rate, dt, taus="octave")
+        keep = (n // av.m >= MIN_CLUSTERS) & (av.tau >= tau_j[0] * (1 - 1e-9)) & (av.tau <= tau_j[-1] * (1 + 1e-9))
+        assert av.m[keep][0] == 1
+        args = (rate, av.m[keep], av.avar[keep], model_avar(av.tau[keep]), av_covariance(cov_gyro, av.m[keep], n),
+                jac[np.searchsorted(tau_j, av.tau[keep])], n, F.ALPHA / 2)
+        z, lim = F.scale_residuals(*args)
+        flagged += bool(np.any(np.abs(z) > lim))
+        z1, lim1 = F.scale_residuals(*args, pinned=1.0)
+        pinned_out += bool(abs(z1[0]) > 100 * lim1[0])
+    assert flagged == 0
+    assert pinned_out == 6
+
+
+def test_a_misfit_widens_the_intervals_by_its_birge_ratio():
+    # the Gauss-Markov bump fitted without a bias term: the misfit T far above its reference's mean, so every
+    # standard error is the record check's times sqrt(T / mean), and each interval holds the model covariance's
+    x = G.simulate(200_000, np.random.default_rng(31))
+    rec = estimators.get("gmwm", model="WN+RW", min_m=1, fit_covariance="record").fit(x, 0.1)
+    mod = estimators.get("gmwm", model="WN+RW", min_m=1).fit(x, 0.1)
+    d = rec.diagnostics_
+    weights = d["fit_check"].get("weights")
+    mean = float(np.sum(weights)) if weights is not None else d["fit_dof"]
+    assert d["fit_stat"] > mean and np.isclose(d["dispersion"], np.sqrt(d["fit_stat"] / mean))
+    se_r, se_m = rec.std_err_[["N", "K"]], mod.std_err_[["N", "K"]]
+    assert np.all(se_r >= se_m * d["dispersion"] * (1 - 1e-12)), (se_r, se_m)
+    ci_r, ci_m = rec.conf_int().loc[["N", "K"]], mod.conf_int().loc[["N", "K"]]
+    assert np.all(ci_r["lower"] <= ci_m["lower"]) and np.all(ci_r["upper"] >= ci_m["upper"])
+
+
+def test_the_bounds_read_the_av_with_the_edf_the_record_shows():
+    # edf over the batches' factor (interpolated in log tau between the check's scales, held beyond) and over the
+    # misfit's Birge ratio squared; the engine's where neither shows an excess
+    from avbench.estimators.likelihood.gmwm import GMWM, WaveletVariance
+
+    tau = np.array([0.1, 0.2, 0.4, 0.8, 1.6])
+    wv = WaveletVariance(tau, np.ones(5), np.arange(1, 6), np.full(5, 100.0))
+    check = {"fit_check": {"tau": tau[1:4]}}
+    assert np.array_equal(GMWM._bound_edf(wv, check, np.ones(3)), wv.edf)
+    edf = GMWM._bound_edf(wv, check, np.array([2.0, 4.0, 8.0]), dispersion=2.0)
+    assert np.allclose(edf, 100.0 / 4.0 / np.array([2.0, 2.0, 4.0, 8.0, 8.0]))

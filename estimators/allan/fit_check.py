@@ -150,7 +150,15 @@ the scales can hide a few scales the model misses among many whose variance the 
 misfit is then also judged scale by scale: each residual over its own standard deviation under that
 reference (:func:`record_residual_sd`, the diagonal of :math:`PS\\Omega SP^T`; these are the ``z`` the
 figures draw), each against the Bonferroni limit over the scales (:func:`residual_limit`: Student's t with
-B - 1 degrees of freedom where the variance came from the batches, Gaussian where it is the model's). Here
+B - 1 degrees of freedom where the variance came from the batches, Gaussian where it is the model's;
+:func:`scale_residuals`). A scale the fit pins (the filter's time constant at the shortest tau, a resonance there,
+the random walk at the longest: leverage near 1) has a linearised residual variance near 0 that the nonlinear
+fit's residual does not follow; its residual is judged against at least a tenth of its value's variance
+(:data:`PINNED_LEVERAGE`, :func:`record_residual_sd`). Measured on records simulated from ``gmwm_filtered``'s fits of
+ADIS16405 gyro run 3 y, run 5 y and the MTi-G's x (``results/real/fit_check_per_scale.py``, 30 records each,
+1e6 samples, the per-scale test forced): without the floor every record was flagged at its first octave (median
+largest |z| 170-12,800 times the limit), with it none of the 90 (95 % interval of the rate [0, 0.04], nominal
+at most 0.005). Here
 the batches' variance is set against the variance the record's own AV level implies, :math:`\\Omega_{mm}
 (\\hat\\sigma^2_m/\\sigma^2_{model,m})^2` (an AV value's variance goes with its square): a term the model
 lacks raises the level of every batch alike, which is a misfit, not a spread between batches; and scales
@@ -185,8 +193,9 @@ import numpy as np
 
 from avbench.noise_models.gyro import Gyro
 
-__all__ = ["ALPHA", "MIN_CLUSTERS", "RECORD_BATCHES", "RECORD_LEVEL", "record_variance_factor",
-           "record_reference_weights", "record_residual_sd", "residual_limit", "reading", "assess_fit", "assess_five_term", "fit_statistic",
+__all__ = ["ALPHA", "MIN_CLUSTERS", "RECORD_BATCHES", "RECORD_LEVEL", "PINNED_LEVERAGE", "record_variance_factor",
+           "record_reference_weights", "record_residual_sd", "scale_residuals", "residual_limit", "reading",
+           "assess_fit", "assess_five_term", "fit_statistic",
            "union_covariance", "refit_weights", "weighted_chi2_sf", "chernoff_bound", "bootstrap_fit_check"]
 
 #: significance level of the poor-fit flag
@@ -197,6 +206,9 @@ MIN_CLUSTERS = 8
 RECORD_BATCHES = 8
 #: one-sided level at which the batches' variance of an AV value counts as larger than the model's
 RECORD_LEVEL = 0.01
+#: leverage beyond which a scale counts as pinned by the fit: its residual is judged against at least
+#: ``1 - PINNED_LEVERAGE`` of its value's variance (:func:`record_residual_sd`)
+PINNED_LEVERAGE = 0.9
 #: below this the Imhof integral is at the level of its error: the two-moment tail is used
 IMHOF_FLOOR = 1e-12
 #: finite-difference step of :func:`refit_weights`, in standard deviations of each AV value
@@ -364,10 +376,19 @@ def record_reference_weights(omega, factor, jacobian) -> np.ndarray:
     return np.clip(np.linalg.eigvalsh(0.5 * (A + A.T)), 0.0, None)
 
 
-def record_residual_sd(omega, factor, jacobian) -> np.ndarray:
+def record_residual_sd(omega, factor, jacobian, pinned=PINNED_LEVERAGE) -> np.ndarray:
     """Each scale's standard deviation of the fit's residual when the AV values' covariance is ``S omega S``
     and the fit weighted them by ``omega`` (the setting of :func:`record_reference_weights`): the square root
-    of the diagonal of :math:`P S\\Omega S P^T`."""
+    of the diagonal of :math:`P S\\Omega S P^T`, and never less than :math:`\\sqrt{1 - h_{max}}` times the
+    value's own standard deviation (``pinned`` = :math:`h_{max}`, :data:`PINNED_LEVERAGE`).
+
+    Why the floor: where the fitted parameters follow one scale almost fully (its leverage
+    :math:`h_i = 1 - \\mathrm{Var}(r_i)/\\mathrm{Var}(e_i)` near 1: the filter's time constant and a resonance
+    at the shortest tau, the random walk at the longest) the linearised residual variance is the difference of
+    two nearly equal numbers and falls towards 0 (3e-12 of the value's on the MTi-G's first octave), while the
+    residual of the nonlinear fit keeps its curvature and round-off: a residual of 1e-6 of the value was then
+    thousands of "standard deviations". Below a tenth of the value's variance the linearisation is not trusted;
+    such a scale is judged against that tenth, and, with its full variance, in the summed statistic."""
     from scipy.linalg import cho_factor, cho_solve
 
     G = np.asarray(jacobian, float)
@@ -375,7 +396,29 @@ def record_residual_sd(omega, factor, jacobian) -> np.ndarray:
     rec = omega * np.outer(s, s)
     WG = cho_solve(cho_factor(omega, lower=True), G)
     P = np.eye(omega.shape[0]) - G @ np.linalg.solve(G.T @ WG, WG.T)
-    return np.sqrt(np.clip(np.einsum("ij,jk,ik->i", P, rec, P), 0.0, None))
+    var_r = np.clip(np.einsum("ij,jk,ik->i", P, rec, P), 0.0, None)
+    return np.sqrt(np.maximum(var_r, (1.0 - pinned) * np.clip(np.diag(rec), 0.0, None)))
+
+
+def scale_residuals(rate, m, avar, model, omega, jacobian, n_samples, alpha, pinned=PINNED_LEVERAGE):
+    """``(z, limit)``: the fit's residual at each check scale over its own standard deviation, and the limit of
+    :func:`residual_limit` at family-wise level ``alpha`` (the per-scale reading of the record check, module
+    docstring). ``omega``: the model covariance of the AV values ``avar`` at cluster sizes ``m``; ``model``: the
+    fitted AV there; ``jacobian``: the fitted curve's derivative in the free log-parameters at those scales.
+
+    The batches' variance of each AV value is set against the variance the record's own AV level implies,
+    :math:`\\Omega_{mm}(\\hat\\sigma^2_m/\\sigma^2_{model,m})^2` (a term the model lacks raises the level of
+    every batch alike: a misfit, not a spread between batches), scales too long for the batches keep the model's
+    (:func:`record_variance_factor` with ``carry=False``); the residual's standard deviation is
+    :func:`record_residual_sd`'s (never below ``1 - pinned`` of the value's own variance); a residual
+    whose variance came from the batches is read against Student's t with B - 1 degrees of freedom."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        level = np.where((model > 0) & np.isfinite(avar / model), (avar / model) ** 2, 1.0)
+    spread = record_variance_factor(rate, m, np.diag(omega) * level, n_samples, carry=False)
+    sd_r = record_residual_sd(omega, spread, jacobian, pinned)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(sd_r > 0, (np.asarray(avar, float) - model) / sd_r, 0.0)
+    return z, residual_limit(z.size, alpha, np.where(spread > 1.0, RECORD_BATCHES - 1.0, np.inf))
 
 
 def residual_limit(k: int, alpha: float, dof=None):
@@ -590,21 +633,11 @@ def assess_fit(rate, dt, model_avar, cov_gyro, n_params, tau_range=None, *, alph
                 p = weighted_chi2_sf(T, lam)
                 reference_name = "weighted chi2 (record)"
                 out["fit_check"]["weights"] = lam
-                # the misfit is judged also scale by scale: each residual over its own standard deviation, the
-                # batches' excess taken over the variance the record's own AV level implies (a missing term
-                # raises the level, not the spread about it)
-                omega = cov / np.sqrt(np.outer(factor, factor))
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    level = np.where((model > 0) & np.isfinite(avar / model), (avar / model) ** 2, 1.0)
-                spread = record_variance_factor(rate, m, np.diag(omega) * level, n, carry=False)
-                sd_r = record_residual_sd(omega, spread, jac[rows])
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    zr = np.where(sd_r > 0, (avar - model) / sd_r, 0.0)
-                out["fit_check"]["z"] = zr
-                # a variance taken from the batches is estimated (B - 1 dof): its residual is read against t
-                z_dof = np.where(spread > 1.0, RECORD_BATCHES - 1.0, np.inf)
-                out["fit_check"]["residual_limit"] = residual_limit(zr.size, alpha / 2, z_dof)
-                residual_poor = bool(np.any(np.abs(zr) > out["fit_check"]["residual_limit"]))
+                # the misfit is judged also scale by scale (scale_residuals)
+                zr, limit = scale_residuals(rate, m, avar, model, cov / np.sqrt(np.outer(factor, factor)), jac[rows],
+                                            n, alpha / 2)
+                out["fit_check"]["z"], out["fit_check"]["residual_limit"] = zr, limit
+                residual_poor = bool(np.any(np.abs(zr) > limit))
     if union is not None and np.isfinite(T):
         try:
             lam, _ = refit_weights(refit, m, cov_gyro, n, cov_scale, union=union)

@@ -282,8 +282,13 @@ class GMWM(Estimator):
         the record's long-run covariance as GMWM's asymptotic theory has it, Guerrier et al. 2013), each
         coefficient's standard error (and the alternatives' that :meth:`conf_int` unions) multiplied by the ratio
         of its sandwich to its model standard error where that exceeds 1 (``extras_["record_se_factor"]``).
-        The fit itself (weights, Hansen's J of the scale choice, the resonance's acceptance) keeps the model
-        covariance. Where the record shows no excess the two are the same.
+        Two more readings follow the record's own variability: the bounds of terms the record does not resolve take
+        each AV value's edf over its variance factor (:meth:`_bound_edf`), and where the fit misses the curve by
+        more than the check's reference allows (its statistic above the reference's mean) every standard error is
+        multiplied by the Birge ratio (:meth:`_dispersion`, ``extras_["dispersion"]``). Their measurement on
+        the ADIS16405 accelerometers' 30-minute slices: ``results/real/accelerometers``. The fit itself (weights, Hansen's J of the scale
+        choice, the resonance's acceptance) keeps the model covariance. Where the record shows no excess and the
+        fit no misfit beyond its reference the two are the same.
     filter_tf : float or None
         None (default): the filter latent ``FW``'s time constant is fitted. A number (s): the sensor's
         front-end filter is known (a datasheet: a first-order low-pass of -3 dB bandwidth f has
@@ -298,8 +303,9 @@ class GMWM(Estimator):
         chi^2 with ``dof`` degrees of freedom under the model), ``dof``, ``scale_choice`` (for
         ``min_m="auto"``: each cut-off tried with its J) and the arrays of the poor-fit check of
         :mod:`avbench.estimators.allan.fit_check` (``fit_check``; with ``fit_covariance="record"`` also
-        ``fit_check["record_factor"]``, each scale's variance factor, and ``record_se_factor``, the
-        coefficients' standard-error factors where above 1). The result holds the fitted latent
+        ``fit_check["record_factor"]``, each scale's variance factor, ``record_se_factor``, the
+        coefficients' standard-error factors where above 1, and ``dispersion``, the Birge ratio where the
+        misfit exceeds its reference's mean). The result holds the fitted latent
         parameters (SI), the GMM asymptotic standard errors (:math:`(D^T\\Omega^{-1}D)^{-1}`), the
         coefficients the fit does not resolve with their bounds (:mod:`avbench.estimators.selection.bounds`),
         the fit check and the model choices (``min_m``, the shortest cluster size used, among them).
@@ -405,7 +411,8 @@ class GMWM(Estimator):
                      ("assess", bool(self._assess)))
         cls = type(self)
         code = tuple(getattr(cls, f) for f in ("_fit_curve", "_scale_choice", "_fit_scales", "_fit_check",
-                                               "_bias_evidence", "_record_std_err", "_alternatives", "_hold"))
+                                               "_bias_evidence", "_record_std_err", "_bound_edf", "_widen",
+                                               "_dispersion", "_alternatives", "_hold"))
         return shared.choice_key(rate, dt, [wv.tau, wv.avar, wv.m, wv.edf, wv.white_gain], settings, code)
 
     def _fit_curve(self, rate, dt, wv):
@@ -460,7 +467,12 @@ class GMWM(Estimator):
         if not self._assess:  # a starting fit (avbench.estimators.likelihood.mle): no poor-fit check
             diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
             return best["coefs"], diag, self._parts(diag, line, resonance_test, evidence)
-        tau_ok, upper_av = bounds.av_upper_limits(wv.tau, wv.avar, wv.edf, usable)
+        check, gyro = self._fit_check(best, latents, rate, dt, wv, usable, n, self.fit_covariance == "record")
+        record_factor, dispersion = None, 1.0
+        if self.fit_covariance == "record":
+            record_factor, dispersion = check["fit_check"].get("record_factor"), self._dispersion(check)
+        edf = self._bound_edf(wv, check, record_factor, dispersion)
+        tau_ok, upper_av = bounds.av_upper_limits(wv.tau, wv.avar, edf, usable)
         unresolved = {}
         if "GM" in latents:
             unresolved = bounds.gm_unresolved(latents, diag["values"], diag["tau"][0], tau_ok, upper_av, dt,
@@ -469,10 +481,12 @@ class GMWM(Estimator):
                                                known=unresolved))
         if unresolved:
             diag["unresolved"] = unresolved
-        check, gyro = self._fit_check(best, latents, rate, dt, wv, usable, n, self.fit_covariance == "record")
         diag.update(check)
         if self.fit_covariance == "record":
-            self._record_std_err(diag, latents, gyro, check["fit_check"].get("record_factor"), n, wv.cov_scale)
+            self._record_std_err(diag, latents, gyro, record_factor, n, wv.cov_scale)
+            if dispersion > 1.0:
+                diag["dispersion"] = dispersion
+                self._widen(diag, {c: dispersion for c in diag["std_err"].index})
         diag.pop("fit_jacobian", None), diag.pop("fit_free", None)
         diag["model"] = gyro  # the fitted latent model (Estimator.model_avar)
         return best["coefs"], diag, self._parts(diag, line, resonance_test, evidence, check, unresolved)
@@ -575,14 +589,50 @@ class GMWM(Estimator):
         if not se_factor:
             return
         diag["record_se_factor"] = se_factor
+        GMWM._widen(diag, se_factor)
+
+    @staticmethod
+    def _bound_edf(wv, check, record_factor, dispersion=1.0):
+        """The edf of each AV value of ``wv`` that the bounds of the terms the record does not resolve read
+        (:func:`~avbench.estimators.selection.bounds.av_upper_limits`): the engine's, divided by the variance
+        factors the record shows (``fit_covariance="record"``): each scale's from the batches (between the check's
+        scales interpolated in log tau, beyond them its first or last) and the misfit's ``dispersion`` squared
+        (:meth:`_dispersion`). An AV value that varies f times more than the stationary model allows has 1/f of
+        the edf, and its chi^2 upper limit lies further up."""
+        edf = np.asarray(wv.edf, float) / dispersion**2
+        if record_factor is None or not np.any(np.asarray(record_factor) > 1.0):
+            return edf
+        return edf / np.interp(np.log(wv.tau), np.log(check["fit_check"]["tau"]), np.asarray(record_factor, float))
+
+    @staticmethod
+    def _widen(diag, factor: dict):
+        """Multiply the standard errors of ``diag`` (``std_err``, and the alternatives' that :meth:`conf_int`
+        unions: the scale alternatives, the bias models weighed) by ``factor[coefficient]``."""
         std = diag["std_err"].copy()
-        for c, r in se_factor.items():
-            std[c] = std[c] * r
+        for c, r in factor.items():
+            if c in std.index:
+                std[c] = std[c] * r
         diag["std_err"] = std
         entries = list((diag.get("scale_alternatives") or {}).values())
         entries += [v for k, v in (diag.get("bias_evidence") or {}).items() if k in ("GM", "FL")]
         for entry in entries:
-            entry["std_err"] = {c: v * se_factor.get(c, 1.0) for c, v in entry["std_err"].items()}
+            entry["std_err"] = {c: v * factor.get(c, 1.0) for c, v in entry["std_err"].items()}
+
+    @staticmethod
+    def _dispersion(check) -> float:
+        """The Birge ratio of the fit's check (:func:`~avbench.estimators.allan.fit_check.assess_fit`'s entries):
+        :math:`\\sqrt{T/\\mathrm{mean}}` where its statistic T exceeds the mean of its reference (the record
+        reference's weights summed, else its degrees of freedom), else 1 (Birge 1932; the Particle Data Group's
+        scale factor for inconsistent data). Where the fit misses the AV curve by more than its reference allows,
+        the misfit is a variability of the record the covariance did not hold: every standard error is multiplied
+        by it (``diagnostics_["dispersion"]``), and the bounds read the AV with its edf divided by its square
+        (:meth:`_bound_edf`)."""
+        T = check.get("fit_stat")
+        weights = (check.get("fit_check") or {}).get("weights")
+        mean = float(np.sum(weights)) if weights is not None else float(check.get("fit_dof") or 0)
+        if T is None or not np.isfinite(T) or not mean > 0 or T <= mean:
+            return 1.0
+        return math.sqrt(T / mean)
 
     def _scale_choice(self, latents, wv, usable, n, dt, line, resonance=None, below=None, accept=None, max_tau=np.inf,
                       seed=None) -> ScaleChoice:
