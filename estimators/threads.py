@@ -21,8 +21,12 @@ _controller = None
 
 
 def _get_controller():
+    """The controller of every BLAS the fits call: NumPy's and SciPy's (scipy.linalg loaded first: a library
+    loaded after the controller lists them is not limited -- SciPy's LAPACK, e.g. the whitening solves of
+    GMWM's second step, then runs on the full thread pool)."""
     global _controller
     if _controller is None:
+        import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS, listed below)
         from threadpoolctl import ThreadpoolController
 
         _controller = ThreadpoolController()  # lists the loaded BLAS libraries once (~10 ms)
@@ -31,7 +35,7 @@ def _get_controller():
 
 @contextlib.contextmanager
 def one_blas_thread():
-    """Context manager: every BLAS library loaded when the first block ran uses one thread inside it
-    (~15 us to enter and leave)."""
+    """Context manager: every BLAS library loaded when the first block ran (NumPy's and SciPy's at least) uses
+    one thread inside it (~15 us to enter and leave)."""
     with _get_controller().limit(limits=1, user_api="blas"):
         yield

@@ -42,3 +42,27 @@ def test_a_fit_runs_on_one_blas_thread(monkeypatch):
     with threadpool_limits(limits=2, user_api="blas"):
         estimators.get("wls", taus="octave").fit(x, 0.01)
     assert seen and all(s == {1} for s in seen)
+
+
+def test_scipy_blas_limited_when_the_first_block_runs_before_scipy_is_loaded():
+    """A process whose first one-thread block runs before scipy.linalg is imported (an ``avbench estimate``
+    worker, a script fitting an axis): SciPy's own BLAS, whose LAPACK the fits call, is held to one thread too."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from threadpoolctl import threadpool_limits, ThreadpoolController\n"
+        "from avbench.estimators.threads import one_blas_thread\n"
+        "assert 'scipy.linalg' not in sys.modules\n"
+        "with one_blas_thread():\n"
+        "    pass\n"
+        "import scipy.linalg\n"
+        "with threadpool_limits(limits=2, user_api='blas'):\n"
+        "    with one_blas_thread():\n"
+        "        info = ThreadpoolController().info()\n"
+        "libs = {i['filepath']: i['num_threads'] for i in info if i['user_api'] == 'blas'}\n"
+        "print(sorted(set(libs.values())))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[1]"

@@ -20,7 +20,7 @@ from scipy.optimize import least_squares
 
 from scipy.linalg import cho_factor, solve_triangular
 
-from avbench.estimators.likelihood._trf import TERMINATION_MESSAGES, lower_triangular_solver, trf_bounds
+from avbench.estimators.likelihood._trf import TERMINATION_MESSAGES, lower_triangular_solver, resume_trf, trf_bounds
 
 TOLERANCES = dict(xtol=1e-15, ftol=1e-15, gtol=1e-15)
 
@@ -89,6 +89,31 @@ def test_a_short_budget_stops_as_scipys():
     ours, theirs = both(3, max_nfev=5)
     assert ours.status == theirs.status == 0 and ours.nfev == theirs.nfev == 5
     assert ours.message == theirs.message and not ours.success
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), short=st.integers(2, 60))
+def test_a_resumed_run_is_the_long_run_bit_for_bit(seed, short):
+    """A run stopped by a short budget and resumed to a longer one ends where the one long run ends, every field
+    equal (and the stopped run is left as it was)."""
+    fun, jac, x0, lo, hi = problem(seed)
+    long = trf_bounds(fun, jac, x0, lo, hi, max_nfev=400, **TOLERANCES)
+    first = trf_bounds(fun, jac, x0, lo, hi, max_nfev=short, **TOLERANCES)
+    if first.status != 0:
+        assert not _differing(first, long)
+        return
+    x_first = first.x.copy()
+    resumed = resume_trf(first, 400)
+    assert not _differing(resumed, long), _differing(resumed, long)
+    assert np.array_equal(first.x, x_first) and first.nfev == short
+
+
+def test_only_a_run_stopped_by_its_budget_resumes():
+    fun, jac, x0, lo, hi = problem(1)
+    done = trf_bounds(fun, jac, x0, lo, hi, max_nfev=2000, **TOLERANCES)
+    assert done.status != 0
+    with pytest.raises(ValueError, match="status 0"):
+        resume_trf(done, 4000)
 
 
 def test_bit_for_bit_on_the_reference_kernels():

@@ -15,10 +15,10 @@ import numpy as np
 
 from avbench.noise_models.latents import LATENT_TERMS, build_gyro, n_parameters
 
-__all__ = ["LatentAV", "log_bounds", "log_starts", "report"]
+__all__ = ["LatentAV", "LatentAVReference", "log_bounds", "log_starts", "report"]
 
 
-class LatentAV:
+class LatentAVReference:
     r"""The exact discrete AV of a latent model at ``tau`` as a function of the log-parameters ``u``
     (``__call__``), and its Jacobian d AV / d u (:meth:`jacobian`), for GMWM's solver.
 
@@ -84,6 +84,64 @@ class LatentAV:
         if self.extra is not None:
             jac[:, self.extra[0]] += 2.0 * math.exp(2.0 * u[self.extra[0]]) * self.extra[1]
         return jac
+
+
+class LatentAV(LatentAVReference):
+    """:class:`LatentAVReference`'s AV and Jacobian, both from one compiled call
+    (:func:`avbench.estimators.likelihood._gmwm_kernels.latent_av`, the same arithmetic; equal to round-off,
+    tests), the Jacobian kept for the last point (a least-squares solver asks for the residuals, then for the
+    Jacobian at the same point). Where the kernel cannot answer (a resonance's shortest clusters, where the
+    reference sums the autocovariance in extended precision; a parameter outside a term's values, where the
+    reference raises; a term the kernel does not know) the reference answers."""
+
+    def __init__(self, latents, tau, dt, tau_fl, extra=None):
+        from avbench.estimators.likelihood import _gmwm_kernels as kernels
+        from avbench.noise_models.markov_terms import _series_powers
+        from avbench.noise_models.sensor_terms import _numpy_complex_product
+
+        super().__init__(latents, tau, dt, tau_fl, extra)
+        kinds = {"GM": kernels.GAUSS_MARKOV, "FW": kernels.FILTER, "SN": kernels.SINUSOID, "RS": kernels.RESONANCE}
+        fused = _numpy_complex_product()
+        self._kind = np.array([kernels.FIXED if not j else kinds.get(lat, -1)
+                               for lat, (_, j, _) in zip(latents, self.blocks)], dtype=np.int64)
+        self._compiled = bool(np.all(self._kind >= 0)) and (fused is not None or kernels.RESONANCE not in self._kind)
+        self._first = np.array([i for i, _, _ in self.blocks], dtype=np.int64)
+        self._fixed = np.zeros((len(self.blocks), self.m.size))
+        for b, (_, j, unit) in enumerate(self.blocks):
+            if not j:
+                self._fixed[b] = unit
+        mf = self.m.astype(float)
+        neg_m12, p1, p2, q, pow2 = _series_powers(mf)
+        self._args = (np.ascontiguousarray(self.m), float(dt), self._fixed, p1, p2, q, pow2, neg_m12,
+                      -1 if extra is None else int(extra[0]),
+                      np.zeros(self.m.size) if extra is None else np.ascontiguousarray(extra[1], dtype=float),
+                      bool(fused))
+        self._kernel = kernels.latent_av
+        self._kept = None  # (u, Jacobian) of the last point evaluated
+
+    def _both(self, u):
+        u = np.ascontiguousarray(u, dtype=float)
+        value, jac = np.empty(self.m.size), np.empty((self.m.size, u.size))
+        mi, dt, fixed, p1, p2, q, pow2, neg_m12, ej, ee, fused = self._args
+        if self._kernel(self._kind, self._first, u, mi, dt, fixed, p1, p2, q, pow2, neg_m12, ej, ee, fused,
+                        value, jac):
+            return LatentAVReference.__call__(self, u), LatentAVReference.jacobian(self, u)
+        return value, jac
+
+    def __call__(self, u):
+        if not self._compiled:
+            return super().__call__(u)
+        value, jac = self._both(u)
+        self._kept = (np.array(u, dtype=float), jac)
+        return value
+
+    def jacobian(self, u):
+        if not self._compiled:
+            return super().jacobian(u)
+        kept, self._kept = self._kept, None
+        if kept is not None and np.array_equal(kept[0], u):
+            return kept[1]
+        return self._both(u)[1]
 
 
 def log_bounds(latents, tau, avar, dt, T, hints=None) -> tuple[np.ndarray, np.ndarray]:

@@ -36,7 +36,7 @@ import numpy as np
 from scipy.linalg import get_lapack_funcs
 from scipy.optimize import OptimizeResult
 
-__all__ = ["trf_bounds", "lower_triangular_solver", "TERMINATION_MESSAGES"]
+__all__ = ["trf_bounds", "resume_trf", "lower_triangular_solver", "TERMINATION_MESSAGES"]
 
 EPS = float(np.finfo(float).eps)
 
@@ -315,7 +315,8 @@ def trf_bounds(fun, jac, x0, lb, ub, *, ftol=1e-8, xtol=1e-8, gtol=1e-8, max_nfe
     reflective method, ``jac(x)`` the Jacobian of ``fun``; the result as ``least_squares`` returns it.
 
     ``x0`` must lie within the bounds (a start within 1e-10, relative, of a bound is moved that far inside,
-    as scipy does); ``max_nfev`` defaults to 100 per parameter, as scipy's does.
+    as scipy does); ``max_nfev`` defaults to 100 per parameter, as scipy's does. A run stopped by ``max_nfev``
+    goes on by :func:`resume_trf`.
     """
     x = np.array(x0, dtype=float)
     lb, ub = np.asarray(lb, dtype=float), np.asarray(ub, dtype=float)
@@ -333,17 +334,40 @@ def trf_bounds(fun, jac, x0, lb, ub, *, ftol=1e-8, xtol=1e-8, gtol=1e-8, max_nfe
     m, n = J.shape
     if max_nfev is None:
         max_nfev = 100 * n
-    f_true = f.copy()
-    nfev = njev = 1
     cost = 0.5 * np.dot(f, f)
     g = J.T.dot(f)
     v, _ = _cl_scaling(x, g, lb, ub)
     delta = _norm(x / v**0.5)
     if delta == 0:
         delta = 1.0
-    f_aug = np.zeros(m + n)
-    J_aug = np.zeros((m + n, n))
-    alpha = 0.0
+    state = {"fun": fun, "jac": jac, "lb": lb, "ub": ub, "ftol": ftol, "xtol": xtol, "gtol": gtol,
+             "x": x, "f": f, "f_true": f.copy(), "J": J, "g": g, "cost": cost, "delta": delta, "alpha": 0.0,
+             "nfev": 1, "njev": 1, "f_aug": np.zeros(m + n), "J_aug": np.zeros((m + n, n))}
+    return _iterate(state, max_nfev)
+
+
+def resume_trf(result: OptimizeResult, max_nfev: int) -> OptimizeResult:
+    """The run that ended in ``result`` (status 0: its evaluation limit) gone on until ``max_nfev`` evaluations in
+    all: bit for bit the run :func:`trf_bounds` makes with ``max_nfev`` from the same start (the iteration's state --
+    point, residuals, Jacobian, trust radius, Levenberg-Marquardt parameter -- is where the shorter run left it;
+    a new outer iteration recomputes the scaling and SVD of the same point, the values the longer run holds
+    there). ``result`` is left as it is."""
+    if result.status != 0 or "_state" not in result:
+        raise ValueError("resume_trf: expected a run stopped by its evaluation limit (status 0)")
+    state = dict(result["_state"])
+    state["f_aug"], state["J_aug"] = state["f_aug"].copy(), state["J_aug"].copy()
+    return _iterate(state, max_nfev)
+
+
+def _iterate(state: dict, max_nfev: int) -> OptimizeResult:
+    """The trust-region reflective iteration from ``state`` (:func:`trf_bounds`) until a stopping rule or
+    ``max_nfev`` evaluations in all."""
+    fun, jac, lb, ub = state["fun"], state["jac"], state["lb"], state["ub"]
+    ftol, xtol, gtol = state["ftol"], state["xtol"], state["gtol"]
+    x, f, f_true, J, g, cost = state["x"], state["f"], state["f_true"], state["J"], state["g"], state["cost"]
+    delta, alpha, nfev, njev = state["delta"], state["alpha"], state["nfev"], state["njev"]
+    f_aug, J_aug = state["f_aug"], state["J_aug"]
+    m, n = J.shape
     status = None
     while True:
         v, dv = _cl_scaling(x, g, lb, ub)
@@ -390,6 +414,10 @@ def trf_bounds(fun, jac, x0, lb, ub, *, ftol=1e-8, xtol=1e-8, gtol=1e-8, max_nfe
             g = J.T.dot(f)
     if status is None:
         status = 0
-    return OptimizeResult(x=x, cost=cost, fun=f_true, jac=J, grad=g, optimality=g_norm,
-                          active_mask=_active(x, lb, ub, xtol), nfev=nfev, njev=njev, status=status,
-                          message=TERMINATION_MESSAGES[status], success=status > 0)
+    out = OptimizeResult(x=x, cost=cost, fun=f_true, jac=J, grad=g, optimality=g_norm,
+                         active_mask=_active(x, lb, ub, xtol), nfev=nfev, njev=njev, status=status,
+                         message=TERMINATION_MESSAGES[status], success=status > 0)
+    if status == 0:
+        out["_state"] = {**state, "x": x, "f": f, "f_true": f_true, "J": J, "g": g, "cost": cost, "delta": delta,
+                         "alpha": alpha, "nfev": nfev, "njev": njev}
+    return out

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from avbench.estimators.likelihood._trf import trf_bounds
+from avbench.estimators.likelihood._trf import resume_trf, trf_bounds
 
 __all__ = ["MAX_NFEV", "SETTLE_NFEV", "CREEP_SHARE", "CONVERGED_DECREMENT", "solve", "settle", "pushed",
            "newton_decrement"]
@@ -39,8 +39,9 @@ def solve(fun, u0, lo, hi, jac):
     which the trust region approaches by ever smaller steps (thousands of evaluations), so that where it
     stops depends on the last bits of the record. :func:`settle` holds the parameters still pushed there on
     their bounds and solves the rest (tens of evaluations); its end point is returned where it is a
-    Karush-Kuhn-Tucker point no higher than the running solve's. Otherwise the solve runs on, from its
-    start, to :data:`MAX_NFEV` evaluations; at that limit every parameter still pushed (:func:`pushed`) is
+    Karush-Kuhn-Tucker point no higher than the running solve's. Otherwise the solve runs on from where it
+    stopped (:func:`~avbench.estimators.likelihood._trf.resume_trf`: the run from its start, bit for bit) to
+    :data:`MAX_NFEV` evaluations; at that limit every parameter still pushed (:func:`pushed`) is
     put on its bound and the solve restarted, the lower criterion of the two end points kept.
 
     The result carries ``converged`` and ``stop_reason`` (a sentence: the tolerance met, the parameters
@@ -61,8 +62,8 @@ def solve(fun, u0, lo, hi, jac):
     settled, spent = settle(fun, jac, first, lo, hi)
     if settled is not None:
         return settled
-    sol = run(u0)
-    sol.nfev += spent  # the evaluations of the first SETTLE_NFEV and of the held solves counted too
+    sol = resume_trf(first, MAX_NFEV)  # run(u0) with MAX_NFEV, bit for bit, without its first SETTLE_NFEV again
+    sol.nfev += spent - first.nfev  # the held solves' evaluations counted too
     if sol.status != 0:
         sol.converged, sol.stop_reason = bool(sol.success), f"least_squares: {sol.message}"
         return sol
