@@ -233,7 +233,8 @@ def _tex_record(n: int, dt: float) -> str:
 
 
 def _tex_caption(summary: pd.DataFrame, meta: dict) -> str:
-    """The caption: the study, its replicates, seed and records, and what each row means."""
+    """The caption: the study, its replicates, seed and records, what each row means, and where a paper
+    table is attached, its spreads against ours and the departures it explains (as in ``table.md``)."""
     parts = [_tex(meta.get("title") or "Study") + "."]
     if meta.get("description"):
         parts.append(_tex(meta["description"].strip().rstrip(".")) + ".")
@@ -254,6 +255,7 @@ def _tex_caption(summary: pd.DataFrame, meta: dict) -> str:
                  "$= |\\bar{x} - x_0| / x_0 \\times 100$; CRLB std: the Cram\\'er-Rao bound on the standard deviation "
                  "of an unbiased estimator for the record length; non-physical / failed: replicates whose fit gave "
                  "no physical value or failed; paper rows in italics.")
+    parts += [_tex(line.replace("**", "").strip()) for line in _against_paper(summary, meta)]
     return " ".join(parts)
 
 
