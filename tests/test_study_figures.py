@@ -79,3 +79,21 @@ def test_spread_figure_shows_every_estimator_place_and_keeps_zero_counts_apart()
     zeros = [t for t in n_ax.texts if t.get_text().endswith("×0")]
     assert len(zeros) == 2 and zeros[0].xyann[1] != zeros[1].xyann[1]
     plt.close(fig)
+
+
+def test_crossover_figure_of_one_panel_holds_its_title_and_legend():
+    """One panel (a study of one gyro with K): the figure is at least 7 in wide, and its title and
+    legend lie inside the canvas (they were cut at 319 x 374 px)."""
+    from avbench.studies.summaries.record_length import crossover_figure
+
+    grid = np.geomspace(0.5, 96, 9)
+    table = pd.DataFrame([dict(hours=h, gyro="a", coefficient="K", best_rel_rmse=0.5 / h, **{"rel_rmse[w]": 0.6 / h})
+                          for h in (2.0, 24.0)])
+    fig = crossover_figure(table, {"a": np.tile((0.5 * (grid / 2) ** -0.5)[:, None], (1, 5))}, grid, ["w"])
+    fig.canvas.draw()
+    box = fig.bbox
+    assert fig.get_size_inches()[0] >= 7.0
+    for artist in (fig._suptitle, fig.legends[0]):
+        e = artist.get_window_extent()
+        assert box.x0 <= e.x0 and e.x1 <= box.x1 and box.y0 <= e.y0 and e.y1 <= box.y1, artist
+    plt.close(fig)
