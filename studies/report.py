@@ -98,7 +98,9 @@ def _fmt(x) -> str:
 _NOTE = (
     "Mean and std over the replicates with a physical estimate; error = |mean − true| / true × 100. "
     "'non-physical / failed' counts replicates where the fit gave no physical value (e.g. a negative "
-    "AV-model coefficient, printed '–' by Lv et al. 2015) or failed (exception, divergence, non-finite)."
+    "AV-model coefficient, printed '–' by Lv et al. 2015) or failed (exception, divergence, non-finite). "
+    "Units: the column headings' here and in `table.csv` (its `unit` column); SI in `tidy.csv` and "
+    "`scores.csv` (their `unit` column)."
 )
 
 
@@ -390,10 +392,16 @@ TIDY_FILE = "tidy.csv"
 
 
 def write_tidy(tidy: pd.DataFrame, out: Path) -> Path:
-    """The tidy per-replicate table (no timings) as CSV at :data:`TIDY_DIGITS` significant digits."""
+    """The tidy per-replicate table (no timings) as CSV at :data:`TIDY_DIGITS` significant digits, with
+    a ``unit`` column after ``coefficient``: the SI unit of its row's ``true``, ``estimate``,
+    ``std_err``, ``lower`` and ``upper``."""
+    from avbench.noise_models.units import si_units
+
     path = Path(out) / TIDY_FILE
-    cols = [c for c in tidy.columns if c != "seconds"]
-    atomic_write_text(path, tidy[cols].to_csv(index=False, float_format=f"%.{TIDY_DIGITS}g"))
+    cols = [c for c in tidy.columns if c not in ("seconds", "unit")]
+    table = tidy[cols].copy()
+    table.insert(cols.index("coefficient") + 1, "unit", tidy["coefficient"].map(si_units()))
+    atomic_write_text(path, table.to_csv(index=False, float_format=f"%.{TIDY_DIGITS}g"))
     return path
 
 
