@@ -21,6 +21,9 @@ from avbench.studies.seeding import replicate_rng  # noqa: E402
 __all__ = ["av_figure", "spread_figure", "render_figure", "study_figures", "series_style"]
 
 _LINESTYLES = ("--", "-.", ":", (0, (5, 1, 1, 1, 1, 1)), (0, (8, 2)))
+#: the AV figure: height of its axes (inches) and columns of the legend under them
+AXES_HEIGHT_IN = 3.6
+LEGEND_COLUMNS = 4
 
 
 def series_style(i: int) -> dict:
@@ -49,8 +52,13 @@ def av_figure(rate, gyro, fits: dict, title: str, unit: str = "deg/h"):
     (a rate unit: the tables' unit of B)."""
     av = allan_variance(rate, gyro.dt, "octave", overlapping=True)
     scale = float(from_si("B", 1.0, unit))
-    fig, ax = plt.subplots(figsize=(9.0, 4.6))
-    fig.subplots_adjust(left=0.09, right=0.7, bottom=0.12, top=0.92)  # the legend sits right of the axes
+    # the legend sits under the axes in LEGEND_COLUMNS columns, the figure as tall as its rows need:
+    # the axes keep the whole width and no corner of the canvas is left empty
+    rows = -(-(len(fits) + 2) // LEGEND_COLUMNS)
+    legend_h = 0.19 * rows + 0.2  # inches: a row at 8 pt, and the data entry's second line
+    height = AXES_HEIGHT_IN + 0.95 + legend_h
+    fig, ax = plt.subplots(figsize=(9.0, height))
+    fig.subplots_adjust(left=0.09, right=0.98, bottom=(0.55 + legend_h) / height, top=1 - 0.4 / height)
     with np.errstate(all="ignore"):  # absurd magnitudes overflow to inf: drawn as gaps, never an error
         adev = _finite_positive(av.adev * scale)
         lo = np.sqrt(_finite_positive(av.ci_low)) * scale
@@ -81,7 +89,8 @@ def av_figure(rate, gyro, fits: dict, title: str, unit: str = "deg/h"):
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.5 / (height * ax.get_position().height)),
+                  ncol=LEGEND_COLUMNS, borderaxespad=0.0, frameon=False)
     return fig
 
 
@@ -113,6 +122,7 @@ def spread_figure(tidy: pd.DataFrame, gyro_label: str):
             labels.append(f"{e} ({missing}/{n_all} none)" if missing else e)
         ax.set_xticks(range(len(ests)))
         ax.set_xticklabels(labels, rotation=60, ha="right", fontsize=7)
+        ax.set_xlim(-0.6, len(ests) - 0.4)  # every estimator's place, those without a box too
         ax.set_title(f"{c}: estimate / true")
         allv = np.concatenate([x for x in data if x.size]) if pos else np.ones(1)
         allv = allv[allv > 0]
@@ -127,8 +137,8 @@ def spread_figure(tidy: pd.DataFrame, gyro_label: str):
                 zeros = int(np.sum(x == 0))
                 if zeros:
                     ax.plot([i], [bottom], "v", color="C3", ms=7, clip_on=False)
-                    ax.annotate(f"{zeros}×0", (i, bottom), xytext=(0, 6), textcoords="offset points",
-                                ha="center", fontsize=7, color="C3")
+                    ax.annotate(f"{zeros}×0", (i, bottom), xytext=(0, 6 + 8 * (i % 2)), textcoords="offset points",
+                                ha="center", fontsize=7, color="C3")  # neighbours staggered: never overlaid
         for i, x in enumerate(data):  # an estimator that does not model the term: said, not a bare gap
             if not x.size and not ((dg["coefficient"] == c) & (dg["estimator"] == ests[i])).any():
                 ax.annotate("not modelled", (i, 0.5), xycoords=("data", "axes fraction"), rotation=90,

@@ -98,7 +98,9 @@ def _fmt(x) -> str:
 _NOTE = (
     "Mean and std over the replicates with a physical estimate; error = |mean − true| / true × 100. "
     "'non-physical / failed' counts replicates where the fit gave no physical value (e.g. a negative "
-    "AV-model coefficient, printed '–' by Lv et al. 2015) or failed (exception, divergence, non-finite)."
+    "AV-model coefficient, printed '–' by Lv et al. 2015) or failed (exception, divergence, non-finite). "
+    "Units: the column headings' here and in `table.csv` (its `unit` column); SI in `tidy.csv` and "
+    "`scores.csv` (their `unit` column)."
 )
 
 
@@ -233,7 +235,8 @@ def _tex_record(n: int, dt: float) -> str:
 
 
 def _tex_caption(summary: pd.DataFrame, meta: dict) -> str:
-    """The caption: the study, its replicates, seed and records, and what each row means."""
+    """The caption: the study, its replicates, seed and records, what each row means, and where a paper
+    table is attached, its spreads against ours and the departures it explains (as in ``table.md``)."""
     parts = [_tex(meta.get("title") or "Study") + "."]
     if meta.get("description"):
         parts.append(_tex(meta["description"].strip().rstrip(".")) + ".")
@@ -254,6 +257,7 @@ def _tex_caption(summary: pd.DataFrame, meta: dict) -> str:
                  "$= |\\bar{x} - x_0| / x_0 \\times 100$; CRLB std: the Cram\\'er-Rao bound on the standard deviation "
                  "of an unbiased estimator for the record length; non-physical / failed: replicates whose fit gave "
                  "no physical value or failed; paper rows in italics.")
+    parts += [_tex(line.replace("**", "").strip()) for line in _against_paper(summary, meta)]
     return " ".join(parts)
 
 
@@ -309,14 +313,15 @@ def leaderboard(summary: pd.DataFrame, wins: pd.DataFrame | None = None) -> str:
     """Who wins where: per coefficient, each estimator over all gyros of the study.
 
     Only gyros that have the coefficient count. A *tested win* is a gyro on which the estimator has
-    the lowest RMSE (among those with a physical estimate in at least half the replicates) and the
-    paired bootstrap 95 % interval of RMSE(best) / RMSE(runner-up) on the same replicates lies below
-    1 (studies.scoring.wins); *best, tied* counts gyros where it has the lowest RMSE but the interval
-    includes 1 (a tie, not a win), or where no other estimator has enough physical estimates to
-    compare with. Then the medians over gyros of RMSE / CRLB (the Cramer-Rao bound
-    for the record length), of the absolute bias over SE (the bias over its Monte Carlo standard error std /
-    sqrt(replicates): above ~2 the bias is real), of the absolute error of the mean %, and the share
-    of replicates without a physical estimate (fit times: timings.md; per gyro: scores.md).
+    the lowest RMSE (among those with a physical estimate in at least half the replicates) and beats
+    each other such estimator in a paired test on the same replicates, Holm-adjusted over every pair
+    of the study (studies.scoring.wins: between identical estimators a win anywhere in the study has
+    probability at most 0.05); *tied for best* counts gyros where it has the lowest RMSE without
+    beating every other one, or is one of those the lowest does not beat, or competes alone. Then
+    the medians over gyros of RMSE / CRLB (the Cramer-Rao bound for the record length), of the
+    absolute bias over SE (the bias over its Monte Carlo standard error std / sqrt(replicates): above
+    ~2 the bias is real), of the absolute error of the mean %, and the share of replicates without a
+    physical estimate (fit times: timings.md; the tests, their intervals and the ties: scores.md).
 
     ``wins``: the paired comparisons of :func:`avbench.studies.scoring.wins` (none: no tested wins).
     """
@@ -326,7 +331,7 @@ def leaderboard(summary: pd.DataFrame, wins: pd.DataFrame | None = None) -> str:
     with np.errstate(divide="ignore", invalid="ignore"):
         s["rmse_over_crlb"] = s["rmse"] / crlb
         s["abs_bias_over_se"] = (s["mean"] - s["true"]).abs() / (s["std"] / np.sqrt(s["n_ok"]))
-    w = wins if wins is not None else pd.DataFrame(columns=["coefficient", "best", "verdict"])
+    w = wins if wins is not None else pd.DataFrame(columns=["coefficient", "best", "tied", "verdict"])
     out = ["# Who wins where", ""]
     out.append(" ".join(line.strip() for line in leaderboard.__doc__.split("\n\n")[1].splitlines()))
     out.append("")
@@ -336,14 +341,17 @@ def leaderboard(summary: pd.DataFrame, wins: pd.DataFrame | None = None) -> str:
         g = d.groupby("estimator", sort=False)
         idx = g.size().index
 
-        def count(verdicts, wc=wc, idx=idx):
-            return wc[wc["verdict"].isin(verdicts)]["best"].value_counts().reindex(idx).fillna(0).astype(int)
+        won = wc[wc["verdict"] == "win"]["best"].value_counts().reindex(idx).fillna(0).astype(int)
+        unsettled = wc[wc["verdict"] != "win"]
+        tied = pd.Series([e for best, others in zip(unsettled["best"], unsettled["tied"]) for e in (best, *others)],
+                         dtype=object)
+        tied = tied.value_counts().reindex(idx).fillna(0).astype(int)
 
         table = pd.DataFrame(
             {
                 "gyros": g["gyro"].nunique(),
-                "tested wins": count(["win"]),
-                "best, tied": count(["tie", "alone"]),
+                "tested wins": won,
+                "tied for best": tied,
                 "median RMSE / CRLB": g["rmse_over_crlb"].median().round(2),
                 "median abs. bias / SE": g["abs_bias_over_se"].median().round(1),
                 "median abs. error %": g["error_pct"].median().round(1),
@@ -351,12 +359,12 @@ def leaderboard(summary: pd.DataFrame, wins: pd.DataFrame | None = None) -> str:
             }
         )
         table["_r"] = table["median RMSE / CRLB"].fillna(np.inf)
-        table = table.sort_values(["tested wins", "best, tied", "_r"], ascending=[False, False, True]).drop(columns="_r")
+        table = table.sort_values(["tested wins", "tied for best", "_r"], ascending=[False, False, True]).drop(columns="_r")
         out.append(f"## {c}")
         out.append("")
         out.append("| estimator | " + " | ".join(table.columns) + " |")
         out.append("|---|" + "---|" * len(table.columns))
-        ints = ("gyros", "tested wins", "best, tied", "no estimate %")
+        ints = ("gyros", "tested wins", "tied for best", "no estimate %")
         for e, r in table.iterrows():
             cells = ["–" if pd.isna(v) else (str(int(v)) if k in ints else f"{v:g}") for k, v in r.items()]
             out.append(f"| {markdown_cell(e)} | " + " | ".join(cells) + " |")
@@ -384,10 +392,16 @@ TIDY_FILE = "tidy.csv"
 
 
 def write_tidy(tidy: pd.DataFrame, out: Path) -> Path:
-    """The tidy per-replicate table (no timings) as CSV at :data:`TIDY_DIGITS` significant digits."""
+    """The tidy per-replicate table (no timings) as CSV at :data:`TIDY_DIGITS` significant digits, with
+    a ``unit`` column after ``coefficient``: the SI unit of its row's ``true``, ``estimate``,
+    ``std_err``, ``lower`` and ``upper``."""
+    from avbench.noise_models.units import si_units
+
     path = Path(out) / TIDY_FILE
-    cols = [c for c in tidy.columns if c != "seconds"]
-    atomic_write_text(path, tidy[cols].to_csv(index=False, float_format=f"%.{TIDY_DIGITS}g"))
+    cols = [c for c in tidy.columns if c not in ("seconds", "unit")]
+    table = tidy[cols].copy()
+    table.insert(cols.index("coefficient") + 1, "unit", tidy["coefficient"].map(si_units()))
+    atomic_write_text(path, table.to_csv(index=False, float_format=f"%.{TIDY_DIGITS}g"))
     return path
 
 

@@ -17,8 +17,11 @@ From a study's tidy table (one row per gyro x replicate x estimator x coefficien
     RMSE_a / RMSE_b on the replicates both have, with a bootstrap 95 % interval that resamples
     replicates (pairs kept together, Efron & Tibshirani 1993, Ch. 13).
 ``wins(tidy)``
-    per gyro x coefficient, the estimator with the lowest RMSE *wins* only when the paired interval
-    of its RMSE ratio against the runner-up lies below 1; otherwise it is a tie.
+    per gyro x coefficient, every pair of the estimators that compete there compared on the same
+    replicates (``avbench.studies.paired.all_pairs``: sign-flip p-values, Holm over every pair of
+    every cell of the study, so between identical estimators no win is declared anywhere in the
+    study with probability above ``level``). The estimator with the lowest RMSE *wins* a cell only
+    when it beats each other one; the estimators it does not beat are *tied* with it, named.
 ``render_scores(...)``
     ``scores.md``: the coverage table and the tested leaderboard.
 
@@ -37,9 +40,14 @@ from scipy.special import betaincinv
 from avbench.noise_models.units import COEFFICIENTS
 from avbench.outputs import markdown_cell
 
-__all__ = ["scores", "comparable", "paired_rmse_ratio", "wins", "render_scores", "crlb_table", "write_scores"]
+__all__ = ["scores", "comparable", "paired_rmse_ratio", "wins", "render_scores", "crlb_table", "write_scores",
+           "WIN_LEVEL"]
 
 N_BOOT = 2000
+#: family-wise level of the wins: the chance of any win between identical estimators in a study
+WIN_LEVEL = 0.05
+WIN_COLUMNS = ["gyro", "coefficient", "verdict", "best", "tied", "rival", "ratio", "lower", "upper", "p_holm",
+               "n_pairs", "candidates"]
 
 
 def _ok(d: pd.DataFrame) -> pd.DataFrame:
@@ -158,24 +166,39 @@ def paired_rmse_ratio(tidy, gyro, coefficient, a, b, n_boot=N_BOOT, seed=0, leve
     return ratio, float(lo), float(hi)
 
 
-def wins(tidy: pd.DataFrame, n_boot=N_BOOT, seed=0) -> pd.DataFrame:
-    """Per gyro x coefficient: best and runner-up by RMSE (estimators with a physical estimate in at
-    least half the replicates), the paired RMSE ratio and its interval, and ``verdict`` "win" when
-    the interval is below 1, else "tie"."""
+def wins(tidy: pd.DataFrame, level: float = WIN_LEVEL, n_boot=N_BOOT, seed=0) -> pd.DataFrame:
+    """Per gyro x coefficient (module docstring): ``best`` (the lowest RMSE among the estimators with a
+    physical estimate in at least half the replicates), ``verdict`` "win" (it beats every other one),
+    "tie" (``tied``: the others it does not beat, a tuple) or "alone" (no other competes);
+    ``rival``: the other estimator closest to it (the largest Holm p-value; among the tied ones when
+    there is a tie, so "mixed" pairs count), with the paired RMSE
+    ratio best / rival, its bootstrap 95 % interval (``lower``, ``upper``), ``p_holm`` and the pairs
+    it rests on; ``candidates``: how many competed. ``attrs["pairs"]``: every pair's comparison."""
+    from avbench.studies.paired import all_pairs
+
     sc = comparable(scores(tidy))
+    ranked = {k: list(d.sort_values("rmse", kind="stable")["estimator"])
+              for k, d in sc.groupby(["gyro", "coefficient"], sort=False)}
+    pairs = all_pairs(tidy, {k: v for k, v in ranked.items() if len(v) > 1}, level=level, n_boot=n_boot, seed=seed)
     rows = []
-    for (g, c), d in sc.groupby(["gyro", "coefficient"], sort=False):
-        d = d.sort_values("rmse")
-        best = d.iloc[0]["estimator"]
-        if len(d) < 2:
-            rows.append({"gyro": g, "coefficient": c, "best": best, "runner_up": None, "ratio": math.nan,
-                         "lower": math.nan, "upper": math.nan, "verdict": "alone"})
+    for (g, c), names in ranked.items():
+        best = names[0]
+        row = {"gyro": g, "coefficient": c, "best": best, "tied": (), "rival": "", "ratio": math.nan,
+               "lower": math.nan, "upper": math.nan, "p_holm": math.nan, "n_pairs": 0, "candidates": len(names)}
+        if len(names) < 2:
+            rows.append({**row, "verdict": "alone"})
             continue
-        second = d.iloc[1]["estimator"]
-        ratio, lo, hi = paired_rmse_ratio(tidy, g, c, best, second, n_boot, seed)
-        rows.append({"gyro": g, "coefficient": c, "best": best, "runner_up": second, "ratio": ratio,
-                     "lower": lo, "upper": hi, "verdict": "win" if hi < 1 else "tie"})
-    return pd.DataFrame(rows, columns=["gyro", "coefficient", "best", "runner_up", "ratio", "lower", "upper", "verdict"])
+        mine = pairs[(pairs["gyro"] == g) & (pairs["coefficient"] == c) & (pairs["a"] == best)]
+        tied = tuple(r["b"] for _, r in mine.iterrows() if r["verdict"] != "A")
+        held = mine[mine["b"].isin(tied)] if tied else mine  # the rival: one that holds the best to a tie
+        rival = held.sort_values("p_holm", ascending=False, kind="stable", na_position="first").iloc[0]
+        rows.append({**row, "verdict": "tie" if tied else "win", "tied": tied, "rival": rival["b"],
+                     "ratio": rival["ratio"], "lower": rival["ratio_lo"], "upper": rival["ratio_hi"],
+                     "p_holm": rival["p_holm"], "n_pairs": int(rival["n_pairs"])})
+    out = pd.DataFrame(rows, columns=WIN_COLUMNS)
+    out.attrs["pairs"] = pairs
+    out.attrs["level"] = level
+    return out
 
 
 def _md_table(df: pd.DataFrame) -> list[str]:
@@ -183,6 +206,32 @@ def _md_table(df: pd.DataFrame) -> list[str]:
     for _, r in df.iterrows():
         out.append("| " + " | ".join("–" if (isinstance(v, float) and not np.isfinite(v)) else
                                       (f"{v:.3g}" if isinstance(v, float) else markdown_cell(v)) for v in r) + " |")
+    return out
+
+
+def _render_wins(w: pd.DataFrame) -> list[str]:
+    """The wins section of ``scores.md``: one row per gyro x coefficient, then the wins per coefficient."""
+    pairs = w.attrs.get("pairs", pd.DataFrame())
+    level = w.attrs.get("level", WIN_LEVEL)
+    out = ["", "## Wins (all pairs tested on the same replicates, Holm over the study)", "",
+           f"Every pair of the estimators that compete on a gyro x coefficient (a physical estimate in at least "
+           f"half the replicates) is compared on the replicates both fitted: a sign-flip permutation test of "
+           f"their RMSE ratio, Holm-adjusted over all {len(pairs)} pairs of the study, so between estimators "
+           f"that do not differ no win is declared anywhere in it with probability above {level:g}. The best "
+           "(lowest RMSE) wins only when it beats every other one at that level; the ones it does not beat are "
+           "tied with it (tied: separated by ';'). rival: the one closest to it (largest Holm p; of the tied "
+           "ones, in a tie), with RMSE(best) / RMSE(rival) and the pair's own paired bootstrap 95 % interval "
+           "(not adjusted: it can exclude 1 where the Holm p does not reach the level); pairs: the replicates "
+           "both fitted.", ""]
+    if not len(pairs):
+        return out[:3] + ["One estimator competes on each gyro x coefficient: no pair to test."]
+    shown = w[["gyro", "coefficient", "verdict", "best", "tied", "rival", "ratio", "lower", "upper", "p_holm",
+               "n_pairs"]].rename(columns={"p_holm": "p (Holm)", "n_pairs": "pairs"})
+    shown["tied"] = shown["tied"].map("; ".join)
+    out += _md_table(shown)
+    counts = w[w["verdict"] == "win"].groupby(["coefficient", "best"]).size().rename("wins").reset_index()
+    out += ["", "### Tested wins per coefficient", ""]
+    out += _md_table(counts) if len(counts) else ["(no win survives the paired tests)"]
     return out
 
 
@@ -205,13 +254,7 @@ def render_scores(sc: pd.DataFrame, w: pd.DataFrame) -> str:
                 "estimator can sit below it; these rows show bias, not efficiency beyond the bound:", ""]
         out += [f"- {r['gyro']} / {r['estimator']} / {r['coefficient']}: RMSE/CRLB {r['rmse_over_crlb']:.3g}, "
                 f"bias/SE {r['bias_over_se']:.3g}" for _, r in s[below].iterrows()]
-    out += ["", "## Wins (paired bootstrap of the RMSE ratio on the same replicates)", "",
-            "A win is counted only when the 95 % interval of RMSE(best)/RMSE(runner-up) lies below 1.", ""]
-    if len(w):
-        out += _md_table(w)
-        counts = w[w["verdict"] == "win"].groupby(["coefficient", "best"]).size().rename("wins").reset_index()
-        out += ["", "### Tested wins per coefficient", ""]
-        out += _md_table(counts) if len(counts) else ["(no win survives the paired test)"]
+    out += _render_wins(w)
     return "\n".join(out) + "\n"
 
 

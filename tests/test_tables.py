@@ -44,7 +44,8 @@ def test_latex_is_one_captioned_booktabs_table_with_table_md_numbers():
     assert tex.count("\\toprule") == tex.count("\\bottomrule") == tex.count("\\begin{tabular}") == 3
     assert "\\^{}" not in tex and "deg/h$^{1.5}$" not in tex  # lv2015 has no K; the unit test is below
     caption = tex.split("\\caption{", 1)[1].split("\\label", 1)[0]
-    for words in ("30 replicates", "seed 2015", "144,000 samples", "\\Delta t = 0.1", "4~h", "Cram\\'er-Rao"):
+    for words in ("30 replicates", "seed 2015", "144,000 samples", "\\Delta t = 0.1", "4~h", "Cram\\'er-Rao",
+                  "Against the paper.", "the paper's is 2.48--24.8$\\times$ ours", "neither its AV grid"):
         assert words in caption
     md = (folder / "table.md").read_text()
     body = lambda t: [c for c in _cells(t) if "." in c or "/" in c]  # noqa: E731
@@ -89,3 +90,23 @@ def test_table_md_states_the_spreads_against_the_paper():
     md = (folder / "table.md").read_text()
     assert f"paper's is {r.min():.3g}–{r.max():.3g}× ours (median {r.median():.3g}×)" in md
     assert "states neither its AV grid nor its bias-instability generator" in md
+
+
+def test_tidy_csv_names_its_si_unit_and_table_csv_its_display_unit(tmp_path):
+    """tidy.csv's ``unit`` column (after ``coefficient``) names the SI unit of its numbers: converting a
+    row's true value from that unit to the display unit named in table.csv's ``unit`` column gives
+    table.csv's true value; written again, the column is not doubled."""
+    import pandas as pd
+
+    from avbench.noise_models.units import from_si, to_si
+    from avbench.studies.report import read_tidy, write_tidy
+
+    folder = ROOT / "results" / "lv2015"
+    tidy = pd.read_csv(folder / "tidy.csv")
+    assert list(tidy.columns[3:6]) == ["coefficient", "unit", "true"]
+    table = pd.read_csv(folder / "table.csv").drop_duplicates(["gyro", "coefficient"]).set_index(["gyro", "coefficient"])
+    for (g, c, unit), d in tidy.groupby(["gyro", "coefficient", "unit"]):
+        assert to_si(c, 1.0, unit) == 1.0  # an SI unit
+        shown = table.loc[(g, c)]
+        assert from_si(c, to_si(c, d["true"].iloc[0], unit), shown["unit"]) == pytest.approx(shown["true"], rel=1e-5)
+    assert write_tidy(read_tidy(folder), tmp_path).read_text() == (folder / "tidy.csv").read_text()
