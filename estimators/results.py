@@ -7,9 +7,13 @@ the screen, the files and the studies cannot disagree about a coefficient.
 Each coefficient (:class:`Coefficient`) has one **status**:
 
 ``"ok"``
-    resolved: ``value`` is the estimate, ``interval`` the method's interval at ``level``, whose lower
-    end is above zero (None where the method gives no interval: its value is then an estimate
-    the method has not tested against zero; ``std_err`` may still be finite);
+    resolved: ``value`` is the estimate, and the method tested it against zero at ``level``: its
+    ``interval`` at ``level`` lies above zero, or its evidence (a likelihood-ratio test) shows the term
+    present (``interval`` None where it has no finite upper end);
+``"no interval"``
+    estimated, not tested: ``value`` is the estimate of a method that gives neither an interval nor
+    evidence for it (the Allan-variance curve fits, the online filters), so nothing says whether the
+    record resolves it; ``interval`` is None (``std_err`` may be finite);
 ``"not resolved"``
     the record does not determine it: ``value`` is NaN, ``interval`` is ``(0, upper)``, the upper
     bound the record allows (None where no bound is known), ``fitted`` keeps the fit's number and
@@ -60,11 +64,14 @@ import numpy as np
 
 from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["STATUSES", "REASONS", "BOUND_REASONS", "unresolved_reason", "jsonable", "Coefficient", "Evidence", "FitCheck", "ModelChoice",
+__all__ = ["STATUSES", "VALUE_STATUSES", "REASONS", "BOUND_REASONS", "unresolved_reason", "jsonable", "Coefficient", "Evidence", "FitCheck", "ModelChoice",
            "Alternative", "FitParts", "FitResult", "build", "failed"]
 
 #: the statuses of a coefficient (module docstring)
-STATUSES = ("ok", "not resolved", "not modelled", "non-physical", "failed")
+STATUSES = ("ok", "no interval", "not resolved", "not modelled", "non-physical", "failed")
+
+#: the statuses whose ``value`` is the method's estimate (resolved, or given without an interval)
+VALUE_STATUSES = ("ok", "no interval")
 
 #: why a coefficient is "not resolved": the estimator's bound for what the record cannot see, the
 #: term's evidence (its likelihood-ratio test does not show it), an estimate of exactly 0, or the
@@ -124,6 +131,9 @@ class Coefficient:
         if self.status == "ok" and self.interval is not None and unresolved_reason(self.value, None, self.interval):
             raise ValueError(f"{self.name}: an interval {self.interval} reaching zero is not resolved; expected "
                              "status 'not resolved' with reason 'interval' (results.build)")
+        if self.status == "no interval" and self.interval is not None:
+            raise ValueError(f"{self.name}: a coefficient with an interval {self.interval} is tested; expected "
+                             "status 'ok' or 'not resolved' (results.build)")
         if self.status == "not resolved" and self.reason not in REASONS:
             raise ValueError(f"{self.name}: reason of a coefficient not resolved: expected one of "
                              f"{', '.join(REASONS)}, got {self.reason!r}")
@@ -321,7 +331,7 @@ class FitResult:
         return {c.key: c.detail for c in self.choices}
 
     def value(self, name: str) -> float:
-        """The resolved value of coefficient ``name`` (NaN unless its status is "ok")."""
+        """The estimate of coefficient ``name`` (NaN unless its status is one of :data:`VALUE_STATUSES`)."""
         return self.coefficients[name].value
 
     def model_avar(self, tau) -> np.ndarray:
@@ -432,7 +442,8 @@ def unresolved_reason(fitted: float, evidence: Evidence | None, interval) -> str
     """Why a finite estimate ``fitted`` is not resolved -- a key of :data:`REASONS`, the first that
     holds of: its ``evidence`` says the term is not present (``"evidence"``), it is exactly 0
     (``"zero"``), its ``interval`` ``(lower, upper)`` at the result's level reaches zero, its lower end
-    0 or below (``"interval"``) -- or None: resolved. The one rule every estimator's result obeys
+    0 or below (``"interval"``) -- or None: resolved where the evidence or the interval tested it ("ok"),
+    else estimated untested ("no interval"). The one rule every estimator's result obeys
     (:func:`build`): a term whose interval holds 0 is not told apart from its absence at that level,
     whatever the method.
 
@@ -479,7 +490,9 @@ def build(est, level: float = 0.95) -> FitResult:
         elif math.isfinite(fitted):
             why = unresolved_reason(fitted, ev, raw)
             if why is None:
-                out[c] = Coefficient(status="ok", value=fitted, interval=ci, **common)
+                tested = ev is not None or (raw is not None and _finite(raw[0]))
+                out[c] = Coefficient(status="ok" if tested else "no interval", value=fitted,
+                                     interval=ci if tested else None, **common)
             else:
                 up = ev.upper if why == "evidence" and math.isfinite(ev.upper) else (
                     raw[1] if raw is not None else math.nan)

@@ -75,6 +75,21 @@ def test_a_term_is_resolved_exactly_when_its_interval_stays_above_zero(b, below,
         assert e.estimate_or_bound() == (upper, "interval")  # the bound, never the fit's number
 
 
+def test_an_estimate_without_interval_or_evidence_is_not_called_resolved():
+    """A method that gives no interval: its estimate is "no interval", shown and written as an estimate
+    with that said, never "ok"."""
+    from avbench.recordings import report
+
+    est = _fitted(b=2e-5, lower=np.nan, upper=np.nan)
+    r = build(est)
+    e = r.coefficients["B"]
+    assert e.status == "no interval" and e.value == 2e-5 and e.interval is None
+    assert e.estimate_or_bound() == (2e-5, None)
+    assert report.shown_value(e, "rad/s", "gyro") == "2e-05 (no interval)"
+    with pytest.raises(ValueError, match="tested"):
+        Coefficient("B", "no interval", value=2e-5, interval=(1e-5, 3e-5))
+
+
 def test_the_rule_reads_evidence_and_zero_before_the_interval():
     from avbench.estimators.results import Evidence
 
@@ -144,9 +159,11 @@ def test_no_method_calls_a_term_resolved_whose_interval_reaches_zero(method):
         r = estimators.get(method).fit(x, 0.01).result()
     for c, e in r.coefficients.items():
         raw = e.estimate_interval
-        if e.status == "ok":
-            assert e.interval is None or e.interval[0] > 0.0, (c, e)
-            assert raw is None or not (math.isfinite(raw[0]) and raw[0] <= 0.0), (c, e)
+        if e.status == "ok":  # tested against zero: an interval above it, or evidence of the term
+            assert (raw is not None and raw[0] > 0.0) or (e.evidence is not None and e.evidence.present), (c, e)
+        if e.status == "no interval":  # an estimate nothing tested
+            assert e.interval is None and e.evidence is None and math.isfinite(e.value), (c, e)
+            assert raw is None or not math.isfinite(raw[0]), (c, e)
         if e.status == "not resolved":
             assert math.isnan(e.value) and e.estimate_or_bound()[0] == e.upper
 
