@@ -23,7 +23,7 @@ from scipy.stats import beta
 from avbench import estimators
 from avbench.estimators.base import Estimator, data_scale
 from avbench.estimators.results import REASONS, Coefficient, build, unresolved_reason
-from avbench.noise_models import Gyro
+from avbench.noise_models import Gyro, presets
 from avbench.noise_models.units import COEFFICIENTS
 
 
@@ -141,11 +141,13 @@ def test_every_surface_shows_an_interval_reaching_zero_as_its_bound():
     assert v == 6e-5 and "reaches zero" in why
 
 
-def _record_without(term: str, n: int, seed: int) -> np.ndarray:
-    """A 100 Hz gyro record of ``n`` samples with every term of the ADIS16405's model but ``term``
-    (quantization stands in for the absent Q's presence test: it is never in the model otherwise)."""
-    coefs = {"N": 6.5e-4, "B": 1.4e-4, "K": 5.5e-6}
-    coefs.pop(term, None)
+def _record_without(term: str | None, n: int, seed: int, b_factor: float = 1.0) -> np.ndarray:
+    """A 100 Hz record of ``n`` samples of the ADIS16405 X gyro's model (white noise, flicker bias
+    instability, rate random walk; no quantization) without ``term``, its B times ``b_factor``."""
+    coefs = presets.get("ADIS16405_X").coefficients.to_dict()
+    coefs["B"] *= b_factor
+    if term is not None:
+        coefs.pop(term)
     return Gyro.from_coefficients(coefs, 0.01).simulate(n, np.random.SeedSequence([55, seed]))
 
 
@@ -168,7 +170,87 @@ def test_no_method_calls_a_term_resolved_whose_interval_reaches_zero(method):
             assert math.isnan(e.value) and e.estimate_or_bound()[0] == e.upper
 
 
-def _share_at_most(k: int, n: int, p: float, level: float = 0.99) -> bool:
-    """Whether ``k`` of ``n`` records is consistent with a share of at most ``p``: the lower end of the
-    share's two-sided Clopper-Pearson interval at ``level`` is at most ``p``."""
-    return k == 0 or beta.ppf((1 - level) / 2, k, n - k + 1) <= p
+def _share_interval(k: int, n: int, level: float = 0.99) -> tuple[float, float]:
+    """The two-sided Clopper-Pearson interval at ``level`` of a share of ``k`` in ``n``."""
+    a = (1 - level) / 2
+    return (0.0 if k == 0 else float(beta.ppf(a, k, n - k + 1)),
+            1.0 if k == n else float(beta.ppf(1 - a, k + 1, n - k)))
+
+
+#: records per Monte Carlo cell: 30 min at 100 Hz each (a short record, where absent and weak terms
+#: are hardest to tell apart); 100 of them tell a share of 5 % from one of 13 % (99 % Clopper-Pearson)
+RECORDS, SAMPLES = 100, 180_000
+#: methods whose fit of such a record costs seconds (the online filters, the exact MLE): 20 records,
+#: which tell 5 % from 30 %
+COSTLY, COSTLY_RECORDS = ("mle", "nekf", "nekf_multitau", "shakf", "shakf_multitau", "arma_em"), 20
+#: the level of the intervals the results are built at, and of the shares' intervals (one per
+#: method and record set: a 99 % interval keeps the chance of a false alarm over the registry small)
+LEVEL, SHARE_LEVEL = 0.95, 0.99
+
+
+def _records(method: str) -> int:
+    return COSTLY_RECORDS if method in COSTLY else RECORDS
+
+
+def _statuses(method: str, absent: str | None, b_factor: float = 1.0) -> dict[str, list[str]]:
+    """Per coefficient, the status ``method`` gives it on each of :func:`_records` records (a fit that
+    raises gives none: it calls nothing resolved, and counts in the share's denominator)."""
+    out: dict[str, list[str]] = {c: [] for c in COEFFICIENTS}
+    for seed in range(_records(method)):
+        x = _record_without(absent, SAMPLES, seed, b_factor)
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            try:
+                r = estimators.get(method).fit(x, 0.01).result(LEVEL)
+            except Exception:  # noqa: BLE001 - a fit that raises calls nothing resolved
+                continue
+        for c, e in r.coefficients.items():
+            out[c].append(e.status)
+    return out
+
+
+#: the cells where a method's intervals of an absent term exclude zero more often than their level:
+#: GMWM's log-scale intervals and the Hadamard-variance WLS's (the rule reads an interval, it cannot
+#: make one hold 0); measured on these records, the share called resolved
+MISCALIBRATED = {("gmwm", "B"): "21 of 100", ("gmwm", "K"): "58 of 100", ("gmwm_filtered", "K"): "13 of 100",
+                 ("gmwm_despiked", "K"): "13 of 100", ("gmwm_robust", "B"): "13 of 100",
+                 ("gmwm_robust", "K"): "54 of 100", ("wls_edf_hadamard", "B"): "13 of 100",
+                 ("wls_edf_hadamard", "K"): "16 of 100"}
+
+
+def _cells():
+    for method in estimators.names():
+        for absent in ("B", "K"):
+            known = MISCALIBRATED.get((method, absent))
+            marks = [pytest.mark.xfail(strict=True, reason=f"{method}'s interval of an absent {absent} excludes 0 "
+                                                            f"on {known} records")] if known else []
+            yield pytest.param(method, absent, marks=marks, id=f"{method}-{absent}")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method, absent", list(_cells()))
+def test_an_absent_term_is_called_resolved_at_most_at_the_level(method, absent):
+    """On records without ``absent`` (and without quantization), the share of records on which the
+    method calls the absent term -- or Q -- resolved ("ok") is at most 1 - LEVEL = 5 %: the lower end
+    of its Clopper-Pearson interval is at most 5 %. A method without intervals never calls a term
+    resolved ("no interval")."""
+    statuses = _statuses(method, absent)
+    n = _records(method)
+    for c in (absent, "Q"):
+        k = statuses[c].count("ok")
+        lo, hi = _share_interval(k, n, SHARE_LEVEL)
+        print(f"{method}: {c} absent, called resolved on {k} of {n} records ({lo:.3f}-{hi:.3f})")
+        assert lo <= 1 - LEVEL, f"{method}: {c} absent, called resolved on {k} of {n} records ({lo:.3f}-{hi:.3f})"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["gmwm_filtered", "gmwm_despiked", "whittle_debiased"])
+def test_a_bias_instability_present_is_called_resolved_more_often_than_an_absent_one(method):
+    """Power: on records with the ADIS16405 X gyro's bias instability, the share of records on which B
+    is called resolved is above the share without it (Clopper-Pearson intervals apart)."""
+    with_b = _statuses(method, None)["B"].count("ok")
+    without = _statuses(method, "B")["B"].count("ok")
+    n = _records(method)
+    print(f"{method}: B called resolved on {with_b} of {n} records with it, {without} of {n} without")
+    assert _share_interval(with_b, n, SHARE_LEVEL)[0] > _share_interval(without, n, SHARE_LEVEL)[1], \
+        (method, with_b, without)
