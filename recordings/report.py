@@ -441,7 +441,9 @@ def screen(est: Estimate) -> str:
     and its numbered footnotes, wrapped at words."""
     level = level_text(est)
     lines = wrap(f"# each coefficient: value [{level} % interval]; '< x': not resolved by this record, x its upper "
-                 f"{level} % bound; '(+- s)': a standard error only; '-': not in the method's model; notes: the "
+                 f"{level} % bound (its interval reaches zero, or the record does not show the term); '(+- s)': a "
+                 "standard error only; '(no interval)': an estimate not tested against zero; '-': not in the "
+                 "method's model; notes: the "
                  "footnotes below each table", "# ")
     for sensor, (table, footnotes) in screen_tables(est).items():
         s = est.record(sensor)
