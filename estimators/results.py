@@ -144,7 +144,8 @@ class Coefficient:
         return None if self.interval is None or not _finite(self.interval[1]) else float(self.interval[1])
 
     def estimate_or_bound(self, poor_fit: bool | None = False) -> tuple[float | None, str | None]:
-        """What a filter file takes for this coefficient: ``(value, None)`` for a resolved estimate, and
+        """What a filter file takes for this coefficient: ``(value, None)`` for an estimate (resolved, or
+        "no interval": the filter files then fall back on nothing better than the method's value), and
         ``(upper end of the interval or None, why)`` otherwise, ``why`` a code of :data:`BOUND_REASONS`
         (or the status where there is no value). A value is not taken as it is where the coefficient is
         not resolved (``why``: its ``reason``; an interval reaching zero is one, :func:`build`), or where
