@@ -8,21 +8,35 @@ them all), so the screen, the files and the studies cannot disagree about a coef
 Each coefficient (:class:`Coefficient`) has one **status**:
 
 ``"ok"``
-    resolved: ``value`` is the estimate, ``interval`` the method's interval at ``level`` (None where
-    the method gives none; ``std_err`` then may still be finite);
+    resolved: ``value`` is the estimate, and the method tested it against zero at ``level``: its
+    ``interval`` at ``level`` lies above zero, or its evidence (a likelihood-ratio test) shows the term
+    present (``interval`` None where it has no finite upper end);
+``"no interval"``
+    estimated, not tested: ``value`` is the estimate of a method that gives neither an interval nor
+    evidence for it (the Allan-variance curve fits, the online filters), so nothing says whether the
+    record resolves it; ``interval`` is None (``std_err`` may be finite);
 ``"not resolved"``
     the record does not determine it: ``value`` is NaN, ``interval`` is ``(0, upper)``, the upper
     bound the record allows (None where no bound is known), ``fitted`` keeps the fit's number and
-    ``reason`` says which rule decided. A coefficient is not resolved when the estimator says so
-    (the floor rule of :meth:`~avbench.estimators.Estimator._mark_unseen_terms`, GMWM's bounds of a
-    term at the filter), when its evidence says the term is not present (likelihood-ratio test,
-    ``whittle_debiased``), or when it was estimated as exactly 0;
+    ``reason`` says which rule decided (:data:`REASONS`). A coefficient is not resolved when the
+    estimator says so (``"record"``: the floor rule of
+    :meth:`~avbench.estimators.Estimator._mark_unseen_terms`, GMWM's bounds of a term at the filter),
+    when its evidence says the term is not present (``"evidence"``: likelihood-ratio test,
+    ``whittle_debiased``), when it was estimated as exactly 0 (``"zero"``), or when the method's
+    interval at ``level`` reaches zero (``"interval"``: its lower end is 0 or below, whatever
+    estimator gave it);
 ``"not modelled"``
     the method's model has no such term;
 ``"non-physical"``
     the fit gave a value without physical meaning (a negative AV-model weight, Lv et al. 2015 eq. 7);
 ``"failed"``
     the fit failed (``FitResult.failure`` says why).
+
+The status is decided in one place, :func:`build`, from what every estimator reports the same way
+(its bounds, evidence, value and ``conf_int``), so that a term whose interval reaches zero reads
+the same whichever estimator produced it: every surface shows and exports such a term as its
+upper bound (``< upper`` on the screen and the page, the upper end in the filter files, the fit's
+own number only as ``fitted``), never as an estimate (:meth:`Coefficient.estimate_or_bound`).
 
 ``estimate_interval`` is the method's own interval about ``fitted`` whatever the status (the
 estimator's ``conf_int(level)`` as it gives it, an end possibly infinite): the Monte Carlo studies
@@ -53,20 +67,25 @@ import numpy as np
 
 from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["STATUSES", "REASONS", "BOUND_REASONS", "jsonable", "Coefficient", "Evidence", "FitCheck", "ModelChoice",
-           "Alternative", "FitParts", "FitResult", "RESULT_ENTRIES", "build", "diagnostics_view", "extras_of", "failed"]
+__all__ = ["STATUSES", "VALUE_STATUSES", "REASONS", "BOUND_REASONS", "unresolved_reason", "jsonable", "Coefficient",
+           "Evidence", "FitCheck", "ModelChoice", "Alternative", "FitParts", "FitResult", "RESULT_ENTRIES", "build",
+           "diagnostics_view", "extras_of", "failed"]
 
 #: the statuses of a coefficient (module docstring)
-STATUSES = ("ok", "not resolved", "not modelled", "non-physical", "failed")
+STATUSES = ("ok", "no interval", "not resolved", "not modelled", "non-physical", "failed")
+
+#: the statuses whose ``value`` is the method's estimate (resolved, or given without an interval)
+VALUE_STATUSES = ("ok", "no interval")
 
 #: why a coefficient is "not resolved": the estimator's bound for what the record cannot see, the
-#: term's evidence (its likelihood-ratio test does not show it), or an estimate of exactly 0
+#: term's evidence (its likelihood-ratio test does not show it), an estimate of exactly 0, or the
+#: method's interval reaching zero
 REASONS = {"record": "the record does not resolve it", "evidence": "its evidence does not show the term",
-           "zero": "estimated as 0"}
+           "zero": "estimated as 0", "interval": "its interval reaches zero"}
 
 #: why a filter file takes a bound and not the estimate (:meth:`Coefficient.estimate_or_bound`): the
-#: :data:`REASONS` a coefficient is not resolved, its interval reaching zero, or a poor fit
-BOUND_REASONS = (*REASONS, "reaches zero", "poor fit")
+#: :data:`REASONS` a coefficient is not resolved, or a poor fit
+BOUND_REASONS = (*REASONS, "poor fit")
 
 def _f(v) -> float:
     try:
@@ -106,13 +125,22 @@ class Coefficient:
     interval: tuple[float, float] | None = None
     estimate_interval: tuple[float, float] | None = None
     evidence: Evidence | None = None
-    reason: str | None = None  # why "not resolved": "record", "evidence" or "zero" (:data:`REASONS`)
+    reason: str | None = None  # why "not resolved": a key of :data:`REASONS`
 
     def __post_init__(self):
         if self.name not in COEFFICIENTS:
             raise ValueError(f"coefficient: expected one of {', '.join(COEFFICIENTS)}, got {self.name!r}")
         if self.status not in STATUSES:
             raise ValueError(f"status: expected one of {', '.join(STATUSES)}, got {self.status!r}")
+        if self.status == "ok" and self.interval is not None and unresolved_reason(self.value, None, self.interval):
+            raise ValueError(f"{self.name}: an interval {self.interval} reaching zero is not resolved; expected "
+                             "status 'not resolved' with reason 'interval' (results.build)")
+        if self.status == "no interval" and self.interval is not None:
+            raise ValueError(f"{self.name}: a coefficient with an interval {self.interval} is tested; expected "
+                             "status 'ok' or 'not resolved' (results.build)")
+        if self.status == "not resolved" and self.reason not in REASONS:
+            raise ValueError(f"{self.name}: reason of a coefficient not resolved: expected one of "
+                             f"{', '.join(REASONS)}, got {self.reason!r}")
 
     @property
     def upper(self) -> float | None:
@@ -120,13 +148,14 @@ class Coefficient:
         return None if self.interval is None or not _finite(self.interval[1]) else float(self.interval[1])
 
     def estimate_or_bound(self, poor_fit: bool | None = False) -> tuple[float | None, str | None]:
-        """What a filter file takes for this coefficient: ``(value, None)`` for a resolved estimate, and
+        """What a filter file takes for this coefficient: ``(value, None)`` for an estimate (resolved, or
+        "no interval": the filter files then fall back on nothing better than the method's value), and
         ``(upper end of the interval or None, why)`` otherwise, ``why`` a code of :data:`BOUND_REASONS`
-        (or the status where there is no value). A value is not taken as it is where the record does not
-        resolve the coefficient (``why``: its ``reason``), where its interval reaches zero
-        (``"reaches zero"``), or where the fit check flags the fit (``poor_fit``, ``"poor fit"``) -- except
-        for the noise density N, read at the shortest scales where hours of samples pin it (the filter
-        yaml's module docstring, :mod:`avbench.recordings.filter_yaml`).
+        (or the status where there is no value). A value is not taken as it is where the coefficient is
+        not resolved (``why``: its ``reason``; an interval reaching zero is one, :func:`build`), or where
+        the fit check flags the fit (``poor_fit``, ``"poor fit"``) -- except for the noise density N,
+        read at the shortest scales where hours of samples pin it (the filter yaml's module docstring,
+        :mod:`avbench.recordings.filter_yaml`).
 
         >>> Coefficient("K", "ok", value=2.0, interval=(1.0, 3.0)).estimate_or_bound()
         (2.0, None)
@@ -141,8 +170,6 @@ class Coefficient:
             return self.upper, self.reason
         if not _finite(self.value):
             return None, self.status
-        if self.interval is not None and _finite(self.interval[0]) and self.interval[0] <= 0:
-            return self.upper, "reaches zero"
         if poor_fit and self.name != "N":
             return self.upper, "poor fit"
         return float(self.value), None
@@ -314,7 +341,7 @@ class FitResult:
         return {c.key: c.detail for c in self.choices}
 
     def value(self, name: str) -> float:
-        """The resolved value of coefficient ``name`` (NaN unless its status is "ok")."""
+        """The estimate of coefficient ``name`` (NaN unless its status is one of :data:`VALUE_STATUSES`)."""
         return self.coefficients[name].value
 
     def model_avar(self, tau) -> np.ndarray:
@@ -421,6 +448,35 @@ def _finite_pair(pair):
     return pair if pair is not None and math.isfinite(pair[0]) and math.isfinite(pair[1]) else None
 
 
+def unresolved_reason(fitted: float, evidence: Evidence | None, interval) -> str | None:
+    """Why a finite estimate ``fitted`` is not resolved -- a key of :data:`REASONS`, the first that
+    holds of: its ``evidence`` says the term is not present (``"evidence"``), it is exactly 0
+    (``"zero"``), its ``interval`` ``(lower, upper)`` at the result's level reaches zero, its lower end
+    0 or below (``"interval"``) -- or None: resolved where the evidence or the interval tested it ("ok"),
+    else estimated untested ("no interval"). The one rule every estimator's result obeys
+    (:func:`build`): a term whose interval holds 0 is not told apart from its absence at that level,
+    whatever the method.
+
+    >>> unresolved_reason(2.0, None, (0.0, 5.0)), unresolved_reason(2.0, None, (1.0, 5.0))
+    ('interval', None)
+    >>> unresolved_reason(2.0, None, None) is None  # no interval: nothing says it reaches zero
+    True
+    """
+    if evidence is not None and not evidence.present:
+        return "evidence"
+    if fitted == 0.0:
+        return "zero"
+    if interval is not None and _finite(interval[0]) and interval[0] <= 0.0:
+        return "interval"
+    return None
+
+
+def _not_resolved(reason: str, upper: float, common: dict) -> Coefficient:
+    """A "not resolved" coefficient: its interval ``(0, upper)`` (None where ``upper`` is not finite)."""
+    return Coefficient(status="not resolved", interval=(0.0, upper) if _finite(upper) else None, reason=reason,
+                       **common)
+
+
 def build(est, level: float = 0.95) -> FitResult:
     """The :class:`FitResult` of the fitted estimator ``est`` at interval level ``level``: its
     ``coefficients_``, ``nonphysical_``, ``std_err_``, ``conf_int(level)`` and the typed parts its fit
@@ -440,19 +496,17 @@ def build(est, level: float = 0.95) -> FitResult:
         ci = _finite_pair(raw)
         common = dict(name=c, fitted=fitted, std_err=s, estimate_interval=raw, evidence=ev)
         if c in unresolved:
-            hi = _f(unresolved[c])
-            out[c] = Coefficient(status="not resolved", interval=(0.0, hi) if math.isfinite(hi) else None,
-                                 reason="record", **common)
+            out[c] = _not_resolved("record", _f(unresolved[c]), common)
         elif math.isfinite(fitted):
-            if ev is not None and not ev.present:
-                up = ev.upper if math.isfinite(ev.upper) else (ci[1] if ci is not None else math.nan)
-                out[c] = Coefficient(status="not resolved", interval=(0.0, up) if math.isfinite(up) else None,
-                                     reason="evidence", **common)
-            elif fitted == 0.0:
-                out[c] = Coefficient(status="not resolved", interval=(0.0, ci[1]) if ci is not None else None,
-                                     reason="zero", **common)
+            why = unresolved_reason(fitted, ev, raw)
+            if why is None:
+                tested = ev is not None or (raw is not None and _finite(raw[0]))
+                out[c] = Coefficient(status="ok" if tested else "no interval", value=fitted,
+                                     interval=ci if tested else None, **common)
             else:
-                out[c] = Coefficient(status="ok", value=fitted, interval=ci, **common)
+                up = ev.upper if why == "evidence" and math.isfinite(ev.upper) else (
+                    raw[1] if raw is not None else math.nan)
+                out[c] = _not_resolved(why, up, common)
         elif bool(nonphys.get(c, False)):
             out[c] = Coefficient(status="non-physical", **common)
         elif failure:

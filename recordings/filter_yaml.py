@@ -182,7 +182,7 @@ def filter_choices(results: dict, method: str, option: str = "--kalibr", avs=Non
 BOUND_NOTES = {"record": "not resolved by this record: the upper end of its interval",
                "evidence": "not resolved (its evidence): the upper end of its interval",
                "zero": "zero (no random walk seen)",
-               "reaches zero": "its interval reaches zero: the upper end of the interval",
+               "interval": "its interval reaches zero: the upper end of the interval",
                "poor fit": "the fit is poor: the upper end of its interval"}
 
 

@@ -452,7 +452,9 @@ def _sensor_section(est, sensor: str, table, footnotes, fig) -> str:
                                 "check's residuals under it", caption))
     out.append("<h3>Coefficients</h3>")
     out.append(f'<p class="legend">value [{level} % interval]; "&lt; x": not resolved by this record, x its upper '
-               f'{level} % bound; "(+- s)": a standard error only; "-": not in the method\'s model; notes: the '
+               f'{level} % bound (its interval reaches zero, or the record does not show the term); "(+- s)": a '
+               'standard error only; "(no interval)": an estimate not tested against zero; "-": not in the '
+               'method\'s model; notes: the '
                "footnotes under the table.</p>")
     out.append(_coefficient_table(est, sensor, table, footnotes))
     out.append(_status_details(est, sensor))

@@ -12,12 +12,16 @@ record of 1e306 rad/s in deg/h), so that a value and its bounds are always in on
 
 Each coefficient has a ``flag`` in the JSON, its status:
 
-* ``"ok"`` -- a value, with ``interval_si`` (the method's interval at ``level``) and ``std_err_si``
-  where the method gives them;
+* ``"ok"`` -- resolved: a value, with ``interval_si`` (the method's interval at ``level``, above zero)
+  and ``std_err_si``, or the term's evidence showing it present;
+* ``"no interval"`` -- a value from a method that gives no interval and no evidence for it (the AV
+  curve fits, the online filters): an estimate nothing tested against zero, ``std_err_si`` where given;
 * ``"not resolved"`` -- the record does not determine it: ``value`` is null, ``interval_si`` is
   ``[0, upper]`` (the bound the record allows; absent where none is known), ``reason`` says which rule
-  decided (the estimator's bound, the term's evidence, or an estimate of exactly 0), and the fit's own
-  number is in ``fitted_si`` with the method's interval about it in ``fitted_interval_si``;
+  decided (the estimator's bound, the term's evidence, an estimate of exactly 0, or the method's
+  interval reaching zero -- the same for every method,
+  :func:`avbench.estimators.results.unresolved_reason`), and the fit's own number is in ``fitted_si``
+  with the method's interval about it in ``fitted_interval_si``;
 * ``"not modelled"`` -- the method's model has no such term;
 * ``"non-physical"`` -- the fit gave a value without physical meaning (e.g. a negative AV-model
   weight); ``value`` is null;
@@ -123,8 +127,8 @@ class Estimate:
 
 
 def coefficient_flags(fit) -> dict[str, str]:
-    """Each coefficient's status (``ok`` / ``not resolved`` / ``not modelled`` / ``non-physical`` /
-    ``failed``) in a fit (:class:`avbench.recordings.fit.MethodFit`)."""
+    """Each coefficient's status (``ok`` / ``no interval`` / ``not resolved`` / ``not modelled`` /
+    ``non-physical`` / ``failed``) in a fit (:class:`avbench.recordings.fit.MethodFit`)."""
     return {c: e.status for c, e in fit.result.coefficients.items()}
 
 
@@ -437,7 +441,9 @@ def screen(est: Estimate) -> str:
     and its numbered footnotes, wrapped at words."""
     level = level_text(est)
     lines = wrap(f"# each coefficient: value [{level} % interval]; '< x': not resolved by this record, x its upper "
-                 f"{level} % bound; '(+- s)': a standard error only; '-': not in the method's model; notes: the "
+                 f"{level} % bound (its interval reaches zero, or the record does not show the term); '(+- s)': a "
+                 "standard error only; '(no interval)': an estimate not tested against zero; '-': not in the "
+                 "method's model; notes: the "
                  "footnotes below each table", "# ")
     for sensor, (table, footnotes) in screen_tables(est).items():
         s = est.record(sensor)

@@ -15,7 +15,8 @@ code. Writes to ``--out``:
 ``coefficients.csv``  one row per record x sensor x axis x method x coefficient: value and standard
                       error in the display units of :data:`avbench.noise_models.units.DISPLAY_UNITS` (gyro:
                       the papers' units; accelerometer: m/s/sqrt(h), ug, ...), the coefficient's
-                      ``flag`` (ok / not modelled / non-physical / failed), and the fit's ``poor_fit``
+                      ``flag`` (its status, :data:`avbench.estimators.results.STATUSES`; the value is
+                      the fit's own number whatever the flag), and the fit's ``poor_fit``
                       flag with its statistic, dof, p-value and the reference distribution the
                       p-value comes from (:mod:`avbench.estimators.allan.fit_check`) (5 significant digits);
 ``consistency.csv`` / ``consistency.md``  per ADIS sensor, axis, method and coefficient: mean over the
@@ -161,8 +162,10 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
     One row per record x axis x length x slice x method: N (deg/sqrt(h)), B (deg/h), whether each lies
     in :data:`SLICE_N_RANGE` / :data:`SLICE_B_RANGE`, the upper 95 % bound of a value flagged "not
     resolved" (``N_upper``, ``B_upper``: the interval is [0, upper]), the coefficient flags and the poor-fit flag,
-    and ``unflagged_outside``: a value outside its range with neither flag (what must not happen).
+    and ``unflagged_outside``: a value outside its range given as an estimate (a status of
+    :data:`~avbench.estimators.results.VALUE_STATUSES`) on a fit not flagged poor (what must not happen).
     """
+    from avbench.estimators.results import VALUE_STATUSES
     from avbench.noise_models.units import from_si
     from avbench.recordings.report import coefficient_flags
 
@@ -184,8 +187,8 @@ def slices(data: Path, methods, minutes=SLICE_MINUTES, per_run: int = 1, setting
                          "N_upper": upper["N"], "B_upper": upper["B"],
                          "N_flag": flags["N"], "B_flag": flags["B"], "poor_fit": poor,
                          "fit_pvalue": _round(check.pvalue),
-                         "unflagged_outside": bool(((not n_in and flags["N"] == "ok") or
-                                                    (not b_in and flags["B"] == "ok")) and not poor)})
+                         "unflagged_outside": bool(((not n_in and flags["N"] in VALUE_STATUSES) or
+                                                    (not b_in and flags["B"] in VALUE_STATUSES)) and not poor)})
             print(f"{rec} {axis} {mins} min #{k} {name}: N={N:.3g} B={B:.3g} poor_fit={poor}", flush=True)
     return pd.DataFrame(rows)
 

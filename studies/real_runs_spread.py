@@ -72,6 +72,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from avbench.estimators.results import VALUE_STATUSES
 from avbench.studies.real_runs import _markdown
 from avbench.studies.real_runs import _round as _round_to
 
@@ -266,7 +267,7 @@ def _wide(df: pd.DataFrame, coef: str, axis: str, ok_only: bool = False) -> pd.D
     resolved": the user gets an interval, not a value) is left out (NaN)."""
     sub = df[(df.axis == axis) & (df.coefficient == coef)]
     if ok_only:
-        sub = sub.assign(value=sub["value"].where(sub["flag"] == "ok"))
+        sub = sub.assign(value=sub["value"].where(sub["flag"].isin(VALUE_STATUSES)))
     return sub.pivot(index="replicate", columns="fit", values="value")
 
 
@@ -283,7 +284,7 @@ def summary(df: pd.DataFrame, runs: int = 6, truth_table: dict | None = None) ->
         v = v[np.isfinite(v)]
         if v.size < 3:
             continue
-        ok = g["value"].to_numpy(dtype=float)[(g["flag"] == "ok").to_numpy() & np.isfinite(g["value"].to_numpy(dtype=float))]
+        ok = g["value"].to_numpy(dtype=float)[g["flag"].isin(VALUE_STATUSES).to_numpy() & np.isfinite(g["value"].to_numpy(dtype=float))]
         b = v[_boot_index(v.size)]
         sd, mean, cv = float(np.std(v, ddof=1)), float(np.mean(v)), float(_cv(v))
         se = np.nanmedian(g["std_err"].to_numpy(dtype=float)) if np.isfinite(g["std_err"]).any() else math.nan
@@ -295,7 +296,7 @@ def summary(df: pd.DataFrame, runs: int = 6, truth_table: dict | None = None) ->
                     f"cv{runs}_expected_pct": _round(_c4(runs) * cv),
                     f"cv{runs}_low_pct": _round(lo * cv), f"cv{runs}_high_pct": _round(hi * cv),
                     "median_se": _round(se), "sd_over_se": _round(sd / se) if np.isfinite(se) and se > 0 else math.nan,
-                    "poor_fits": int(g["poor_fit"].sum()), "flagged": int((g["flag"] != "ok").sum()),
+                    "poor_fits": int(g["poor_fit"].sum()), "flagged": int((~g["flag"].isin(VALUE_STATUSES)).sum()),
                     "cv_ok_pct": _round(float(_cv(ok))) if ok.size >= 3 else math.nan,
                     "failed": int(g["failed"].sum())})
     return pd.DataFrame(out)

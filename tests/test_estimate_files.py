@@ -254,7 +254,7 @@ def test_extreme_magnitudes_end_well(tmp_path, scale):
     assert ref.returncode == 0 and got.returncode == 0, got.stderr
     n_ref = json.loads(ref.stdout)["sensors"]["gyro"]["axes"]["x"]["methods"]["nnls_rel"]["coefficients"]["N"]
     n_got = json.loads(got.stdout)["sensors"]["gyro"]["axes"]["x"]["methods"]["nnls_rel"]["coefficients"]["N"]
-    assert n_ref["flag"] == "ok" and n_got["flag"] == "ok"
+    assert n_ref["flag"] == n_got["flag"] == "no interval"  # an estimate; nnls_rel gives no interval
     assert n_got["si"] == pytest.approx(n_ref["si"] * scale, rel=1e-6)
 
 
@@ -289,5 +289,5 @@ def test_px4_ulog(tmp_path):
     assert data["timing"]["rate_hz"] == pytest.approx(250.0) and len(data["timing"]["gaps"]) == 1
     assert data["topic"] == "sensor_combined" and data["sensors"]["accel"]["units_in"] == "m/s^2"
     for sensor in ("gyro", "accel"):
-        assert all(a["methods"]["nnls_rel"]["coefficients"]["N"]["flag"] == "ok"
+        assert all(a["methods"]["nnls_rel"]["coefficients"]["N"]["flag"] == "no interval"
                    for a in data["sensors"][sensor]["axes"].values())

@@ -14,12 +14,13 @@ from avbench.recordings import filter_yaml
 
 
 def _entry(si, flag="ok", ci=None, reason="record", name="K"):
-    """A coefficient as a fit gives it (:class:`avbench.estimators.results.Coefficient`): an estimate of 0
-    is "not resolved" (reason "zero"), as FitResult says."""
-    from avbench.estimators.results import Coefficient
+    """A coefficient as a fit gives it (:class:`avbench.estimators.results.Coefficient`): an estimate of 0,
+    or one whose interval reaches zero, is "not resolved" (reason "zero", "interval"), as FitResult says."""
+    from avbench.estimators.results import Coefficient, unresolved_reason
 
-    if si == 0.0 and flag == "ok":
-        flag, reason = "not resolved", "zero"
+    why = unresolved_reason(si, None, ci) if flag == "ok" and si is not None else None
+    if why is not None:
+        flag, reason = "not resolved", why
     ok = flag == "ok"
     return Coefficient(name=name, status=flag, value=si if ok else np.nan, fitted=np.nan if si is None else si,
                        interval=None if ci is None else tuple(ci), reason=None if ok else reason)

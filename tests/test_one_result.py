@@ -301,6 +301,8 @@ def _check_surfaces(method, seed, unit, quantized, n=8192):
                 if e.status == "not resolved":
                     assert e.interval is None or e.interval[0] == 0.0
                     assert j["value"] is None and not math.isfinite(e.value)
+                if e.status == "ok":  # resolved: an interval, where there is one, above zero
+                    assert e.interval is None or e.interval[0] > 0.0
                 if e.evidence is not None:
                     ev = j["evidence"]
                     assert _close(ev["upper"], _in(c, e.evidence.upper, u, sensor))

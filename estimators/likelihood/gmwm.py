@@ -625,7 +625,7 @@ class GMWM(Estimator):
         reference's weights summed, else its degrees of freedom), else 1 (Birge 1932; the Particle Data Group's
         scale factor for inconsistent data). Where the fit misses the AV curve by more than its reference allows,
         the misfit is a variability of the record the covariance did not hold: every standard error is multiplied
-        by it (``diagnostics_["dispersion"]``), and the bounds read the AV with its edf divided by its square
+        by it (``extras_["dispersion"]``), and the bounds read the AV with its edf divided by its square
         (:meth:`_bound_edf`)."""
         T = check.get("fit_stat")
         weights = (check.get("fit_check") or {}).get("weights")
