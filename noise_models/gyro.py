@@ -126,6 +126,13 @@ class Gyro:
 
         return pd.Series([values.get(c, math.nan) for c in COEFFICIENTS], index=list(COEFFICIENTS), dtype=float)
 
+    @property
+    def term_set(self) -> str:
+        """The coefficients this gyro's terms carry, in the order Q N B K R (e.g. ``"NBK"``): the
+        ``terms`` setting of an estimator told the true model (a GM term carries B)."""
+        c = self.coefficients
+        return "".join(k for k in c.index if np.isfinite(c[k]))
+
     # -- truth ---------------------------------------------------------------------------------
     def m_of(self, tau) -> np.ndarray:
         """Cluster sizes m = tau / dt; an error if tau is not a positive multiple of dt."""

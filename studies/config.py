@@ -33,7 +33,7 @@ from avbench import estimators
 from avbench.estimators.settings import validate_settings
 from avbench.noise_models import TERM_TYPES, Gyro, presets, term_class
 from avbench.noise_models.plugins import PluginError, import_module, version_of
-from avbench.studies.config_schema import ESTIMATOR, GYRO, MAX_SAMPLES, ROOT, STUDY
+from avbench.studies.config_schema import ESTIMATOR, GYRO, MAX_SAMPLES, ROOT, STUDY, TRUE_TERMS
 
 __all__ = ["ConfigError", "StudyConfig", "GyroSpec", "EstimatorSpec", "load_config", "parse_config",
            "settings_problem"]
@@ -67,11 +67,17 @@ class EstimatorSpec:
     cls: type | None = field(default=None, compare=False, repr=False)
 
     def settings_for(self, gyro: GyroSpec) -> dict:
+        """The settings of this estimator on ``gyro``: ``settings`` updated by its ``gyro_settings``;
+        ``terms = "true"`` (:data:`~avbench.studies.config_schema.TRUE_TERMS`) becomes the gyro's own
+        term set (:attr:`Gyro.term_set <avbench.noise_models.Gyro.term_set>`); ``x0_truth_scale``
+        sets ``x0`` from the truth."""
         s = dict(self.settings)
         s.update(self.gyro_settings.get(gyro.label, {}))
+        if s.get("terms") == TRUE_TERMS:
+            s["terms"] = gyro.gyro.term_set
         if self.x0_truth_scale is not None:
             truth = gyro.gyro.coefficients
-            terms = s.get("terms", "".join(c for c in truth.index if np.isfinite(truth[c])))
+            terms = s.get("terms", gyro.gyro.term_set)
             s["x0"] = {c: float(truth[c]) * self.x0_truth_scale for c in terms if np.isfinite(truth[c])}
         return s
 

@@ -30,7 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Key", "Relation", "Table", "ROOT", "STUDY", "GYRO", "ESTIMATOR", "REQUIRED", "NUMBER",
+__all__ = ["Key", "Relation", "Table", "ROOT", "STUDY", "GYRO", "ESTIMATOR", "TRUE_TERMS", "REQUIRED", "NUMBER",
            "MAX_REPLICATES", "MAX_SAMPLES"]
 
 #: the default of a key that must be given
@@ -265,6 +265,10 @@ GYRO = Table({
     "paper_gyro": Key(str, rule=_label),
 }, relations=(Relation("", _preset_or_terms), *(_not_with_preset(k) for k in ("dt", "terms", "name")),
               *(_explicit_needs(k) for k in ("name", "dt"))))
+
+#: the ``terms`` setting that fits each gyro with its own term set (:attr:`avbench.noise_models.Gyro.term_set`),
+#: resolved per gyro before the settings are checked: the estimator told the true model
+TRUE_TERMS = "true"
 
 #: each ``[[estimators]]`` entry (its settings are checked by the estimator's declarations)
 ESTIMATOR = Table({

@@ -106,3 +106,44 @@ def test_efficiency_takes_each_gyros_rmse_over_its_replicates_then_the_median():
     assert t["median"] == pytest.approx(math.sqrt(2))
     assert t["median_lo"] <= t["median"] <= t["median_hi"]
     assert t["share_efficient"] == pytest.approx(1 / 3) and EFFICIENT == 1.25
+
+
+def test_per_gyro_table_spreads_each_gyros_rmse_over_the_gyros():
+    from avbench.studies.summaries.random_gyros import per_gyro_table
+
+    # CRLB std = 0.1 x true; errors in CRLB std per gyro: a (1, 1) -> 1, b (3, 4) -> sqrt(12.5),
+    # c (0, 2) -> sqrt(2), d (1, -1) -> 1, e (0.5, 0.5) -> 0.5; f has no N (absent: left out)
+    z = {"a": (1, 1), "b": (3, 4), "c": (0, 2), "d": (1, -1), "e": (0.5, 0.5)}
+    tidy = pd.DataFrame(
+        [dict(gyro=g, estimator="E", coefficient="N", true=1.0, estimate=1.0 + 0.1 * v) for g, vs in z.items()
+         for v in vs] + [dict(gyro="f", estimator="E", coefficient="N", true=math.nan, estimate=0.1)] * 2)
+    crlb = pd.DataFrame({"gyro": list(z), "estimator": "E", "coefficient": "N", "crlb_rel": 0.1})
+    t = per_gyro_table(tidy, crlb, replicates=2).set_index("estimator")
+    e = t.loc["E"]
+    assert e["gyros"] == 5 and e["median"] == pytest.approx(1.0)
+    # sorted 0.5, 1, 1, sqrt 2, sqrt 12.5: the 90th percentile interpolates 0.6 of the way from sqrt 2
+    assert e["p90"] == pytest.approx(math.sqrt(2) + 0.6 * (math.sqrt(12.5) - math.sqrt(2)))
+    assert e["max"] == pytest.approx(math.sqrt(12.5)) and e["share_efficient"] == pytest.approx(3 / 5)
+    # two replicates: RMSE^2 / CRLB^2 ~ chi2_2 / 2, an exponential of mean 1
+    r = t.loc["efficient (chi2_2/2)"]
+    assert r["median"] == pytest.approx(math.sqrt(math.log(2)))
+    assert r["p90"] == pytest.approx(math.sqrt(math.log(10)))
+    assert r["share_efficient"] == pytest.approx(1 - math.exp(-1.25**2))
+    assert r["max"] == pytest.approx(math.sqrt(-math.log(1 - 0.5 ** (1 / 5))))
+
+
+def test_per_gyro_reference_row_matches_simulated_efficient_estimators():
+    from avbench.studies.summaries.random_gyros import EFFICIENT, per_gyro_table
+
+    # an unbiased estimator at the bound with normal errors, 6 replicates on each of n gyros
+    n, r = 4000, 6
+    z = np.random.default_rng(55).standard_normal((n, r))
+    tidy = pd.DataFrame({"gyro": np.repeat(np.arange(n), r), "estimator": "E", "coefficient": "K",
+                         "true": 1.0, "estimate": 1.0 + 0.1 * z.ravel()})
+    crlb = pd.DataFrame({"gyro": np.arange(n), "estimator": "E", "coefficient": "K", "crlb_rel": 0.1})
+    ref = per_gyro_table(tidy, crlb, replicates=r).set_index("estimator").loc[f"efficient (chi2_{r}/{r})"]
+    per = np.sqrt(np.mean(z**2, axis=1))
+    # the reference's quantiles hold the simulated gyros' shares within 4 binomial standard errors
+    for level, value in ((0.5, ref["median"]), (0.9, ref["p90"]), (ref["share_efficient"], EFFICIENT)):
+        assert abs(np.mean(per <= value) - level) < 4 * math.sqrt(level * (1 - level) / n)
+    assert ref["share_efficient"] == pytest.approx(0.846, abs=0.001)

@@ -16,11 +16,14 @@ Coverage and error pooled over gyros and replicates (:func:`pooled`), per estima
   for B also split by the flicker memory ``tau_max`` below / above the record length;
 * absent terms: the share of intervals whose lower bound is 0 (the interval holds the truth, 0).
 
+The spread over the gyros (:func:`per_gyro_table`): the median, 90th percentile, max and share within
+:data:`EFFICIENT` of the gyros' RMSE / CRLB, beside an efficient unbiased estimator's (chi2_r / r).
+
 Usage::
 
     python -m avbench.studies.summaries.random_gyros studies/random_gyros.toml --out results/random_gyros
 
-writes ``pooled.csv``, ``efficiency.csv`` and ``pooled.md`` in ``--out``.
+writes ``pooled.csv``, ``efficiency.csv``, ``per_gyro.csv`` and ``pooled.md`` in ``--out``.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["EFFICIENT", "efficiency", "pooled", "main"]
+__all__ = ["EFFICIENT", "efficiency", "per_gyro_table", "pooled", "main"]
 
 #: RMSE / CRLB at or below which an estimator counts as efficient on a gyro
 EFFICIENT = 1.25
@@ -85,18 +88,28 @@ def pooled(tidy: pd.DataFrame, crlb_rel: pd.DataFrame, tau_max: dict, record_s: 
     return pd.DataFrame(rows)
 
 
+def _present_errors(tidy: pd.DataFrame, crlb_rel: pd.DataFrame) -> pd.DataFrame:
+    """``tidy``'s rows of present terms with ``z2``: the squared error in CRLB standard deviations."""
+    d = tidy.merge(crlb_rel, on=["gyro", "estimator", "coefficient"], how="left")
+    d = d[np.isfinite(d["true"].astype(float)) & (d["true"] > 0)]
+    return d.assign(z2=((d["estimate"] - d["true"]) / (d["crlb_rel"] * d["true"])) ** 2)
+
+
+def _per_gyro(g: pd.DataFrame) -> np.ndarray:
+    """Each gyro's RMSE / CRLB over its replicates (rows of one estimator x coefficient)."""
+    return np.sqrt(g.groupby("gyro")["z2"].mean().dropna().to_numpy())
+
+
 def efficiency(tidy: pd.DataFrame, crlb_rel: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     """One row per estimator x coefficient: over the gyros where the term is present, the median of
     each gyro's RMSE / CRLB (``median``, its bootstrap 95 % interval ``median_lo``, ``median_hi``),
     the share of gyros with RMSE / CRLB <= :data:`EFFICIENT` and the number of gyros and of records
     (module docstring)."""
-    d = tidy.merge(crlb_rel, on=["gyro", "estimator", "coefficient"], how="left")
-    d = d[np.isfinite(d["true"].astype(float)) & (d["true"] > 0)]
-    d = d.assign(z2=((d["estimate"] - d["true"]) / (d["crlb_rel"] * d["true"])) ** 2)
+    d = _present_errors(tidy, crlb_rel)
     rng = np.random.default_rng(seed)
     rows = []
     for (e, c), g in d.groupby(["estimator", "coefficient"], sort=False):
-        per = np.sqrt(g.groupby("gyro")["z2"].mean().dropna().to_numpy())
+        per = _per_gyro(g)
         if not per.size:
             continue
         boot = np.median(per[rng.integers(0, per.size, (N_BOOT, per.size))], axis=1)
@@ -107,7 +120,42 @@ def efficiency(tidy: pd.DataFrame, crlb_rel: pd.DataFrame, seed: int = 0) -> pd.
     return pd.DataFrame(rows)
 
 
-def _render(t: pd.DataFrame, eff: pd.DataFrame) -> str:
+def per_gyro_table(tidy: pd.DataFrame, crlb_rel: pd.DataFrame, replicates: int) -> pd.DataFrame:
+    """The spread over the gyros of each gyro's RMSE / CRLB, beside an efficient unbiased estimator's.
+
+    One row per estimator x coefficient over the gyros where the term is present: the number of
+    gyros, the median, 90th percentile and maximum of the gyros' RMSE / CRLB (over their replicates)
+    and the share at or below :data:`EFFICIENT`. Then, per coefficient, the row ``efficient
+    (chi2_r/r)``: an unbiased estimator at the bound with normal errors has RMSE^2 / CRLB^2 ~
+    chi2_r / r over r replicates, so its median is sqrt(chi2_r.median / r), its 90th percentile
+    sqrt(chi2_r.ppf(0.9) / r), its share P(chi2_r <= r EFFICIENT^2), and its max the median of the
+    largest of that many gyros: sqrt(chi2_r.ppf(0.5^(1/gyros)) / r) (0.94, 1.33, 0.85 at r = 6).
+    """
+    from scipy import stats
+
+    d = _present_errors(tidy, crlb_rel)
+    chi2 = stats.chi2(replicates)
+    rows, gyros = [], {}
+    for (e, c), g in d.groupby(["estimator", "coefficient"], sort=False):
+        per = _per_gyro(g)
+        if not per.size:
+            continue
+        gyros[c] = max(gyros.get(c, 0), per.size)
+        rows.append(dict(estimator=e, coefficient=c, gyros=per.size, median=float(np.median(per)),
+                         p90=float(np.quantile(per, 0.9)), max=float(per.max()),
+                         share_efficient=float(np.mean(per <= EFFICIENT))))
+    for c, n in gyros.items():
+        rows.append(dict(estimator=f"efficient (chi2_{replicates}/{replicates})", coefficient=c, gyros=n,
+                         median=math.sqrt(chi2.median() / replicates),
+                         p90=math.sqrt(chi2.ppf(0.9) / replicates),
+                         max=math.sqrt(chi2.ppf(0.5 ** (1 / n)) / replicates),
+                         share_efficient=float(chi2.cdf(replicates * EFFICIENT**2))))
+    out = pd.DataFrame(rows, columns=["estimator", "coefficient", "gyros", "median", "p90", "max", "share_efficient"])
+    order = {c: i for i, c in enumerate("QNBKR")}
+    return out.sort_values("coefficient", key=lambda s: s.map(order), kind="stable").reset_index(drop=True)
+
+
+def _render(t: pd.DataFrame, eff: pd.DataFrame, per: pd.DataFrame) -> str:
     from avbench.studies.scoring import _md_table
 
     lines = ["# Gyros drawn at random: scores over the gyros", "",
@@ -115,6 +163,11 @@ def _render(t: pd.DataFrame, eff: pd.DataFrame) -> str:
              "median: of the gyros' RMSE / CRLB where the term is present, with its bootstrap 95 % interval "
              f"(gyros resampled); share <= {EFFICIENT}: the share of gyros whose RMSE is within {EFFICIENT} "
              "times the Cramer-Rao bound.", ""] + _md_table(eff) + [
+             "", "## Per gyro: the spread of each gyro's RMSE / CRLB", "",
+             "Over the gyros where the term is present: median, 90th percentile (p90) and max of each gyro's "
+             f"RMSE / CRLB over its replicates, and the share <= {EFFICIENT}; the row 'efficient' is an unbiased "
+             "estimator at the bound with normal errors (its max: the median of the largest of that many gyros).",
+             ""] + _md_table(per) + [
              "", "## Coverage and error pooled over gyros and replicates", "",
              "coverage: share of 95 % intervals holding the truth (absent terms: holding 0, i.e. lower bound 0), "
              "with its Clopper-Pearson 95 % interval; rmse_over_crlb, bias_over_crlb: error in CRLB standard "
@@ -136,12 +189,14 @@ def main(argv=None) -> int:
     record_s = max(g.n_samples * g.gyro.dt for g in cfg.gyros)
     t = pooled(tidy, crlb_rel, _tau_max(cfg), record_s)
     eff = efficiency(tidy, crlb_rel)
+    per = per_gyro_table(tidy, crlb_rel, cfg.replicates)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     write_text(out / "pooled.csv", t.to_csv(index=False, float_format="%.6g"))
     write_text(out / "efficiency.csv", eff.to_csv(index=False, float_format="%.6g"))
-    write_text(out / "pooled.md", _render(t, eff))
-    print(_render(t, eff))
+    write_text(out / "per_gyro.csv", per.to_csv(index=False, float_format="%.6g"))
+    write_text(out / "pooled.md", _render(t, eff, per))
+    print(_render(t, eff, per))
     return 0
 
 
