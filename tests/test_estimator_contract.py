@@ -3,6 +3,7 @@ every built-in estimator passes it, and deliberately broken estimators fail it w
 
 import math
 import random
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -243,3 +244,31 @@ def test_every_estimator_refuses_a_constant_record_naming_it(name, level, capfd)
     assert "constant" in str(e.value) and "\n" not in str(e.value), str(e.value)
     out, err = capfd.readouterr()
     assert out == "" and err == ""
+
+
+_N_DEGENERATE = 20_000
+
+
+def _degenerate(kind):
+    t = np.arange(_N_DEGENERATE) / _N_DEGENERATE
+    return {"ramp": 1e-3 * t,
+            "ramp with 1e-12 noise": 1e-3 * t + 1e-12 * np.random.default_rng(3).standard_normal(t.size),
+            "alternating": np.where(np.arange(t.size) % 2 == 0, 1.0, -1.0)}[kind]
+
+
+@pytest.mark.parametrize("kind", ["ramp", "ramp with 1e-12 noise"])
+@pytest.mark.parametrize("name", estimators.names())
+def test_every_estimator_answers_a_degenerate_record_with_a_fit_or_its_own_refusal(name, kind):
+    """A straight line (with no or float64-tiny noise) or a +1, -1, ... record of 20,000 samples (long
+    enough for every estimator, as the constant record's test holds): each estimator gives a fit or
+    refuses with its own one-line error about the record (starting ``rate:``), never an error of its
+    arithmetic (NaN in a solver) and never "too short" / "a longer record" for a record that is not."""
+    est = estimators.get(name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            est.fit(_degenerate(kind), 0.01)
+        except ValueError as e:
+            msg = str(e)
+            assert msg.startswith("rate:") and "\n" not in msg, msg
+            assert "too short" not in msg and "longer record" not in msg, msg
