@@ -272,3 +272,18 @@ def test_every_estimator_answers_a_degenerate_record_with_a_fit_or_its_own_refus
             msg = str(e)
             assert msg.startswith("rate:") and "\n" not in msg, msg
             assert "too short" not in msg and "longer record" not in msg, msg
+
+
+@pytest.mark.parametrize("name", estimators.names())
+def test_no_estimator_calls_a_long_periodic_record_too_short(name):
+    """+1, -1, ... over 20,000 samples: its Allan variance is 0 at every even cluster size, so an
+    estimator on octave taus sees one positive value. A refusal names that (the Allan variance is 0
+    there), never "too short" / "a longer record": a longer one would be no better."""
+    est = estimators.get(name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            est.fit(_degenerate("alternating"), 0.01)
+        except ValueError as e:
+            msg = str(e)
+            assert "too short" not in msg and "longer record" not in msg, msg
