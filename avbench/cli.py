@@ -666,10 +666,10 @@ def main(argv=None) -> int:
     if empty:
         return _fail(f"{empty}: expected a value, got an empty string")
     try:
-        if args.command in WRITES_INTO_OUT and Path(args.out).is_dir():  # one writer per output folder
-            from avbench.outputs import folder_lock
+        if args.command in WRITES_INTO_OUT:  # one writer per output folder, a new one included
+            from avbench.outputs import locked_new_folder
 
-            with folder_lock(args.out, "--out", " ".join(["avbench", *argv])[:200]):
+            with locked_new_folder(args.out, "--out", " ".join(["avbench", *argv])[:200]):
                 return int(args.func(args) or 0)
         return int(args.func(args) or 0)
     except BrokenPipeError:  # the reader went away (e.g. '| head'): not an error of ours

@@ -385,6 +385,61 @@ def test_every_command_refuses_a_folder_another_run_writes_into(command, tmp_pat
         live.wait()
 
 
+def _writing_argv(command, tmp_path):
+    import numpy as np
+
+    rng = np.random.default_rng(8)
+    files = []
+    for k in range(3 if command == "three-cornered-hat" else 1):
+        files.append(str(tmp_path / f"u{k}.csv"))
+        np.savetxt(files[-1], rng.standard_normal((2000, 1)) * 1e-3, header="gx [rad/s]", comments="")
+    return {"run": ["run", str(_study(tmp_path)), "--no-progress"],
+            "estimate": ["estimate", *files, "--fs", "100", "--method", "wls"],
+            "deviations": ["deviations", *files, "--fs", "100", "--deviation", "oadev"],
+            "three-cornered-hat": ["three-cornered-hat", *files, "--fs", "100"]}[command]
+
+
+@pytest.mark.parametrize("command", ["run", "estimate", "deviations", "three-cornered-hat"])
+def test_a_new_output_folder_is_locked_from_its_creation(command, tmp_path, capsys, monkeypatch):
+    """Two runs into one ``--out`` that does not exist yet: the other run takes the folder's lock the
+    moment it exists (simulated: a live process's lock appears as the folder is made). Every command
+    that writes a set of files into ``--out`` is then refused naming that process and writes nothing
+    there, exactly as for a folder that existed before."""
+    import pathlib
+    import subprocess
+    import sys
+
+    argv = _writing_argv(command, tmp_path)
+    out = tmp_path / "new" / "out"
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    real_mkdir = pathlib.Path.mkdir
+
+    def mkdir(self, *a, **kw):
+        existed = self.exists()
+        real_mkdir(self, *a, **kw)
+        if self == out and not existed:  # the other run wins the race for the new folder
+            (out / ".avbench.lock").write_text(f"{live.pid}\navbench other\n")
+
+    monkeypatch.setattr(pathlib.Path, "mkdir", mkdir)
+    try:
+        assert main([*argv, "--out", str(out)]) == 2
+        assert f"another avbench run (process {live.pid}: avbench other)" in capsys.readouterr().err
+        assert sorted(p.name for p in out.iterdir()) == [".avbench.lock"]
+    finally:
+        live.kill()
+        live.wait()
+
+
+@pytest.mark.parametrize("command", ["estimate", "deviations", "three-cornered-hat"])
+def test_a_refused_command_leaves_no_new_output_folder(command, tmp_path, capsys):
+    """A command refused for its input (here a sample rate of 0) into an ``--out`` that did not exist:
+    exit 2, and neither that folder nor its missing parents are left behind."""
+    argv = [a if a != "100" else "0" for a in _writing_argv(command, tmp_path)]
+    out = tmp_path / "new" / "out"
+    assert main([*argv, "--out", str(out)]) == 2
+    assert not (tmp_path / "new").exists()
+
+
 # -- the same file twice ------------------------------------------------------------------------------------------
 
 
