@@ -10,6 +10,7 @@ import os
 import pytest
 
 from avbench.cli import build_parser, main
+from avbench.text import empty_is_none
 
 
 def _commands():
@@ -37,7 +38,8 @@ def _positionals(pos):
     return argv
 
 
-CASES = [(c, a.option_strings[-1]) for c in _commands() for a in _value_options(c)[0]]
+CASES = [(c, a.option_strings[-1]) for c in _commands() for a in _value_options(c)[0] if a.type is not empty_is_none]
+TITLED = [c for c in _commands() if any("--title" in a.option_strings for a in _value_options(c)[0])]
 
 
 @pytest.mark.parametrize("blank", ["", "  "])
@@ -57,6 +59,41 @@ def test_an_empty_option_value_is_refused_by_every_command(command, option, blan
     else:
         assert option in capsys.readouterr().err
     assert code == 2
+    assert os.listdir(tmp_path) == []
+
+
+def test_every_command_taking_a_title_reads_an_empty_one_as_none():
+    """``--title`` is typed alike wherever it is taken: an empty value means no title."""
+    assert TITLED == ["deviations", "estimate"]
+    for command in TITLED:
+        (title,) = [a for a in _value_options(command)[0] if "--title" in a.option_strings]
+        assert title.type is empty_is_none, command
+
+
+@pytest.mark.parametrize("blank", ["", "  "])
+@pytest.mark.parametrize("command", TITLED)
+def test_an_empty_title_draws_no_title(command, blank, tmp_path, monkeypatch):
+    """``--title ''`` (or blank): the command runs and its figures' titles name the sensor and axis
+    only: neither the file name (the default title) nor a dangling separator."""
+    import matplotlib.axes
+    import numpy as np
+
+    f = tmp_path / "imu_rec.csv"
+    np.savetxt(f, np.random.default_rng(2).standard_normal((4000, 1)) * 1e-3, header="gx [rad/s]", comments="")
+    titles = []
+    real = matplotlib.axes.Axes.set_title
+    monkeypatch.setattr(matplotlib.axes.Axes, "set_title",
+                        lambda self, label, *a, **kw: (titles.append(str(label)), real(self, label, *a, **kw))[1])
+    argv = [command, str(f), "--fs", "100", "--out", str(tmp_path / "out"), "--title", blank, "--no-progress"]
+    assert main(argv + (["--method", "wls"] if command == "estimate" else [])) == 0
+    drawn = [t for t in titles if t]
+    assert drawn and all("imu_rec" not in t and not t.startswith((" ", "—")) for t in drawn), drawn
+
+
+@pytest.mark.parametrize("command", TITLED)
+def test_every_command_refuses_a_title_matplotlib_cannot_draw_before_reading(command, tmp_path, capsys):
+    assert main([command, str(tmp_path / "missing.csv"), "--fs", "100", "--title", r"$\frac{$"]) == 2
+    assert "--title" in capsys.readouterr().err
     assert os.listdir(tmp_path) == []
 
 
