@@ -22,7 +22,7 @@ import os
 import sys
 from pathlib import Path
 
-from avbench.text import plain_text
+from avbench.text import empty_is_none, plain_text
 
 # Heavy libraries (numpy, pandas, the simulators and estimators) are imported inside the commands:
 # `avbench --help` and every subcommand's help must start in a fraction of a second.
@@ -398,7 +398,8 @@ def _add_deviations_parser(sub) -> None:
     s.add_argument("--bias-corrected", action="store_true",
                    help="Stable32's bias-corrected MTOTDEV, TTOTDEV, HTOTDEV and Theo1 values")
     s.add_argument("--out", default=".", help="output folder (default: .)")
-    s.add_argument("--title", default=None, help="plot title (default: the file name)")
+    s.add_argument("--title", default=None, type=empty_is_none,
+                   help="plot title (default: the file name; --title '' for none)")
     s.add_argument("--no-progress", action="store_true", help="no progress bars")
     s.set_defaults(func=cmd_deviations)
 
@@ -415,8 +416,11 @@ def cmd_deviations(args) -> int:
     from avbench.recordings.load import check_reader_options, load_recording, reader_options_of
     from avbench.recordings.plan import OutputPlan, output_stem
 
+    from avbench.recordings.estimate import check_title
+
     options = reader_options_of(args)
     check_reader_options(**options)
+    check_title(args.title)
     names = parse_deviations(args.deviation)
     if args.intervals == "stable32" and "pdev" in names:
         raise ValueError("--intervals stable32: Stable32 gives no PDEV interval; expected --deviation without pdev, "
@@ -666,10 +670,10 @@ def main(argv=None) -> int:
     if empty:
         return _fail(f"{empty}: expected a value, got an empty string")
     try:
-        if args.command in WRITES_INTO_OUT and Path(args.out).is_dir():  # one writer per output folder
-            from avbench.outputs import folder_lock
+        if args.command in WRITES_INTO_OUT:  # one writer per output folder, a new one included
+            from avbench.outputs import locked_new_folder
 
-            with folder_lock(args.out, "--out", " ".join(["avbench", *argv])[:200]):
+            with locked_new_folder(args.out, "--out", " ".join(["avbench", *argv])[:200]):
                 return int(args.func(args) or 0)
         return int(args.func(args) or 0)
     except BrokenPipeError:  # the reader went away (e.g. '| head'): not an error of ours
@@ -697,9 +701,12 @@ def main(argv=None) -> int:
 
 def _empty_values(parser: argparse.ArgumentParser, args) -> str | None:
     """The first option or argument of the command given as an empty (or blank) string, as its name in
-    the usage (``--format``, ``FILE``): every command refuses them alike, before any work."""
+    the usage (``--format``, ``FILE``): every command refuses them alike, before any work, except an
+    option typed :func:`empty_is_none` (an empty value there asks for none)."""
     command = next(sub.choices[args.command] for sub in parser._subparsers._group_actions)
     for a in command._actions:
+        if a.type is empty_is_none:
+            continue
         value = getattr(args, a.dest, None)
         if any(isinstance(v, str) and not v.strip() for v in (value if isinstance(value, list) else [value])):
             return max(a.option_strings, key=len) if a.option_strings else (a.metavar or a.dest)

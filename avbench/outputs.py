@@ -27,6 +27,7 @@ One way for all commands (``avbench run``, ``estimate``, ``simulate``, ``bench``
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import hashlib
 import os
@@ -39,7 +40,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 __all__ = ["OutputError", "prepare_out_dir", "probe_writable", "atomic_write_text", "atomic_write_bytes", "tmp_name", "write_set",
-           "safe_name", "NAME_BYTES", "Interrupted", "check_not_inputs", "folder_lock", "LOCK_NAME", "markdown_cell"]
+           "safe_name", "NAME_BYTES", "Interrupted", "check_not_inputs", "folder_lock", "LOCK_NAME", "markdown_cell",
+           "locked_new_folder"]
 
 
 #: significant digits of the committed numbers: results move by ~1e-12 (relative) between machines
@@ -368,6 +370,37 @@ class folder_lock:
                 signal.signal(sig, handler)
         self._signals = {}
         return False
+
+
+@contextlib.contextmanager
+def locked_new_folder(folder, option: str = "--out", command: str = "avbench"):
+    """:class:`folder_lock` on ``folder`` for the ``with`` block, creating ``folder`` (and missing parents)
+    first when it does not exist yet, so that two runs into one new folder are locked against each
+    other too. Folders this call created are removed again if the block leaves them empty (the command
+    refused its input or was refused the lock): nothing half-made is left. A path that cannot be a
+    folder (a file, or under one) is not locked: the command's own check names the problem."""
+    p = Path(folder)
+    made, probe = [], p
+    while not probe.exists() and probe.parent != probe:
+        made.append(probe)
+        probe = probe.parent
+    if not probe.is_dir():
+        yield None
+        return
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError:  # cannot be created: the command's own check names why
+        yield None
+        return
+    try:
+        with folder_lock(p, option, command) as lock:
+            yield lock
+    finally:
+        for d in made:  # deepest first; stops at the first one something was written into
+            try:
+                d.rmdir()
+            except OSError:
+                break
 
 
 def _alive(pid: int) -> bool:

@@ -6,7 +6,7 @@ A leaf module: the command line (:mod:`avbench.cli`) and the benchmarks' own com
 
 import re
 
-__all__ = ["plain_text"]
+__all__ = ["empty_is_none", "plain_text"]
 
 _REST = [
     (re.compile(r":[a-z]+:`~?([^`<]*?)(?:\s*<[^>]*>)?`"), r"\1"),  # :func:`x`, :class:`~a.b`, :ref:`t <x>`
@@ -21,3 +21,14 @@ def plain_text(text: str) -> str:
     for pattern, repl in _REST:
         text = pattern.sub(repl, text)
     return text
+
+
+def empty_is_none(value: str) -> str:
+    """The argparse type of an option whose empty (or blank) value asks for none of the thing
+    (``--title ''``: no title), where every other option refuses an empty value
+    (:func:`avbench.cli._empty_values`).
+
+    >>> empty_is_none("  "), empty_is_none("run 3")
+    ('', 'run 3')
+    """
+    return value if value.strip() else ""

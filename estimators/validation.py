@@ -14,7 +14,8 @@ import numpy as np
 from avbench.noise_models.terms import _check_dt as check_dt
 from avbench.noise_models.units import COEFFICIENTS
 
-__all__ = ["DT_RANGE", "TAU_GRIDS", "check_dt", "check_record", "check_not_constant", "check_taus", "check_terms"]
+__all__ = ["DT_RANGE", "TAU_GRIDS", "check_dt", "check_record", "check_not_constant", "check_taus", "check_terms",
+           "check_variance_seen"]
 
 
 #: sample intervals an estimator accepts (1 ns .. ~11.6 days): beyond them tau**2 and tau**-2 in the
@@ -54,6 +55,23 @@ def check_not_constant(rate: np.ndarray) -> None:
     if rate.size and float(np.min(rate)) == float(np.max(rate)):
         raise ValueError(f"rate: every one of the {rate.size} samples is {float(rate[0]):g}, a constant record: no "
                          "noise to estimate; expected a sensor's record (noise on every sample)")
+
+
+def check_variance_seen(tau: np.ndarray, avar: np.ndarray, need: int) -> None:
+    """Refuse a record long enough for ``need`` taus (``tau``, ``avar``: the ones its length allows) whose
+    Allan variance is 0 at so many of them that fewer than ``need`` positive values remain: its cluster
+    means do not vary there (a periodic record, e.g. +1, -1, +1, ... at every even cluster size), so a
+    longer record would not help; the error names the taus. Nothing is said when the length is the
+    cause (the caller's "too short" error then holds)."""
+    tau, avar = np.asarray(tau, dtype=float), np.asarray(avar, dtype=float)
+    zero = ~(avar > 0)
+    if tau.size >= need and zero.any() and np.count_nonzero(~zero) < need:
+        shown = ", ".join(f"{t:g}" for t in tau[zero][:6]) + (", ..." if zero.sum() > 6 else "")
+        raise ValueError(
+            f"rate: the Allan variance is 0 at {int(zero.sum())} of the {tau.size} taus the record is long enough "
+            f"for (tau = {shown} s), leaving {int(np.count_nonzero(~zero))} of the {need} needed: its cluster means "
+            "do not vary there (a periodic record such as +1, -1, +1, ...); expected a sensor's record (noise "
+            "on every sample)")
 
 
 TAU_GRIDS = ("octave", "decade", "all")

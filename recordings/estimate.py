@@ -45,7 +45,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["add_parser", "run", "estimate_file", "fit_sensors", "NOT_STATIC_EXIT"]
+from avbench.text import empty_is_none
+
+__all__ = ["add_parser", "run", "estimate_file", "fit_sensors", "check_title", "NOT_STATIC_EXIT"]
 
 #: the exit code of a record answered as not static, nothing fitted (``--fit-not-static`` fits it)
 NOT_STATIC_EXIT = 3
@@ -98,7 +100,8 @@ def add_parser(subparsers, parents):
                         "2^17 samples; 1: none started); the numbers do not depend on it")
     s.add_argument("--json", action="store_true", help="print only the JSON object on stdout")
     s.add_argument("--out", default=".", help="output folder for the plots and tables (default: .)")
-    s.add_argument("--title", default=None, help="plot title (default: the file name)")
+    s.add_argument("--title", default=None, type=empty_is_none,
+                   help="plot title (default: the file name; --title '' for none)")
     s.add_argument("--no-progress", action="store_true", help="no progress bars")
     s.set_defaults(func=run)
     return s
@@ -141,7 +144,7 @@ def _check_settings(settings: dict, option: str = "--set") -> None:
             raise ValueError(f"{option}: {e}") from None
 
 
-def _check_title(title) -> None:
+def check_title(title) -> None:
     """``--title``: a text matplotlib can draw (``$...$`` must be valid mathtext; ``\\$`` is a dollar sign)."""
     if title is None or "$" not in str(title):
         return
@@ -202,7 +205,7 @@ def _check_args(args):
         raise ValueError(f"--jobs: expected a number of processes >= 1, got {args.jobs}")
     if args.filter_rate is not None and not args.format:
         raise ValueError("--filter-rate: sets the rate of the --format files; expected --format NAME as well")
-    _check_title(args.title)
+    check_title(args.title)
     args.deviation = parse_deviations(getattr(args, "deviation", None))
     return methods, settings, fm, inflate
 

@@ -112,7 +112,7 @@ def _draw_panels(axs, axes_names, sensor_record, axis_fits, avs, dt, title, flag
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_ylabel(f"Allan deviation ({si})")
-        ax.set_title(f"{title} — {sensor} {name}")
+        ax.set_title(f"{title + ' — ' if title else ''}{sensor} {name}")
         ax.grid(True, alpha=0.3)
         ymin, ymax = np.nanmin(lo[lo > 0]) if np.any(lo > 0) else None, np.nanmax(hi) if np.any(np.isfinite(hi)) else None
         if ymin and ymax and math.isfinite(ymin) and math.isfinite(ymax):
@@ -190,7 +190,7 @@ def deviations_figure(sensor, si_unit, deviations, title, confidence):
         ax.set_yscale("log")
         ax.set_xlabel("τ (s)")
         ax.set_ylabel(f"deviation ({si_unit})")
-        ax.set_title(f"{title} — {sensor} {name} (bands: {confidence:.0%} χ²)", fontsize=10)
+        ax.set_title(f"{title + ' — ' if title else ''}{sensor} {name} (bands: {confidence:.0%} χ²)", fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()

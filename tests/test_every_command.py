@@ -10,6 +10,7 @@ import os
 import pytest
 
 from avbench.cli import build_parser, main
+from avbench.text import empty_is_none
 
 
 def _commands():
@@ -37,7 +38,8 @@ def _positionals(pos):
     return argv
 
 
-CASES = [(c, a.option_strings[-1]) for c in _commands() for a in _value_options(c)[0]]
+CASES = [(c, a.option_strings[-1]) for c in _commands() for a in _value_options(c)[0] if a.type is not empty_is_none]
+TITLED = [c for c in _commands() if any("--title" in a.option_strings for a in _value_options(c)[0])]
 
 
 @pytest.mark.parametrize("blank", ["", "  "])
@@ -57,6 +59,41 @@ def test_an_empty_option_value_is_refused_by_every_command(command, option, blan
     else:
         assert option in capsys.readouterr().err
     assert code == 2
+    assert os.listdir(tmp_path) == []
+
+
+def test_every_command_taking_a_title_reads_an_empty_one_as_none():
+    """``--title`` is typed alike wherever it is taken: an empty value means no title."""
+    assert TITLED == ["deviations", "estimate"]
+    for command in TITLED:
+        (title,) = [a for a in _value_options(command)[0] if "--title" in a.option_strings]
+        assert title.type is empty_is_none, command
+
+
+@pytest.mark.parametrize("blank", ["", "  "])
+@pytest.mark.parametrize("command", TITLED)
+def test_an_empty_title_draws_no_title(command, blank, tmp_path, monkeypatch):
+    """``--title ''`` (or blank): the command runs and its figures' titles name the sensor and axis
+    only: neither the file name (the default title) nor a dangling separator."""
+    import matplotlib.axes
+    import numpy as np
+
+    f = tmp_path / "imu_rec.csv"
+    np.savetxt(f, np.random.default_rng(2).standard_normal((4000, 1)) * 1e-3, header="gx [rad/s]", comments="")
+    titles = []
+    real = matplotlib.axes.Axes.set_title
+    monkeypatch.setattr(matplotlib.axes.Axes, "set_title",
+                        lambda self, label, *a, **kw: (titles.append(str(label)), real(self, label, *a, **kw))[1])
+    argv = [command, str(f), "--fs", "100", "--out", str(tmp_path / "out"), "--title", blank, "--no-progress"]
+    assert main(argv + (["--method", "wls"] if command == "estimate" else [])) == 0
+    drawn = [t for t in titles if t]
+    assert drawn and all("imu_rec" not in t and not t.startswith((" ", "—")) for t in drawn), drawn
+
+
+@pytest.mark.parametrize("command", TITLED)
+def test_every_command_refuses_a_title_matplotlib_cannot_draw_before_reading(command, tmp_path, capsys):
+    assert main([command, str(tmp_path / "missing.csv"), "--fs", "100", "--title", r"$\frac{$"]) == 2
+    assert "--title" in capsys.readouterr().err
     assert os.listdir(tmp_path) == []
 
 
@@ -383,6 +420,61 @@ def test_every_command_refuses_a_folder_another_run_writes_into(command, tmp_pat
     finally:
         live.kill()
         live.wait()
+
+
+def _writing_argv(command, tmp_path):
+    import numpy as np
+
+    rng = np.random.default_rng(8)
+    files = []
+    for k in range(3 if command == "three-cornered-hat" else 1):
+        files.append(str(tmp_path / f"u{k}.csv"))
+        np.savetxt(files[-1], rng.standard_normal((2000, 1)) * 1e-3, header="gx [rad/s]", comments="")
+    return {"run": ["run", str(_study(tmp_path)), "--no-progress"],
+            "estimate": ["estimate", *files, "--fs", "100", "--method", "wls"],
+            "deviations": ["deviations", *files, "--fs", "100", "--deviation", "oadev"],
+            "three-cornered-hat": ["three-cornered-hat", *files, "--fs", "100"]}[command]
+
+
+@pytest.mark.parametrize("command", ["run", "estimate", "deviations", "three-cornered-hat"])
+def test_a_new_output_folder_is_locked_from_its_creation(command, tmp_path, capsys, monkeypatch):
+    """Two runs into one ``--out`` that does not exist yet: the other run takes the folder's lock the
+    moment it exists (simulated: a live process's lock appears as the folder is made). Every command
+    that writes a set of files into ``--out`` is then refused naming that process and writes nothing
+    there, exactly as for a folder that existed before."""
+    import pathlib
+    import subprocess
+    import sys
+
+    argv = _writing_argv(command, tmp_path)
+    out = tmp_path / "new" / "out"
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    real_mkdir = pathlib.Path.mkdir
+
+    def mkdir(self, *a, **kw):
+        existed = self.exists()
+        real_mkdir(self, *a, **kw)
+        if self == out and not existed:  # the other run wins the race for the new folder
+            (out / ".avbench.lock").write_text(f"{live.pid}\navbench other\n")
+
+    monkeypatch.setattr(pathlib.Path, "mkdir", mkdir)
+    try:
+        assert main([*argv, "--out", str(out)]) == 2
+        assert f"another avbench run (process {live.pid}: avbench other)" in capsys.readouterr().err
+        assert sorted(p.name for p in out.iterdir()) == [".avbench.lock"]
+    finally:
+        live.kill()
+        live.wait()
+
+
+@pytest.mark.parametrize("command", ["estimate", "deviations", "three-cornered-hat"])
+def test_a_refused_command_leaves_no_new_output_folder(command, tmp_path, capsys):
+    """A command refused for its input (here a sample rate of 0) into an ``--out`` that did not exist:
+    exit 2, and neither that folder nor its missing parents are left behind."""
+    argv = [a if a != "100" else "0" for a in _writing_argv(command, tmp_path)]
+    out = tmp_path / "new" / "out"
+    assert main([*argv, "--out", str(out)]) == 2
+    assert not (tmp_path / "new").exists()
 
 
 # -- the same file twice ------------------------------------------------------------------------------------------

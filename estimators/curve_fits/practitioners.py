@@ -37,7 +37,7 @@ from avbench.estimators.allan.fit_check import as_fit_check, assess_five_term
 from avbench.estimators.results import FitParts, extras_of
 from avbench.estimators.selection import choices
 from avbench.estimators.settings import Boolean, Interval, Options, Relation, Taus, Terms
-from avbench.estimators.validation import check_terms
+from avbench.estimators.validation import check_terms, check_variance_seen
 
 __all__ = [
     "SlopeLines",
@@ -63,6 +63,8 @@ def _av(rate, dt, taus, overlapping, min_clusters=2):
     res = allan_variance(rate, dt, taus=taus, overlapping=overlapping)
     ok = np.isfinite(res.avar) & (res.avar > 0) & (res.J >= min_clusters)
     if ok.sum() < 2:
+        long_enough = np.isfinite(res.avar) & (res.J >= min_clusters)
+        check_variance_seen(np.asarray(res.tau)[long_enough], np.asarray(res.avar)[long_enough], 2)
         raise ValueError(
             f"rate: fewer than two positive Allan-variance values with >= {min_clusters} clusters; "
             "the record is too short"

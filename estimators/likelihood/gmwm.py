@@ -110,6 +110,7 @@ from avbench.estimators.likelihood._gmwm_model import LatentAV, log_bounds, log_
 from avbench.estimators.likelihood._trf import lower_triangular_solver
 from avbench.estimators.likelihood.solve import solve as _solve
 from avbench.estimators.selection import bias_model, bounds, shared
+from avbench.estimators.validation import check_variance_seen
 from avbench.estimators.selection.lines import choose_line, frequency_at_bound, sinusoid_hint
 from avbench.estimators.selection.resonance import band_seen, choose_resonance, resonance_hint
 from avbench.estimators.selection.scales import (ScaleChoice, choose_scales, cutoffs, reach_binds, shorter_adequate,
@@ -654,6 +655,8 @@ class GMWM(Estimator):
             return shorter_adequate(fit_on, lows, m_all, usable, n_par, below, max_tau, dt, accept)
         if not lows or np.count_nonzero(usable & (m_all >= lows[0])) < n_par + 1:
             k = np.count_nonzero(usable & (m_all >= (lows[0] if lows else 1)))
+            long_enough = n // m_all >= self.min_clusters
+            check_variance_seen(wv.tau[long_enough], wv.avar[long_enough], n_par + 1)
             raise ValueError(
                 f"rate: {n} samples give {k} usable octave taus (>= {self.min_clusters} clusters, "
                 f"m >= {self.min_m}), "

@@ -94,9 +94,28 @@ class WhittleFit:
         self.G2 = np.ascontiguousarray(np.abs(self.G) ** 2)
         self.GX = np.ascontiguousarray((np.conj(self.G) * X).real)
         self.X2 = np.ascontiguousarray(np.abs(X) ** 2)
+        self._check_resolved()
         self._basis = {}
         self._cov = {}  # low ordinates' DFT covariance of each term (godambe_ratio)
         self._acf = {}  # each unit stationary term's autocovariance at lags 0..n-1 (trend_variance)
+
+    def _check_resolved(self):
+        """Refuse a record whose noise float64 cannot resolve beside its straight line.
+
+        The likelihood profiles the trend out of each ordinate as
+        :math:`|X_k|^2 - 2\\beta\\,\\mathrm{Re}(\\bar G_k X_k) + \\beta^2|G_k|^2`, whose rounding error is
+        about :math:`\\epsilon(|X_k|^2 + \\beta^2|G_k|^2)`. Where the trend-removed ordinate is not above
+        that (a ramp with no or almost no noise on it) the fit has nothing to fit there: one error naming
+        the line, instead of a fit on rounding errors."""
+        beta = float(np.sum(self.GX)) / float(np.sum(self.G2))
+        resid = self.X2 - 2 * beta * self.GX + beta**2 * self.G2
+        floor = 64 * np.finfo(float).eps * (self.X2 + beta**2 * self.G2)
+        lost = int(np.count_nonzero(resid <= floor))
+        if lost:
+            raise ValueError(
+                f"rate: a straight line with no noise float64 can resolve around it (at "
+                f"{lost} of {resid.size} frequencies): the spectral fit removes the line and fits the noise left; "
+                "expected a sensor's record (noise on every sample, resolvable beside its drift)")
 
     def basis(self, c, tc=None):
         """Ordinates k = 1..n//2 of term ``c`` with unit coefficient: its spectrum, or (``debiased``)

@@ -486,8 +486,12 @@ class ArmaEM(Estimator):
         from avbench.estimators.allan.variance import allan_variance
         from avbench.estimators.allan.model import BETA_SCALE, design_matrix
 
+        from avbench.estimators.validation import check_variance_seen
+
         av = allan_variance(y, dt, taus="octave", overlapping=False)
         keep = av.J >= 3
+        check_variance_seen(av.tau[keep], av.avar[keep], len(terms))
+        keep &= av.avar > 0
         X = design_matrix(av.tau[keep], terms)
         w = 1.0 / av.avar[keep]
         beta, _ = nnls(X * w[:, None], av.avar[keep] * w)
