@@ -199,6 +199,12 @@ def _check(study: str, tmp_path: Path, replicates: int | None = None) -> None:
     spread = _spread(old)
     first = (old["replicate"] < replicates).to_numpy()
     _tidy_equal(read_tidy(out), old[first].reset_index(drop=True), cfg, study, spread[first])
+    if replicates == cfg.replicates:  # a whole rerun: the committed meta.json names the code that ran it
+        made = json.loads((out / "meta.json").read_text())["provenance"]
+        kept = json.loads((committed / "meta.json").read_text())["provenance"]
+        assert made == kept, (f"results/{study}/meta.json names other code than this checkout's (code key "
+                              f"{kept['code_key']} vs {made['code_key']}): regenerate it with "
+                              f"avbench run studies/{study}.toml --jobs 2")
 
 
 @pytest.mark.parametrize("study", FAST)
