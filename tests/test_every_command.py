@@ -391,38 +391,8 @@ def test_no_command_writes_over_one_of_its_inputs(command, tmp_path, capsys):
 # -- one writer per output folder ---------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("command", ["run", "estimate", "deviations", "three-cornered-hat"])
-def test_every_command_refuses_a_folder_another_run_writes_into(command, tmp_path, capsys):
-    """An output folder locked by a live process: every command that writes a set of files into ``--out``
-    is refused, naming that process, and writes nothing there; the lock is left to its holder."""
-    import subprocess
-    import sys
-
-    import numpy as np
-
-    out = tmp_path / "out"
-    out.mkdir()
-    rng = np.random.default_rng(8)
-    files = []
-    for k in range(3 if command == "three-cornered-hat" else 1):
-        files.append(str(tmp_path / f"u{k}.csv"))
-        np.savetxt(files[-1], rng.standard_normal((2000, 1)) * 1e-3, header="gx [rad/s]", comments="")
-    argv = {"run": ["run", str(_study(tmp_path)), "--no-progress"],
-            "estimate": ["estimate", *files, "--fs", "100", "--method", "wls"],
-            "deviations": ["deviations", *files, "--fs", "100", "--deviation", "oadev"],
-            "three-cornered-hat": ["three-cornered-hat", *files, "--fs", "100"]}[command]
-    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
-    try:
-        (out / ".avbench.lock").write_text(f"{live.pid}\navbench other\n")
-        assert main([*argv, "--out", str(out)]) == 2
-        assert f"another avbench run (process {live.pid}: avbench other)" in capsys.readouterr().err
-        assert sorted(p.name for p in out.iterdir()) == [".avbench.lock"]
-    finally:
-        live.kill()
-        live.wait()
-
-
 def _writing_argv(command, tmp_path):
+    """The command line of ``command`` writing a set of files, on small records made in ``tmp_path``."""
     import numpy as np
 
     rng = np.random.default_rng(8)
@@ -434,6 +404,27 @@ def _writing_argv(command, tmp_path):
             "estimate": ["estimate", *files, "--fs", "100", "--method", "wls"],
             "deviations": ["deviations", *files, "--fs", "100", "--deviation", "oadev"],
             "three-cornered-hat": ["three-cornered-hat", *files, "--fs", "100"]}[command]
+
+
+@pytest.mark.parametrize("command", ["run", "estimate", "deviations", "three-cornered-hat"])
+def test_every_command_refuses_a_folder_another_run_writes_into(command, tmp_path, capsys):
+    """An output folder locked by a live process: every command that writes a set of files into ``--out``
+    is refused, naming that process, and writes nothing there; the lock is left to its holder."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    out.mkdir()
+    argv = _writing_argv(command, tmp_path)
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (out / ".avbench.lock").write_text(f"{live.pid}\navbench other\n")
+        assert main([*argv, "--out", str(out)]) == 2
+        assert f"another avbench run (process {live.pid}: avbench other)" in capsys.readouterr().err
+        assert sorted(p.name for p in out.iterdir()) == [".avbench.lock"]
+    finally:
+        live.kill()
+        live.wait()
 
 
 @pytest.mark.parametrize("command", ["run", "estimate", "deviations", "three-cornered-hat"])
