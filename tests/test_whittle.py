@@ -184,6 +184,22 @@ def test_trend_variance_is_the_exact_quadratic_form(comp, n):
     assert got == pytest.approx(want, rel=1e-4 if comp == "B" else 1e-9)
 
 
+def test_trend_variance_holds_a_random_walk_the_model_dropped():
+    """``a_walk`` (the full model's random walk, given to the ramp test) enters the slope's variance also
+    when the reported model has no random walk: c^T (Sigma_N + Sigma_B + a_walk Sigma_K) c with the
+    reported model's weights c. A random walk too weak to be kept still drifts."""
+    n = 300
+    rng = np.random.default_rng(5)
+    x = rng.standard_normal(n).cumsum() * 0.1 + rng.standard_normal(n)
+    wf = WhittleFit(x, DT)
+    comps, a, a_walk = ["N", "B"], np.array([1.0, 0.3]), 0.01
+    c = wf.trend_weights(comps, a)
+    sigma = sum(v * _dense_covariance(comp, n, DT) for comp, v in zip(comps, a))
+    want = c @ (sigma + a_walk * _dense_covariance("K", n, DT)) @ c
+    assert wf.trend_variance(comps, a, a_walk=a_walk) == pytest.approx(want, rel=1e-4)
+    assert wf.trend_variance(comps, a, a_walk=a_walk) > 1.01 * wf.trend_variance(comps, a)
+
+
 def _ramp_z2(R, seed):
     """Squared z-statistics of the slope on R records of 20 min of SRS2000 (Q + N + flicker, no ramp),
     with the slope's variance from the true spectrum and from the fitted one."""

@@ -400,8 +400,8 @@ class WhittleFit:
         (a_B/\\pi)(\\psi(\\tau+\\tfrac12) - \\psi(\\tfrac12))`, valid because :math:`\\sum c_t = 0`
         (:math:`c^T\\Sigma c = -\\sum_{s,t} c_s c_t\\gamma(|s-t|)`); the random walk (increments of
         variance :math:`a_K\\Delta t`) through the reverse cumulative sums of c, which also holds its
-        end-point drift. ``a_walk`` overrides the random walk's variance (the ramp test uses the full
-        model's). Variances below 0 (``domain="spectrum"``) count as 0 in the covariance (the weights
+        end-point drift. ``a_walk`` sets the random walk's variance, also where ``comps`` has none (the
+        ramp test uses the full model's: a random walk too weak to be kept still drifts). Variances below 0 (``domain="spectrum"``) count as 0 in the covariance (the weights
         keep the fitted spectrum)."""
         from scipy import fft as sfft
 
@@ -411,7 +411,8 @@ class WhittleFit:
         # domain of a positive spectrum, which the weights c keep) is the term's absence
         var = {x: max(float(v), 0.0) for x, v in zip(comps, a)}
         walker = walk(comps)
-        if a_walk is not None and walker is not None:
+        if a_walk is not None:  # the random walk drifts whether or not the reported model holds it
+            walker = walker or walk(components())
             var[walker] = float(a_walk)
         m = sfft.next_fast_len(2 * n, real=True)
         F = sfft.rfft(c, m)
