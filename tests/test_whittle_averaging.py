@@ -1,4 +1,4 @@
-"""Akaike-weighted model averaging of the Whittle estimates (``averaging="akaike"``): the weights and
+"""Model averaging of the Whittle estimates (``averaging="akaike"`` and ``"bic"``): the weights and
 the averaged variances from first principles, the intervals untouched, and the efficiency it buys
 where a candidate term is absent."""
 
@@ -22,12 +22,17 @@ def _record(terms, n, seed):
 WHITE_WALK = [AngleRandomWalk(N=4e-7), RateRandomWalk(K=2e-8)]
 
 
-def test_weights_and_estimates_are_the_akaike_average_of_the_submodels():
-    """Refit every submodel the estimator averaged over, by hand: its weights are exp(-AIC/2) normalised
-    and each reported coefficient is the square root of the weighted mean of the variances (0 where
-    dropped)."""
+@pytest.mark.parametrize("how, penalty, own", [("akaike", lambda n: 2.0, False), ("bic", math.log, False),
+                                               ("akaike_kept", lambda n: 2.0, True), ("bic_kept", math.log, True)])
+def test_weights_and_estimates_are_the_criterion_average_of_the_submodels(how, penalty, own):
+    """Refit every submodel the estimator averaged over, by hand: its weights are exp(-AIC/2) (or
+    exp(-BIC/2)) normalised and each reported coefficient is the square root of the weighted mean of the
+    variances: over every model, 0 where dropped, or (``_kept``) over the models holding its term, their
+    weights renormalised."""
     x = _record([Quantization(Q=1e-8), *WHITE_WALK], 36_000, 5)
-    est = WhittleDebiased(terms="QNBK", averaging="akaike").fit(x, DT)
+    est = WhittleDebiased(terms="QNBK", averaging=how).fit(x, DT)
+    pen = penalty(x.size)
+    assert est.result().model_choice["term_weights"]["penalty"] == pytest.approx(pen, rel=1e-15)
     weights = est.diagnostics_["term_weights"]["models"]
     assert len(weights) > 1 and math.isclose(sum(weights.values()), 1.0, rel_tol=1e-12)
     wf = WhittleFit(x, DT, debiased=True)
@@ -35,18 +40,20 @@ def test_weights_and_estimates_are_the_akaike_average_of_the_submodels():
     fits = {m: (full if m == "QNBK" else whittle_fit(wf, list(m), signed=True,
                                                     warm={c: full["a"][full["comps"].index(c)] for c in m} | {"tc": None}))
             for m in weights}
-    aic = {m: -2 * f["loglik"] + 2 * len(f["comps"]) for m, f in fits.items()}
+    aic = {m: -2 * f["loglik"] + pen * len(f["comps"]) for m, f in fits.items()}
     raw = {m: math.exp(-(v - min(aic.values())) / 2) for m, v in aic.items()}
     for m, f in fits.items():
         assert weights[m] == pytest.approx(raw[m] / sum(raw.values()), rel=1e-6, abs=1e-9)
     for c in "QNBK":
-        a = sum(weights[m] * (f["a"][f["comps"].index(c)] if c in f["comps"] else 0.0) for m, f in fits.items())
+        held = {m: w for m, w in weights.items() if c in fits[m]["comps"] or not own}
+        a = sum(w * (fits[m]["a"][fits[m]["comps"].index(c)] if c in fits[m]["comps"] else 0.0)
+                for m, w in held.items()) / sum(held.values())
         assert est.coefficients_[c] == pytest.approx(math.sqrt(max(a, 0.0)) * wf.scale, rel=1e-5, abs=1e-12 * wf.scale)
 
 
 def test_averaging_leaves_intervals_evidence_and_the_full_model_alone():
     x = _record([*WHITE_WALK, BiasInstability(B=2e-7, tau_max=1e5)], 36_000, 6)
-    plain = WhittleDebiased().fit(x, DT)
+    plain = WhittleDebiased(averaging="none").fit(x, DT)
     avg = WhittleDebiased(averaging="akaike").fit(x, DT)
     np.testing.assert_array_equal(avg.conf_int().to_numpy(), plain.conf_int().to_numpy())
     np.testing.assert_array_equal(avg.diagnostics_["full_coefficients"].to_numpy(),
@@ -67,6 +74,7 @@ def test_submodels_and_droppable():
     assert averaging.submodels(list("QN"), ["Q", "N"], admissible=lambda s: "N" in s) == [list("QN"), ["N"]]
     assert averaging.droppable(list("QNK"), [0.3, 1e4, math.nan]) == ["Q", "K"]
     assert averaging.NEGLIGIBLE_Z2 == pytest.approx(2 + 2 * math.log(1e6))
+    assert averaging.droppable(list("QNK"), [30.0, 1e4, 40.0], penalty=math.log(72_000)) == ["Q"]
 
 
 @pytest.mark.slow
@@ -77,7 +85,7 @@ def test_averaging_lowers_white_noise_error_where_quantization_is_absent():
     d = []
     for seed in range(60):
         x = _record(WHITE_WALK, 18_000, 1000 + seed)
-        full = WhittleDebiased().fit(x, DT).coefficients_["N"]
+        full = WhittleDebiased(averaging="none").fit(x, DT).coefficients_["N"]
         avg = WhittleDebiased(averaging="akaike").fit(x, DT).coefficients_["N"]
         d.append((full / 4e-7 - 1) ** 2 - (avg / 4e-7 - 1) ** 2)
     d = np.asarray(d)

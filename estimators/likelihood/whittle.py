@@ -98,13 +98,17 @@ Model averaging (setting ``averaging``)
 ---------------------------------------
 ``"akaike"`` (with ``select=False``): each variance is the average of its estimates over the full
 model and every submodel without some of the terms whose absence the data do not rule out (Wald
-:math:`z^2` below :data:`~avbench.estimators.selection.averaging.NEGLIGIBLE_Z2`), each weighted by
+:math:`z^2` below :func:`~avbench.estimators.selection.averaging.negligible_z2`), each weighted by
 its Akaike weight :math:`\\propto e^{-\\mathrm{AIC}/2}`, a dropped term counting 0 (Buckland, Burnham
-& Augustin 1997; :mod:`~avbench.estimators.selection.averaging`). The submodels are fitted over the
-same domain; a positive combination of valid spectra is valid. A Gauss-Markov Tc and the trend slope
-stay the full model's. The intervals stay the full model's profile-likelihood intervals (valid
-whatever the true terms); the model choice ``term_weights`` gives each model's weight. Measured in
-``results/random_gyros``.
+& Augustin 1997; :mod:`~avbench.estimators.selection.averaging`). ``"bic"``: the same with the
+weights :math:`\\propto e^{-\\mathrm{BIC}/2}` (penalty :math:`\\log n` per parameter; Raftery 1995).
+``"akaike_kept"``, ``"bic_kept"``: each coefficient averaged over the models that hold its own term,
+their weights renormalised (:data:`~avbench.estimators.selection.averaging.RULES`): a term the data
+cannot tell from absent is left out of its neighbours' estimates without pulling its own toward 0.
+The submodels are fitted over the same domain; a positive combination of valid spectra is valid. A
+Gauss-Markov Tc and the trend slope stay the full model's. The intervals stay the full model's
+profile-likelihood intervals (valid whatever the true terms); the model choice ``term_weights`` gives
+each model's weight. Measured in ``results/random_gyros``.
 
 Where it is not exact
 ---------------------
@@ -242,10 +246,12 @@ class Whittle(Estimator):
         evidence for a term whose steeper-spectrum neighbour the signed fit puts below 0 by more than
         1.96 of its standard errors (``"switch_steeper"``, the default of ``whittle_debiased``). The
         estimates are the same.
-    averaging : {"none", "akaike"}
-        With ``select=False``: the estimates of the full model (``"none"``, the default), or their
-        Akaike-weighted average over the submodels without the terms whose absence the data do not
-        rule out (``"akaike"``; module docstring, "Model averaging"). Intervals, evidence and
+    averaging : {"none", "akaike", "bic", "akaike_kept", "bic_kept"}
+        With ``select=False``: the estimates of the full model (``"none"``, the default of
+        :class:`Whittle`), or their average over the submodels without the terms whose absence the data
+        do not rule out, weighted by Akaike (``"akaike"``) or Schwarz (``"bic"``) weights, a dropped
+        term counting 0, or (``"akaike_kept"``, ``"bic_kept"``) each coefficient averaged over the
+        models that hold its own term (module docstring, "Model averaging"). Intervals, evidence and
         standard errors stay the full model's.
 
     Attributes
@@ -286,7 +292,7 @@ class Whittle(Estimator):
         "intervals": [Options("wald", "profile")],
         "domain": [Options("nonnegative", "spectrum")],
         "interval_domain": [Options("fit", "switch_steeper")],
-        "averaging": [Options("none", "akaike")],
+        "averaging": [Options("none", *averaging.RULES)],
     }
 
     def __init__(self, *, terms=_ALL_TERMS, bias="flicker", select=True, criterion="bic", n_starts=4, reml=False,
@@ -346,8 +352,9 @@ class Whittle(Estimator):
                 refit=refit, admissible=_admissible)
             fits, chosen = elimination.visited, elimination.chosen
         weights = None
-        if self.averaging == "akaike" and not self.select:
-            chosen, weights = self._averaged(wf, full, n_par, signed)
+        if self.averaging != "none" and not self.select:
+            rule = averaging.RULES[self.averaging]
+            chosen, weights = self._averaged(wf, full, n_par, signed, rule, rule.penalty(n))
         # terms at their floor are absent
         kept = [c for c in chosen["comps"] if c not in chosen["absent"]]
         full_kept = [c for c in full["comps"] if c not in full["absent"]]
@@ -385,7 +392,7 @@ class Whittle(Estimator):
         made = [choices.bias_model(shape, bias_choice.criteria if len(fulls) > 1 else None, bias_choice.weights),
                 choices.criteria({"".join(k): float(bic(v)) for k, v in fits.items()})]
         if weights is not None:
-            made.append(choices.term_weights({"penalty": averaging.PENALTY, "models": weights}))
+            made.append(choices.term_weights({"penalty": rule.penalty(n), "models": weights}))
         llf, k = float(chosen["loglik"]), n_par(chosen)
         parts = FitParts(fit_check=as_fit_check(check), evidence=evidence, choices=tuple(made), failure=failure,
                          zero_bounds=(zeros["zero_upper"], zeros["zero_upper_power"]), std_err=se,
@@ -393,8 +400,9 @@ class Whittle(Estimator):
                          converged=bool(chosen["converged"]), n_iter=int(chosen["n_iter"]))
         return coefs, {}, extras, parts
 
-    def _averaged(self, wf, full, n_par, signed):
-        """The full fit with its variances replaced by their Akaike-weighted average over the
+    def _averaged(self, wf, full, n_par, signed, rule, penalty):
+        """The full fit with its variances replaced by their average by ``rule`` (weighted by the
+        criterion with ``penalty`` per parameter) over the
         submodels without some of the terms whose absence the data do not rule out
         (:mod:`~avbench.estimators.selection.averaging`; the trend slope and a Gauss-Markov Tc stay
         the full model's), and the weights by model (its terms joined, e.g. ``"NBK"``)."""
@@ -409,16 +417,16 @@ class Whittle(Estimator):
             # the information is in the variances at a signed maximum, in their logarithms otherwise
             z2 = np.where(var > 0, a**2 / var if signed else 1.0 / var, np.nan)
         z2 = np.where([c in full["absent"] for c in comps], 0.0, z2)
-        cands = averaging.droppable(comps, z2)
+        cands = averaging.droppable(comps, z2, penalty)
         models = {tuple(comps): full}
         for sub in averaging.submodels(comps, cands, admissible=_admissible):
             if tuple(sub) not in models:
                 warm = {x: a[comps.index(x)] for x in sub}
                 warm["tc"] = full["tc"]
                 models[tuple(sub)] = whittle_fit(wf, sub, self.n_starts, warm=warm, signed=signed)
-        w = averaging.akaike_weights({m: (f["loglik"], n_par(f)) for m, f in models.items()})
+        w = averaging.penalised_weights({m: (f["loglik"], n_par(f)) for m, f in models.items()}, penalty)
         params = {m: dict(zip(f["comps"], np.asarray(f["a"], dtype=float).tolist())) for m, f in models.items()}
-        mean = averaging.average(params, w, comps)
+        mean = rule.mean(params, w, comps)
         a_bar = np.array([mean[c] for c in comps])
         absent = [c for c in comps if c in full["absent"] or mean[c] <= 0]
         named = {"".join(_label(c) for c in m): float(v) for m, v in w.items()}
@@ -514,12 +522,16 @@ class WhittleDebiased(Whittle):
     its boundary and its neighbour; module docstring, "Domain of the variances") and
     ``interval_domain="switch_steeper"`` (a term whose steeper-spectrum neighbour the signed fit puts
     below 0 beyond its noise -- B beside a barely resolved or absent random walk -- takes its interval
-    from the non-negative domain; module docstring, "Interval domain"). Every setting of
-    :class:`Whittle` applies; only the defaults differ."""
+    from the non-negative domain; module docstring, "Interval domain") and ``averaging="bic_kept"``
+    (each coefficient averaged by BIC weight over the submodels that hold its term, leaving out of
+    its neighbours the terms the data cannot tell from absent; module docstring, "Model averaging":
+    on ``results/random_gyros`` the share of gyros within 1.25 x the Cramér-Rao bound is Q 0.80,
+    N 0.71, B 0.83, K 0.76, against 0.78, 0.62, 0.76, 0.70 from the full model's estimates, the
+    intervals the same). Every setting of :class:`Whittle` applies; only the defaults differ."""
 
     def __init__(self, *, terms=_ALL_TERMS, bias="flicker", select=False, criterion="bic", n_starts=4, reml=False,
                  spectrum="debiased", intervals="profile", domain="spectrum", interval_domain="switch_steeper",
-                 averaging="none"):
+                 averaging="bic_kept"):
         super().__init__(terms=terms, bias=bias, select=select, criterion=criterion, n_starts=n_starts,
                          reml=reml, spectrum=spectrum, intervals=intervals, domain=domain,
                          interval_domain=interval_domain, averaging=averaging)
