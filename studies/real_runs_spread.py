@@ -4,7 +4,7 @@ simulated ADIS16405 gyros, the default methods against the plain-model configura
 
 ``python -m avbench.studies.real_runs_spread --out results/real``             (simulate and fit; resumable)
 ``python -m avbench.studies.real_runs_spread --out results/real --models --data DIR``   (the models, from the runs)
-``python -m avbench.studies.real_runs_spread --out results/real --tables-only``  (summary from the fits)
+``python -m avbench.studies.real_runs_spread --out results/real --tables-only``  (the tables from the fits)
 ``python -m avbench.studies.real_runs_spread --out results/real --variants --axes x,y``  (what moves B's spread)
 
 Why. On the six ADIS16405 runs (``results/real/consistency.md``) the run-to-run CV of a coefficient is a
@@ -46,8 +46,12 @@ difference reaches the real one.
 ``min_m=16``, the old cut-off; ``min_m=2``, the real x runs'), and with the filter's time constant given at the
 axis model's own (``filter_tf``), paired with ``gmwm_filtered`` and ``gmwm`` (:data:`VARIANT_PAIRS`): whether a
 difference of B's spread comes from the scales added, from fitting tf, or from the model; writes
-``spread_variants.csv`` / ``.md`` and ``spread_variants_fits.csv``. The fits it pairs with are the spread
-shards' where they are, else the committed ``spread_fits.csv`` (the same numbers; the shards are not kept).
+``spread_variants.csv`` / ``.md`` and ``spread_variants_fits.csv``.
+
+``--tables-only`` (with or without ``--variants``) writes the tables from the fits alone (:func:`fit_rows`): the
+shards where there are any, else the committed ``spread_fits.csv`` / ``spread_variants_fits.csv`` (the same
+numbers; the shards are not kept), which are then left as they are. The fits ``--variants`` pairs with are
+read the same way.
 
 ``--asymptotic --axes x,y`` (no simulation, seconds): what the large-sample theory says B's and N's spread is for the
 designs the variants compare (:func:`asymptotic`): the efficient-GMM standard errors of the axis model's
@@ -76,8 +80,8 @@ from avbench.estimators.results import VALUE_STATUSES
 from avbench.studies.real_runs import _markdown
 from avbench.studies.real_runs import _round as _round_to
 
-__all__ = ["AXES", "FITS", "PAIRS", "SEED", "axis_models", "model_gyro", "replicate_rows", "summary", "paired",
-           "asymptotic", "main"]
+__all__ = ["AXES", "FITS", "PAIRS", "SEED", "axis_models", "model_gyro", "replicate_rows", "fit_rows", "summary",
+           "paired", "asymptotic", "main"]
 
 AXES = ("x", "y", "z")
 N_SAMPLES = 1_000_000  #: samples per simulated run (the ADIS16405 runs' length)
@@ -245,6 +249,22 @@ def collect(out: Path, kind: str = "spread") -> pd.DataFrame:
     rank = df["fit"].map({f: i for i, f in enumerate({**FITS, **VARIANTS})})
     return (df.assign(_rank=rank).sort_values(["axis", "replicate", "_rank", "coefficient"], kind="stable")
             .drop(columns="_rank").reset_index(drop=True))
+
+
+#: kind of shards -> the table of their fits written under OUT (the shards are not kept)
+FIT_TABLES = {"spread": "spread_fits.csv", "variants": "spread_variants_fits.csv"}
+
+
+def fit_rows(out: Path, kind: str = "spread") -> tuple[pd.DataFrame, bool]:
+    """The fits of ``kind`` and whether they come from the shards: the shards under ``OUT/_shards/<kind>``
+    where there are any (:func:`collect`), else the table written from them (:data:`FIT_TABLES`), so that
+    the summary tables regenerate on a clone that holds only the committed fits."""
+    if any((out / "_shards" / kind).glob("*.csv")):
+        return collect(out, kind), True
+    table = out / FIT_TABLES[kind]
+    if not table.exists():
+        raise SystemExit(f"real_runs_spread: no shards under {out / '_shards' / kind} and no {table}")
+    return pd.read_csv(table), False
 
 
 # -- the summary ---------------------------------------------------------------------------------------------
@@ -434,7 +454,8 @@ def main(argv=None) -> int:
     ap.add_argument("--variants", action="store_true",
                     help="instead: the VARIANTS fits on the same simulated records (with --axes x,y); "
                          "writes OUT/spread_variants*.csv/md")
-    ap.add_argument("--tables-only", action="store_true", help="summarise the shards under OUT/_shards/spread only")
+    ap.add_argument("--tables-only", action="store_true",
+                    help="only the tables, from the shards under OUT/_shards, else from OUT's committed fit tables")
     ap.add_argument("--asymptotic", action="store_true",
                     help="instead: the large-sample standard errors of B and N for the variants' designs (seconds); "
                          "writes OUT/spread_asymptotic.csv/md")
@@ -457,19 +478,24 @@ def main(argv=None) -> int:
         (out / "spread_asymptotic.md").write_text(_markdown(a))
         return 0
     if args.variants:
-        # today's and the earlier default's fits of the same records: the shards, or the committed table
-        fits = collect(out) if (out / "_shards" / "spread").is_dir() else pd.read_csv(out / "spread_fits.csv")
-        var = collect(out, "variants") if args.tables_only else simulate(models, out, args.replicates, axes, VARIANTS,
-                                                                          "variants")
-        var.drop(columns="cpu_s").to_csv(out / "spread_variants_fits.csv", index=False)
+        fits, _ = fit_rows(out)  # the FITS of the same records
+        if args.tables_only:
+            var, from_shards = fit_rows(out, "variants")
+        else:
+            var, from_shards = simulate(models, out, args.replicates, axes, VARIANTS, "variants"), True
+        if from_shards:
+            var = var.drop(columns="cpu_s")  # CPU seconds: in the shards only
+            var.to_csv(out / FIT_TABLES["variants"], index=False)
         both = pd.concat([fits[fits.fit.isin(["gmwm_filtered", "gmwm"])], var], ignore_index=True)
         both = both[both.set_index(["axis", "replicate"]).index.isin(var.set_index(["axis", "replicate"]).index)]
         pv = pd.concat([paired(both, VARIANT_PAIRS), paired(both, VARIANT_PAIRS, ok_only=True)], ignore_index=True)
         pv.to_csv(out / "spread_variants.csv", index=False)
         (out / "spread_variants.md").write_text(_markdown(pv) + "\n" + _markdown(summary(var, truth_table=truth_table(models))))
         return 0
-    df = collect(out) if args.tables_only else simulate(models, out, args.replicates, axes)
-    df.drop(columns="cpu_s").to_csv(out / "spread_fits.csv", index=False)  # CPU seconds: in the shards only
+    df, from_shards = fit_rows(out) if args.tables_only else (simulate(models, out, args.replicates, axes), True)
+    if from_shards:
+        df = df.drop(columns="cpu_s")  # CPU seconds: in the shards only
+        df.to_csv(out / FIT_TABLES["spread"], index=False)
     s = summary(df, truth_table=truth_table(models))
     real = pd.read_csv(out / "consistency.csv") if (out / "consistency.csv").exists() else None
     p = pd.concat([paired(df, real=real), paired(df, real=real, ok_only=True)], ignore_index=True)

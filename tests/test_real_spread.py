@@ -3,6 +3,7 @@ default methods against the plain-model configuration (results/real/spread.md). 
 the simulation reads the committed axis models (results/real/spread_models.csv)."""
 
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -146,3 +147,41 @@ def test_variants_are_known_fits_and_the_held_tf_is_the_axis_models(models):
         name, settings = rs.VARIANTS["gmwm_filtered_tf_held"](models, axis)
         tf = models[(models.axis == axis) & (models.parameter == "tf")]["value"].item()
         assert name == "gmwm_filtered" and settings == {"filter_tf": tf}
+
+
+#: what ``--tables-only`` reads (the fits, the axis models, the real runs' CVs) and what it writes from them
+TABLE_INPUTS = ("spread_models.csv", "spread_fits.csv", "spread_variants_fits.csv", "consistency.csv")
+TABLE_OUTPUTS = ("spread.csv", "spread.md", "spread_paired.csv", "spread_variants.csv", "spread_variants.md")
+
+
+def test_tables_only_regenerates_the_committed_tables_from_the_committed_fits(tmp_path):
+    """A clone holds the fits, not the shards: ``--tables-only`` (and with ``--variants``) reads the committed
+    fit tables, leaves them as they are, and writes the committed summary tables byte for byte."""
+    for name in TABLE_INPUTS:
+        shutil.copy(RESULTS / name, tmp_path / name)
+    assert rs.main(["--out", str(tmp_path), "--tables-only"]) == 0
+    assert rs.main(["--out", str(tmp_path), "--tables-only", "--variants"]) == 0
+    for name in TABLE_INPUTS + TABLE_OUTPUTS:
+        assert (tmp_path / name).read_bytes() == (RESULTS / name).read_bytes(), name
+    assert not (tmp_path / "_shards").exists()
+
+
+def test_tables_only_prefers_the_shards_and_names_what_is_missing(tmp_path):
+    """Shards present: the fit table is written from them (CPU seconds left out) and the tables from it (one
+    axis's shards: that axis's committed rows, every statistic being per axis); neither shards nor a fit
+    table: an error naming both."""
+    committed = pd.read_csv(RESULTS / "spread_fits.csv")
+    part = committed[committed.axis == "x"].reset_index(drop=True)
+    shards = tmp_path / "_shards" / "spread"
+    shards.mkdir(parents=True)
+    for r, g in part.groupby("replicate"):
+        g.assign(cpu_s=1.0).to_csv(shards / f"x_{r:04d}.csv", index=False)
+    for name in ("spread_models.csv", "consistency.csv"):
+        shutil.copy(RESULTS / name, tmp_path / name)
+    assert rs.main(["--out", str(tmp_path), "--tables-only"]) == 0
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "spread_fits.csv"), part)
+    for name in ("spread.csv", "spread_paired.csv"):
+        want = pd.read_csv(RESULTS / name)
+        pd.testing.assert_frame_equal(pd.read_csv(tmp_path / name), want[want.axis == "x"].reset_index(drop=True))
+    with pytest.raises(SystemExit, match=r"no shards under .*variants and no .*spread_variants_fits\.csv"):
+        rs.main(["--out", str(tmp_path), "--tables-only", "--variants"])
