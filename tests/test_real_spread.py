@@ -1,4 +1,4 @@
-"""avbench.studies.real_runs_spread: the run-to-run spread of N and B on simulated ADIS16405 gyros, today's
+"""avbench.studies.real_runs_spread: the run-to-run spread of N and B on simulated ADIS16405 gyros, the
 default methods against the plain-model configuration (results/real/spread.md). No real data needed:
 the simulation reads the committed axis models (results/real/spread_models.csv)."""
 
@@ -76,8 +76,8 @@ def test_summary_statistics_hold_on_known_normal_values():
     df.loc[(df.fit == "gmwm") & (df.replicate == 0), ["value", "flag"]] = [400.0, "not resolved"]
     all_, ok = rs.paired(df, coefs=("B",)).iloc[0], rs.paired(df, coefs=("B",), ok_only=True).iloc[0]
     assert (all_["values"], ok["values"]) == ("all", "both ok")
-    assert ok["replicates"] == n - 1 and all_["cv_before_pct"] > 2 * ok["cv_before_pct"]
-    assert ok["cv_before_pct"] == pytest.approx(p["cv_before_pct"], rel=0.05)
+    assert ok["replicates"] == n - 1 and all_["cv_plain_pct"] > 2 * ok["cv_plain_pct"]
+    assert ok["cv_plain_pct"] == pytest.approx(p["cv_plain_pct"], rel=0.05)
 
 
 def test_a_short_replicate_is_reproducible_and_fits_every_configuration(models):
@@ -128,7 +128,7 @@ def test_asymptotic_standard_errors_follow_efficient_gmm(models):
     tiny = models.copy()
     tiny.loc[(tiny.axis == "x") & (tiny.parameter == "tf"), "value"] = 0.05 * rs.DT
     t = rs.asymptotic(tiny, ("x",)).set_index("design")
-    same = t.loc["today's model, m >= 16"], t.loc["WN+GM+RW, m >= 16 (before)"]
+    same = t.loc["default model, m >= 16"], t.loc["WN+GM+RW, m >= 16 (plain)"]
     assert same[0]["se_B_pct"] == pytest.approx(same[1]["se_B_pct"], rel=1e-3)
     assert same[0]["se_N_pct"] > same[1]["se_N_pct"]  # N shares the white level with tf's (flat) column
     committed = RESULTS / "spread_asymptotic.csv"
@@ -139,8 +139,8 @@ def test_asymptotic_standard_errors_follow_efficient_gmm(models):
 
 
 def test_variants_are_known_fits_and_the_held_tf_is_the_axis_models(models):
-    """``--variants``: every paired label is a fit of the study; the tf-held variant gives today's first default
-    the axis model's own filter time constant (a function of the model table and the axis)."""
+    """``--variants``: every paired label is a fit of the study; the tf-held variant gives the first default
+    method the axis model's own filter time constant (a function of the model table and the axis)."""
     labels = set(rs.FITS) | set(rs.VARIANTS)
     assert all(a in labels and b in labels for a, b in rs.VARIANT_PAIRS)
     for axis in ("x", "y"):
