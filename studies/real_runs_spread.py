@@ -4,17 +4,18 @@ simulated ADIS16405 gyros, the default methods against the plain-model configura
 
 ``python -m avbench.studies.real_runs_spread --out results/real``             (simulate and fit; resumable)
 ``python -m avbench.studies.real_runs_spread --out results/real --models --data DIR``   (the models, from the runs)
-``python -m avbench.studies.real_runs_spread --out results/real --tables-only``  (summary from the fits)
+``python -m avbench.studies.real_runs_spread --out results/real --tables-only``  (the tables from the fits)
 ``python -m avbench.studies.real_runs_spread --out results/real --variants --axes x,y``  (what moves B's spread)
 
 Why. On the six ADIS16405 runs (``results/real/consistency.md``) the run-to-run CV of a coefficient is a
 standard deviation of six values: its relative standard error is ~1/sqrt(2 x 5) ~ 32 %, and part of it is
-the sampling error of each run's fit, not the sensor. Whether a change of the defaults made N or B
-noisier from run to run is a question about the *expected* spread, which six runs cannot answer and a
-simulation can: the same gyro, many records, both configurations fitted to the SAME records (paired).
+the sampling error of each run's fit, not the sensor. Whether the default methods give N or B a larger
+run-to-run spread than the plain model is a question about the *expected* spread, which six runs cannot
+answer and a simulation can: the same gyro, many records, both configurations fitted to the SAME records
+(paired).
 
-The gyro (``--models``, needs the real runs): per ADIS gyro axis, ``gmwm_filtered`` (today's first
-default) is fitted to each of the six 2.8 h runs through the recordings pipeline
+The gyro (``--models``, needs the real runs): per ADIS gyro axis, ``gmwm_filtered`` (the first default
+method) is fitted to each of the six 2.8 h runs through the recordings pipeline
 (:func:`avbench.studies.real_runs._records`, :func:`avbench.recordings.fit.fit_axis`), and the axis's
 model is the six-run median of each latent parameter, over the runs whose fit holds that latent; a
 latent is kept when a majority of the runs hold it (gyro z: ``RS``, the 17-21 Hz resonance, on runs 2-6).
@@ -28,7 +29,7 @@ The simulation: replicate ``r`` of axis ``a`` (index in :data:`AXES`) is :data:`
 ``avbench estimate`` (:data:`avbench.estimators.base.DEFAULT_METHODS`: ``gmwm_filtered``,
 ``gmwm_despiked``), ``nnls_rel``, and the plain-model configuration (``gmwm`` with its defaults --
 ``WN+GM+RW``, ``min_m="auto"``, no line, no resonance --, and ``gmwm_despiked`` with those settings,
-labelled ``gmwm_despiked_pre24``). One shard per (axis, replicate) under
+labelled ``gmwm_despiked_plain``). One shard per (axis, replicate) under
 ``OUT/_shards/spread/`` (git-ignored); a rerun resumes. Writes ``spread_fits.csv`` (one row per axis x
 replicate x fit x coefficient: value, standard error, flag, poor fit, shortest cluster size, resonance
 kept; the shards also hold each fit's CPU seconds, left out here: the tables depend only on the seed) and,
@@ -37,17 +38,21 @@ coefficient the mean, the sampling SD and CV over the replicates with standard e
 replicates, :data:`BOOT` resamples from :data:`SEED`), the CV a set of six runs would show on average
 (c4(6) x CV) with its 95 % range (chi-square, 5 dof), the median standard error the fit claims; and
 ``spread_paired.csv`` (the first table of ``spread.md``): per axis, coefficient and default-method pair
-the paired difference of the CVs (today - before) with its bootstrap standard error and 95 % interval,
+the paired difference of the CVs (default - plain) with its bootstrap standard error and 95 % interval,
 the 95 % range of that difference as six runs show it (random sets of six replicates), and the real
 runs' CVs of the two fits from ``OUT/consistency.csv`` with the share of simulated six-run sets whose
 difference reaches the real one.
 
-``--variants`` (gyro x and y, the same records): today's first default from fixed cut-offs (:data:`VARIANTS`:
-``min_m=16``, the old cut-off; ``min_m=2``, the real x runs'), and with the filter's time constant given at the
-axis model's own (``filter_tf``), paired with ``gmwm_filtered`` and ``gmwm`` (:data:`VARIANT_PAIRS`): whether a
-difference of B's spread comes from the scales added, from fitting tf, or from the model; writes
-``spread_variants.csv`` / ``.md`` and ``spread_variants_fits.csv``. The fits it pairs with are the spread
-shards' where they are, else the committed ``spread_fits.csv`` (the same numbers; the shards are not kept).
+``--variants`` (gyro x and y, the same records): the first default method from fixed cut-offs (:data:`VARIANTS`:
+``min_m=16``, the shorter of ``gmwm``'s own choices, 16 or 32; ``min_m=2``, the real x runs'), and with the
+filter's time constant given at the axis model's own (``filter_tf``), paired with ``gmwm_filtered`` and ``gmwm``
+(:data:`VARIANT_PAIRS`): whether a difference of B's spread comes from the scales added, from fitting tf, or
+from the model; writes ``spread_variants.csv`` / ``.md`` and ``spread_variants_fits.csv``.
+
+``--tables-only`` (with or without ``--variants``) writes the tables from the fits alone (:func:`fit_rows`): the
+shards where there are any, else the committed ``spread_fits.csv`` / ``spread_variants_fits.csv`` (the same
+numbers; the shards are not kept), which are then left as they are. The fits ``--variants`` pairs with are
+read the same way.
 
 ``--asymptotic --axes x,y`` (no simulation, seconds): what the large-sample theory says B's and N's spread is for the
 designs the variants compare (:func:`asymptotic`): the efficient-GMM standard errors of the axis model's
@@ -76,8 +81,8 @@ from avbench.estimators.results import VALUE_STATUSES
 from avbench.studies.real_runs import _markdown
 from avbench.studies.real_runs import _round as _round_to
 
-__all__ = ["AXES", "FITS", "PAIRS", "SEED", "axis_models", "model_gyro", "replicate_rows", "summary", "paired",
-           "asymptotic", "main"]
+__all__ = ["AXES", "FITS", "PAIRS", "SEED", "axis_models", "model_gyro", "replicate_rows", "fit_rows", "summary",
+           "paired", "asymptotic", "main"]
 
 AXES = ("x", "y", "z")
 N_SAMPLES = 1_000_000  #: samples per simulated run (the ADIS16405 runs' length)
@@ -85,29 +90,32 @@ DT = 0.01  #: s (100 Hz, as the runs)
 SEED = 24_2026  #: the study's seed (replicates and bootstrap)
 BOOT = 2000  #: bootstrap resamples of the replicates for standard errors
 COEFS = ("N", "B")  #: the coefficients whose run-to-run CV is compared (K is written too)
-_PRE24 = {"model": "WN+GM+RW", "min_m": "auto", "lines": "model", "resonance": "model", "bias_evidence": False}
+#: the plain model: ``gmwm``'s defaults (``WN+GM+RW`` from ``min_m="auto"``, no line, no resonance, no bias evidence)
+_PLAIN = {"model": "WN+GM+RW", "min_m": "auto", "lines": "model", "resonance": "model", "bias_evidence": False}
 #: label -> (estimator name, settings): the default methods, ``nnls_rel``, and the plain-model configuration
 FITS = {
     "gmwm_filtered": ("gmwm_filtered", {}),
     "gmwm_despiked": ("gmwm_despiked", {}),
     "nnls_rel": ("nnls_rel", {}),
     "gmwm": ("gmwm", {}),
-    "gmwm_despiked_pre24": ("gmwm_despiked", dict(_PRE24)),
+    "gmwm_despiked_plain": ("gmwm_despiked", dict(_PLAIN)),
 }
 #: (default method, its plain-model counterpart): ``gmwm_filtered`` against ``gmwm`` (WN+GM+RW), and
 #: ``gmwm_despiked`` against the same despiking on the plain model
-PAIRS = (("gmwm_filtered", "gmwm"), ("gmwm_despiked", "gmwm_despiked_pre24"))
-#: what makes B's spread differ between today's first default and the one before (``--variants``, gyro x
-#: and y): today's model from the cut-off ``gmwm`` chooses (m >= 16: the scales it adds, or the model?),
-#: from m = 2 (the cut-off ``gmwm_filtered`` keeps on the real x runs), and ``gmwm`` from m = 16 (its own
-#: choice is 16 or 32): ``FW`` against ``WN`` on the same scales
+PAIRS = (("gmwm_filtered", "gmwm"), ("gmwm_despiked", "gmwm_despiked_plain"))
+
+
 def _tf_held(models: pd.DataFrame, axis: str) -> tuple[str, dict]:
-    """Today's first default with the filter's time constant given (``filter_tf``) at the axis model's own: does
-    fitting tf cost B's spread?"""
+    """The first default method with the filter's time constant given (``filter_tf``) at the axis model's own:
+    does fitting tf cost B's spread?"""
     tf = models[(models.axis == axis) & (models.latent == "FW") & (models.parameter == "tf")]["value"]
     return "gmwm_filtered", {"filter_tf": float(tf.iloc[0])}
 
 
+#: what makes B's spread differ between the first default method and the plain model (``--variants``, gyro
+#: x and y): the default model from the cut-off ``gmwm`` chooses (m >= 16: the scales it adds, or the
+#: model?), from m = 2 (the cut-off ``gmwm_filtered`` keeps on the real x runs), with tf held, and ``gmwm``
+#: from m = 16 (its own choice is 16 or 32): ``FW`` against ``WN`` on the same scales
 VARIANTS = {
     "gmwm_filtered_m16": ("gmwm_filtered", {"min_m": 16}),
     "gmwm_filtered_m2": ("gmwm_filtered", {"min_m": 2}),
@@ -221,12 +229,12 @@ def simulate(models: pd.DataFrame, out: Path, replicates: int, axes=AXES, fits=N
     for r in range(replicates):
         for axis in axes:
             p = shards / f"{axis}_{r:04d}.csv"
-            old = pd.read_csv(p) if p.exists() else None
-            todo = {k: v for k, v in (FITS if fits is None else fits).items() if old is None or k not in set(old.fit)}
+            done = pd.read_csv(p) if p.exists() else None
+            todo = {k: v for k, v in (FITS if fits is None else fits).items() if done is None or k not in set(done.fit)}
             if not todo:
                 continue
             t0 = time.time()
-            rows = pd.concat([old, pd.DataFrame(replicate_rows(models, axis, r, todo))], ignore_index=True)
+            rows = pd.concat([done, pd.DataFrame(replicate_rows(models, axis, r, todo))], ignore_index=True)
             tmp = p.with_suffix(".tmp")
             rows.to_csv(tmp, index=False)
             os.replace(tmp, p)
@@ -245,6 +253,22 @@ def collect(out: Path, kind: str = "spread") -> pd.DataFrame:
     rank = df["fit"].map({f: i for i, f in enumerate({**FITS, **VARIANTS})})
     return (df.assign(_rank=rank).sort_values(["axis", "replicate", "_rank", "coefficient"], kind="stable")
             .drop(columns="_rank").reset_index(drop=True))
+
+
+#: kind of shards -> the table of their fits written under OUT (the shards are not kept)
+FIT_TABLES = {"spread": "spread_fits.csv", "variants": "spread_variants_fits.csv"}
+
+
+def fit_rows(out: Path, kind: str = "spread") -> tuple[pd.DataFrame, bool]:
+    """The fits of ``kind`` and whether they come from the shards: the shards under ``OUT/_shards/<kind>``
+    where there are any (:func:`collect`), else the table written from them (:data:`FIT_TABLES`), so that
+    the summary tables regenerate on a clone that holds only the committed fits."""
+    if any((out / "_shards" / kind).glob("*.csv")):
+        return collect(out, kind), True
+    table = out / FIT_TABLES[kind]
+    if not table.exists():
+        raise SystemExit(f"real_runs_spread: no shards under {out / '_shards' / kind} and no {table}")
+    return pd.read_csv(table), False
 
 
 # -- the summary ---------------------------------------------------------------------------------------------
@@ -304,16 +328,17 @@ def summary(df: pd.DataFrame, runs: int = 6, truth_table: dict | None = None) ->
 
 def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS, real: pd.DataFrame | None = None, runs: int = 6,
            ok_only: bool = False) -> pd.DataFrame:
-    """Per axis, coefficient and (today, before) pair, on the replicates both fitted: the two CVs, their
-    difference today - before with its bootstrap standard error and 95 % percentile interval (replicates
-    resampled together: the pairing is kept), the ratio of the sampling SDs and the correlation of the
-    two fits' values; then what ``runs`` runs show: the 95 % range of the difference of the two CVs
-    computed on ``runs`` replicates (:data:`BOOT` random sets of ``runs`` distinct replicates, the same
-    records fitted both ways), and, given ``real`` (``consistency.csv`` of the real runs), the CVs the
-    real runs gave for the two fits where both are methods there (``real_cv_today``, ``real_cv_before``)
-    and the share of simulated sets of ``runs`` whose difference is at least the real one (``p_real``).
-    ``ok_only``: only the replicates on which neither fit's value is flagged (``values`` "both ok"; else "all",
-    as ``consistency.csv`` counts every finite value)."""
+    """Per axis, coefficient and (default, plain) pair -- the first of a pair the design nearer the default
+    methods, the second the one nearer the plain model (:data:`PAIRS`, :data:`VARIANT_PAIRS`) --, on the
+    replicates both fitted: the two CVs, their difference default - plain with its bootstrap standard error and
+    95 % percentile interval (replicates resampled together: the pairing is kept), the ratio of the sampling SDs
+    and the correlation of the two fits' values; then what ``runs`` runs show: the 95 % range of the difference
+    of the two CVs computed on ``runs`` replicates (:data:`BOOT` random sets of ``runs`` distinct replicates,
+    the same records fitted both ways), and, given ``real`` (``consistency.csv`` of the real runs), the CVs the
+    real runs gave for the two fits where both are methods there (``real_cv_default``, ``real_cv_plain``) and
+    the share of simulated sets of ``runs`` whose difference is at least the real one (``p_real``). ``ok_only``:
+    only the replicates on which neither fit's value is flagged (``values`` "both ok"; else "all", as
+    ``consistency.csv`` counts every finite value)."""
     cons = None
     if real is not None:
         cons = real[real.sensor == "gyro"].set_index(["axis", "method", "coefficient"])["cv_pct"]
@@ -321,18 +346,18 @@ def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS, real: pd.DataFrame | None
     for axis in sorted(set(df.axis), key=AXES.index):
         for coef in coefs:
             w = _wide(df, coef, axis, ok_only)
-            for new, old in pairs:
-                if new not in w or old not in w:
+            for default, plain in pairs:
+                if default not in w or plain not in w:
                     continue
-                ab = w[[new, old]].dropna().to_numpy(dtype=float).T  # 2 x replicates
+                ab = w[[default, plain]].dropna().to_numpy(dtype=float).T  # 2 x replicates
                 if ab.shape[1] < 3:
                     continue
                 idx = _boot_index(ab.shape[1])
                 cv = _cv(ab)
                 d = _cv(ab[0][idx]) - _cv(ab[1][idx])
-                out.append({"axis": axis, "coefficient": coef, "today": new, "before": old,
+                out.append({"axis": axis, "coefficient": coef, "default": default, "plain": plain,
                             "values": "both ok" if ok_only else "all", "replicates": ab.shape[1],
-                            "cv_today_pct": _round(float(cv[0])), "cv_before_pct": _round(float(cv[1])),
+                            "cv_default_pct": _round(float(cv[0])), "cv_plain_pct": _round(float(cv[1])),
                             "diff_pct": _round(float(cv[0] - cv[1])), "diff_se": _round(float(np.std(d, ddof=1))),
                             "diff_low": _round(float(np.quantile(d, 0.025))),
                             "diff_high": _round(float(np.quantile(d, 0.975))),
@@ -343,12 +368,12 @@ def paired(df: pd.DataFrame, pairs=PAIRS, coefs=COEFS, real: pd.DataFrame | None
                     d6 = _cv(ab[0][sets]) - _cv(ab[1][sets])
                 else:
                     d6 = np.full(1, math.nan)
-                real_new = cons.get((axis, new, coef), math.nan) if cons is not None else math.nan
-                real_old = cons.get((axis, old, coef), math.nan) if cons is not None else math.nan
-                real_d = real_new - real_old
+                real_default = cons.get((axis, default, coef), math.nan) if cons is not None else math.nan
+                real_plain = cons.get((axis, plain, coef), math.nan) if cons is not None else math.nan
+                real_d = real_default - real_plain
                 out[-1].update({f"diff{runs}_low": _round(float(np.quantile(d6, 0.025))),
                                 f"diff{runs}_high": _round(float(np.quantile(d6, 0.975))),
-                                "real_cv_today": real_new, "real_cv_before": real_old,
+                                "real_cv_default": real_default, "real_cv_plain": real_plain,
                                 "p_real": _round(float(np.mean(d6 >= real_d)))
                                 if np.isfinite(real_d) and np.isfinite(d6).all() else math.nan})
     return pd.DataFrame(out)
@@ -376,10 +401,10 @@ def truth_table(models: pd.DataFrame) -> dict:
 #: the designs of :func:`asymptotic`: label -> (the model: "axis" = the axis model's own latents, or a
 #: latent string whose white term replaces the axis model's; shortest cluster size)
 ASYMPTOTIC_DESIGNS = {
-    "today's model, every octave": ("axis", 1),
-    "today's model, m >= 2": ("axis", 2),
-    "today's model, m >= 16": ("axis", 16),
-    "WN+GM+RW, m >= 16 (before)": ("WN+GM+RW", 16),
+    "default model, every octave": ("axis", 1),
+    "default model, m >= 2": ("axis", 2),
+    "default model, m >= 16": ("axis", 16),
+    "WN+GM+RW, m >= 16 (plain)": ("WN+GM+RW", 16),
 }
 
 
@@ -434,7 +459,8 @@ def main(argv=None) -> int:
     ap.add_argument("--variants", action="store_true",
                     help="instead: the VARIANTS fits on the same simulated records (with --axes x,y); "
                          "writes OUT/spread_variants*.csv/md")
-    ap.add_argument("--tables-only", action="store_true", help="summarise the shards under OUT/_shards/spread only")
+    ap.add_argument("--tables-only", action="store_true",
+                    help="only the tables, from the shards under OUT/_shards, else from OUT's committed fit tables")
     ap.add_argument("--asymptotic", action="store_true",
                     help="instead: the large-sample standard errors of B and N for the variants' designs (seconds); "
                          "writes OUT/spread_asymptotic.csv/md")
@@ -457,19 +483,24 @@ def main(argv=None) -> int:
         (out / "spread_asymptotic.md").write_text(_markdown(a))
         return 0
     if args.variants:
-        # today's and the earlier default's fits of the same records: the shards, or the committed table
-        fits = collect(out) if (out / "_shards" / "spread").is_dir() else pd.read_csv(out / "spread_fits.csv")
-        var = collect(out, "variants") if args.tables_only else simulate(models, out, args.replicates, axes, VARIANTS,
-                                                                          "variants")
-        var.drop(columns="cpu_s").to_csv(out / "spread_variants_fits.csv", index=False)
+        fits, _ = fit_rows(out)  # the FITS of the same records
+        if args.tables_only:
+            var, from_shards = fit_rows(out, "variants")
+        else:
+            var, from_shards = simulate(models, out, args.replicates, axes, VARIANTS, "variants"), True
+        if from_shards:
+            var = var.drop(columns="cpu_s")  # CPU seconds: in the shards only
+            var.to_csv(out / FIT_TABLES["variants"], index=False)
         both = pd.concat([fits[fits.fit.isin(["gmwm_filtered", "gmwm"])], var], ignore_index=True)
         both = both[both.set_index(["axis", "replicate"]).index.isin(var.set_index(["axis", "replicate"]).index)]
         pv = pd.concat([paired(both, VARIANT_PAIRS), paired(both, VARIANT_PAIRS, ok_only=True)], ignore_index=True)
         pv.to_csv(out / "spread_variants.csv", index=False)
         (out / "spread_variants.md").write_text(_markdown(pv) + "\n" + _markdown(summary(var, truth_table=truth_table(models))))
         return 0
-    df = collect(out) if args.tables_only else simulate(models, out, args.replicates, axes)
-    df.drop(columns="cpu_s").to_csv(out / "spread_fits.csv", index=False)  # CPU seconds: in the shards only
+    df, from_shards = fit_rows(out) if args.tables_only else (simulate(models, out, args.replicates, axes), True)
+    if from_shards:
+        df = df.drop(columns="cpu_s")  # CPU seconds: in the shards only
+        df.to_csv(out / FIT_TABLES["spread"], index=False)
     s = summary(df, truth_table=truth_table(models))
     real = pd.read_csv(out / "consistency.csv") if (out / "consistency.csv").exists() else None
     p = pd.concat([paired(df, real=real), paired(df, real=real, ok_only=True)], ignore_index=True)

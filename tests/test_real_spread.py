@@ -1,8 +1,9 @@
-"""avbench.studies.real_runs_spread: the run-to-run spread of N and B on simulated ADIS16405 gyros, today's
+"""avbench.studies.real_runs_spread: the run-to-run spread of N and B on simulated ADIS16405 gyros, the
 default methods against the plain-model configuration (results/real/spread.md). No real data needed:
 the simulation reads the committed axis models (results/real/spread_models.csv)."""
 
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -75,8 +76,8 @@ def test_summary_statistics_hold_on_known_normal_values():
     df.loc[(df.fit == "gmwm") & (df.replicate == 0), ["value", "flag"]] = [400.0, "not resolved"]
     all_, ok = rs.paired(df, coefs=("B",)).iloc[0], rs.paired(df, coefs=("B",), ok_only=True).iloc[0]
     assert (all_["values"], ok["values"]) == ("all", "both ok")
-    assert ok["replicates"] == n - 1 and all_["cv_before_pct"] > 2 * ok["cv_before_pct"]
-    assert ok["cv_before_pct"] == pytest.approx(p["cv_before_pct"], rel=0.05)
+    assert ok["replicates"] == n - 1 and all_["cv_plain_pct"] > 2 * ok["cv_plain_pct"]
+    assert ok["cv_plain_pct"] == pytest.approx(p["cv_plain_pct"], rel=0.05)
 
 
 def test_a_short_replicate_is_reproducible_and_fits_every_configuration(models):
@@ -127,7 +128,7 @@ def test_asymptotic_standard_errors_follow_efficient_gmm(models):
     tiny = models.copy()
     tiny.loc[(tiny.axis == "x") & (tiny.parameter == "tf"), "value"] = 0.05 * rs.DT
     t = rs.asymptotic(tiny, ("x",)).set_index("design")
-    same = t.loc["today's model, m >= 16"], t.loc["WN+GM+RW, m >= 16 (before)"]
+    same = t.loc["default model, m >= 16"], t.loc["WN+GM+RW, m >= 16 (plain)"]
     assert same[0]["se_B_pct"] == pytest.approx(same[1]["se_B_pct"], rel=1e-3)
     assert same[0]["se_N_pct"] > same[1]["se_N_pct"]  # N shares the white level with tf's (flat) column
     committed = RESULTS / "spread_asymptotic.csv"
@@ -138,11 +139,49 @@ def test_asymptotic_standard_errors_follow_efficient_gmm(models):
 
 
 def test_variants_are_known_fits_and_the_held_tf_is_the_axis_models(models):
-    """``--variants``: every paired label is a fit of the study; the tf-held variant gives today's first default
-    the axis model's own filter time constant (a function of the model table and the axis)."""
+    """``--variants``: every paired label is a fit of the study; the tf-held variant gives the first default
+    method the axis model's own filter time constant (a function of the model table and the axis)."""
     labels = set(rs.FITS) | set(rs.VARIANTS)
     assert all(a in labels and b in labels for a, b in rs.VARIANT_PAIRS)
     for axis in ("x", "y"):
         name, settings = rs.VARIANTS["gmwm_filtered_tf_held"](models, axis)
         tf = models[(models.axis == axis) & (models.parameter == "tf")]["value"].item()
         assert name == "gmwm_filtered" and settings == {"filter_tf": tf}
+
+
+#: what ``--tables-only`` reads (the fits, the axis models, the real runs' CVs) and what it writes from them
+TABLE_INPUTS = ("spread_models.csv", "spread_fits.csv", "spread_variants_fits.csv", "consistency.csv")
+TABLE_OUTPUTS = ("spread.csv", "spread.md", "spread_paired.csv", "spread_variants.csv", "spread_variants.md")
+
+
+def test_tables_only_regenerates_the_committed_tables_from_the_committed_fits(tmp_path):
+    """A clone holds the fits, not the shards: ``--tables-only`` (and with ``--variants``) reads the committed
+    fit tables, leaves them as they are, and writes the committed summary tables byte for byte."""
+    for name in TABLE_INPUTS:
+        shutil.copy(RESULTS / name, tmp_path / name)
+    assert rs.main(["--out", str(tmp_path), "--tables-only"]) == 0
+    assert rs.main(["--out", str(tmp_path), "--tables-only", "--variants"]) == 0
+    for name in TABLE_INPUTS + TABLE_OUTPUTS:
+        assert (tmp_path / name).read_bytes() == (RESULTS / name).read_bytes(), name
+    assert not (tmp_path / "_shards").exists()
+
+
+def test_tables_only_prefers_the_shards_and_names_what_is_missing(tmp_path):
+    """Shards present: the fit table is written from them (CPU seconds left out) and the tables from it (one
+    axis's shards: that axis's committed rows, every statistic being per axis); neither shards nor a fit
+    table: an error naming both."""
+    committed = pd.read_csv(RESULTS / "spread_fits.csv")
+    part = committed[committed.axis == "x"].reset_index(drop=True)
+    shards = tmp_path / "_shards" / "spread"
+    shards.mkdir(parents=True)
+    for r, g in part.groupby("replicate"):
+        g.assign(cpu_s=1.0).to_csv(shards / f"x_{r:04d}.csv", index=False)
+    for name in ("spread_models.csv", "consistency.csv"):
+        shutil.copy(RESULTS / name, tmp_path / name)
+    assert rs.main(["--out", str(tmp_path), "--tables-only"]) == 0
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "spread_fits.csv"), part)
+    for name in ("spread.csv", "spread_paired.csv"):
+        want = pd.read_csv(RESULTS / name)
+        pd.testing.assert_frame_equal(pd.read_csv(tmp_path / name), want[want.axis == "x"].reset_index(drop=True))
+    with pytest.raises(SystemExit, match=r"no shards under .*variants and no .*spread_variants_fits\.csv"):
+        rs.main(["--out", str(tmp_path), "--tables-only", "--variants"])
