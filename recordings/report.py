@@ -221,7 +221,12 @@ def _method_entry(fit, sensor, n_samples, units):
 _BIAS_MODELS = {"GM": "Gauss-Markov", "FL": "flicker"}
 #: the model choices with notes of their own words below; ``min_m`` (the first AV scale fitted) is drawn
 #: in the figure, where each model curve starts
-_WORDED = ("filter_test", "filter_held", "line_test", "resonance_test", "bias_evidence", "min_m")
+_WORDED = ("filter_test", "filter_held", "line_test", "resonance_test", "bias_evidence", "min_m", "term_weights",
+           "selection", "bias_model")
+#: the bias-instability spectra a likelihood fits, by the name its ``bias_model`` choice gives
+_BIAS_SPECTRA = {"flicker": "flicker (1/f)", "gauss_markov": "Gauss-Markov"}
+#: the smallest model weight an averaging note names
+_SHOWN_WEIGHT = 0.01
 
 
 def _plain(v) -> str | None:
@@ -279,6 +284,21 @@ def model_choice_notes(choice: dict, sensor: str, units: dict | None = None) -> 
                          f"{ev['weight']:.2f}) over the {_BIAS_MODELS[fitted]} model these values come from; the "
                          f"{_BIAS_MODELS[preferred]} model gives {shown}" +
                          ("" if ev.get("decisive") else "; the intervals hold both"))
+    bm = choice.get("bias_model") or {}
+    bm = bm if isinstance(bm, dict) else {"chosen": bm}
+    if bm.get("chosen") in _BIAS_SPECTRA:
+        picked = " (the lower criterion of the two)" if len(bm.get("criteria") or {}) > 1 else ""
+        notes.append(f"bias instability modelled as {_BIAS_SPECTRA[bm['chosen']]} noise{picked}")
+    sel = choice.get("selection") or {}
+    if isinstance(sel, dict) and len(sel) > 1:
+        best = min(sel, key=sel.get)
+        notes.append(f"terms kept: {best or '-'} (the lowest criterion of {len(sel)} models tried)")
+    tw = choice.get("term_weights") or {}
+    if tw.get("models"):
+        ranked = sorted(tw["models"].items(), key=lambda kv: -kv[1])
+        shown = ", ".join(f"{m} {w:.2f}" for m, w in ranked if w >= _SHOWN_WEIGHT)
+        notes.append(f"estimates averaged over the models with the terms {shown} (weights; penalty "
+                     f"{tw['penalty']:.3g} per parameter; intervals from the full model)")
     for key, value in choice.items():  # every other choice the method made, as it reports it
         if key not in _WORDED:
             note = _choice_note(key, value)

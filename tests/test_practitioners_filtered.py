@@ -137,10 +137,10 @@ def test_report_says_what_the_curve_fit_assumed():
 
 
 def test_every_other_model_choice_reaches_the_notes_in_words():
-    """A choice without words of its own (Whittle's bias model and term selection, say) is still a
-    note: its name in words and its scalar parts; the first AV scale fitted is the figure's."""
+    """A choice without words of its own (a plugin's, say) is still a note: its name in words and its
+    scalar parts; the first AV scale fitted is the figure's."""
     from avbench.recordings.report import model_choice_notes
 
-    notes = model_choice_notes({"bias_model": "flicker", "selection": {"QNBK": 2567.34, "NBK": 2558.33},
+    notes = model_choice_notes({"lag_window": "parzen", "band_choice": {"low": 2567.34, "high": 2558.33},
                                 "min_m": 4}, "gyro")
-    assert notes == ["bias model: flicker", "selection: QNBK 2.57e+03, NBK 2.56e+03"]
+    assert notes == ["lag window: parzen", "band choice: low 2.57e+03, high 2.56e+03"]
