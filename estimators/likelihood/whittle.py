@@ -251,8 +251,9 @@ class Whittle(Estimator):
         :class:`Whittle`), or their average over the submodels without the terms whose absence the data
         do not rule out, weighted by Akaike (``"akaike"``) or Schwarz (``"bic"``) weights, a dropped
         term counting 0, or (``"akaike_kept"``, ``"bic_kept"``) each coefficient averaged over the
-        models that hold its own term (module docstring, "Model averaging"). Intervals, evidence and
-        standard errors stay the full model's.
+        models that hold its own term (module docstring, "Model averaging"). The intervals and
+        evidence of Q, N, B, K stay the full model's; the standard errors (the Cramér-Rao bound) and
+        the ramp's test are taken at the averaged estimates.
 
     Attributes
     ----------
