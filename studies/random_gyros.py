@@ -38,10 +38,11 @@ HEADER = """# Gyros drawn at random outside the presets: written by
 # each present with probability 0.7, sized relative to N within the presets' ratios. Estimators: the
 # recommended default (de-biased Whittle, every candidate term kept in its intervals, its estimates
 # averaged by BIC weight over the submodels holding each coefficient's term), the reference (the same
-# likelihood told each gyro's true terms), the full model's estimates, averages by Akaike and BIC weight
-# with dropped terms counted 0 and by Akaike weight with each own term kept, the plain Whittle
-# likelihood, and Whittle with BIC term selection (`whittle`). Per gyro: RMSE / CRLB over its
-# replicates (scores.md, leaderboard.md: the median over gyros). Pooled coverage per coefficient:
+# likelihood told each gyro's true terms, the true model's estimates), the full model's estimates,
+# averages by Akaike and BIC weight with dropped terms counted 0 and by Akaike weight with each own
+# term kept, the plain Whittle likelihood, and Whittle with BIC term selection (`whittle`). Per gyro:
+# RMSE / CRLB over its replicates (scores.md, leaderboard.md: the median over gyros). Pooled coverage
+# per coefficient:
 # avbench.studies.summaries.random_gyros (results/random_gyros/pooled.md).
 
 [study]
@@ -61,7 +62,7 @@ settings = {{ terms = "QNBKR" }}
 [[estimators]]
 name = "whittle_debiased"
 label = "Whittle debiased, true terms"
-settings = {{ terms = "true" }}
+settings = {{ terms = "true", averaging = "none" }}
 
 [[estimators]]
 name = "whittle_debiased"
