@@ -417,8 +417,14 @@ def test_every_command_refuses_a_folder_another_run_writes_into(command, tmp_pat
     out.mkdir()
     argv = _writing_argv(command, tmp_path)
     live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    (out / ".avbench.lock").write_text(f"{live.pid}\navbench other\n")
+    _assert_refused_by(live, argv, out, capsys)
+
+
+def _assert_refused_by(live, argv, out, capsys):
+    """``argv`` into ``out``, which the live process ``live`` holds locked: refused, naming that process,
+    nothing written beside the lock; ``live`` stopped afterwards."""
     try:
-        (out / ".avbench.lock").write_text(f"{live.pid}\navbench other\n")
         assert main([*argv, "--out", str(out)]) == 2
         assert f"another avbench run (process {live.pid}: avbench other)" in capsys.readouterr().err
         assert sorted(p.name for p in out.iterdir()) == [".avbench.lock"]
@@ -449,13 +455,7 @@ def test_a_new_output_folder_is_locked_from_its_creation(command, tmp_path, caps
             (out / ".avbench.lock").write_text(f"{live.pid}\navbench other\n")
 
     monkeypatch.setattr(pathlib.Path, "mkdir", mkdir)
-    try:
-        assert main([*argv, "--out", str(out)]) == 2
-        assert f"another avbench run (process {live.pid}: avbench other)" in capsys.readouterr().err
-        assert sorted(p.name for p in out.iterdir()) == [".avbench.lock"]
-    finally:
-        live.kill()
-        live.wait()
+    _assert_refused_by(live, argv, out, capsys)
 
 
 @pytest.mark.parametrize("command", ["estimate", "deviations", "three-cornered-hat"])
