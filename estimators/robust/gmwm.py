@@ -139,13 +139,16 @@ import functools
 import math
 
 import numpy as np
-from scipy import integrate, optimize, stats
+from scipy import integrate, optimize
+from scipy.special import ndtr
 
 from avbench.estimators.allan import _kernels
 from avbench.estimators.allan.variance import cluster_sizes
 from avbench.estimators.base import register
 from avbench.estimators.likelihood.gmwm import GMWM, REAL_SENSOR_MODEL, WaveletVariance, first_step_edf
 from avbench.estimators.settings import Interval, NoneValue, Options
+
+_NORM_PDF_C = math.sqrt(2 * math.pi)  # the standard normal density's constant, as scipy.stats.norm's
 
 __all__ = ["GMWMRobust", "GMWMDespiked", "hampel_outliers", "masked_allan_variance", "robust_allan_variance",
            "tuning", "m_scale", "PSI"]
@@ -162,8 +165,10 @@ def _rho(kind, r, c):
 
 def _gauss_moments(kind, c):
     """(delta, efficiency) of the M-scale with rho ``kind`` and constant c at the Gaussian."""
-    pdf = stats.norm.pdf
-    tail = 2 * stats.norm.sf(c)
+    # the standard normal density and tail as scipy.stats.norm computes them (exp(-z^2/2) / sqrt(2 pi), ndtr(-c)):
+    # the same bits, without importing scipy.stats
+    pdf = lambda z: np.exp(-z**2 / 2.0) / _NORM_PDF_C  # noqa: E731
+    tail = 2 * ndtr(-c)
     rho_max = c * c if kind == "huber" else 1.0
     e1 = 2 * integrate.quad(lambda z: _rho(kind, z, c) * pdf(z), 0, c, limit=200)[0] + rho_max * tail
     e2 = 2 * integrate.quad(lambda z: _rho(kind, z, c) ** 2 * pdf(z), 0, c, limit=200)[0] + rho_max**2 * tail

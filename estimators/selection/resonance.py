@@ -80,7 +80,7 @@ def find_band(rate, dt, band, exclude=None) -> ResonanceBand | None:
     frequency of ``band`` can be searched."""
     from scipy.ndimage import median_filter
     from scipy.signal import welch
-    from scipy.stats import chi2
+    from scipy.special import chdtrc  # scipy.stats.chi2.sf(x, nu) is chdtrc(nu, x), without importing scipy.stats
 
     x = np.asarray(rate, dtype=float)
     nper = int(min(2048, 2 ** math.floor(math.log2(max(x.size // 16, 16)))))
@@ -96,7 +96,7 @@ def find_band(rate, dt, band, exclude=None) -> ResonanceBand | None:
     ratio = np.where(ok, p / np.where(base > 0, base, np.inf), 0.0)
     k = int(np.argmax(ratio))
     n_seg = max(1, (x.size - nper) // (nper // 2) + 1)
-    p_value = min(1.0, int(ok.sum()) * float(chi2.sf(ratio[k] * n_seg, n_seg)))
+    p_value = min(1.0, int(ok.sum()) * float(chdtrc(n_seg, ratio[k] * n_seg)))
     excess = np.clip(p - base, 0.0, None)
     half = excess >= excess[k] / 2
     a = k
@@ -160,7 +160,7 @@ def choose_resonance(latents, best, tried, m, usable, band: Callable[[], Resonan
     ``check(fit, latents)``: the poor-fit check's entries of a fit (None: no check). The two fits' J on the
     same scales are compared by the D (distance-metric) statistic, chi^2(3) where RS's sigma is not on its
     boundary: indicative only (f0 and tc are undefined without the term)."""
-    from scipy.stats import chi2
+    from scipy.special import chdtrc  # scipy.stats.chi2.sf(x, nu) is chdtrc(nu, x), without importing scipy.stats
 
     from avbench.estimators.selection.scales import SCALE_TEST_LEVEL
 
@@ -215,7 +215,7 @@ def choose_resonance(latents, best, tried, m, usable, band: Callable[[], Resonan
         "J_without_same_scales": float(j_without),
         # the D (distance-metric) statistic of the two nested fits on the same scales; with sigma = 0 on
         # its boundary and f0, tc undefined without the term its chi^2(3) p-value is only indicative
-        "p_value": float(chi2.sf(j_without - fit["J_stat"], 3)) if math.isfinite(j_without) else math.nan,
+        "p_value": float(chdtrc(3, j_without - fit["J_stat"])) if math.isfinite(j_without) else math.nan,
         "sigma": params["RS.sigma"], "f0": params["RS.f0"], "tc": params["RS.tc"],
         "reason": "the resonance lets the model fit shorter scales",
     })

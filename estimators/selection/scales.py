@@ -130,9 +130,9 @@ def cutoffs(rule, m, usable, n_free, reach=None) -> list[int]:
 def adequate(J, k, n_free) -> bool:
     """Hansen's J test of a fit on ``k`` scales with ``n_free`` parameters does not reject at
     :data:`SCALE_TEST_LEVEL` (chi^2 with max(k - n_free, 1) degrees of freedom)."""
-    from scipy.stats import chi2
+    from scipy.special import chdtrc  # scipy.stats.chi2.sf(x, nu) is chdtrc(nu, x), without importing scipy.stats
 
-    return chi2.sf(J, max(k - n_free, 1)) >= SCALE_TEST_LEVEL
+    return chdtrc(max(k - n_free, 1), J) >= SCALE_TEST_LEVEL
 
 
 def _fit_at(fit_on, m0, m, usable, tried) -> dict:
@@ -164,7 +164,9 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
     >>> [t[0] for t in c.tried], c.fit["k"]
     ([1, 2, 4], 9)
     """
-    from scipy.stats import chi2
+    # scipy.stats.chi2.sf(x, nu) is chdtrc(nu, x) and chi2.ppf(q, nu) is 2 gammaincinv(nu / 2, q): the same bits,
+    # without importing scipy.stats
+    from scipy.special import chdtrc, gammaincinv
 
     best, tried, chosen, why, fits, found = None, [], False, None, [], False
     for m0 in lows:
@@ -184,7 +186,7 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
             if 2 * k < k_all:
                 break  # "adequate" keeps at least the longer half of the scales
             continue  # "adequate": the sequential choice is made; look on for an adequate cut-off
-        if best is not None and not best["J_stat"] - fit["J_stat"] > chi2.ppf(1 - SCALE_TEST_LEVEL, best["k"] - k):
+        if best is not None and not best["J_stat"] - fit["J_stat"] > 2 * gammaincinv((best["k"] - k) / 2, 1 - SCALE_TEST_LEVEL):
             why = "the difference-in-J test does not reject the shortest scale kept"
             if rule != "adequate":
                 break  # the shorter scale agrees with the rest: keep it
@@ -192,7 +194,7 @@ def choose_scales(fit_on: Callable[[np.ndarray], dict], lows, m, usable, n_free,
             continue
         best = fit
     if rule == "adequate" and reached and fits and not found:
-        m0, best = max(fits, key=lambda mf: chi2.sf(mf[1]["J_stat"], max(mf[1]["k"] - n_free, 1)))
+        m0, best = max(fits, key=lambda mf: chdtrc(max(mf[1]["k"] - n_free, 1), mf[1]["J_stat"]))
         return ScaleChoice(best, tried, "no cut-off within the white reach is adequate by Hansen's J: the one it "
                                         f"rejects least (min_m={m0})")
     if rule not in ("auto", "adequate"):
