@@ -275,15 +275,16 @@ def model_choice_notes(choice: dict, sensor: str, units: dict | None = None) -> 
         values = ev[other]["coefficients"]
         shown = ", ".join(f"{c} {_g(in_unit(c, values[c], units[c], sensor))} {units[c]}"
                           for c in ("B", "K") if values.get(c) is not None) or "?"
-        strength = "clearly" if ev.get("decisive") else "not clearly"
+        favours = "clearly favours" if ev.get("decisive") else "does not clearly favour"
+        both = "" if ev.get("decisive") else "; the intervals hold both"
         if preferred == fitted:
-            notes.append(f"bias instability: the record {strength} favours the {_BIAS_MODELS[fitted]} model these "
-                         f"values come from (weight {ev['weight']:.2f}); the {_BIAS_MODELS[other]} model gives {shown}")
+            notes.append(f"bias instability: the record {favours} the {_BIAS_MODELS[fitted]} model these "
+                         f"values come from (weight {ev['weight']:.2f}); the {_BIAS_MODELS[other]} model gives "
+                         f"{shown}{both}")
         else:
-            notes.append(f"bias instability: the record {strength} favours a {_BIAS_MODELS[preferred]} model (weight "
+            notes.append(f"bias instability: the record {favours} a {_BIAS_MODELS[preferred]} model (weight "
                          f"{ev['weight']:.2f}) over the {_BIAS_MODELS[fitted]} model these values come from; the "
-                         f"{_BIAS_MODELS[preferred]} model gives {shown}" +
-                         ("" if ev.get("decisive") else "; the intervals hold both"))
+                         f"{_BIAS_MODELS[preferred]} model gives {shown}{both}")
     bm = choice.get("bias_model") or {}
     bm = bm if isinstance(bm, dict) else {"chosen": bm}
     if bm.get("chosen") in _BIAS_SPECTRA:

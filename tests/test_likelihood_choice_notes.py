@@ -43,3 +43,19 @@ def test_selection_says_the_terms_kept_of_the_models_tried(record):
 def test_one_model_fitted_gives_no_selection_note():
     notes = model_choice_notes({"selection": {"QNBK": 1.0}, "bias_model": {"chosen": "gauss_markov"}}, "gyro")
     assert notes == ["bias instability modelled as Gauss-Markov noise"]
+
+
+@pytest.mark.parametrize("preferred", ["GM", "FL"])
+@pytest.mark.parametrize("decisive", [True, False])
+def test_bias_evidence_note_says_when_the_intervals_hold_both_models(preferred, decisive):
+    """GMWM's bias-model evidence in words: 'clearly favours' or 'does not clearly favour', and where the
+    evidence is not decisive (the intervals then hold both fits, whichever model is preferred) the note says so."""
+    ev = {"preferred": preferred, "fitted": "GM", "decisive": decisive, "weight": 0.97 if decisive else 0.6,
+          "GM": {"coefficients": {"B": 1e-5, "K": 1e-7}}, "FL": {"coefficients": {"B": 2e-5, "K": 0.0}}}
+    units = {"B": "deg/h", "K": "deg/h^1.5"}
+    notes = [n for n in model_choice_notes({"bias_evidence": ev}, "gyro", units) if n.startswith("bias instability")]
+    assert len(notes) == 1
+    note = notes[0]
+    assert ("clearly favours" in note) is decisive and ("does not clearly favour" in note) is (not decisive)
+    assert note.endswith("; the intervals hold both") is (not decisive)
+    assert "not clearly favours" not in note
