@@ -302,11 +302,13 @@ def _real_breakdown(r) -> str:
     limit = f"; limited by {r['limited_by']}" if isinstance(r.get("limited_by"), str) else ""
     fits = (f"fits {parts['fits']:.1f} s wall ({per or 'none'})" if "fits" in parts else "nothing fitted")
     within = f"; within this process's fits (inclusive, nested parts counted in each): {inner}" if inner else ""
+    # a part an older run did not time is left out (its seconds are then in "the rest")
+    early = ", ".join(f"{name} {parts[k]:.2f} s" for name, k in (("reading", "reading (read, timing, SI)"),
+                                                                  ("AVs", "Allan variances (recordings.fit.scaled_allan)"),
+                                                                  ("static check", "static check")) if k in parts)
     return (f"{r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} CPU-s (load {r['loadavg_before'][0]:.1f} before, "
-            f"{r['loadavg_after'][0]:.1f} after; n = {int(r['n']):.3g}){limit}: imports {r['imports_s']:.1f} s, reading "
-            f"{parts.get('reading (read, timing, SI)', math.nan):.2f} s, AVs "
-            f"{parts.get('Allan variances (recordings.fit.scaled_allan)', math.nan):.2f} s, static check "
-            f"{parts.get('static check', math.nan):.2f} s, {fits}, outputs ({shown}), the rest (interpreter, payload, "
+            f"{r['loadavg_after'][0]:.1f} after; n = {int(r['n']):.3g}){limit}: imports {r['imports_s']:.1f} s, "
+            f"{early + ', ' if early else ''}{fits}, outputs ({shown}), the rest (interpreter, payload, "
             f"tables) {r['rest_s']:.1f} s{within}")
 
 
