@@ -55,7 +55,7 @@ import math
 
 import numpy as np
 
-__all__ = ["KEYS", "UNITS", "axis_value", "filter_values", "filter_choices", "check_sensors", "kalibr_yaml", "parse_inflate", "av_bound"]
+__all__ = ["KEYS", "UNITS", "axis_value", "filter_values", "filter_choices", "check_sensors", "kalibr_yaml", "parse_inflate", "av_upper_limit", "av_bound"]
 
 #: (sensor, coefficient) -> Kalibr key
 KEYS = {("accel", "N"): "accelerometer_noise_density", ("accel", "K"): "accelerometer_random_walk",
@@ -92,10 +92,10 @@ def check_sensors(sensors, option: str = "--kalibr") -> None:
                              f"channels; expected gyro and accelerometer axes (a sensor_msgs/Imu topic, or --gyro and --accel)")
 
 
-def av_bound(coefficient: str, av, scale: float = 1.0, level: float = 0.95) -> float | None:
-    """The upper bound on N or K that the Allan variance itself allows (module docstring): the smallest
-    over the taus of the one-sided ``level`` chi^2 upper limit of AV(tau) (``av``: an AllanResult of
-    the record times ``scale``) turned into the coefficient. None for other coefficients."""
+def av_upper_limit(av, scale: float = 1.0, level: float = 0.95):
+    """``(tau, upper)`` at the taus where the Allan variance has a value and an edf: the one-sided ``level``
+    chi^2 upper limit of AV(tau), AV edf / chi^2_{edf}(1 - level) (``av``: an AllanResult of the record times
+    ``scale``); None where no tau has both."""
     # scipy.stats.chi2.ppf(q, nu) is 2 gammaincinv(nu / 2, q): the same bits, without importing scipy.stats
     from scipy.special import gammaincinv
 
@@ -104,11 +104,21 @@ def av_bound(coefficient: str, av, scale: float = 1.0, level: float = 0.95) -> f
     ok = np.isfinite(avar) & (avar > 0) & np.isfinite(edf) & (edf > 0)
     if not ok.any():
         return None
-    hi = avar[ok] * edf[ok] / (2 * gammaincinv(edf[ok] / 2, 1 - level))
+    return tau[ok], avar[ok] * edf[ok] / (2 * gammaincinv(edf[ok] / 2, 1 - level))
+
+
+def av_bound(coefficient: str, av, scale: float = 1.0, level: float = 0.95) -> float | None:
+    """The upper bound on N or K that the Allan variance itself allows (module docstring): the smallest
+    over the taus of the one-sided ``level`` chi^2 upper limit of AV(tau) (:func:`av_upper_limit`) turned
+    into the coefficient. None for other coefficients."""
+    limit = av_upper_limit(av, scale, level)
+    if limit is None:
+        return None
+    tau, hi = limit
     if coefficient == "K":
-        return float(np.sqrt(np.min(3 * hi / tau[ok])))
+        return float(np.sqrt(np.min(3 * hi / tau)))
     if coefficient == "N":
-        return float(np.sqrt(np.min(hi * tau[ok])))
+        return float(np.sqrt(np.min(hi * tau)))
     return None
 
 

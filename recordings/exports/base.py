@@ -187,17 +187,9 @@ def plateau_bound(av, scale: float = 1.0, level: float = 0.95) -> float | None:
     """The largest B the Allan variance allows under IEEE Std 952's flat line (module docstring):
     :math:`\\min_\\tau \\sqrt{AV_{level}(\\tau) / (2 \\ln 2 / \\pi)}`, with :math:`AV_{level}` the one-sided
     chi^2 upper limit of the AV (``av``: an AllanResult of the record times ``scale``). None where the AV
-    has no usable point."""
-    # scipy.stats.chi2.ppf(q, nu) is 2 gammaincinv(nu / 2, q): the same bits, without importing scipy.stats
-    from scipy.special import gammaincinv
-
-    edf = np.asarray(av.edf, float)
-    avar = np.asarray(av.avar, float) / scale**2
-    ok = np.isfinite(avar) & (avar > 0) & np.isfinite(edf) & (edf > 0)
-    if not ok.any():
-        return None
-    hi = avar[ok] * edf[ok] / (2 * gammaincinv(edf[ok] / 2, 1 - level))
-    return float(np.sqrt(np.min(hi) / PLATEAU))
+    has no usable point (:func:`~avbench.recordings.filter_yaml.av_upper_limit`)."""
+    limit = filter_yaml.av_upper_limit(av, scale, level)
+    return None if limit is None else float(np.sqrt(np.min(limit[1]) / PLATEAU))
 
 
 def bias_instability(req: Request, stack: str) -> dict[str, dict[str, Value]]:
