@@ -126,6 +126,50 @@ def test_masked_av_white_gain_is_exact():
         masked_allan_variance(x, 0.1, np.zeros(5, bool))
 
 
+def test_despiked_leaves_in_samples_whose_removal_moves_no_av_value_by_min_shift():
+    """A Gaussian record's tail samples past 5 sigma are found; leaving them out would move the AV by less
+    than ``min_shift`` standard errors, so they are left in and the fit is GMWM's, bit for bit; with
+    ``min_shift=0`` they are left out and the fit moves; one spike of 40 sigma is left out by the default."""
+    from avbench.estimators.robust.gmwm import largest_shift
+
+    x = np.random.default_rng(11).standard_normal(1 << 18)
+    a = estimators.get("gmwm", model="WN+GM").fit(x, 0.01)
+    b = estimators.get("gmwm_despiked", model="WN+GM").fit(x, 0.01)
+    c = estimators.get("gmwm_despiked", model="WN+GM", min_shift=0.0).fit(x, 0.01)
+    found = int(hampel_outliers(x)[0].sum())
+    assert found > 0
+    assert b.extras_["outliers_left_in"] == found and b.extras_["outlier_fraction"] == 0.0
+    assert 0 < b.extras_["outlier_shift"] <= 0.29
+    assert a.coefficients_.equals(b.coefficients_)
+    assert c.extras_["outlier_fraction"] == found / x.size and c.extras_["outliers_left_in"] == 0
+    assert not a.coefficients_.equals(c.coefficients_)
+    # the shift reported is the largest move of a matched AV value, in its standard errors (the fit sees the
+    # record scaled: equal to rounding)
+    out = hampel_outliers(x)[0]
+    wv = estimators.get("gmwm")._wavelet_variance(x, 0.01)
+    _, m, av, _, _ = masked_allan_variance(x, 0.01, out, "octave")
+    ok = x.size // wv.m >= 8
+    se = wv.avar * np.sqrt(2 / wv.edf)
+    assert b.extras_["outlier_shift"] == pytest.approx(np.max(np.abs(av - wv.avar)[ok] / se[ok]), rel=1e-12)
+    assert largest_shift(wv, m, av, x.size, 8) == pytest.approx(b.extras_["outlier_shift"], rel=1e-9)
+    spiky = x.copy()
+    spiky[1000] += 40.0
+    d = estimators.get("gmwm_despiked", model="WN+GM").fit(spiky, 0.01)
+    assert d.extras_["outlier_shift"] > 1 and d.extras_["outlier_fraction"] == (found + 1) / x.size
+
+
+def test_min_shift_default_keeps_a_95_interval_at_94_percent():
+    """The default ``min_shift`` b is the largest shift, in standard errors, that keeps a 95 % interval's
+    coverage Phi(1.96 - b) - Phi(-1.96 - b) at or above 0.94 (two digits)."""
+    from scipy.special import ndtr
+
+    from avbench.estimators.robust.gmwm import GMWMDespiked
+
+    b = GMWMDespiked().min_shift
+    cover = lambda b: ndtr(1.959964 - b) - ndtr(-1.959964 - b)  # noqa: E731
+    assert cover(b) >= 0.94 > cover(b + 0.01)
+
+
 def test_despiked_equals_gmwm_on_clean_data():
     x = G.simulate(100_000, np.random.default_rng(8))
     a = estimators.get("gmwm", model="WN+GM").fit(x, DT)
