@@ -1,6 +1,7 @@
 """The `avbench estimate` figure: an ADEV panel per axis, and under it the fit check's z per tau."""
 
 import numpy as np
+import pytest
 
 from avbench.noise_models import AngleRandomWalk, Gyro, RateRandomWalk, Sinusoidal
 from avbench.recordings import figure
@@ -43,3 +44,38 @@ def test_a_model_curve_is_drawn_only_over_the_scales_its_method_fitted():
     fig.canvas.draw()
     sizes = [t.get_fontsize() for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
     assert min(sizes) >= figure.TEXT_PT
+
+
+def test_log_axes_are_labelled_in_plain_text_at_their_ticks():
+    """Every tick label of a log axis is plain text (no mathtext "$"), names its tick's value
+    (:func:`figure.power_label` read back), and the drawing parses no mathtext."""
+    import re
+    from unittest import mock
+
+    from matplotlib import mathtext
+
+    dt = 0.01
+    x = Gyro(dt=dt, terms=[AngleRandomWalk(N=1e-4), RateRandomWalk(K=2e-6)]).simulate(40_000, np.random.default_rng(2))
+    starts = np.empty(0, dtype=np.int64)
+    rec = SensorRecord("gyro", "rad/s", {"x": x}, {"x": "x"})
+    fig = figure.figure(rec, {"x": fit_axis(x, dt, starts, ["gmwm"])}, {"x": scaled_allan(x, dt, starts)}, dt, "t",
+                        {"x": {}})
+    with mock.patch.object(mathtext.MathTextParser, "parse", side_effect=AssertionError("mathtext parsed")):
+        fig.canvas.draw()
+    sup = str.maketrans("⁻⁰¹²³⁴⁵⁶⁷⁸⁹", "-0123456789")
+    checked = 0
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            if axis.get_scale() != "log":
+                continue
+            lo, hi = sorted(axis.get_view_interval())
+            for tick in axis.get_major_ticks():
+                text, value = tick.label1.get_text(), tick.get_loc()
+                if not lo <= value <= hi:
+                    continue
+                assert "$" not in text
+                m = re.fullmatch(r"(?:([0-9.]+)×)?10([-0-9]+)", text.translate(sup))
+                assert m, text
+                assert float(m.group(1) or 1) * 10.0 ** int(m.group(2)) == pytest.approx(value, rel=1e-9)
+                checked += 1
+    assert checked >= 6
