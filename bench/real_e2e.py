@@ -20,11 +20,11 @@ read from the optional real data), 6 axes each, the command's defaults:
 ================================  ===================================================================
 
 :func:`measure` times one whole process ``avbench estimate FILE`` (after one untimed run on a 2-minute
-record of the same kind: numba's disk cache and the OS file cache warm), wall and CPU (the child's user +
-system time, its worker processes included) and the load average, and reads the breakdown the same
-process wrote: its imports, reading (reading, timing and SI), the Allan variances, the static check, the
-fits (:func:`avbench.recordings.estimate.fit_sensors`, wall: the axes on this process and its workers),
-the seconds of each method summed over the axes (wherever they ran), and within this process's share of
+record of the same kind: numba's disk cache, Python's bytecode cache and the OS file cache warm), wall and
+CPU (the child's user + system time, its worker processes included) and the load average, and reads the
+breakdown the same process wrote: its imports, reading (reading, timing and SI), the Allan variances, the
+static check, the fits (:func:`avbench.recordings.estimate.fit_sensors`, wall: the axes on this process and
+its workers), the seconds of each method summed over the axes (wherever they ran), and within this process's share of
 the fits, by timers around the calls (inclusive seconds; nested calls counted in each enclosing part):
 GMWM's scale choices (``selection.scales``), the resonance choice (``selection.resonance``), the
 bias-model evidence (``GMWM._bias_evidence``), the line test (``selection.lines.choose_line``), the fit
@@ -213,6 +213,14 @@ def _timed_process(out_json: str, argv: list[str]) -> int:
     return rc
 
 
+def _child_env() -> dict:
+    """The timed process's environment: this one's, with matplotlib's Agg backend, and Python's bytecode cache
+    on as a user's Python has it (``PYTHONDONTWRITEBYTECODE`` dropped: the untimed warm run writes the
+    ``.pyc`` files, as it fills numba's disk cache, and the timed run reads them)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    return {**env, "MPLBACKEND": "Agg"}
+
+
 def _run(path: Path, opts: list[str], out: Path, breakdown: Path, answered: bool = False) -> tuple[float, float, dict]:
     """(wall s, child CPU s, breakdown) of the timed process on ``path`` (``answered``: the command is
     expected to answer the record not static, exit code 3)."""
@@ -220,7 +228,7 @@ def _run(path: Path, opts: list[str], out: Path, breakdown: Path, answered: bool
            "--out", str(out), "--no-progress"]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    r = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "MPLBACKEND": "Agg"})
+    r = subprocess.run(cmd, capture_output=True, text=True, env=_child_env())
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != (3 if answered else 0):

@@ -249,3 +249,13 @@ def test_corpus_generators_are_what_they_say(tmp_path):
     assert rec.timing.n_samples == 6000
     check = static_check(rec.sensors, rec.timing.dt)
     assert not check["static"] and any("wander" in t for t in check["reasons"])
+
+
+def test_the_timed_estimate_runs_with_the_bytecode_cache_a_user_has(monkeypatch):
+    """The timed process does not inherit PYTHONDONTWRITEBYTECODE (a user's Python caches bytecode; the warm
+    run writes it) and draws on Agg."""
+    from avbench.bench.real_e2e import _child_env
+
+    monkeypatch.setenv("PYTHONDONTWRITEBYTECODE", "1")
+    env = _child_env()
+    assert "PYTHONDONTWRITEBYTECODE" not in env and env["MPLBACKEND"] == "Agg"
