@@ -44,8 +44,8 @@ _SUPERSCRIPT = str.maketrans("-0123456789", "\u207b\u2070\u00b9\u00b2\u00b3\u207
 
 
 def power_label(value, _pos=None) -> str:
-    """A log axis's tick label in plain text: ``10⁻³`` at a decade, ``2×10⁻³`` between (one significant
-    digit more where needed), "" for a value that is not positive and finite.
+    """A log axis's tick label in plain text: ``10⁻³`` at a decade, ``2×10⁻³`` between (a mantissa of at
+    most two significant digits), "" for a value that is not positive and finite.
 
     >>> power_label(1e-3), power_label(100.0), power_label(1.0), power_label(2e-3), power_label(0.0)
     ('10⁻³', '10²', '10⁰', '2×10⁻³', '')
