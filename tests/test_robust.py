@@ -126,6 +126,29 @@ def test_masked_av_white_gain_is_exact():
         masked_allan_variance(x, 0.1, np.zeros(5, bool))
 
 
+def test_masked_differences_compiled_equal_the_numpy_expressions_bit_for_bit():
+    """The compiled pass, its Python reference and the NumPy slices it stands for give the same bits, on
+    masks with runs of left-out samples long enough to empty whole clusters."""
+    from avbench.estimators.robust import _kernels
+
+    rng = np.random.default_rng(7)
+    n = 5_000
+    x = rng.standard_normal(n) * 3e-4 + 1e-3
+    keep = ~((rng.random(n) < 0.05) | (np.convolve(rng.random(n) < 0.004, np.ones(40), "same") > 0))
+    S = np.concatenate(([0.0], np.cumsum(np.where(keep, x - x[keep].mean(), 0.0))))
+    C = np.concatenate(([0], np.cumsum(keep, dtype=np.int64)))
+    for m in (1, 2, 3, 16, 37, 64, 1024, 2499, 2500, 2600):
+        c1, c2 = C[m:-m] - C[: -2 * m], C[2 * m :] - C[m:-m]
+        ok = (c1 > 0) & (c2 > 0)
+        d_np = (S[2 * m :] - S[m:-m])[ok] / c2[ok] - (S[m:-m] - S[: -2 * m])[ok] / c1[ok]
+        g_np = 1.0 / c1[ok] + 1.0 / c2[ok]
+        for fn in (_kernels.masked_differences, _kernels.masked_differences_py):
+            d, g = np.full(n, np.nan), np.full(n, np.nan)
+            k = fn(S, C, m, d, g)
+            assert k == d_np.size and np.array_equal(d[:k], d_np) and np.array_equal(g[:k], g_np)
+    assert 0 < np.count_nonzero(~keep) < n // 4
+
+
 def test_despiked_leaves_in_samples_whose_removal_moves_no_av_value_by_min_shift():
     """A Gaussian record's tail samples past 5 sigma are found; leaving them out would move the AV by less
     than ``min_shift`` standard errors, so they are left in and the fit is GMWM's, bit for bit; with

@@ -156,6 +156,7 @@ from scipy import integrate, optimize
 from scipy.special import ndtr
 
 from avbench.estimators.allan import _kernels
+from avbench.estimators.robust._kernels import masked_differences as _masked_differences
 from avbench.estimators.allan.variance import cluster_sizes
 from avbench.estimators.base import register
 from avbench.estimators.likelihood.gmwm import GMWM, REAL_SENSOR_MODEL, WaveletVariance, first_step_edf
@@ -409,15 +410,14 @@ def masked_allan_variance(rate, dt, outliers, taus="octave"):
     S = np.concatenate(([0.0], np.cumsum(np.where(keep, x - mu, 0.0))))
     C = np.concatenate(([0], np.cumsum(keep, dtype=np.int64)))
     av, gain, terms = np.empty(m.size), np.empty(m.size), np.empty(m.size, dtype=np.int64)
+    d_all, g_all = np.empty(n), np.empty(n)
     for i, mi in enumerate(m):
         mi = int(mi)
-        c1, c2 = C[mi:-mi] - C[: -2 * mi], C[2 * mi :] - C[mi:-mi]
-        ok = (c1 > 0) & (c2 > 0)
-        c1, c2 = c1[ok], c2[ok]
-        d = (S[2 * mi :] - S[mi:-mi])[ok] / c2 - (S[mi:-mi] - S[: -2 * mi])[ok] / c1
-        terms[i] = d.size
-        av[i] = 0.5 * float(np.mean(d * d)) if d.size else np.nan
-        gain[i] = 0.5 * mi * float(np.mean(1.0 / c1 + 1.0 / c2)) if d.size else np.nan
+        k = _masked_differences(S, C, mi, d_all, g_all)  # the differences of the clusters both non-empty
+        d, g = d_all[:k], g_all[:k]
+        terms[i] = k
+        av[i] = 0.5 * float(np.mean(d * d)) if k else np.nan
+        gain[i] = 0.5 * mi * float(np.mean(g)) if k else np.nan
     return m * dt, m, av, gain, terms
 
 
