@@ -37,6 +37,7 @@ its amplitude :math:`A = \sqrt{2\,\mathrm{variance}}`.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import NamedTuple
 
@@ -92,6 +93,14 @@ def block_bins(n, dt) -> int:
     return int(min(BLOCK, max(MIN_BLOCK, math.floor(BLOCK_HZ * n * dt + 1e-9))))
 
 
+@functools.lru_cache(maxsize=2)
+def _hann(n):
+    """``np.hanning(n)``, kept for the axes of one record (read-only)."""
+    w = np.hanning(n)
+    w.flags.writeable = False
+    return w
+
+
 @per_record  # each method fitted to an axis asks for the same record's line
 def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     """The strongest line of record ``x`` (sample interval ``dt``) in ``band`` (Hz; default: every
@@ -107,7 +116,7 @@ def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     if x.size < 8 * span:
         return None
     x = x - x.mean()
-    w = np.hanning(x.size)
+    w = _hann(x.size)
     P = np.abs(np.fft.rfft(x * w)) ** 2
     f = np.fft.rfftfreq(x.size, dt)
     df = 1.0 / (x.size * dt)
@@ -121,8 +130,10 @@ def strongest_line(x, dt, band=None, *, floor=True) -> SpectralLine | None:
     blocks = P[: n_blocks * block].reshape(n_blocks, block)
     bl = np.minimum(idx // block, n_blocks - 1)
     offsets = np.r_[-FAR_BLOCKS:-1, 2:FAR_BLOCKS + 1]
-    # the median over the neighbouring blocks' bins, for the block of each searched bin (one per block)
-    ub, inv = np.unique(bl, return_inverse=True)
+    # the median over the neighbouring blocks' bins, for the block of each searched bin (one per block; the
+    # searched bins ascend, so their blocks do)
+    first = np.r_[True, bl[1:] != bl[:-1]]
+    ub, inv = bl[first], np.cumsum(first) - 1
     nb = np.clip(ub[:, None] + offsets[None, :], 0, n_blocks - 1)
     bg_block = np.median(blocks[nb].reshape(ub.size, -1), axis=1)
     bg = bg_block[inv]
