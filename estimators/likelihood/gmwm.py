@@ -112,7 +112,7 @@ from avbench.estimators.likelihood.solve import solve as _solve
 from avbench.estimators.selection import bias_model, bounds, shared
 from avbench.estimators.validation import check_variance_seen
 from avbench.estimators.selection.lines import choose_line, frequency_at_bound, sinusoid_hint
-from avbench.estimators.selection.resonance import band_seen, choose_resonance, resonance_hint
+from avbench.estimators.selection.resonance import band_seen, choose_resonance, resonance_box, resonance_hint
 from avbench.estimators.selection.scales import (ScaleChoice, choose_scales, cutoffs, reach_binds, shorter_adequate,
                                                  white_reach)
 from avbench.estimators.settings import Boolean, Check, Interval, NoneValue, Options, Relation
@@ -683,14 +683,16 @@ class GMWM(Estimator):
         (ARW) part of the model multiplied by it (:class:`WaveletVariance`). ``line``, ``resonance``: a
         spectral line and band found in the record, where a sinusoid and a resonance start and stay
         (:func:`~avbench.estimators.selection.lines.sinusoid_hint`,
-        :func:`~avbench.estimators.selection.resonance.resonance_hint`). ``seed``: the fitted values of
-        every latent but a resonance ``RS`` (last in the parameter vector), the model it is added to: the
-        fit then starts there, with the resonance at each of ``resonance.starts`` (instead of every
+        :func:`~avbench.estimators.selection.resonance.resonance_hint`; a resonance's damping time within the
+        band the spectrum resolves, :func:`~avbench.estimators.selection.resonance.resonance_box`). ``seed``: the
+        fitted values of every latent but a resonance ``RS`` (last in the parameter vector), the model it is added
+        to: the fit then starts there, with the resonance at each of ``resonance.starts`` (instead of every
         combination of the terms' starts)."""
         n_par = self._n_free(latents)
         T = n * dt
         hints = {"SN": sinusoid_hint(line), "RS": resonance_hint(resonance)}
         lo, hi = self._hold(latents, *log_bounds(latents, tau, avar, dt, T, hints))
+        lo, hi = resonance_box(latents, lo, hi, resonance)
 
         tau_fl = 2.0 * T  # flicker latent: filter memory twice the record, as the presets
         extra = None

@@ -11,7 +11,8 @@ keeps a shorter cut-off that (a) Hansen's J does not reject at
 :data:`~avbench.estimators.selection.scales.SCALE_TEST_LEVEL` keeping the longer half of the scales
 (``min_m="adequate"``'s rule), (b) sees the band (shortest tau at most :data:`RESONANCE_SEEN` / f0),
 (c) is a resonance (quality factor at least :data:`RESONANCE_MIN_Q`) and (d) passes the poor-fit check. The
-centre frequency stays within :data:`RESONANCE_FREQUENCY_FACTOR` of the band found (:func:`resonance_hint`).
+centre frequency stays within :data:`RESONANCE_FREQUENCY_FACTOR` of the band found (:func:`resonance_hint`), and
+the damping time within the narrowest band the spectrum resolves (:func:`resonance_box`).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from avbench.noise_models.term_base import FitHint
 
 __all__ = ["RESONANCE_MAX_FREQUENCY", "RESONANCE_SEEN", "RESONANCE_FREQUENCY_FACTOR", "RESONANCE_MIN_PROMINENCE",
            "RESONANCE_MIN_Q", "RESONANCE_TEST_LEVEL", "ResonanceBand", "ResonanceChoice", "find_band", "band_seen",
-           "resonance_hint", "choose_resonance"]
+           "resonance_hint", "resonance_box", "choose_resonance"]
 
 #: a resonance is kept only where the shortest tau fitted is at most this over its centre frequency (twice its
 #: AV's peak tau, 0.371 / f0): beyond, only its 1/tau^2 tail is fitted, a shape with no resonance in it
@@ -55,13 +56,15 @@ class ResonanceBand(NamedTuple):
     """The band of a record's spectrum that stands highest above its surroundings (:func:`find_band`):
     ``f0`` (Hz), ``half_width`` (Hz, at half the excess power), ``prominence`` (Welch spectrum over its
     running median at f0), ``p_value`` (that ratio under a smooth spectrum), ``starts`` ((sigma, f0, tc)
-    starting values of ``RS``)."""
+    starting values of ``RS``), ``max_tc`` (s: the damping time of the narrowest band the spectrum resolves,
+    :func:`resonance_box`)."""
 
     f0: float
     half_width: float
     prominence: float
     p_value: float
     starts: list
+    max_tc: float = math.inf
 
 
 def find_band(rate, dt, band, exclude=None) -> ResonanceBand | None:
@@ -75,9 +78,10 @@ def find_band(rate, dt, band, exclude=None) -> ResonanceBand | None:
     and overlap; nu is taken as the number of segments (conservative), so the ratio r exceeds its value
     with probability chi2.sf(r nu, nu), times the number of frequencies searched (Bonferroni). Starts:
     the excess power over the surroundings within the half-power points gives sigma^2 (times 2: a
-    Lorentzian holds half its power within them), the half width at half power w gives tc = 1 / (2 pi w);
-    then the same f0 with a ten times longer and a ten times shorter tc. The fit decides. None where no
-    frequency of ``band`` can be searched."""
+    Lorentzian holds half its power within them), the half width at half power w (at least half a bin,
+    df / 2) gives tc = 1 / (2 pi w); then the same f0 with a ten times longer and a ten times shorter tc. The
+    fit decides, with tc at most 1 / (pi df), the band of half a bin (``max_tc``). None where no frequency of
+    ``band`` can be searched."""
     from scipy.ndimage import median_filter
     from scipy.signal import welch
     from scipy.special import chdtrc  # scipy.stats.chi2.sf(x, nu) is chdtrc(nu, x), without importing scipy.stats
@@ -110,7 +114,7 @@ def find_band(rate, dt, band, exclude=None) -> ResonanceBand | None:
     sigma = math.sqrt(max(2.0 * float(excess[a:b + 1].sum()) * df, 1e-300))
     tc = 1.0 / (2 * math.pi * w)
     starts = [(sigma, float(f[k]), tc), (sigma, float(f[k]), 10 * tc), (sigma, float(f[k]), tc / 10)]
-    return ResonanceBand(float(f[k]), float(w), float(ratio[k]), p_value, starts)
+    return ResonanceBand(float(f[k]), float(w), float(ratio[k]), p_value, starts, 1.0 / (math.pi * df))
 
 
 def band_seen(rate, dt, tau, line=None) -> ResonanceBand | None:
@@ -134,6 +138,30 @@ def resonance_hint(band: ResonanceBand | None) -> FitHint | None:
         return None
     return FitHint(window=(band.f0 / RESONANCE_FREQUENCY_FACTOR, band.f0 * RESONANCE_FREQUENCY_FACTOR),
                    starts=band.starts)
+
+
+def resonance_box(latents, lo, hi, band: ResonanceBand | None):
+    """``(lo, hi)``, the log-parameter box of the model ``latents``, with a resonance ``RS``'s damping time at
+    most ``band.max_tc``: the band of half a bin of the record's Welch spectrum (:func:`find_band`). A narrower
+    band is not a band the spectrum shows but a line (a sinusoid ``SN``, :mod:`.lines`), and toward it the
+    criterion is flat: a solve crawls along that ridge for thousands of evaluations and stops where the last
+    bits of the record decide (the same record in two units ended at 10 s and at the record's length), and
+    the second step's weights, and so its optimum, follow from where it stopped. Unchanged without ``RS`` or
+    a band.
+
+    >>> band = find_band(np.random.default_rng(0).standard_normal(2**16), 0.01, (1.0, 40.0))
+    >>> lo, hi = resonance_box(("WN", "RS"), np.zeros(4), np.full(4, 9.0), band)
+    >>> round(float(np.exp(hi[3])), 2)  # segments of 2048 samples of 0.01 s: 1 / (pi * 0.0488 Hz)
+    6.52
+    """
+    from avbench.noise_models.latents import LATENT_TERMS, param_index
+
+    if band is None or "RS" not in latents:
+        return lo, hi
+    i = param_index(latents, "RS") + LATENT_TERMS["RS"].fit_parameters.index("tc")
+    hi = np.array(hi, dtype=float)
+    hi[i] = max(min(hi[i], math.log(band.max_tc)), lo[i])
+    return lo, hi
 
 
 class ResonanceChoice(NamedTuple):
