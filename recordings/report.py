@@ -276,7 +276,9 @@ def model_choice_notes(choice: dict, sensor: str, units: dict | None = None) -> 
         shown = ", ".join(f"{c} {_g(in_unit(c, values[c], units[c], sensor))} {units[c]}"
                           for c in ("B", "K") if values.get(c) is not None) or "?"
         favours = "clearly favours" if ev.get("decisive") else "does not clearly favour"
-        both = "" if ev.get("decisive") else "; the intervals hold both"
+        # the intervals hold the other model's fit too unless the record clearly favours the fitted one
+        # (estimators.selection.bias_model.held_alternative)
+        both = "" if ev.get("decisive") and preferred == fitted else "; the intervals hold both"
         if preferred == fitted:
             notes.append(f"bias instability: the record {favours} the {_BIAS_MODELS[fitted]} model these "
                          f"values come from (weight {ev['weight']:.2f}); the {_BIAS_MODELS[other]} model gives "

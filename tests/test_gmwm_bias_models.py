@@ -1,6 +1,7 @@
-"""GMWM's intervals when the record cannot choose its bias-instability model (``bias_evidence`` not decisive):
-each interval holds the coefficient under either model (the union of the Gauss-Markov and the flicker fits'
-intervals); the value stays the fitted model's; with decisive evidence nothing changes.
+"""GMWM's intervals when the record does not clearly favour the bias-instability model fitted (``bias_evidence``
+not decisive, or decisive for the other model): each interval holds the coefficient under either model (the
+union of the Gauss-Markov and the flicker fits' intervals); the value stays the fitted model's; with evidence
+decisive for the fitted model nothing changes.
 
 The slow test measures what it is for: on gyros whose bias instability is flicker (outside the reported
 Gauss-Markov model), 30-minute records at 100 Hz, the coverage of K's 95 % interval."""
@@ -88,6 +89,24 @@ def pd_interval(model):
     from avbench.estimators.uncertainty import interval
 
     return interval(pd.Series(model["coefficients"], dtype=float), pd.Series(model["std_err"], dtype=float))
+
+
+def test_intervals_hold_the_other_model_where_the_record_clearly_favours_it():
+    """30 minutes of the flicker gyro whose evidence decisively favours flicker (weight >= 0.95) over the
+    Gauss-Markov model the values come from: the intervals hold the flicker fit's values and intervals, as where
+    the evidence is undecided (a reported interval of the disfavoured model alone would miss what the record
+    supports)."""
+    est = _fit(FLICKER.simulate(180_000, np.random.default_rng(2)))
+    ev = est.diagnostics_["bias_evidence"]
+    assert ev["decisive"] and ev["preferred"] == "FL" and ev["fitted"] == "GM"
+    alt, union, base = _alternative(est), est.conf_int(), _own_conf_int(est)
+    alt_ci = pd_interval(alt)
+    for c in ("N", "B", "K"):
+        lo, hi = union.loc[c]
+        assert lo <= base.at[c, "lower"] and hi >= base.at[c, "upper"]
+        assert lo <= alt["coefficients"][c] <= hi
+        if np.isfinite(alt_ci.at[c, "lower"]):
+            assert lo <= alt_ci.at[c, "lower"] and hi >= alt_ci.at[c, "upper"]
 
 
 def test_decisive_record_keeps_the_fitted_models_intervals():

@@ -283,13 +283,20 @@ def test_bias_models_weighed_by_hand_computed_akaike_weights():
                                       n_free, 2)
     assert ev.preferred == "GM" and ev.decisive and ev.weight == pytest.approx(1 / (1 + math.exp(-3)))
     assert ev.report["FL"]["aic"] == 18.0 and ev.report["fitted"] == "GM" and ev.report["min_m"] == 2
-    assert bias_model.undecided_alternative(ev.report) is None
+    assert bias_model.held_alternative(ev.report) is None
     # FL J 11: AIC 17, the GM weight 1 / (1 + e^-2.5) = 0.924: not decisive, the FL fit is the alternative
     ev = bias_model.weigh_bias_models(("WN", "GM", "RW"), _fit(4.0, 2.0), ("WN", "FL", "RW"), _fit(11.0, 3.0),
                                       n_free, 2)
     assert not ev.decisive and ev.weight == pytest.approx(1 / (1 + math.exp(-2.5)))
-    alt = bias_model.undecided_alternative(ev.report)
+    alt = bias_model.held_alternative(ev.report)
     assert alt["B"] == 3.0 and alt["coefficients"] == {"N": 1.0, "B": 3.0} and alt["std_err"]["B"] == 0.2
+    # FL J 0: AIC 6 against GM's 12, the FL weight 1 / (1 + e^-3) >= 0.95: decisive for the model not fitted,
+    # whose fit the intervals then hold too
+    ev = bias_model.weigh_bias_models(("WN", "GM", "RW"), _fit(4.0, 2.0), ("WN", "FL", "RW"), _fit(0.0, 3.0),
+                                      n_free, 2)
+    assert ev.decisive and ev.preferred == "FL" and ev.report["fitted"] == "GM"
+    assert bias_model.held_alternative(ev.report)["B"] == 3.0
+    assert bias_model.held_alternative(None) is None
 
 
 # -- bounds ----------------------------------------------------------------------------------------------------

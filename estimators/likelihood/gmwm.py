@@ -270,8 +270,8 @@ class GMWM(Estimator):
         False (default here). True: the record's evidence between a Gauss-Markov and a flicker bias
         instability, the model choice ``bias_evidence`` (:mod:`avbench.estimators.selection.bias_model`:
         the same model with GM and FL exchanged, on the same scales, GMM-AIC weights); the reported B is
-        the model's own, and where the evidence is not decisive :meth:`conf_int` widens each interval to
-        hold the other model's.
+        the model's own, and unless the evidence decisively favours it :meth:`conf_int` widens each interval
+        to hold the other model's (:func:`~avbench.estimators.selection.bias_model.held_alternative`).
     fit_covariance : {"model", "record"}
         The covariance the final poor-fit check and the standard errors take for the AV values. "model" (default
         here): the stationary model's (:func:`av_covariance`). "record": each value's variance from the record's
@@ -505,8 +505,8 @@ class GMWM(Estimator):
         made.append(choices.first_scale(diag["min_m"]))
         failure = diag.get("failure")
         others = list((diag.get("scale_alternatives") or {}).values())
-        undecided = bias_model.undecided_alternative(evidence)
-        others += [undecided] if undecided is not None else []
+        held = bias_model.held_alternative(evidence)
+        others += [held] if held is not None else []
         return FitParts(fit_check=FitCheck(None) if check is None else as_fit_check(check),
                         alternatives=tuple(Alternative(dict(a["coefficients"]), dict(a["std_err"])) for a in others),
                         unresolved={c: float(b[1]) if b[1] is not None else math.nan
@@ -764,8 +764,8 @@ class GMWMFiltered(GMWM):
     shortest cut-off the model fits by Hansen's J; it differs from ``"auto"`` only where the all-scale fit
     is rejected), ``resonance="auto"`` (a band-pass Gauss-Markov term ``RS`` where a band stands out of
     the spectrum and lets the model keep shorter scales), ``bias_evidence=True`` (the record's weights
-    for a Gauss-Markov against a flicker B; where they are not decisive, :meth:`Estimator.conf_int` widens each
-    interval to hold the flicker fit's too) and ``fit_covariance="record"`` (the poor-fit check and the standard
+    for a Gauss-Markov against a flicker B; unless they decisively favour the Gauss-Markov fit,
+    :meth:`Estimator.conf_int` widens each interval to hold the flicker fit's too) and ``fit_covariance="record"`` (the poor-fit check and the standard
     errors take each AV value's variance from the record where it is larger than the stationary model's: a real
     sensor's noise level may move during the record).
     """

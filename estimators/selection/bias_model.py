@@ -11,8 +11,10 @@ to first order, twice the log-likelihood ratio of the model against the unrestri
 cancelling between the two; Andrews 1999, Econometrica 67, for J-based criteria; each J here with its
 own model's second-step weights, equal to first order where either model is right), and the Akaike
 weights :math:`e^{-\\mathrm{AIC}/2}`, normalised, say how much the record favours each. The evidence is
-decisive where the preferred model's weight is at least :data:`BIAS_EVIDENCE_WEIGHT`; where it is not,
-an interval can hold the coefficient under either model (:func:`undecided_alternative`).
+decisive where the preferred model's weight is at least :data:`BIAS_EVIDENCE_WEIGHT`. The coefficients
+reported are the fitted model's; unless the record decisively favours that model, an interval holds the
+coefficient under the other one too (:func:`held_alternative`): where the evidence is not decisive, and where it
+decisively favours the other model.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from typing import NamedTuple
 from avbench.estimators.selection.averaging import criterion_weights
 from avbench.noise_models.latents import parse_model
 
-__all__ = ["BIAS_EVIDENCE_WEIGHT", "BiasEvidence", "exchanged", "weigh_bias_models", "undecided_alternative"]
+__all__ = ["BIAS_EVIDENCE_WEIGHT", "BiasEvidence", "exchanged", "weigh_bias_models", "held_alternative"]
 
 #: the Akaike weight at which the record's evidence between a Gauss-Markov and a flicker bias instability is
 #: called decisive: a difference in AIC of 5.9
@@ -80,9 +82,12 @@ def weigh_bias_models(latents, fit, other, other_fit, n_free: Callable[[tuple], 
     return BiasEvidence(preferred, out[preferred]["weight"], decisive, out)
 
 
-def undecided_alternative(report: dict | None) -> dict | None:
-    """The other bias-instability model's entry of a :class:`BiasEvidence` report where the record does not
-    decide between the two (its ``coefficients`` and ``std_err``); None where it decides or there is none."""
-    if not report or report["decisive"]:
+def held_alternative(report: dict | None) -> dict | None:
+    """The other bias-instability model's entry of a :class:`BiasEvidence` report (its ``coefficients`` and
+    ``std_err``), which the intervals hold too, unless the record decisively favours the fitted model: where it
+    does not decide between the two, and where it decisively favours the other (the values reported are then
+    the less supported model's, and an interval of theirs alone would miss the coefficient the record
+    supports). None where the record decisively favours the fitted model or there is no report."""
+    if not report or (report["decisive"] and report["preferred"] == report["fitted"]):
         return None
     return report["FL" if report["fitted"] == "GM" else "GM"]
