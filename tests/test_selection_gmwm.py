@@ -253,10 +253,15 @@ def test_resonance_choice_adds_rs_where_the_refit_keeps_shorter_scales():
     asked = {}
 
     def refit(latents, found, below, accept, max_tau, seed):
+        import pandas as pd
+
         asked.update(latents=latents, below=below, max_tau=max_tau)
-        fit = {"J_stat": 7.0, "diag": {"m": np.array([1]), "tau": np.array([DT]),
-                                       "params": {"RS.sigma": 1.0, "RS.f0": 20.0, "RS.tc": 0.1}}}
-        assert accept(fit)  # seen: 0.01 s x 20 Hz <= 0.75; no fit check
+        fit = {"J_stat": 7.0, "coefs": {"N": 1e-3},
+               "diag": {"m": np.array([1]), "tau": np.array([DT]), "std_err": pd.Series({"N": 1e-4}),
+                        "params": {"RS.sigma": 1.0, "RS.f0": 20.0, "RS.tc": 0.1}}}
+        assert accept(fit)  # seen: 0.01 s x 20 Hz <= 0.75; N resolved; no fit check
+        traded = {**fit, "diag": {**fit["diag"], "std_err": pd.Series({"N": 6e-4})}}
+        assert not accept(traded)  # N's 95 % interval reaches zero: the resonance trades with the white noise
         return scales.ScaleChoice(fit, [(1, 7.0, 10)], "stub")
 
     c = resonance.choose_resonance(("WN", "GM"), _best(4), [(1, 80.0, 10), (2, 60.0, 9), (4, 50.0, 8)], M, ALL,

@@ -10,7 +10,8 @@ the model without it drops scales, such a band stands out (prominence at least
 keeps a shorter cut-off that (a) Hansen's J does not reject at
 :data:`~avbench.estimators.selection.scales.SCALE_TEST_LEVEL` keeping the longer half of the scales
 (``min_m="adequate"``'s rule), (b) sees the band (shortest tau at most :data:`RESONANCE_SEEN` / f0),
-(c) is a resonance (quality factor at least :data:`RESONANCE_MIN_Q`) and (d) passes the poor-fit check. The
+(c) is a resonance (quality factor at least :data:`RESONANCE_MIN_Q`), (d) leaves the white noise resolved (N at
+least :data:`RESONANCE_WHITE_Z` standard errors above zero) and (e) passes the poor-fit check. The
 centre frequency stays within :data:`RESONANCE_FREQUENCY_FACTOR` of the band found (:func:`resonance_hint`), and
 the damping time within the narrowest band the spectrum resolves (:func:`resonance_box`).
 """
@@ -28,8 +29,8 @@ from avbench.noise_models.sensor_terms import RESONANCE_MAX_FREQUENCY
 from avbench.noise_models.term_base import FitHint
 
 __all__ = ["RESONANCE_MAX_FREQUENCY", "RESONANCE_SEEN", "RESONANCE_FREQUENCY_FACTOR", "RESONANCE_MIN_PROMINENCE",
-           "RESONANCE_MIN_Q", "RESONANCE_TEST_LEVEL", "ResonanceBand", "ResonanceChoice", "find_band", "band_seen",
-           "resonance_hint", "resonance_box", "choose_resonance"]
+           "RESONANCE_MIN_Q", "RESONANCE_WHITE_Z", "RESONANCE_TEST_LEVEL", "ResonanceBand", "ResonanceChoice", "find_band", "band_seen",
+           "resonance_hint", "resonance_box", "white_resolved", "choose_resonance"]
 
 #: a resonance is kept only where the shortest tau fitted is at most this over its centre frequency (twice its
 #: AV's peak tau, 0.371 / f0): beyond, only its 1/tau^2 tail is fitted, a shape with no resonance in it
@@ -44,6 +45,11 @@ RESONANCE_FREQUENCY_FACTOR = 1.5
 #: range, :meth:`avbench.noise_models.Resonance.fit_shape_bounds`, whose box is set by the band's upper frequency):
 #: broader, it is a low-pass shape that trades with the white noise (an accelerometer's N interval reaching 0)
 RESONANCE_MIN_Q = 1.0
+
+#: a fitted resonance is kept only where the white noise stays resolved: N at least this many of its standard errors
+#: above zero (its 95 % interval clear of zero). A resonance that trades with the white noise -- broad, or a low-pass
+#: shape with the filter term -- leaves N's interval reaching zero, the coefficient the shorter scales are kept for
+RESONANCE_WHITE_Z = 1.959963984540054
 
 #: a band is a resonance candidate only if its spectrum stands this many times above its surroundings
 #: (a lightly damped mode, not the slope of a filter)
@@ -164,6 +170,23 @@ def resonance_box(latents, lo, hi, band: ResonanceBand | None):
     return lo, hi
 
 
+def white_resolved(fit) -> bool:
+    """Whether a fit (``coefs``, ``diag["std_err"]``) resolves its white noise N: at least
+    :data:`RESONANCE_WHITE_Z` standard errors above zero (True for a model without N).
+
+    >>> import pandas as pd
+    >>> white_resolved({"coefs": {"N": 3e-3}, "diag": {"std_err": pd.Series({"N": 1e-4})}})
+    True
+    >>> white_resolved({"coefs": {"N": 3e-3}, "diag": {"std_err": pd.Series({"N": 11.3})}})
+    False
+    """
+    n = fit["coefs"].get("N")
+    if n is None:
+        return True
+    se = fit["diag"]["std_err"].get("N")
+    return bool(se is not None and math.isfinite(se) and n > RESONANCE_WHITE_Z * se)
+
+
 class ResonanceChoice(NamedTuple):
     """What :func:`choose_resonance` chose: ``fit`` (the model's fit, with or without ``RS``), ``tried`` (the
     cut-offs fitted: the model's, then those with RS), ``latents`` (with ``RS`` where it was added) and
@@ -213,12 +236,15 @@ def choose_resonance(latents, best, tried, m, usable, band: Callable[[], Resonan
     def passes(fit):
         # the band is seen (the shortest tau fitted within RESONANCE_SEEN / f0: beyond, the term is only its
         # 1/tau^2 tail, a shape with no resonance in it), it is a resonance (quality factor pi f0 tc at least
-        # RESONANCE_MIN_Q: a broader band is a filter's or a Gauss-Markov shape, and trades with the white noise)
-        # and the poor-fit check passes (a resonance must not make a flagged fit)
+        # RESONANCE_MIN_Q: a broader band is a filter's or a Gauss-Markov shape, and trades with the white noise),
+        # the white noise stays resolved (RESONANCE_WHITE_Z) and the poor-fit check passes (a resonance must not
+        # make a flagged fit)
         params = fit["diag"]["params"]
         if fit["diag"]["tau"][0] * params["RS.f0"] > RESONANCE_SEEN:
             return False
         if math.pi * params["RS.f0"] * params["RS.tc"] < RESONANCE_MIN_Q:
+            return False
+        if not white_resolved(fit):
             return False
         if check is None:
             return True
