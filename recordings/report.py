@@ -270,15 +270,15 @@ def model_choice_notes(choice: dict, sensor: str, units: dict | None = None) -> 
         notes.append(f"resonance at {rs['f0']:.3g} Hz modelled")
     ev = choice.get("bias_evidence") or {}
     if ev.get("preferred") in _BIAS_MODELS:
+        from avbench.estimators.selection.bias_model import held_alternative
+
         fitted, preferred = ev["fitted"], ev["preferred"]
         other = "FL" if fitted == "GM" else "GM"
         values = ev[other]["coefficients"]
         shown = ", ".join(f"{c} {_g(in_unit(c, values[c], units[c], sensor))} {units[c]}"
                           for c in ("B", "K") if values.get(c) is not None) or "?"
         favours = "clearly favours" if ev.get("decisive") else "does not clearly favour"
-        # the intervals hold the other model's fit too unless the record clearly favours the fitted one
-        # (estimators.selection.bias_model.held_alternative)
-        both = "" if ev.get("decisive") and preferred == fitted else "; the intervals hold both"
+        both = "; the intervals hold both" if held_alternative(ev) is not None else ""
         if preferred == fitted:
             notes.append(f"bias instability: the record {favours} the {_BIAS_MODELS[fitted]} model these "
                          f"values come from (weight {ev['weight']:.2f}); the {_BIAS_MODELS[other]} model gives "
