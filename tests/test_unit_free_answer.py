@@ -3,35 +3,18 @@ model's AV, fitted to the record in x180/pi, x1e3 and x2^-30 and divided back, w
 AV of the SI fit's at every octave tau (an axis fitted as the command fits it,
 :func:`avbench.recordings.fit.fit_axis`: shared choices, one thread)."""
 
-import math
-
 import numpy as np
 import pytest
 
 from avbench.bench.real_records import write_consumer
-from avbench.estimators.allan.variance import allan_variance
-from avbench.recordings.fit import fit_axis
-from avbench.recordings.fit_pool import one_thread
+from avbench.bench.unit_free import largest_unit_move
 
-UNITS = (180 / math.pi, 1e3, 2.0**-30)
 METHODS = ("gmwm_filtered", "gmwm_despiked")
 
 
 def _largest_move(x, dt) -> dict:
-    """Per method, the largest |AV_c / c^2 - AV| over the octave taus, as a share of the record's AV there."""
-    tau = allan_variance(x, dt, taus="octave").tau
-    record = allan_variance(x, dt, taus="octave").avar
-    base, worst = None, {}
-    for c in (1.0, *UNITS):
-        with one_thread():
-            fits = fit_axis(x * c, dt, np.array([], dtype=np.int64), METHODS)
-        av = {name: fit.result.model_avar(tau) / c**2 for name, fit in fits.items()}
-        if base is None:
-            base = av
-            continue
-        for name in av:
-            worst[name] = max(worst.get(name, 0.0), float(np.max(np.abs(av[name] - base[name]) / record)))
-    return worst
+    """Per default method, the largest move of the fitted AV between units, as a share of the record's AV."""
+    return largest_unit_move(x, dt, methods=METHODS)
 
 
 @pytest.mark.parametrize("sensor, axis", [("gyro", 0), ("accel", 2)])
