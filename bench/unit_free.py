@@ -70,25 +70,17 @@ def largest_unit_move(x, dt, starts=None, methods=None, units=UNITS) -> dict:
     return worst
 
 
-def _load_options(options: list[str]) -> dict:
-    """The :func:`~avbench.recordings.load.load_recording` keywords of a case's command options."""
-    names = {"--fs": "fs", "--units": "units", "--accel-units": "accel_units"}
-    out = {}
-    for flag, key in names.items():
-        if flag in options:
-            value = options[options.index(flag) + 1]
-            out[key] = float(value) if key == "fs" else value
-    return out
-
-
 def measure_case(case: str, folder: Path) -> list[dict]:
     """One row per axis and default method of the case's record: ``case``, ``channel``, ``method``,
     ``largest_move`` and ``same`` (within :data:`TARGET`)."""
     from avbench.bench.real_e2e import _write
-    from avbench.recordings.load import load_recording
+    from avbench.cli import reader_options_parser
+    from avbench.recordings.load import load_recording, reader_options_of
 
     path, options = _write(case, folder / f"{case}.npz")
-    rec = load_recording(path, **_load_options(options))
+    # the case's reader options read as the command reads them (its other options concern the fit's outputs)
+    reader, _ = reader_options_parser().parse_known_args(options)
+    rec = load_recording(path, **reader_options_of(reader))
     rows = []
     for sensor in rec.sensors:
         for axis, x in sensor.axes.items():
